@@ -1,0 +1,32 @@
+# Two entry points (see README): `make demo` runs the main job on the bundled default problem,
+# `make test` runs the test suite. Both create .venv on first use.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+PROBLEM ?= problems/zk500_table6_seam.toml
+OUT ?= out/demo
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/rfsw-plan plan $(PROBLEM) -o $(OUT)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check rfsw_plan tests examples
+	$(BIN)/mypy
+
+bench: $(STAMP)
+	$(BIN)/python examples/benchmark.py
+
+clean:
+	rm -rf $(VENV) out

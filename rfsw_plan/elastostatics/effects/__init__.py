@@ -1,0 +1,68 @@
+"""Library of elastostatic effects and the registry that turns names into instances.
+
+Effect labels are ``name`` or ``name:jN`` (N 1-based) for per-joint effects.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+
+from rfsw_plan.elastostatics.effects.base import Effect, EffectKind, PoseBatch
+from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
+from rfsw_plan.elastostatics.effects.tilting_compliance import TiltingCompliance
+from rfsw_plan.exceptions import InputError, UnknownNameError
+from rfsw_plan.robot.kinematics import Robot
+
+#: Effect classes by registry name.
+EFFECTS: dict[str, type[Effect]] = {
+    cls.name: cls
+    for cls in (
+        JointCompliance,
+        TiltingCompliance,
+    )
+}
+
+_LABEL = re.compile(r"^([a-z_]+)(?::j(\d+))?$")
+
+
+def parse_effect_label(label: str, n_joints: int) -> tuple[type[Effect], int | None]:
+    """Split ``name[:jN]`` into the effect class and a 0-based joint index.
+
+    Raises:
+        UnknownNameError: Unknown effect name (lists the known ones).
+        InputError: Joint index missing, not expected, or out of range.
+    """
+    m = _LABEL.match(label.strip())
+    name = m.group(1) if m else label
+    if name not in EFFECTS:
+        raise UnknownNameError("effect", name, EFFECTS)
+    cls = EFFECTS[name]
+    assert m is not None
+    joint = int(m.group(2)) - 1 if m.group(2) else None
+    if cls.per_joint:
+        if joint is None:
+            raise InputError("effect", label, "needs a joint", f"{name}:jN with N in 1..{n_joints}")
+        if not 0 <= joint < n_joints:
+            raise InputError("effect", label, f"joint {joint + 1} out of range", f"1..{n_joints}")
+    elif joint is not None:
+        raise InputError("effect", label, "takes no joint index", name)
+    return cls, joint
+
+
+def make_effect(robot: Robot, label: str, params: Mapping[str, float] | None = None) -> Effect:
+    """Instantiate an effect from its label (``tilting_compliance:j2``) and parameters."""
+    cls, joint = parse_effect_label(label, robot.nq)
+    return cls(robot, joint, params)
+
+
+__all__ = [
+    "EFFECTS",
+    "Effect",
+    "EffectKind",
+    "JointCompliance",
+    "PoseBatch",
+    "TiltingCompliance",
+    "make_effect",
+    "parse_effect_label",
+]

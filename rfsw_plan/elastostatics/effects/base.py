@@ -1,0 +1,177 @@
+"""The contract every elastostatic effect fulfils.
+
+An *effect* is one piece of physics that moves the TCP under load or changes the wrench the
+robot really feels. The base model is :class:`~rfsw_plan.elastostatics.effects.joint_compliance.
+JointCompliance` (dX = J K^-1 J^T F); the others are added on top of it in an
+:class:`~rfsw_plan.elastostatics.model.ElastostaticModel`.
+
+Three kinds, applied in this order by the model:
+
+``wrench``
+    Corrects the logged wrench into the wrench that really acts at the TCP
+    (sensor misalignment, sensor bias, payload gravity): ``F_true = F_logged + dF(theta)``.
+``compliance``
+    Deflects the TCP under the true wrench (joint compliance, tilting, backlash,
+    torque-dependent stiffness). Linear-in-wrench ones also expose a Cartesian compliance.
+``geometric``
+    Load-independent pose error (kinematic offsets).
+
+Each effect owns a parameter vector theta (SI units) with a prior, returns its contribution and
+the derivative of that contribution with respect to theta (a *regressor*, exact for effects
+that are linear in theta). Identification stacks the regressors (see
+``rfsw_plan.elastostatics.identification``).
+"""
+
+from __future__ import annotations
+
+import abc
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import ClassVar, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+
+EffectKind = Literal["compliance", "wrench", "geometric"]
+
+
+@dataclass(frozen=True)
+class PoseBatch:
+    """Kinematic quantities of a batch of samples, computed once and shared by all effects.
+
+    Attributes:
+        robot: The robot.
+        q: Controller joint values [rad], shape (m, n).
+        T: TCP poses in the base frame [m], shape (m, 4, 4).
+        J: TCP Jacobians (base frame, wrt controller joints), shape (m, 6, n).
+        frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4).
+    """
+
+    robot: Robot
+    q: FloatArray
+    T: FloatArray
+    J: FloatArray
+    frames: FloatArray
+
+    @classmethod
+    def from_q(cls, robot: Robot, q: FloatArray) -> PoseBatch:
+        """Evaluate kinematics for joint values [rad], shape (m, n) or (n,)."""
+        Q = np.atleast_2d(np.asarray(q, dtype=float))
+        T, J, frames = robot.batch_fk_jacobian(Q, with_joint_frames=True)  # type: ignore[misc]
+        return cls(robot, Q, T, J, frames)
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+
+class Effect(abc.ABC):
+    """One physical effect with its parameters.
+
+    Subclasses set the class attributes and implement :meth:`param_names`, :meth:`prior` and
+    the method(s) of their kind.
+
+    Args:
+        robot: The robot the effect belongs to (for joint count and priors).
+        joint: 0-based joint index for per-joint effects, else None.
+        params: Parameter values keyed by name [SI]; missing ones take the prior.
+    """
+
+    #: Registry name, e.g. ``"tilting_compliance"``.
+    name: ClassVar[str]
+    #: One-sentence physical description.
+    description: ClassVar[str]
+    #: Kind: ``"compliance"``, ``"wrench"`` or ``"geometric"``.
+    kind: ClassVar[EffectKind]
+    #: True if the effect is instantiated per joint (``name:jN``).
+    per_joint: ClassVar[bool] = False
+    #: True if the contribution is linear in theta (one least-squares step identifies it).
+    linear_in_params: ClassVar[bool] = True
+
+    def __init__(
+        self, robot: Robot, joint: int | None = None, params: Mapping[str, float] | None = None
+    ) -> None:
+        if self.per_joint:
+            if joint is None or not 0 <= joint < robot.nq:
+                raise InputError(
+                    "effect", self.name, f"joint {None if joint is None else joint + 1}",
+                    f"a joint index 1..{robot.nq}",
+                )
+        elif joint is not None:
+            raise InputError("effect", self.name, "takes no joint index")
+        self.robot = robot
+        self.joint = joint
+        names = self.param_names()
+        values = np.array(self.prior(), dtype=float)
+        for k, v in (params or {}).items():
+            if k not in names:
+                raise InputError(
+                    "effect", f"{self.label}.{k}", "unknown parameter", ", ".join(names)
+                )
+            values[names.index(k)] = float(v)
+        self.params = values
+
+    @property
+    def label(self) -> str:
+        """Effect name with its 1-based joint, e.g. ``tilting_compliance:j2``."""
+        return self.name if self.joint is None else f"{self.name}:j{self.joint + 1}"
+
+    @abc.abstractmethod
+    def param_names(self) -> tuple[str, ...]:
+        """Names of the parameters, in theta order."""
+
+    @abc.abstractmethod
+    def prior(self) -> FloatArray:
+        """Prior (default) parameter values [SI], shape (p,)."""
+
+    def param_dict(self, theta: FloatArray | None = None) -> dict[str, float]:
+        """Parameters as a name -> value mapping (current values unless theta given)."""
+        th = self.params if theta is None else theta
+        return {k: float(v) for k, v in zip(self.param_names(), th, strict=True)}
+
+    # -- kind "compliance" -------------------------------------------------------------------
+    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        """TCP deflection [m, rad] under the true wrench, base frame, shape (m, 6)."""
+        raise NotImplementedError(f"{self.label} has no deflection")
+
+    def deflection_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        """d(deflection)/d(theta), shape (m, 6, p)."""
+        raise NotImplementedError(f"{self.label} has no deflection regressor")
+
+    def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray | None:
+        """Cartesian compliance (m, 6, 6) if the deflection is linear in the wrench, else None."""
+        return None
+
+    # -- kind "wrench" -----------------------------------------------------------------------
+    def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        """Correction added to the logged wrench [N, N m], base frame, shape (m, 6)."""
+        raise NotImplementedError(f"{self.label} has no wrench correction")
+
+    def wrench_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        """d(delta_wrench)/d(theta), shape (m, 6, p)."""
+        raise NotImplementedError(f"{self.label} has no wrench regressor")
+
+    # -- kind "geometric" --------------------------------------------------------------------
+    def offset(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        """Load-independent TCP pose error [m, rad], base frame, shape (m, 6)."""
+        raise NotImplementedError(f"{self.label} has no offset")
+
+    def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        """d(offset)/d(theta), shape (m, 6, p)."""
+        raise NotImplementedError(f"{self.label} has no offset regressor")
+
+    def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        """Why this data cannot identify the effect, or None if it can (checked before fitting).
+
+        The default says nothing; effects with an obvious data requirement (backlash needs
+        both torque signs) override it.
+        """
+        return None

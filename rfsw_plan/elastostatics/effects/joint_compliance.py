@@ -1,0 +1,40 @@
+"""The base model: linear torsional springs in the joints (seed 000 eq. 11, seed 001 eq. 7)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+
+class JointCompliance(Effect):
+    """dX = J diag(c) J^T F with c_k = 1/k_k the joint compliances [rad/(N m)].
+
+    The regressor is seed 000 eq. 14 (seed 001 eq. 9): column k is J_k (J_k^T F), so
+    dX = W c and c is identified by least squares (eq. 15).
+    """
+
+    name = "joint_compliance"
+    description = (
+        "Each joint is a linear torsional spring about its own axis: the joint torque "
+        "J^T F turns it by tau/k, which moves the TCP by J dq."
+    )
+    kind = "compliance"
+
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(f"c{j + 1}" for j in range(self.robot.nq))
+
+    def prior(self) -> FloatArray:
+        return 1.0 / np.asarray(self.robot.stiffness, dtype=float)
+
+    def deflection_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        tau = np.einsum("mjk,mj->mk", batch.J, wrench)  # joint torques [N m]
+        return batch.J * tau[:, None, :]
+
+    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return np.einsum("mak,k->ma", self.deflection_regressor(batch, wrench, theta), theta)
+
+    def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        return np.einsum("mak,k,mbk->mab", batch.J, theta, batch.J)

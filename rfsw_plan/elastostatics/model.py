@@ -1,0 +1,151 @@
+"""The elastostatic model: joint compliance plus any number of physical effects.
+
+``ElastostaticModel`` is what ``predict``, the planner, the validator and the virtual weld all
+use to turn (joint values, logged wrench) into a TCP deflection. Its first effect is always
+:class:`JointCompliance` (the robot's joint stiffness); the others come from the robot
+description's ``[[effects]]`` or are added by the user.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects import Effect, JointCompliance, PoseBatch, make_effect
+from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
+from rfsw_plan.robot.kinematics import Robot
+
+
+class ElastostaticModel:
+    """Robot plus an ordered list of effects with their current parameters.
+
+    Args:
+        robot: The robot (kinematics and joint stiffness).
+        effects: Effects after the base joint compliance. None takes those stored in the
+            robot description.
+    """
+
+    def __init__(self, robot: Robot, effects: Sequence[Effect] | None = None) -> None:
+        self.robot = robot
+        if effects is None:
+            effects = [make_effect(robot, e.name, e.params) for e in robot.description.effects]
+        base = [e for e in effects if isinstance(e, JointCompliance)]
+        rest = [e for e in effects if not isinstance(e, JointCompliance)]
+        self.effects: list[Effect] = [base[0] if base else JointCompliance(robot), *rest]
+        labels = self.labels
+        dup = {x for x in labels if labels.count(x) > 1}
+        if dup:
+            raise InputError("model", ", ".join(sorted(dup)), "effect given more than once")
+
+    # -- composition -------------------------------------------------------------------------
+    @property
+    def labels(self) -> list[str]:
+        """Effect labels in order, e.g. ``['joint_compliance', 'payload_gravity']``."""
+        return [e.label for e in self.effects]
+
+    def has(self, label: str) -> bool:
+        """True if the model already contains the effect ``label``."""
+        return label in self.labels
+
+    def with_effect(self, label: str, params: dict[str, float] | None = None) -> ElastostaticModel:
+        """A new model with one more effect (prior parameters unless given)."""
+        if self.has(label):
+            raise InputError("model", label, "effect is already in the model")
+        return ElastostaticModel(
+            self.robot, [*self.copy().effects, make_effect(self.robot, label, params)]
+        )
+
+    def copy(self) -> ElastostaticModel:
+        """Deep copy of the parameters (effects are re-instantiated)."""
+        effects = [type(e)(self.robot, e.joint, e.param_dict()) for e in self.effects]
+        return ElastostaticModel(self.robot, effects)
+
+    @property
+    def joint_compliance(self) -> JointCompliance:
+        """The base joint-compliance effect."""
+        eff = self.effects[0]
+        assert isinstance(eff, JointCompliance)
+        return eff
+
+    @property
+    def stiffness(self) -> FloatArray:
+        """Current joint stiffness [N m/rad], shape (n,)."""
+        return 1.0 / self.joint_compliance.params
+
+    # -- evaluation --------------------------------------------------------------------------
+    def batch(self, q: FloatArray) -> PoseBatch:
+        """Kinematics of joint values [rad], shape (m, n) or (n,)."""
+        return PoseBatch.from_q(self.robot, q)
+
+    def true_wrench(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""
+        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6)).copy()
+        logged = F.copy()
+        for e in self.effects:
+            if e.kind == "wrench":
+                F += e.delta_wrench(batch, logged, e.params)
+        return F
+
+    def cartesian_compliance(self, batch: PoseBatch) -> FloatArray:
+        """Cartesian compliance of the wrench-linear compliance effects, shape (m, 6, 6)."""
+        C = np.zeros((len(batch), 6, 6))
+        for e in self.effects:
+            if e.kind == "compliance":
+                Ce = e.cartesian_compliance(batch, e.params)
+                if Ce is not None:
+                    C += Ce
+        return C
+
+    def deflection_batch(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """TCP deflection [m, rad], base frame, shape (m, 6), for a logged wrench (m, 6).
+
+        dX = sum_compliance dX_e(F_true) + sum_geometric offset_e, F_true = F + sum dF_e.
+        """
+        F = self.true_wrench(batch, wrench)
+        dX = np.zeros((len(batch), 6))
+        for e in self.effects:
+            if e.kind == "compliance":
+                dX += e.deflection(batch, F, e.params)
+            elif e.kind == "geometric":
+                dX += e.offset(batch, e.params)
+        return dX
+
+    def deflection(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
+        """TCP deflection [m, rad] for joint values (m, n) or (n,) and wrench (m, 6) or (6,).
+
+        Returns shape (m, 6), or (6,) for a single pose.
+        """
+        single = np.ndim(q) == 1
+        batch = self.batch(q)
+        dX = self.deflection_batch(batch, np.atleast_2d(wrench))
+        return dX[0] if single else dX
+
+    def predict_position(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
+        """Loaded TCP position [m], base frame: FK(q) + dX_translation; shape (m, 3)."""
+        batch = self.batch(q)
+        return batch.T[:, :3, 3] + self.deflection_batch(batch, np.atleast_2d(wrench))[:, :3]
+
+    def is_linear_joint_model(self) -> bool:
+        """True if the model is joint compliance only (the fast path applies)."""
+        return len(self.effects) == 1
+
+    # -- storage -----------------------------------------------------------------------------
+    def to_description(self, source_note: str | None = None) -> RobotDescription:
+        """The robot description with this model's stiffness and effects."""
+        desc = self.robot.description
+        k = self.stiffness
+        check_stiffness(k, "model", "joint_compliance")
+        out = desc.with_stiffness(k, source_note or desc.sources.get("stiffness", ""))
+        specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:])
+        return replace(out, effects=specs)
+
+
+def load_model(robot: Robot | RobotDescription | str) -> ElastostaticModel:
+    """Elastostatic model of a robot (bundled name, file, description or Robot)."""
+    from rfsw_plan.robot.kinematics import load_robot
+
+    return ElastostaticModel(load_robot(robot))

@@ -1,0 +1,287 @@
+"""Numeric kinematics of a robot description, through Pinocchio.
+
+The Pinocchio model is the single source of truth for the kinematic chain: the symbolic CasADi
+model (``rfsw_plan.planning.symbolic``) and the vectorised batch evaluation here are both built
+from its joint placements and joint axes, and tests check they agree with it.
+
+Conventions:
+    * ``q`` are controller joint values [rad], shape (n,); the chain sees ``G q``.
+    * Poses are 4x4 homogeneous transforms of the TCP in the robot base frame [m].
+    * Jacobians map ``dq`` to the TCP twist ``[v; omega]`` in the base frame
+      (Pinocchio ``LOCAL_WORLD_ALIGNED``: linear velocity of the TCP point, angular velocity,
+      both expressed in base axes), shape (6, n). This is the J of seed 000 eq. 3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import pinocchio as pin
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.description import (
+    ModifiedDH,
+    RobotDescription,
+    UrdfChain,
+    load_robot_description,
+)
+
+FloatArray = NDArray[np.float64]
+
+TCP_FRAME = "tcp"
+
+
+@dataclass(frozen=True)
+class ChainGeometry:
+    """Constant geometry of the serial chain, read from the Pinocchio model.
+
+    Attributes:
+        placements: Joint placement of joint i in its parent joint frame, shape (n, 4, 4) [m].
+        axes: Unit rotation axis of joint i in its own frame, shape (n, 3).
+        tcp: TCP placement in the last joint frame, shape (4, 4) [m].
+    """
+
+    placements: FloatArray
+    axes: FloatArray
+    tcp: FloatArray
+
+
+def _mdh_placement(alpha: float, a: float, theta0: float, d: float) -> pin.SE3:
+    """Rx(alpha) Tx(a) Rz(theta0) Tz(d): the constant part of the MDH link transform."""
+    ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(theta0), np.sin(theta0)
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    rz = np.array([[ct, -st, 0], [st, ct, 0], [0, 0, 1]])
+    R = rx @ rz
+    p = np.array([a, 0.0, 0.0]) + R @ np.array([0.0, 0.0, d])
+    return pin.SE3(R, p)
+
+
+def build_pinocchio_model(desc: RobotDescription) -> pin.Model:
+    """Build the Pinocchio model of a description, with a ``tcp`` operational frame.
+
+    For an MDH table, joint i is a revolute-Z joint placed at Rx(alpha_{i-1}) Tx(a_{i-1})
+    Rz(theta0_i) Tz(d_i) in joint i-1 (Rz(q) commutes with Tz(d)), seed 001 eq. 1.
+    """
+    if isinstance(desc.chain, ModifiedDH):
+        model = pin.Model()
+        model.name = desc.name
+        parent = 0
+        c = desc.chain
+        for i in range(desc.n_joints):
+            placement = _mdh_placement(c.alpha[i], c.a[i], c.theta0[i], c.d[i])
+            parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
+            model.appendBodyToJoint(parent, pin.Inertia.Zero(), pin.SE3.Identity())
+        last = parent
+        tip_placement = pin.SE3.Identity()
+    else:
+        assert isinstance(desc.chain, UrdfChain)
+        model = pin.buildModelFromUrdf(str(desc.chain.path))
+        frame = model.frames[model.getFrameId(desc.chain.tip_link)]
+        last = frame.parentJoint
+        tip_placement = frame.placement
+        if model.nq != desc.n_joints or last != model.njoints - 1:
+            raise InputError(
+                desc.chain.path, desc.chain.tip_link, "the URDF is not a serial chain to its tip"
+            )
+    tool = pin.SE3(desc.tool[:3, :3], desc.tool[:3, 3])
+    model.addFrame(pin.Frame(TCP_FRAME, last, tip_placement * tool, pin.FrameType.OP_FRAME))
+    return model
+
+
+def _chain_geometry(model: pin.Model) -> ChainGeometry:
+    n = model.nq
+    placements = np.zeros((n, 4, 4))
+    axes = np.zeros((n, 3))
+    for i in range(n):
+        jid = i + 1
+        if model.parents[jid] != jid - 1:
+            raise InputError(model.name, f"joint {jid}", "not a serial chain")
+        placements[i] = model.jointPlacements[jid].homogeneous
+        short = model.joints[jid].shortname()
+        if short.startswith("JointModelR") and short[-1] in "XYZ" and "Unbounded" not in short:
+            axes[i, "XYZ".index(short[-1])] = 1.0
+        elif short == "JointModelRevoluteUnaligned":
+            axes[i] = np.asarray(model.joints[jid].extract().axis).ravel()
+        else:
+            raise InputError(model.name, f"joint {jid}", f"joint type {short} not supported",
+                             "revolute joints")
+    tcp = model.frames[model.getFrameId(TCP_FRAME)].placement.homogeneous
+    return ChainGeometry(placements, axes, tcp)
+
+
+def _rodrigues_batch(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """Rotation matrices about a fixed unit axis, shape (m, 3, 3)."""
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    s = np.sin(angle)[:, None, None]
+    c = np.cos(angle)[:, None, None]
+    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
+
+
+class Robot:
+    """A robot ready for numeric kinematics: Pinocchio model plus limits and stiffness.
+
+    Args:
+        description: The robot description (or a bundled name / path, see
+            :func:`load_robot`).
+    """
+
+    def __init__(self, description: RobotDescription) -> None:
+        self.description = description
+        self.model = build_pinocchio_model(description)
+        self.data = self.model.createData()
+        self.tcp_id = self.model.getFrameId(TCP_FRAME)
+        self.geometry = _chain_geometry(self.model)
+        self.coupling = np.asarray(description.coupling, dtype=float)
+
+    # -- basic properties --------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        """Robot name."""
+        return self.description.name
+
+    @property
+    def nq(self) -> int:
+        """Number of joints."""
+        return self.description.n_joints
+
+    @property
+    def stiffness(self) -> FloatArray:
+        """Joint stiffness on the controller side [N m/rad], shape (n,)."""
+        return self.description.stiffness
+
+    @cached_property
+    def joint_compliance(self) -> FloatArray:
+        """Joint compliance matrix seen by the chain, G K^-1 G^T [rad/(N m)], shape (n, n)."""
+        G = self.coupling
+        return G @ np.diag(1.0 / self.stiffness) @ G.T
+
+    def chain_q(self, q: FloatArray) -> FloatArray:
+        """Chain joint angles ``G q`` [rad]; works on shape (n,) or (m, n)."""
+        return np.asarray(q, dtype=float) @ self.coupling.T
+
+    def check_q(self, q: FloatArray, source: str = "q") -> FloatArray:
+        """Validate a joint vector's shape and finiteness; returns it as float array."""
+        arr = np.asarray(q, dtype=float)
+        if arr.shape[-1:] != (self.nq,):
+            raise InputError(source, "", f"got {arr.shape[-1] if arr.ndim else 1} joint values",
+                             f"{self.nq} for robot {self.name}")
+        if not np.all(np.isfinite(arr)):
+            raise InputError(source, "", "joint values contain NaN or infinity", "finite values")
+        return arr
+
+    def within_limits(self, q: FloatArray, tol: float = 0.0) -> bool:
+        """True if every joint is within [lower - tol, upper + tol] [rad]."""
+        d = self.description
+        return bool(np.all(q >= d.lower - tol) and np.all(q <= d.upper + tol))
+
+    # -- Pinocchio single-pose ---------------------------------------------------------------
+    def fk(self, q: FloatArray) -> FloatArray:
+        """TCP pose in the base frame, 4x4 [m]."""
+        pin.framesForwardKinematics(self.model, self.data, self.chain_q(q))
+        return self.data.oMf[self.tcp_id].homogeneous.copy()
+
+    def fk_jacobian(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """TCP pose (4, 4) [m] and base-frame TCP Jacobian (6, n) wrt controller joints."""
+        qc = self.chain_q(q)
+        Jc = pin.computeFrameJacobian(
+            self.model, self.data, qc, self.tcp_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )
+        pin.updateFramePlacement(self.model, self.data, self.tcp_id)
+        return self.data.oMf[self.tcp_id].homogeneous.copy(), Jc @ self.coupling
+
+    def jacobian(self, q: FloatArray) -> FloatArray:
+        """Base-frame TCP Jacobian wrt controller joints, shape (6, n)."""
+        return self.fk_jacobian(q)[1]
+
+    def joint_frames(self, q: FloatArray) -> FloatArray:
+        """Poses of the chain joint frames in the base frame, shape (n, 4, 4) [m]."""
+        pin.forwardKinematics(self.model, self.data, self.chain_q(q))
+        return np.stack([self.data.oMi[i + 1].homogeneous for i in range(self.nq)])
+
+    # -- vectorised batch --------------------------------------------------------------------
+    def batch_fk_jacobian(
+        self, Q: FloatArray, with_joint_frames: bool = False
+    ) -> tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, FloatArray]:
+        """Vectorised TCP poses and Jacobians for many configurations.
+
+        Same numbers as :meth:`fk_jacobian` (checked in tests), computed with NumPy over all
+        poses at once from the Pinocchio joint placements and axes.
+
+        Args:
+            Q: Controller joint values [rad], shape (m, n).
+            with_joint_frames: Also return the chain joint frames, shape (m, n, 4, 4).
+
+        Returns:
+            ``(T, J)`` with T shape (m, 4, 4) [m] and J shape (m, 6, n), plus the joint frames
+            when asked.
+        """
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        m, n = Q.shape
+        qc = Q @ self.coupling.T
+        g = self.geometry
+        T = np.broadcast_to(np.eye(4), (m, 4, 4)).copy()
+        z = np.empty((m, n, 3))
+        o = np.empty((m, n, 3))
+        frames = np.empty((m, n, 4, 4)) if with_joint_frames else None
+        for i in range(n):
+            T = T @ g.placements[i]
+            z[:, i] = T[:, :3, :3] @ g.axes[i]
+            o[:, i] = T[:, :3, 3]
+            T[:, :3, :3] = T[:, :3, :3] @ _rodrigues_batch(g.axes[i], qc[:, i])
+            if frames is not None:
+                frames[:, i] = T
+        T = T @ g.tcp
+        p = T[:, :3, 3]
+        Jd = np.empty((m, 6, n))
+        Jd[:, :3, :] = np.cross(z, p[:, None, :] - o).transpose(0, 2, 1)
+        Jd[:, 3:, :] = z.transpose(0, 2, 1)
+        J = Jd @ self.coupling
+        if frames is not None:
+            return T, J, frames
+        return T, J
+
+    def jacobian_derivatives(self, q: FloatArray) -> FloatArray:
+        """Partial derivatives of the TCP Jacobian, dJ/dq_k, shape (n, 6, n).
+
+        For revolute chain joints i and j with axis z and origin o in the base frame:
+        column j is [z_j x (p - o_j); z_j]; dq_i rotates z_j and (p - o_j) about z_i when
+        i < j, and only moves p when i >= j. The coupling G maps chain to controller
+        derivatives. Needed for the complementary stiffness Kc (seed 000 eq. 6).
+        """
+        T, _, frames = self.batch_fk_jacobian(np.asarray(q)[None, :], with_joint_frames=True)
+        n = self.nq
+        p = T[0, :3, 3]
+        z = np.stack([frames[0, i, :3, :3] @ self.geometry.axes[i] for i in range(n)])
+        o = frames[0, :, :3, 3]
+        dJd = np.zeros((n, 6, n))  # [i] = dJ_chain / dq_chain_i
+        for i in range(n):
+            for j in range(n):
+                r = p - o[j]
+                if i < j:
+                    dz = np.cross(z[i], z[j])
+                    dr = np.cross(z[i], r)
+                    dJd[i, :3, j] = np.cross(dz, r) + np.cross(z[j], dr)
+                    dJd[i, 3:, j] = dz
+                else:
+                    dp = np.cross(z[i], p - o[i])
+                    dJd[i, :3, j] = np.cross(z[j], dp)
+        G = self.coupling
+        # dJ_ctrl/dq_ctrl_k = sum_i (dJ_chain/dq_chain_i) G[i, k], then times G on the right.
+        return np.einsum("ik,iab,bc->kac", G, dJd, G)
+
+
+def load_robot(name_or_path: str | object) -> Robot:
+    """Load a bundled robot by name, a robot TOML file, or wrap a description.
+
+    Raises:
+        UnknownNameError: Unknown robot; the message lists the bundled ones.
+        InputError: Malformed description file.
+    """
+    if isinstance(name_or_path, RobotDescription):
+        return Robot(name_or_path)
+    if isinstance(name_or_path, Robot):
+        return name_or_path
+    return Robot(load_robot_description(str(name_or_path)))
