@@ -1,0 +1,42 @@
+"""``rfsw-plan robots``: list the bundled robot descriptions."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from rfsw_plan.robot.description import bundled_robot_names, load_robot_description
+
+NAME = "robots"
+HELP = "list the bundled robots with their source and joint stiffness"
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def run(args: argparse.Namespace) -> int:
+    rows = []
+    for name in bundled_robot_names():
+        d = load_robot_description(name)
+        rows.append(
+            {
+                "name": d.name,
+                "title": d.title,
+                "joints": d.n_joints,
+                "stiffness_Nm_per_rad": [float(k) for k in d.stiffness],
+                "effects": [e.name for e in d.effects],
+                "file": str(d.path),
+            }
+        )
+    if args.json:
+        print(json.dumps({"robots": rows}, indent=2))
+        return 0
+    for r in rows:
+        k = ", ".join(f"{v:.3g}" for v in np.asarray(r["stiffness_Nm_per_rad"]))
+        extra = f"; effects: {', '.join(r['effects'])}" if r["effects"] else ""
+        print(f"{r['name']:<20} {r['title']}")
+        print(f"{'':<20} k = [{k}] N m/rad{extra}")
+    return 0
