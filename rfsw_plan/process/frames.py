@@ -43,7 +43,7 @@ class SeamFrames:
     s: FloatArray
     p: FloatArray
     t: FloatArray
-    l: FloatArray  # noqa: E741 - the seed's symbol for the lateral direction
+    l: FloatArray
     n: FloatArray
 
     def __len__(self) -> int:

@@ -1,0 +1,160 @@
+"""Measured process-force time series (CSV).
+
+Format: header row, one sample per row.
+
+* ``t_s``: time from the start of the process (plunge start, or approach start if the
+  problem has an approach) [s], strictly increasing.
+* ``fx_N, fy_N, fz_N``: force the workpiece applies to the tool at the TCP [N].
+* optional ``mx_Nm, my_Nm, mz_Nm``: moment on the tool at the TCP [N m] (missing = not
+  measured).
+* optional ``frame``: the frame of the vectors, the same on every row: ``base`` (robot base),
+  ``seam`` (x = travel t, y = lateral l toward the advancing side, z = tool axis n, up) or
+  ``tool`` (commanded TCP frame: z into the workpiece, x along travel at tool rotation 0). A
+  ``frame`` option given by the caller overrides a missing column; if both are given they must
+  agree.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from difflib import get_close_matches
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+
+FloatArray = NDArray[np.float64]
+
+#: Frames a force series may be given in.
+FORCE_FRAMES = ("base", "seam", "tool")
+REQUIRED = ("t_s", "fx_N", "fy_N", "fz_N")
+MOMENTS = ("mx_Nm", "my_Nm", "mz_Nm")
+
+
+@dataclass(frozen=True)
+class ForceSeries:
+    """A measured force series (SI units).
+
+    Attributes:
+        t: Time [s], shape (N,), strictly increasing.
+        force: Force on the tool at the TCP, in ``frame`` [N], shape (N, 3).
+        moment: Moment on the tool at the TCP, in ``frame`` [N m], shape (N, 3), or None.
+        frame: 'base', 'seam' or 'tool'.
+        source: File the series came from.
+    """
+
+    t: FloatArray
+    force: FloatArray
+    moment: FloatArray | None
+    frame: str
+    source: str = "<memory>"
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+
+def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries:
+    """Read a force CSV.
+
+    Args:
+        path: CSV file (format in the module docstring).
+        frame: Frame of the vectors if the file has no ``frame`` column.
+
+    Raises:
+        InputError: Unreadable file, missing columns, non-numeric cells, unknown or
+            inconsistent frame, fewer than 2 rows, or time not strictly increasing; the
+            message names the file, row and column.
+    """
+    path = Path(path)
+    if frame is not None and frame not in FORCE_FRAMES:
+        raise InputError("--forces-frame", "", f"unknown frame '{frame}'",
+                         " | ".join(FORCE_FRAMES))
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.reader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"cannot read file: {exc}") from None
+    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise InputError(path, "", "empty file", "a header row and samples")
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        hint = ""
+        for m in missing:
+            close = get_close_matches(m, header, n=1)
+            if close:
+                hint = f"; did you mean '{close[0]}' for '{m}'?"
+                break
+        raise InputError(path, "header", f"missing column(s) {', '.join(missing)}{hint}",
+                         "t_s, fx_N, fy_N, fz_N[, mx_Nm, my_Nm, mz_Nm][, frame]")
+    present_m = [c for c in MOMENTS if c in header]
+    if present_m and len(present_m) != 3:
+        raise InputError(path, "header", f"only {', '.join(present_m)} of the moment columns",
+                         "all of mx_Nm, my_Nm, mz_Nm or none")
+    body = rows[1:]
+    if len(body) < 2:
+        raise InputError(path, "", f"{len(body)} sample row(s)", "at least 2 samples")
+    col = {h: i for i, h in enumerate(header)}
+    numeric = list(REQUIRED) + present_m
+    data = np.empty((len(body), len(numeric)))
+    frames_seen: set[str] = set()
+    for r, row in enumerate(body, start=2):
+        for j, name in enumerate(numeric):
+            i = col[name]
+            cell = row[i].strip() if i < len(row) else ""
+            try:
+                v = float(cell)
+            except ValueError:
+                raise InputError(path, f"row {r}, column {name}", f"'{cell}' is not a number",
+                                 "a number") from None
+            if not math.isfinite(v):
+                raise InputError(path, f"row {r}, column {name}", f"'{cell}'", "a finite number")
+            data[r - 2, j] = v
+        if "frame" in col:
+            i = col["frame"]
+            frames_seen.add(row[i].strip() if i < len(row) else "")
+    t = data[:, 0]
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        r = int(bad[0]) + 3
+        raise InputError(path, f"row {r}, column t_s",
+                         f"time {t[bad[0] + 1]:g} s does not increase (previous {t[bad[0]]:g} s)",
+                         "strictly increasing time")
+    if frames_seen:
+        if len(frames_seen) > 1:
+            raise InputError(path, "column frame", f"several frames {sorted(frames_seen)}",
+                             "the same frame on every row")
+        f_file = frames_seen.pop()
+        if f_file not in FORCE_FRAMES:
+            raise InputError(path, "column frame", f"unknown frame '{f_file}'",
+                             " | ".join(FORCE_FRAMES))
+        if frame is not None and frame != f_file:
+            raise InputError(path, "column frame", f"file says '{f_file}' but '{frame}' was "
+                             "requested", "the same frame")
+        frame = f_file
+    if frame is None:
+        raise InputError(path, "header", "no frame column and no frame option",
+                         "a 'frame' column or --forces-frame base|seam|tool")
+    moment = data[:, 4:7].copy() if present_m else None
+    return ForceSeries(t=t.copy(), force=data[:, 1:4].copy(), moment=moment, frame=frame,
+                       source=str(path))
+
+
+def write_force_series(path: str | Path, series: ForceSeries) -> Path:
+    """Write a force series in the format read by :func:`read_force_series`."""
+    path = Path(path)
+    header = list(REQUIRED) + (list(MOMENTS) if series.moment is not None else []) + ["frame"]
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for k in range(len(series)):
+            row = [f"{series.t[k]:.6f}", *(f"{v:.6f}" for v in series.force[k])]
+            if series.moment is not None:
+                row += [f"{v:.6f}" for v in series.moment[k]]
+            w.writerow([*row, series.frame])
+    return path

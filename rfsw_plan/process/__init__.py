@@ -1,0 +1,56 @@
+"""The welding side: seam, process forces over time, weld window, problems, deviation.
+
+Data flow: a :class:`Problem` holds the robot, the :class:`Seam` (its :meth:`Seam.frames`
+give :class:`SeamFrames`), the :class:`ProcessModel` (its :meth:`ProcessModel.schedule` gives
+a :class:`LoadSchedule`) and the :class:`WeldWindow`. :func:`taught_path` turns the frames
+into joint values; :func:`predict_deviation` says how far the loaded robot misses the seam.
+"""
+
+from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
+from rfsw_plan.process.deviation import DeviationResult, predict_deviation, problem_deviation
+from rfsw_plan.process.force_fit import ForceFit, fit_process_forces
+from rfsw_plan.process.forces import ProcessForces, ProcessModel
+from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orientation
+from rfsw_plan.process.presets import PROCESS_PRESETS, process_preset
+from rfsw_plan.process.problem import (
+    Coupling,
+    PlanningOptions,
+    Problem,
+    bundled_problem_names,
+    load_problem,
+    resolve_problem_path,
+)
+from rfsw_plan.process.seam import Seam, interpolate_frames
+from rfsw_plan.process.taught import joints_at, taught_path, taught_poses
+from rfsw_plan.process.window import WeldWindow
+
+__all__ = [
+    "PHASES",
+    "PROCESS_PRESETS",
+    "CosimResult",
+    "Coupling",
+    "DeviationResult",
+    "ForceFit",
+    "LoadSchedule",
+    "PenetrationLaw",
+    "PlanningOptions",
+    "Problem",
+    "ProcessForces",
+    "ProcessModel",
+    "Seam",
+    "SeamFrames",
+    "WeldWindow",
+    "bundled_problem_names",
+    "cosimulate",
+    "fit_process_forces",
+    "interpolate_frames",
+    "joints_at",
+    "load_problem",
+    "predict_deviation",
+    "problem_deviation",
+    "process_preset",
+    "resolve_problem_path",
+    "taught_path",
+    "taught_poses",
+    "tcp_orientation",
+]

@@ -1,0 +1,219 @@
+"""Uncompensated pin deviation: where the loaded robot puts the pin on the taught path.
+
+The robot is commanded the taught configuration q_k (IK of the seam pose, no fake target).
+The process wrench W bends it; the elastostatic model gives the TCP deflection
+(seed 000 eq. 11, seed 001 eq. 11: dX = J K^-1 J^T W, plus any effects of the robot file)::
+
+    dX_k = model.deflection(q_k, W_k)                   (base frame, [m, rad])
+    lateral   e_l = dX_k[:3] . l_k   (+ toward the advancing side, the weld-window axis)
+    axial     e_n = dX_k[:3] . n_k   (+ up the tool axis: less penetration)
+    along     e_t = dX_k[:3] . t_k   (+ ahead along travel)
+
+At the seam waypoints W is the steady weld force; over time W follows the load schedule
+through plunge, dwell, weld and retract (stationary phases use the configuration of the seam
+start or end, weld samples interpolate the taught joints linearly in arc length).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.process.cosim import CosimResult, cosimulate
+from rfsw_plan.process.forces import ProcessModel
+from rfsw_plan.process.frames import FloatArray, LoadSchedule, SeamFrames
+from rfsw_plan.process.problem import Coupling, Problem
+from rfsw_plan.process.taught import joints_at, taught_path
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import load_robot
+
+
+@dataclass(frozen=True)
+class DeviationResult:
+    """Predicted uncompensated deviation along the seam and over time.
+
+    Attributes:
+        frames: Seam waypoint frames (k rows).
+        q: Taught joint values at the waypoints [rad], shape (k, n).
+        force_seam: Steady weld force per waypoint (f_t, f_l, f_n) [N], shape (k, 3).
+        deflection: TCP deflection at the waypoints, base frame [m, rad], shape (k, 6).
+        lateral: Lateral deviation per waypoint [m], shape (k,).
+        axial: Axial deviation per waypoint [m], shape (k,).
+        along: Along-track deviation per waypoint [m], shape (k,).
+        schedule: Load schedule over time (N samples).
+        deflection_t: TCP deflection over time, base frame [m, rad], shape (N, 6).
+        lateral_t: Lateral deviation over time [m], shape (N,).
+        axial_t: Axial deviation over time [m], shape (N,).
+        along_t: Along-track deviation over time [m], shape (N,).
+        window: Weld window.
+        cosim: Co-simulation result over time, or None.
+    """
+
+    frames: SeamFrames
+    q: FloatArray
+    force_seam: FloatArray
+    deflection: FloatArray
+    lateral: FloatArray
+    axial: FloatArray
+    along: FloatArray
+    schedule: LoadSchedule
+    deflection_t: FloatArray
+    lateral_t: FloatArray
+    axial_t: FloatArray
+    along_t: FloatArray
+    window: WeldWindow
+    cosim: CosimResult | None = None
+
+    @property
+    def max_abs_lateral(self) -> float:
+        """Largest |lateral deviation| over the waypoints [m]."""
+        return float(np.max(np.abs(self.lateral)))
+
+    @property
+    def worst_waypoint(self) -> int:
+        """Index of the waypoint with the smallest window margin."""
+        return int(np.argmin([self.window.margin(float(e)) for e in self.lateral]))
+
+    @property
+    def inside(self) -> NDArray[np.bool_]:
+        """Waypoints whose lateral deviation is inside the window, shape (k,)."""
+        return np.array([self.window.contains(float(e)) for e in self.lateral])
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary (mm, deg, N, s)."""
+        mm = 1e3
+        sch = self.schedule
+        weld = sch.mask("weld")
+        out: dict[str, Any] = {
+            "max_abs_lateral_mm": self.max_abs_lateral * mm,
+            "mean_lateral_mm": float(np.mean(self.lateral)) * mm,
+            "max_abs_axial_mm": float(np.max(np.abs(self.axial))) * mm,
+            "max_abs_along_mm": float(np.max(np.abs(self.along))) * mm,
+            "worst_waypoint": self.worst_waypoint,
+            "waypoints_inside_window": int(np.sum(self.inside)),
+            "n_waypoints": len(self.frames),
+            "window": {"lower_mm": self.window.lower * mm, "upper_mm": self.window.upper * mm,
+                       "target_mm": self.window.target * mm},
+            "steady_force_seam_N": {"f_t": float(self.force_seam[0, 0]),
+                                    "f_l": float(self.force_seam[0, 1]),
+                                    "f_n": float(self.force_seam[0, 2])},
+            "s_mm": _r(self.frames.s * mm),
+            "x_mm": _r(self.frames.p[:, 0] * mm),
+            "y_mm": _r(self.frames.p[:, 1] * mm),
+            "z_mm": _r(self.frames.p[:, 2] * mm),
+            "lateral_mm": _r(self.lateral * mm),
+            "axial_mm": _r(self.axial * mm),
+            "along_mm": _r(self.along * mm),
+            "q_deg": [_r(np.rad2deg(q)) for q in self.q],
+            "time": {
+                "t_s": _r(sch.t),
+                "phase": [str(p) for p in sch.phase],
+                "s_mm": _r(sch.s * mm),
+                "depth_mm": _r(sch.depth * mm),
+                "f_t_N": _r(sch.force_seam[:, 0]),
+                "f_l_N": _r(sch.force_seam[:, 1]),
+                "f_n_N": _r(sch.force_seam[:, 2]),
+                "lateral_mm": _r(self.lateral_t * mm),
+                "axial_mm": _r(self.axial_t * mm),
+                "along_mm": _r(self.along_t * mm),
+                "max_abs_lateral_weld_mm": float(np.max(np.abs(self.lateral_t[weld])) * mm)
+                if weld.any() else None,
+            },
+        }
+        if self.cosim is not None:
+            c = self.cosim
+            out["cosim"] = {
+                "all_converged": c.all_converged,
+                "max_iterations": int(np.max(c.iterations)),
+                "max_residual_N": float(np.max(c.residual)),
+                "axial_force_N": _r(c.axial_force),
+                "penetration_mm": _r(c.penetration * mm),
+                "iterations": [int(i) for i in c.iterations],
+            }
+        return out
+
+
+def _r(a: FloatArray) -> list[float]:
+    return [round(float(v), 6) for v in np.asarray(a)]
+
+
+def _components(dX: FloatArray, fr: SeamFrames) -> tuple[FloatArray, FloatArray, FloatArray]:
+    d = dX[:, :3]
+    return (np.einsum("ki,ki->k", d, fr.l), np.einsum("ki,ki->k", d, fr.n),
+            np.einsum("ki,ki->k", d, fr.t))
+
+
+def schedule_joints(schedule: LoadSchedule, frames: SeamFrames, Q: FloatArray) -> FloatArray:
+    """Taught joint values at each schedule sample [rad], shape (N, n).
+
+    Stationary phases at the seam start/end use the first/last waypoint configuration (the
+    few-mm plunge offset along the tool axis changes the compliance negligibly).
+    """
+    return joints_at(frames.s[0] + schedule.s, frames.s, Q)
+
+
+def predict_deviation(
+    model: ElastostaticModel,
+    frames: SeamFrames,
+    process: ProcessModel,
+    Q: FloatArray,
+    window: WeldWindow | None = None,
+    dt: float = 0.1,
+    coupling: Coupling | None = None,
+) -> DeviationResult:
+    """Uncompensated deviation at the waypoints (steady force) and over time.
+
+    Args:
+        model: Elastostatic model (robot-file effects apply).
+        frames: Seam waypoint frames (k rows), base frame.
+        process: Process with the force model.
+        Q: Taught joint values at the waypoints [rad], shape (k, n).
+        window: Weld window (default seed 000's).
+        dt: Time step of the schedule [s] (seed 001 Table 6: 0.1 s).
+        coupling: Optional co-simulation settings (penetration law, commanded depth); the
+            time series then uses the converged axial force.
+    """
+    window = WeldWindow() if window is None else window
+    k = len(frames)
+    F = np.tile(process.steady_force_seam(), (k, 1))
+    sigma = np.sign(np.linalg.det(frames.rotation()))
+    M = (sigma * process.forces.spindle_torque)[:, None] * frames.n
+    W = np.hstack([frames.to_base(F), M])
+    dX = model.deflection(Q, W)
+    lat, ax, al = _components(dX, frames)
+    sch = process.schedule(frames, dt)
+    Qt = schedule_joints(sch, frames, Q)
+    dXt = model.deflection(Qt, sch.wrench_base)
+    cos = None
+    if coupling is not None:
+        d_c = sch.depth * (coupling.commanded_depth / process.plunge_depth)
+        cos = cosimulate(model, Qt, sch, coupling.law, commanded_depth=d_c)
+        dXt = cos.deflection
+    lat_t, ax_t, al_t = _components(dXt, sch.frames)
+    return DeviationResult(
+        frames=frames, q=Q, force_seam=F, deflection=dX, lateral=lat, axial=ax, along=al,
+        schedule=sch, deflection_t=dXt, lateral_t=lat_t, axial_t=ax_t, along_t=al_t,
+        window=window, cosim=cos,
+    )
+
+
+def problem_deviation(problem: Problem, dt: float = 0.1, cosim: bool = False) -> DeviationResult:
+    """:func:`predict_deviation` for a problem (taught path from its q_seed).
+
+    Raises:
+        UnreachableError: The seam is not reachable from the problem's q_seed.
+    """
+    robot = load_robot(problem.robot)
+    model = ElastostaticModel(robot)
+    frames = problem.frames()
+    Q = taught_path(robot, frames, problem.q_seed(), problem.planning.tool_rotation)
+    if cosim and problem.coupling is None:
+        raise InputError(problem.path or problem.name, "process.coupling",
+                         "no co-simulation settings", "a [process.coupling] table")
+    return predict_deviation(model, frames, problem.process, Q, problem.window, dt,
+                             problem.coupling if cosim else None)

@@ -1,0 +1,227 @@
+"""Fit the parametric process-force model to a measured force series.
+
+Seed 001 §3 calibrates one model parameter (the equivalent friction coefficient f*) by
+minimising the squared distance between model and measured steady forces (eq. 15)::
+
+    e = (F_l(x) - F_l0)^2 + (F_d(x) - F_d0)^2 + (F_r(x) - F_r0)^2
+
+Here the same loss is summed over every sample of the series and the parameters are those of
+:class:`~rfsw_plan.process.forces.ProcessForces` (steady forces, plunge peak, dwell lateral
+fraction and time constant, weld ramp length)::
+
+    e(x) = sum_k || f_model(t_k; x) - f_meas(t_k) ||^2       (seam frame, [N^2])
+
+solved by bounded nonlinear least squares (scipy ``least_squares``). The spindle torque, which
+enters linearly, is fitted separately from the moment about the tool axis when moments are
+given. Parameters the series cannot inform (no plunge samples, no dwell samples, no moments)
+keep their prior values and are listed in ``notes``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from rfsw_plan.exceptions import IdentificationError, InputError
+from rfsw_plan.io.force_series import ForceSeries
+from rfsw_plan.process.forces import FIT_PARAMS, ProcessModel
+from rfsw_plan.process.frames import FloatArray, LoadSchedule, SeamFrames, tcp_orientation
+
+#: Scale of each parameter in the solver (N, N, N, N, -, s, m, N m).
+_SCALE = np.array([1e3, 1e3, 1e3, 1e3, 1.0, 1.0, 1e-3, 1.0])
+_LOWER = np.array([0.0, -np.inf, 0.0, 0.0, -1.0, 1e-3, 1e-6, -np.inf])
+_UPPER = np.array([np.inf, np.inf, np.inf, np.inf, 2.0, 1e4, 1.0, np.inf])
+#: Display units of the parameters (value multiplier, unit).
+UNITS = {
+    "axial": (1.0, "N"), "lateral": (1.0, "N"), "traverse": (1.0, "N"),
+    "plunge_peak_axial": (1.0, "N"), "dwell_lateral_fraction": (1.0, "-"),
+    "dwell_tau": (1.0, "s"), "ramp_length": (1e3, "mm"), "spindle_torque": (1.0, "N m"),
+}
+
+
+@dataclass(frozen=True)
+class ForceFit:
+    """Result of :func:`fit_process_forces`.
+
+    Attributes:
+        process: The process with the fitted forces.
+        params: Fitted parameters by name (SI; ``lateral`` is signed, + = advancing side).
+        std: 1-sigma standard errors of the fitted parameters (SI); fixed ones are absent.
+        fixed: Names of parameters kept at their prior values.
+        rms: RMS residual per seam component (t, l, n) [N], shape (3,).
+        r2: Coefficient of determination per component (t, l, n), shape (3,) (NaN if the
+            component is constant).
+        rms_total: RMS residual over all force components [N].
+        loss: Eq. 15 loss summed over the samples [N^2].
+        n_samples: Samples used.
+        torque_rms: RMS residual of the moment about the tool axis [N m], or None.
+        notes: Human-readable remarks (unidentifiable parameters...).
+    """
+
+    process: ProcessModel
+    params: dict[str, float]
+    std: dict[str, float]
+    fixed: tuple[str, ...]
+    rms: FloatArray
+    r2: FloatArray
+    rms_total: float
+    loss: float
+    n_samples: int
+    torque_rms: float | None
+    notes: tuple[str, ...]
+
+    def summary(self) -> str:
+        """Multi-line text summary of the fit."""
+        lines = [f"force fit on {self.n_samples} samples: RMS {self.rms_total:.1f} N"]
+        for c, name in enumerate(("traverse t", "lateral l", "axial n")):
+            lines.append(f"  {name:<11} RMS {self.rms[c]:8.1f} N   R^2 {self.r2[c]:.3f}")
+        for k, v in self.params.items():
+            mult, unit = UNITS[k]
+            sd = self.std.get(k)
+            tag = " (fixed)" if k in self.fixed else (f" +- {sd * mult:.3g}" if sd is not None
+                                                      else "")
+            lines.append(f"  {k:<24} {v * mult:12.5g} {unit}{tag}")
+        lines.extend(f"  note: {n}" for n in self.notes)
+        return "\n".join(lines)
+
+
+def series_in_seam_frame(
+    series: ForceSeries, schedule: LoadSchedule, tool_rotation: float = 0.0
+) -> tuple[FloatArray, FloatArray | None]:
+    """Measured force (and moment) as seam-frame components at the series' samples.
+
+    Args:
+        series: Measured series; ``schedule`` must be evaluated at ``series.t``.
+        schedule: Load schedule at the same times (gives the frames).
+        tool_rotation: Rotation of the TCP about the tool axis [rad] (for ``frame='tool'``).
+
+    Returns:
+        (force (N, 3) as (f_t, f_l, f_n) [N], moment (N, 3) in (t, l, n) [N m] or None).
+    """
+    fr = schedule.frames
+
+    def to_seam(v: FloatArray) -> FloatArray:
+        if series.frame == "seam":
+            return v
+        if series.frame == "tool":
+            R = tcp_orientation(fr, tool_rotation)
+            v = np.einsum("kij,kj->ki", R, v)
+        return fr.to_seam(v)
+
+    m = None if series.moment is None else to_seam(series.moment)
+    return to_seam(series.force), m
+
+
+def fit_process_forces(
+    process: ProcessModel,
+    frames: SeamFrames,
+    series: ForceSeries,
+    tool_rotation: float = 0.0,
+    free: Sequence[str] | None = None,
+) -> ForceFit:
+    """Least-squares fit of the force parameters to a measured series (seed 001 eq. 15).
+
+    Args:
+        process: Process whose timing (speeds, depth, dwell) matches the measurement; its
+            forces are the start values and the priors of fixed parameters.
+        frames: Seam waypoint frames (base frame) of the welded seam.
+        series: Measured series, time from the process start.
+        tool_rotation: TCP rotation about the tool axis [rad] (for a 'tool'-frame series).
+        free: Parameters to fit (names from :data:`FIT_PARAMS`); default all the data inform.
+
+    Raises:
+        InputError: Unknown parameter names.
+        IdentificationError: Fewer samples than free parameters.
+    """
+    names = list(FIT_PARAMS)
+    if free is not None:
+        unknown = [f for f in free if f not in names]
+        if unknown:
+            raise InputError("fit", "free", f"unknown parameter(s) {', '.join(unknown)}",
+                             ", ".join(names))
+    sched = process.evaluate(frames, series.t)
+    f_meas, m_meas = series_in_seam_frame(series, sched, tool_rotation)
+    phase = sched.phase
+    notes: list[str] = []
+    want = set(names if free is None else free)
+    auto_fixed: list[str] = []
+    if not np.any(phase == "plunge"):
+        auto_fixed.append("plunge_peak_axial")
+    if not np.any(phase == "dwell"):
+        auto_fixed += ["dwell_lateral_fraction", "dwell_tau"]
+    if not np.any(phase == "weld"):
+        auto_fixed += ["axial", "lateral", "traverse", "ramp_length"]
+    if m_meas is None:
+        auto_fixed.append("spindle_torque")
+    for a in auto_fixed:
+        if a in want:
+            want.discard(a)
+            notes.append(f"{a} kept at its prior: the series has no samples that inform it")
+    x0 = process.forces.vector()
+    idx = [i for i, n in enumerate(names) if n in want and n != "spindle_torque"]
+    n_res = 3 * len(series)
+    if n_res < len(idx):
+        raise IdentificationError(f"{len(series)} samples cannot fit {len(idx)} parameters")
+
+    def resid(p: FloatArray) -> FloatArray:
+        x = x0.copy()
+        x[idx] = p * _SCALE[idx]
+        fp = process.forces.with_vector(x)
+        _, _, _, F, _ = process.profile(series.t, float(frames.s[-1] - frames.s[0]), fp)
+        return (F - f_meas).ravel()
+
+    x = x0.copy()
+    std: dict[str, float] = {}
+    if idx:
+        p0 = np.clip(x0[idx], _LOWER[idx] + 1e-9, _UPPER[idx] - 1e-9) / _SCALE[idx]
+        sol = least_squares(resid, p0, bounds=(_LOWER[idx] / _SCALE[idx],
+                                               _UPPER[idx] / _SCALE[idx]),
+                            x_scale="jac", method="trf")
+        x[idx] = sol.x * _SCALE[idx]
+        dof = max(n_res - len(idx), 1)
+        s2 = float(sol.fun @ sol.fun) / dof
+        J = sol.jac
+        sv = np.linalg.svd(J, compute_uv=False)
+        if sv[-1] <= 1e-10 * sv[0]:
+            notes.append("the series does not inform every free parameter (rank-deficient "
+                         "Jacobian); standard errors are unreliable")
+        cov = s2 * np.linalg.pinv(J.T @ J)
+        for j, i in enumerate(idx):
+            std[names[i]] = float(np.sqrt(max(cov[j, j], 0.0))) * _SCALE[i]
+    torque_rms = None
+    if m_meas is not None and "spindle_torque" in want:
+        _, _, _, _, g = process.profile(series.t, float(frames.s[-1] - frames.s[0]),
+                                        replace(process.forces, spindle_torque=1.0))
+        sigma = float(np.sign(np.linalg.det(sched.frames.rotation()[0])))
+        mz = sigma * m_meas[:, 2]
+        gg = float(g @ g)
+        if gg > 0:
+            x[7] = float(g @ mz) / gg
+            r = mz - x[7] * g
+            torque_rms = float(np.sqrt(np.mean(r**2)))
+            std["spindle_torque"] = float(np.sqrt((r @ r) / max(len(r) - 1, 1) / gg))
+    forces = process.forces.with_vector(x, source=f"fitted to {series.source}")
+    fitted = replace(process, forces=forces)
+    _, _, _, F, _ = fitted.profile(series.t, float(frames.s[-1] - frames.s[0]))
+    res = F - f_meas
+    rms = np.sqrt(np.mean(res**2, axis=0))
+    sst = np.sum((f_meas - f_meas.mean(axis=0)) ** 2, axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r2 = np.where(sst > 0, 1.0 - np.sum(res**2, axis=0) / sst, np.nan)
+    fixed = tuple(n for n in names if n not in std)
+    return ForceFit(
+        process=fitted,
+        params={n: float(v) for n, v in zip(names, forces.vector(), strict=True)},
+        std=std,
+        fixed=fixed,
+        rms=rms,
+        r2=r2,
+        rms_total=float(np.sqrt(np.mean(res**2))),
+        loss=float(np.sum(res**2)),
+        n_samples=len(series),
+        torque_rms=torque_rms,
+        notes=tuple(notes),
+    )

@@ -1,0 +1,118 @@
+"""Problem files: loading, validation, bundled problems (issue 3 §3, §6)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rfsw_plan.cli.main import main
+from rfsw_plan.exceptions import InputError, UnknownNameError
+from rfsw_plan.process.problem import bundled_problem_names, load_problem
+
+GOOD = """
+robot = "zk500"
+[seam]
+points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]
+tilt_deg = 2.0
+rotation = "cw"
+spacing_mm = 10.0
+[process]
+preset = "seed001_aa6061_5mm"
+[window]
+lower_mm = -1.25
+upper_mm = 0.7
+[planning]
+q_seed_deg = [-96.24, 3.91, 25.45, -2.10, 57.17, 2.90]
+tool_rotation_deg = 180
+weights_lateral = 3.0
+"""
+
+
+def _write(tmp_path: Path, text: str, name: str = "p.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_bundled_problems_load() -> None:
+    names = bundled_problem_names()
+    for n in ("zk500_table6_seam", "fanuc_butt_1700mm", "kr600_curved_seam"):
+        assert n in names
+        p = load_problem(n)
+        assert p.name == n
+        assert p.planning.q_seed is not None
+        fr = p.frames()
+        assert len(fr) >= 2
+    kr = load_problem("kr600_curved_seam")
+    assert kr.seam.length >= 0.6
+    ts = kr.seam.seam_tangent(np.array([0.0, kr.seam.length]))
+    # The travel direction turns by 90 deg along the seam (+y, then +x).
+    np.testing.assert_allclose(ts, [[0, 1, 0], [1, 0, 0]], atol=0.02)
+    zk = load_problem("zk500_table6_seam")
+    np.testing.assert_allclose(zk.process.steady_force_seam(), [-899.80, 1350.87, 4842.58])
+    assert zk.coupling is not None and zk.coupling.commanded_depth == pytest.approx(8e-3)
+
+
+def test_units_and_unknown_planning_keys_kept(tmp_path: Path) -> None:
+    p = load_problem(_write(tmp_path, GOOD))
+    assert p.spacing == pytest.approx(0.01)
+    assert p.seam.tilt == pytest.approx(np.deg2rad(2.0))
+    assert p.process.travel_speed == pytest.approx(3e-3)
+    assert p.planning.tool_rotation == pytest.approx(np.pi)
+    assert p.planning.extra == {"weights_lateral": 3.0}
+    assert p.window.lower == pytest.approx(-1.25e-3)
+
+
+def test_seam_csv(tmp_path: Path) -> None:
+    (tmp_path / "s.csv").write_text("x_mm,y_mm,z_mm\n0,0,0\n100,0,0\n200,50,0\n")
+    text = GOOD.replace(
+        'points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]', 'csv = "s.csv"')
+    p = load_problem(_write(tmp_path, text))
+    np.testing.assert_allclose(p.seam.points[-1], [0.2, 0.05, 0.0])
+
+
+def test_unknown_names(tmp_path: Path) -> None:
+    with pytest.raises(UnknownNameError, match="zk500_table6_seam"):
+        load_problem("no_such_problem")
+    with pytest.raises(UnknownNameError, match=r"unknown robot.*'nobot'.*zk500"):
+        load_problem(_write(tmp_path, GOOD.replace('"zk500"', '"nobot"')))
+    with pytest.raises(UnknownNameError, match="process preset"):
+        load_problem(_write(tmp_path, GOOD.replace('"seed001_aa6061_5mm"', '"x"')))
+
+
+def test_typo_key_is_an_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"seam\.tilt_dg: unknown key; did you mean 'tilt_deg'"):
+        load_problem(_write(tmp_path, GOOD.replace("tilt_deg", "tilt_dg")))
+
+
+BAD = [
+    ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
+     "points_mm = [[269.52, -2070.91, 663.15]]", "at least 2 points"),
+    ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
+     "points_mm = [[0, 0, 0], [100, 0, 0], [100, 0, 0]]", "duplicate consecutive"),
+    ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
+     "points_mm = [[5, 5, 5], [5, 5, 5]]", "zero-length"),
+    ("tilt_deg = 2.0", "tilt_deg = 20.0", "tilt 20 deg is out of range"),
+    ('rotation = "cw"', 'rotation = "clockwise"', "unknown rotation sense"),
+    ("upper_mm = 0.7", "upper_mm = -1.5", "not below upper"),
+    ('robot = "zk500"', 'robot = "abb_irb_99"', "unknown robot"),
+    ("q_seed_deg = [-96.24, 3.91, 25.45, -2.10, 57.17, 2.90]", "q_seed_deg = [0, 0]",
+     "q_seed_deg"),
+    ("spacing_mm = 10.0", "spacing_mm = -1", "spacing_mm"),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "match"), BAD)
+def test_bad_problem_one_line_error_via_cli(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], old: str, new: str, match: str
+) -> None:
+    assert old in GOOD
+    p = _write(tmp_path, GOOD.replace(old, new))
+    code = main(["deviation", str(p), "-o", str(tmp_path / "out"), "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert match in err
+    assert str(p) in err or "unknown robot" in err
