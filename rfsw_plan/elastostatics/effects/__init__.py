@@ -9,8 +9,15 @@ import re
 from collections.abc import Mapping
 
 from rfsw_plan.elastostatics.effects.base import Effect, EffectKind, PoseBatch
+from rfsw_plan.elastostatics.effects.complementary_stiffness import ComplementaryStiffness
+from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
+from rfsw_plan.elastostatics.effects.joint_backlash import JointBacklash
 from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
+from rfsw_plan.elastostatics.effects.kinematic_offsets import KinematicOffsets
+from rfsw_plan.elastostatics.effects.payload_gravity import PayloadGravity
+from rfsw_plan.elastostatics.effects.sensor_misalignment import SensorMisalignment
 from rfsw_plan.elastostatics.effects.tilting_compliance import TiltingCompliance
+from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TorqueDependentStiffness
 from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.robot.kinematics import Robot
 
@@ -19,7 +26,14 @@ EFFECTS: dict[str, type[Effect]] = {
     cls.name: cls
     for cls in (
         JointCompliance,
+        ComplementaryStiffness,
         TiltingCompliance,
+        TorqueDependentStiffness,
+        JointBacklash,
+        PayloadGravity,
+        SensorMisalignment,
+        ForceSensorBias,
+        KinematicOffsets,
     )
 }
 
@@ -58,11 +72,18 @@ def make_effect(robot: Robot, label: str, params: Mapping[str, float] | None = N
 
 __all__ = [
     "EFFECTS",
+    "ComplementaryStiffness",
     "Effect",
     "EffectKind",
+    "ForceSensorBias",
+    "JointBacklash",
     "JointCompliance",
+    "KinematicOffsets",
+    "PayloadGravity",
     "PoseBatch",
+    "SensorMisalignment",
     "TiltingCompliance",
+    "TorqueDependentStiffness",
     "make_effect",
     "parse_effect_label",
 ]

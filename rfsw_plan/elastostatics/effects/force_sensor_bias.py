@@ -1,0 +1,49 @@
+"""A constant wrench offset of the force sensor."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+
+class ForceSensorBias(Effect):
+    """The sensor reads a constant offset b on top of the true wrench, in its own frame.
+
+    The sensor frame is taken as the tool frame at the TCP (the logged wrench is reported at
+    the TCP). With F_logged = F_true + B b, B = blockdiag(R_tool, R_tool):
+
+        dF = F_true - F_logged = -B b   (base frame, [N, N m]),
+
+    b = (b_fx, b_fy, b_fz [N], b_mx, b_my, b_mz [N m]) in the tool frame; a positive b_fz is a
+    sensor that over-reads the force along the tool z axis. Linear in b.
+    """
+
+    name = "force_sensor_bias"
+    description = (
+        "The force sensor has a zero offset (drift, bad tare) that it adds to every reading, "
+        "fixed in the sensor frame, so the robot is loaded differently from what is logged."
+    )
+    kind = "wrench"
+
+    def param_names(self) -> tuple[str, ...]:
+        return ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")
+
+    def prior(self) -> FloatArray:
+        return np.zeros(6)
+
+    def wrench_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        R = batch.T[:, :3, :3]
+        out = np.zeros((len(batch), 6, 6))
+        out[:, :3, :3] = -R
+        out[:, 3:, 3:] = -R
+        return out
+
+    def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        R = batch.T[:, :3, :3]
+        th = np.asarray(theta, dtype=float)
+        return -np.concatenate(
+            [np.einsum("mab,b->ma", R, th[:3]), np.einsum("mab,b->ma", R, th[3:])], axis=1
+        )

@@ -1,0 +1,67 @@
+"""Lost motion of one joint that follows the sign of its torque."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+#: Torque over which the lost motion is taken up [N m] (smooths the sign function).
+TAU_EPS_NM = 20.0
+#: Samples needed on each side of zero torque (|tau| > 3 TAU_EPS_NM) to identify backlash.
+MIN_SAMPLES_PER_SIGN = 3
+
+
+class JointBacklash(Effect):
+    """Joint N sits at +b/2 or -b/2 inside its gear play depending on the sign of its torque.
+
+        dq_N = (b / 2) tanh(tau_N / TAU_EPS_NM),   tau_N = (J^T F)_N,   dX = J_N dq_N
+
+    (base frame [m, rad]); b [rad] is the total lost motion. The tanh is a smooth sign so the
+    model stays differentiable; it is linear in b. With the torque always of one sign the
+    effect is a constant joint offset, so :meth:`identifiable` asks for both signs.
+    """
+
+    name = "joint_backlash"
+    description = (
+        "Play in the joint's gears: when its torque changes sign the joint crosses its "
+        "backlash and the TCP jumps by the lost motion."
+    )
+    kind = "compliance"
+    per_joint = True
+
+    def param_names(self) -> tuple[str, ...]:
+        return ("b",)
+
+    def prior(self) -> FloatArray:
+        return np.zeros(1)
+
+    def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """tau_N = (J^T F)_N [N m], shape (m,)."""
+        assert self.joint is not None
+        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+        return np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
+
+    def deflection_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        assert self.joint is not None
+        side = 0.5 * np.tanh(self.joint_torque(batch, wrench) / TAU_EPS_NM)
+        return (batch.J[:, :, self.joint] * side[:, None])[:, :, None]
+
+    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * float(theta[0])
+
+    def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        tau = self.joint_torque(batch, wrench)
+        pos = int(np.sum(tau > 3 * TAU_EPS_NM))
+        neg = int(np.sum(tau < -3 * TAU_EPS_NM))
+        if min(pos, neg) >= MIN_SAMPLES_PER_SIGN:
+            return None
+        lo, hi = (float(tau.min()), float(tau.max())) if tau.size else (0.0, 0.0)
+        assert self.joint is not None
+        return (
+            f"joint {self.joint + 1}'s torque does not change sign in the data ({pos} samples "
+            f"above +{3 * TAU_EPS_NM:g} N m, {neg} below -{3 * TAU_EPS_NM:g} N m, range "
+            f"{lo:.4g}..{hi:.4g} N m); backlash needs at least {MIN_SAMPLES_PER_SIGN} of each"
+        )

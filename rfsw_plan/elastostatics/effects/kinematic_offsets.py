@@ -1,0 +1,42 @@
+"""Joint zero offsets and a tool offset: a load-independent geometric error."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+
+class KinematicOffsets(Effect):
+    """First-order pose error of wrong joint zeros dq0 and a wrong tool centre point dt.
+
+        dX = J dq0 + [R_tool dt; 0]   (base frame [m, rad]),
+
+    dq0 [rad] shape (n,) on the controller joints (q_true = q_encoder + dq0), dt [m] shape (3,)
+    in the tool frame (true TCP = nominal TCP + dt). Linear in (dq0, dt). A joint whose axis
+    passes through the TCP (usually joint 6) has no position signature; identification keeps
+    its prior and says so.
+    """
+
+    name = "kinematic_offsets"
+    description = (
+        "The joint zeros and the tool length are slightly wrong, which shifts the TCP by a "
+        "pose-dependent amount whether or not the robot is loaded."
+    )
+    kind = "geometric"
+
+    def param_names(self) -> tuple[str, ...]:
+        return (*(f"dq{j + 1}" for j in range(self.robot.nq)), "dt_x", "dt_y", "dt_z")
+
+    def prior(self) -> FloatArray:
+        return np.zeros(self.robot.nq + 3)
+
+    def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        n = self.robot.nq
+        out = np.zeros((len(batch), 6, n + 3))
+        out[:, :, :n] = batch.J
+        out[:, :3, n:] = batch.T[:, :3, :3]
+        return out
+
+    def offset(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        return np.einsum("map,p->ma", self.offset_regressor(batch, theta), theta)

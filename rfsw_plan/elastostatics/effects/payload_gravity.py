@@ -1,0 +1,64 @@
+"""The weight of the spindle and tool, loading the joints in every pose."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+#: Standard gravity [m/s^2], acting along -Z of the robot base frame (floor-mounted robot).
+GRAVITY = 9.80665
+#: Prior spindle mass [kg]: seed 001's FSW spindle.
+PRIOR_MASS_KG = 150.0
+#: Prior centre of mass in the tool frame [m]: on the tool axis, 0.25 m behind the TCP
+#: (towards the flange; the tool frame's z points out of the spindle towards the workpiece).
+PRIOR_COM_M = (0.0, 0.0, -0.25)
+
+
+class PayloadGravity(Effect):
+    """Gravity wrench of the spindle and tool, added to the logged wrench.
+
+    Assumption: the force sensor sits between flange and spindle and is tared (or load-
+    compensated by the controller) with the spindle mounted, so the logged wrench is the
+    process wrench only; the joints still carry the spindle's weight, which the base model
+    does not see. The correction, wrench on the tool at the TCP in the base frame [N, N m]:
+
+        dF = [f; (R s) x f],   f = -m g e_z,   s = m r_c,
+
+    with R the TCP orientation, m [kg] the mass and r_c [m] the centre of mass in the tool
+    frame. The parameters are m and the first moment s = m r_c = (m_rx, m_ry, m_rz) [kg m],
+    so dF is linear in them (one least-squares step; with the joint compliance also free the
+    model is bilinear and Gauss-Newton iterates). r_c = s / m.
+    """
+
+    name = "payload_gravity"
+    description = (
+        "The spindle and tool weigh as much as a person or more: their weight and its lever "
+        "arm load every joint in every pose, also when there is no process force."
+    )
+    kind = "wrench"
+
+    def param_names(self) -> tuple[str, ...]:
+        return ("m", "m_rx", "m_ry", "m_rz")
+
+    def prior(self) -> FloatArray:
+        return np.array([PRIOR_MASS_KG, *(PRIOR_MASS_KG * np.asarray(PRIOR_COM_M))])
+
+    def wrench_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        R = batch.T[:, :3, :3]
+        out = np.zeros((len(batch), 6, 4))
+        out[:, 2, 0] = -GRAVITY  # force of unit mass along -Z
+        # Moment (R s) x (-g e_z) = g (-(R s)_y, (R s)_x, 0), linear in s.
+        out[:, 3, 1:] = -GRAVITY * R[:, 1, :]
+        out[:, 4, 1:] = GRAVITY * R[:, 0, :]
+        return out
+
+    def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return np.einsum("map,p->ma", self.wrench_regressor(batch, wrench, theta), theta)
+
+    def centre_of_mass(self, theta: FloatArray | None = None) -> FloatArray:
+        """Centre of mass r_c = s / m in the tool frame [m], shape (3,)."""
+        th = self.params if theta is None else theta
+        return np.asarray(th[1:4], dtype=float) / float(th[0])

@@ -1,0 +1,55 @@
+"""Joint stiffness that changes with the joint's torque (seed 002 Fig. 7)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+
+#: Reference torque that normalises the polynomial [N m]: s = tau / TAU_REF_NM.
+TAU_REF_NM = 1.0e4
+
+
+class TorqueDependentStiffness(Effect):
+    """Deflection of joint N beyond linear, as an odd polynomial in its torque.
+
+    Seed 002 Fig. 7 fits each joint's angular displacement phi(tau) with a polynomial; the
+    linear term is the joint compliance, so this effect adds the higher odd terms:
+
+        dq_N = d2 s|s| + d3 s^3,   s = tau_N / TAU_REF_NM,   tau_N = (J^T F)_N,
+
+    and moves the TCP by dX = J_N dq_N (base frame [m, rad]). d2 and d3 [rad] are the extra
+    deflection at tau_N = TAU_REF_NM (10 kN m); d < 0 is a joint that stiffens with load,
+    d > 0 one that softens. Linear in (d2, d3).
+    """
+
+    name = "torque_dependent_stiffness"
+    description = (
+        "The joint's stiffness changes with the torque it carries (gears and bearings stiffen "
+        "as they load), so its deflection is a polynomial in its torque, not a straight line."
+    )
+    kind = "compliance"
+    per_joint = True
+
+    def param_names(self) -> tuple[str, ...]:
+        return ("d2", "d3")
+
+    def prior(self) -> FloatArray:
+        return np.zeros(2)
+
+    def normalised_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """s = tau_N / TAU_REF_NM for every sample, shape (m,)."""
+        assert self.joint is not None
+        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+        return np.einsum("ma,ma->m", batch.J[:, :, self.joint], F) / TAU_REF_NM
+
+    def deflection_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        assert self.joint is not None
+        s = self.normalised_torque(batch, wrench)
+        basis = np.stack([s * np.abs(s), s**3], axis=1)  # (m, 2)
+        return batch.J[:, :, self.joint, None] * basis[:, None, :]
+
+    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return np.einsum("map,p->ma", self.deflection_regressor(batch, wrench, theta), theta)

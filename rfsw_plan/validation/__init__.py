@@ -1,0 +1,1 @@
+"""Model against measurement: simulated campaigns, residuals, diagnosis and reports."""
