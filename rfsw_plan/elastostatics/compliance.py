@@ -64,7 +64,9 @@ def complementary_stiffness(dJ: FloatArray, wrench: FloatArray) -> FloatArray:
     return np.einsum("kaj,a->jk", dJ, wrench)
 
 
-def deflection_with_kc(J: FloatArray, Kq: FloatArray, Kc: FloatArray, wrench: FloatArray) -> FloatArray:
+def deflection_with_kc(
+    J: FloatArray, Kq: FloatArray, Kc: FloatArray, wrench: FloatArray
+) -> FloatArray:
     """TCP deflection including the geometry change, dX = J (Kq - Kc)^-1 J^T F [m, rad].
 
     This is K_X^-1 F with K_X from seed 000 eq. 6.

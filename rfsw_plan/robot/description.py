@@ -378,7 +378,9 @@ def _urdf_dof(urdf: Path, tip_link: str, path: Path | str) -> int:
 def _rpy_to_matrix(rpy: FloatArray) -> FloatArray:
     """Roll-pitch-yaw (fixed X, then Y, then Z) [rad] to a rotation matrix."""
     r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
     return np.array(
         [
             [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
