@@ -6,9 +6,11 @@ import argparse
 import importlib
 import logging
 import pkgutil
+import re
 import sys
 from collections.abc import Sequence
 from types import ModuleType
+from typing import NoReturn
 
 from rfsw_plan.exceptions import RfswError
 
@@ -24,9 +26,24 @@ def _command_modules() -> list[ModuleType]:
     return mods
 
 
+class OneLineArgumentParser(argparse.ArgumentParser):
+    """Argument parser whose errors are one line (no usage block) with exit code 2.
+
+    Values that start with a minus sign and a digit, such as ``--q-deg -96.2,3.9,...``, are
+    taken as values, not as unknown options.
+    """
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*$")
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
+
+
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
     """The top-level parser and the subcommand modules by name."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineArgumentParser(
         prog="rfsw-plan",
         description="Offline planning of robotic friction stir welding around the robot's "
         "own elasticity.",
@@ -42,14 +59,13 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
     return parser, commands
 
 
-class _OneLineArgumentParserError(Exception):
-    pass
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible)."""
     parser, commands = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help (0) or a usage error (2), already printed
+        return exc.code if isinstance(exc.code, int) else 2
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

@@ -141,7 +141,8 @@ def _effect_position_jacobian(
                 h = 1e-6 * max(1.0, float(np.max(np.abs(F_true))))
                 scale = np.max(np.abs(dF[:, :, k])) or 1.0
                 step = dF[:, :, k] / scale * h
-                out[:, :, k] += (e.deflection(batch, F_true + step, e.params)[:, :3] - base) / h * scale
+                moved = e.deflection(batch, F_true + step, e.params)[:, :3]
+                out[:, :, k] += (moved - base) / h * scale
     return out
 
 
@@ -240,7 +241,8 @@ def identify(
         if sv[-1] / sv[0] >= COLLINEARITY_TOL:
             break
         worst = idx[int(np.argmax(np.abs(Vt[-1])))]
-        partners = [f"{names[idx[j]][0]}.{names[idx[j]][1]}" for j in np.argsort(-np.abs(Vt[-1]))[1:3]]
+        order = np.argsort(-np.abs(Vt[-1]))[1:3]
+        partners = [f"{names[idx[j]][0]}.{names[idx[j]][1]}" for j in order]
         free_mask[worst] = False
         notes[worst] = (
             f"collinear with {', '.join(partners)} in this data (cannot be told apart); prior kept"
@@ -253,11 +255,15 @@ def identify(
     elif method not in ("ols", "wls"):
         raise IdentificationError(f"unknown method '{method}'; known: ols, wls")
 
+    # Positions are linear in theta when every free effect is a linear compliance or
+    # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
+    linear = all(e.linear_in_params and e.kind in ("compliance", "geometric") for e in effects)
+
     def solve(weights: FloatArray) -> tuple[FloatArray, int, bool]:
         theta = np.concatenate([e.params for e in effects])
         idx = np.nonzero(free_mask)[0]
         it, conv = 0, False
-        for it in range(1, max_iter + 1):
+        for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
             r = (y - model_pos())[mask]
             A = position_jacobian(work, batch, data.wrench, effects)[mask][:, idx]
             sw = np.sqrt(weights)
@@ -267,8 +273,10 @@ def identify(
             step /= colscale
             theta[idx] += step
             _set_theta(effects, theta)
-            if np.all(np.abs(step) <= tol * np.maximum(np.abs(theta[idx]), scale[idx])):
-                conv = True
+            if linear or np.all(
+                np.abs(step) <= tol * np.maximum(np.abs(theta[idx]), scale[idx])
+            ):
+                conv = True  # a model linear in theta is solved exactly by one step
                 break
         return theta, it, conv
 
@@ -284,14 +292,17 @@ def identify(
     jc = work.joint_compliance
     if jc in effects:
         off = sum(e.params.size for e in effects[: effects.index(jc)])
-        for j in range(jc.params.size):
-            k = off + j
-            if free_mask[k] and theta[k] <= 0:
+        # Fixing one joint changes the others' estimates: repeat until all are positive.
+        while True:
+            neg = [off + j for j in range(jc.params.size)
+                   if free_mask[off + j] and theta[off + j] <= 0]
+            if not neg:
+                break
+            for k in neg:
                 free_mask[k] = False
                 notes[k] = f"estimate {theta[k]:.3g} rad/(N m) is not positive; prior kept"
                 theta[k] = prior[k]
-        _set_theta(effects, theta)
-        if not all(n == "" for n in notes):
+            _set_theta(effects, theta)
             theta, iterations, converged = solve(w)
 
     # -- uncertainty --------------------------------------------------------------------------

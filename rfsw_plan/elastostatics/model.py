@@ -79,7 +79,11 @@ class ElastostaticModel:
     # -- evaluation --------------------------------------------------------------------------
     def batch(self, q: FloatArray) -> PoseBatch:
         """Kinematics of joint values [rad], shape (m, n) or (n,)."""
-        return PoseBatch.from_q(self.robot, q)
+        Q = np.atleast_2d(np.asarray(q, dtype=float))
+        if Q.shape[0] == 1:  # one pose: Pinocchio beats the vectorised path's overhead
+            T, J = self.robot.fk_jacobian(Q[0])
+            return PoseBatch(self.robot, Q, T[None], J[None], self.robot.joint_frames(Q[0])[None])
+        return PoseBatch.from_q(self.robot, Q)
 
     def true_wrench(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""
@@ -120,9 +124,29 @@ class ElastostaticModel:
         Returns shape (m, 6), or (6,) for a single pose.
         """
         single = np.ndim(q) == 1
+        if self.is_linear_joint_model():
+            return self._joint_deflection_fast(q, wrench, single)
         batch = self.batch(q)
         dX = self.deflection_batch(batch, np.atleast_2d(wrench))
         return dX[0] if single else dX
+
+    def _joint_deflection_fast(
+        self, q: FloatArray, wrench: FloatArray, single: bool
+    ) -> FloatArray:
+        """dX = J diag(c) J^T F without building a :class:`PoseBatch` (joint compliance only).
+
+        Same equation as :class:`JointCompliance` (seed 000 eq. 11); a single pose uses
+        Pinocchio's Jacobian, many poses the vectorised batch without joint frames.
+        """
+        c = self.joint_compliance.params
+        if single:
+            _, J = self.robot.fk_jacobian(np.asarray(q, dtype=float))
+            F = np.asarray(wrench, dtype=float).reshape(6)
+            return J @ (c * (F @ J))
+        _, J = self.robot.batch_fk_jacobian(q)[:2]
+        F = np.broadcast_to(np.asarray(wrench, dtype=float), (J.shape[0], 6))
+        tau = np.einsum("mjk,mj->mk", J, F)  # joint torques [N m]
+        return np.einsum("mak,mk->ma", J, tau * c)
 
     def predict_position(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
         """Loaded TCP position [m], base frame: FK(q) + dX_translation; shape (m, 3)."""

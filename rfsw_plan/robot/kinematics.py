@@ -112,14 +112,6 @@ def _chain_geometry(model: pin.Model) -> ChainGeometry:
     return ChainGeometry(placements, axes, tcp)
 
 
-def _rodrigues_batch(axis: FloatArray, angle: FloatArray) -> FloatArray:
-    """Rotation matrices about a fixed unit axis, shape (m, 3, 3)."""
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    s = np.sin(angle)[:, None, None]
-    c = np.cos(angle)[:, None, None]
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
-
-
 class Robot:
     """A robot ready for numeric kinematics: Pinocchio model plus limits and stiffness.
 
@@ -202,13 +194,57 @@ class Robot:
         return np.stack([self.data.oMi[i + 1].homogeneous for i in range(self.nq)])
 
     # -- vectorised batch --------------------------------------------------------------------
+    @cached_property
+    def _z_aligned_chain(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, bool]:
+        """Constants of the chain rewritten with every joint rotating about its local z axis.
+
+        A joint about unit axis a rotates by ``A Rz(q) A^T`` where A is a rotation with third
+        column a; folding A into the placements gives ``P_i' = A_{i-1}^T P_i A_i`` and
+        ``tcp' = A_n^T tcp``, so the batch loop only ever rotates about z.
+
+        Returns:
+            (rotations (n+1, 3, 3), translations (n+1, 3) [m], A (n, 3, 3), aligned flags
+            (n,), identity coupling); index n holds the TCP placement.
+        """
+        g = self.geometry
+        n = self.nq
+        A = np.empty((n, 3, 3))
+        aligned = np.empty(n, dtype=bool)
+        for i in range(n):
+            a = g.axes[i] / np.linalg.norm(g.axes[i])
+            aligned[i] = bool(np.allclose(a, [0.0, 0.0, 1.0], rtol=0.0, atol=1e-15))
+            if aligned[i]:
+                A[i] = np.eye(3)
+            else:
+                helper = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+                x = helper - a * (helper @ a)
+                x /= np.linalg.norm(x)
+                A[i] = np.column_stack([x, np.cross(a, x), a])
+        rot = np.empty((n + 1, 3, 3))
+        trans = np.empty((n + 1, 3))
+        prev = np.eye(3)
+        for i in range(n + 1):
+            M = g.placements[i] if i < n else g.tcp
+            after = A[i] if i < n else np.eye(3)
+            rot[i] = prev.T @ M[:3, :3] @ after
+            trans[i] = prev.T @ M[:3, 3]
+            prev = A[i] if i < n else prev
+        identity = bool(np.array_equal(self.coupling, np.eye(n)))
+        return rot, trans, A, aligned, identity
+
+    #: Poses evaluated per chunk in :meth:`batch_fk_jacobian` (keeps the working set in cache).
+    BATCH_CHUNK = 4096
+
     def batch_fk_jacobian(
         self, Q: FloatArray, with_joint_frames: bool = False
     ) -> tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, FloatArray]:
         """Vectorised TCP poses and Jacobians for many configurations.
 
-        Same numbers as :meth:`fk_jacobian` (checked in tests), computed with NumPy over all
-        poses at once from the Pinocchio joint placements and axes.
+        Same numbers as :meth:`fk_jacobian` (checked in tests to 1e-12), computed with NumPy
+        over all poses at once from the Pinocchio joint placements and axes. Internally the
+        poses are stored structure-of-arrays (3, 3, m) so that every constant placement is one
+        BLAS product and every joint rotation (about z after :attr:`_z_aligned_chain`) is a
+        few element-wise operations; poses are processed in chunks of :attr:`BATCH_CHUNK`.
 
         Args:
             Q: Controller joint values [rad], shape (m, n).
@@ -220,28 +256,68 @@ class Robot:
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         m, n = Q.shape
-        qc = Q @ self.coupling.T
-        g = self.geometry
-        T = np.broadcast_to(np.eye(4), (m, 4, 4)).copy()
-        z = np.empty((m, n, 3))
-        o = np.empty((m, n, 3))
-        frames = np.empty((m, n, 4, 4)) if with_joint_frames else None
-        for i in range(n):
-            T = T @ g.placements[i]
-            z[:, i] = T[:, :3, :3] @ g.axes[i]
-            o[:, i] = T[:, :3, 3]
-            T[:, :3, :3] = T[:, :3, :3] @ _rodrigues_batch(g.axes[i], qc[:, i])
-            if frames is not None:
-                frames[:, i] = T
-        T = T @ g.tcp
-        p = T[:, :3, 3]
-        Jd = np.empty((m, 6, n))
-        Jd[:, :3, :] = np.cross(z, p[:, None, :] - o).transpose(0, 2, 1)
-        Jd[:, 3:, :] = z.transpose(0, 2, 1)
-        J = Jd @ self.coupling
+        T = np.zeros((m, 4, 4))
+        T[:, 3, 3] = 1.0
+        J = np.empty((m, 6, n))
+        frames = np.zeros((m, n, 4, 4)) if with_joint_frames else None
+        if frames is not None:
+            frames[:, :, 3, 3] = 1.0
+        for lo in range(0, m, self.BATCH_CHUNK):
+            hi = min(lo + self.BATCH_CHUNK, m)
+            self._batch_chunk(Q[lo:hi], T[lo:hi], J[lo:hi],
+                              None if frames is None else frames[lo:hi])
         if frames is not None:
             return T, J, frames
         return T, J
+
+    def _batch_chunk(
+        self, Q: FloatArray, T_out: FloatArray, J_out: FloatArray, F_out: FloatArray | None
+    ) -> None:
+        """Fill ``T_out`` (m, 4, 4), ``J_out`` (m, 6, n) and ``F_out`` for one chunk."""
+        rot, trans, A, aligned, identity = self._z_aligned_chain
+        m, n = Q.shape
+        qc = Q.T if identity else self.coupling @ Q.T  # chain angles, shape (n, m)
+        cq = np.cos(qc)
+        sq = np.sin(qc)
+        R = np.empty((3, 3, m))  # R[a, b, k]: rotation of pose k, structure-of-arrays
+        R[:] = rot[0][:, :, None]
+        p = np.empty((3, m))
+        p[:] = trans[0][:, None]
+        z = np.empty((n, 3, m))
+        o = np.empty((n, 3, m))
+        tmp = np.empty((3, m))
+        Fs = np.empty((n, 3, 4, m)) if F_out is not None else None  # joint frames [:3, :]
+        for i in range(n):
+            if i > 0:
+                p += np.matmul(trans[i], R)  # p += R t_i
+                R = np.matmul(rot[i].T, R)  # R <- R M_i, one BLAS product per row of R
+            z[i] = R[:, 2]
+            o[i] = p
+            # R <- R Rz(q_i): only columns 0 and 1 change.
+            x, y = R[:, 0], R[:, 1]
+            np.multiply(x, sq[i], out=tmp)
+            x *= cq[i]
+            x += y * sq[i]
+            y *= cq[i]
+            y -= tmp
+            if Fs is not None:
+                Fs[i, :, :3] = R if aligned[i] else np.matmul(A[i], R)
+                Fs[i, :, 3] = p
+        p = p + np.matmul(trans[n], R)
+        R = np.matmul(rot[n].T, R)
+        T_out[:, :3, :3] = R.transpose(2, 0, 1)
+        T_out[:, :3, 3] = p.T
+        r = p[None] - o  # (n, 3, m) TCP minus joint origin [m]
+        Jd = np.empty((6, n, m))
+        Jd[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]
+        Jd[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
+        Jd[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
+        Jd[3:] = z.transpose(1, 0, 2)
+        if not identity:
+            Jd = np.matmul(self.coupling.T, Jd)  # J_ctrl = J_chain G, per row
+        J_out[:] = Jd.transpose(2, 0, 1)
+        if F_out is not None and Fs is not None:
+            F_out[:, :, :3, :] = Fs.transpose(3, 0, 1, 2)
 
     def jacobian_derivatives(self, q: FloatArray) -> FloatArray:
         """Partial derivatives of the TCP Jacobian, dJ/dq_k, shape (n, 6, n).
@@ -251,26 +327,33 @@ class Robot:
         i < j, and only moves p when i >= j. The coupling G maps chain to controller
         derivatives. Needed for the complementary stiffness Kc (seed 000 eq. 6).
         """
-        T, _, frames = self.batch_fk_jacobian(np.asarray(q)[None, :], with_joint_frames=True)
+        return self.batch_jacobian_derivatives(np.asarray(q, dtype=float)[None, :])[0]
+
+    def batch_jacobian_derivatives(self, Q: FloatArray) -> FloatArray:
+        """:meth:`jacobian_derivatives` for many configurations, shape (m, n, 6, n).
+
+        Args:
+            Q: Controller joint values [rad], shape (m, n).
+        """
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        T, _, frames = self.batch_fk_jacobian(Q, with_joint_frames=True)  # type: ignore[misc]
         n = self.nq
-        p = T[0, :3, 3]
-        z = np.stack([frames[0, i, :3, :3] @ self.geometry.axes[i] for i in range(n)])
-        o = frames[0, :, :3, 3]
-        dJd = np.zeros((n, 6, n))  # [i] = dJ_chain / dq_chain_i
-        for i in range(n):
-            for j in range(n):
-                r = p - o[j]
-                if i < j:
-                    dz = np.cross(z[i], z[j])
-                    dr = np.cross(z[i], r)
-                    dJd[i, :3, j] = np.cross(dz, r) + np.cross(z[j], dr)
-                    dJd[i, 3:, j] = dz
-                else:
-                    dp = np.cross(z[i], p - o[i])
-                    dJd[i, :3, j] = np.cross(z[j], dp)
+        p = T[:, :3, 3]
+        z = np.einsum("mnab,nb->mna", frames[:, :, :3, :3], self.geometry.axes)  # (m, n, 3)
+        r = p[:, None, :] - frames[:, :, :3, 3]  # TCP minus joint origin, (m, n, 3) [m]
+        zi = z[:, :, None, :]  # axis of the differentiated joint i
+        zj = z[:, None, :, :]  # axis of the column j
+        rj = r[:, None, :, :]
+        upper = (np.arange(n)[:, None] < np.arange(n)[None, :])[None, :, :, None]
+        dz = np.cross(zi, zj)  # (m, i, j, 3)
+        lin_upper = np.cross(dz, rj) + np.cross(zj, np.cross(zi, rj))
+        lin_lower = np.cross(zj, np.cross(z, r)[:, :, None, :])
+        dJd = np.empty((Q.shape[0], n, 6, n))  # [m, i] = dJ_chain / dq_chain_i
+        dJd[:, :, :3, :] = np.where(upper, lin_upper, lin_lower).transpose(0, 1, 3, 2)
+        dJd[:, :, 3:, :] = np.where(upper, dz, 0.0).transpose(0, 1, 3, 2)
         G = self.coupling
         # dJ_ctrl/dq_ctrl_k = sum_i (dJ_chain/dq_chain_i) G[i, k], then times G on the right.
-        return np.einsum("ik,iab,bc->kac", G, dJd, G)
+        return np.einsum("ik,miab,bc->mkac", G, dJd, G)
 
 
 def load_robot(name_or_path: str | object) -> Robot:

@@ -34,7 +34,8 @@ class JointCompliance(Effect):
         return batch.J * tau[:, None, :]
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        return np.einsum("mak,k->ma", self.deflection_regressor(batch, wrench, theta), theta)
+        tau = np.einsum("mjk,mj->mk", batch.J, wrench)  # joint torques J^T F [N m]
+        return np.einsum("mak,mk->ma", batch.J, tau * theta)  # J diag(c) J^T F
 
     def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         return np.einsum("mak,k,mbk->mab", batch.J, theta, batch.J)

@@ -47,14 +47,26 @@ class TiltingCompliance(Effect):
         """TCP twists of unit tilts about t1 and t2, base frame, shape (m, 6, 2)."""
         assert self.joint is not None
         i = self.joint
-        local = _normal_axes(self.robot.geometry.axes[i])  # (2, 3) in joint frame
+        local = self._local_axes()  # (2, 3) in joint frame
         R = batch.frames[:, i, :3, :3]
-        u = np.einsum("mab,tb->mta", R, local)  # (m, 2, 3)
-        r = batch.T[:, None, :3, 3] - batch.frames[:, i, None, :3, 3]
+        u = np.einsum("mab,tb->mat", R, local)  # (m, 3, 2) base frame
+        r = batch.T[:, :3, 3] - batch.frames[:, i, :3, 3]  # (m, 3) [m]
         out = np.empty((len(batch), 6, 2))
-        out[:, :3, :] = np.cross(u, r).transpose(0, 2, 1)
-        out[:, 3:, :] = u.transpose(0, 2, 1)
+        # u x r, written out (np.cross costs ~20 us of overhead per call on small arrays).
+        out[:, 0, :] = u[:, 1] * r[:, 2, None] - u[:, 2] * r[:, 1, None]
+        out[:, 1, :] = u[:, 2] * r[:, 0, None] - u[:, 0] * r[:, 2, None]
+        out[:, 2, :] = u[:, 0] * r[:, 1, None] - u[:, 1] * r[:, 0, None]
+        out[:, 3:, :] = u
         return out
+
+    def _local_axes(self) -> FloatArray:
+        """t1, t2 in the joint frame, shape (2, 3) (constant; computed once)."""
+        cached: FloatArray | None = getattr(self, "_local_cache", None)
+        if cached is None:
+            assert self.joint is not None
+            cached = _normal_axes(self.robot.geometry.axes[self.joint])
+            self._local_cache = cached
+        return cached
 
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray

@@ -1,0 +1,120 @@
+"""``rfsw-plan identify``: joint stiffness (and effect parameters) from a measurement file.
+
+Least squares on measured TCP positions (seed 000 eq. 13-15, seed 001 eq. 8-11); see
+:func:`rfsw_plan.elastostatics.identification.identify`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from rfsw_plan.elastostatics.identification import IdentificationResult, identify
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import UnknownNameError
+from rfsw_plan.io.measurements import read_measurements
+from rfsw_plan.robot.description import save_robot_description
+from rfsw_plan.robot.kinematics import load_robot
+
+NAME = "identify"
+HELP = "identify joint stiffness from a measurement CSV and optionally write a new robot file"
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--robot", required=True, metavar="NAME|PATH",
+                        help="bundled robot name or robot TOML file (its values are the priors)")
+    parser.add_argument("--data", required=True, metavar="FILE",
+                        help="measurement CSV (q1_deg.., fx_N.., x_mm..; see the README)")
+    parser.add_argument("--method", choices=("ols", "wls"), default="ols",
+                        help="ordinary (seed 000 eq. 15) or weighted least squares "
+                        "(weights from sigma_mm, else from per-axis residuals)")
+    parser.add_argument("--free", default="joint_compliance", metavar="LABEL[,LABEL...]",
+                        help="effects to identify (default: joint_compliance; the robot file's "
+                        "other effects keep their values); 'all' frees every effect")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("-o", "--output", metavar="NEW_ROBOT_FILE",
+                        help="write the robot description with the identified values (TOML)")
+
+
+def _num(x: float) -> float | None:
+    return None if not math.isfinite(x) else float(x)
+
+
+def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> dict[str, Any]:
+    jc = [e for e in res.estimates if e.effect == "joint_compliance"]
+    joints = []
+    for j in range(res.stiffness.size):
+        note = next((e.note for e in jc if e.name == f"c{j + 1}"), "not free in this fit")
+        joints.append({
+            "joint": j + 1,
+            "stiffness_Nm_per_rad": float(res.stiffness[j]),
+            "std_error_Nm_per_rad": _num(float(res.stiffness_std[j])),
+            "identified": bool(res.joint_identified[j]),
+            "note": note,
+        })
+    others = [
+        {"effect": e.effect, "param": e.name, "value": e.value, "prior": e.prior,
+         "std_error": _num(e.std_error), "identified": e.identified, "note": e.note}
+        for e in res.estimates if e.effect != "joint_compliance"
+    ]
+    return {
+        "robot": robot_name,
+        "method": res.method,
+        "joints": joints,
+        "effects": others,
+        "condition_number": _num(res.condition_number),
+        "rms_before_mm": res.rms_before * 1e3,
+        "rms_after_mm": res.rms_after * 1e3,
+        "sigma_mm": res.sigma * 1e3,
+        "n_samples": res.n_samples,
+        "n_observations": res.n_observations,
+        "converged": res.converged,
+        "output": None if output is None else str(output),
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    robot = load_robot(args.robot)
+    data = read_measurements(args.data, n_joints=robot.nq)
+    model = ElastostaticModel(robot)
+    free = None if args.free.strip() == "all" else [x.strip() for x in args.free.split(",")]
+    unknown = [x for x in free or [] if not model.has(x)]
+    if unknown:
+        raise UnknownNameError("effect in the model", unknown[0], model.labels)
+    res = identify(model, data, method=args.method, free=free)
+    output = None
+    if args.output:
+        note = (f"identified by rfsw-plan identify ({res.method}, {res.n_samples} samples) "
+                f"from {Path(args.data).name}; prior: "
+                f"{robot.description.sources.get('stiffness', 'not stated')}")
+        output = save_robot_description(res.model.to_description(note), args.output)
+    rep = _report(res, robot.name, output)
+    if args.json:
+        print(json.dumps(rep))
+        return 0
+    print(f"robot {robot.name}: {res.n_samples} samples, {res.n_observations} measured values, "
+          f"method {res.method}")
+    print(f"{'joint':>5}  {'stiffness [N m/rad]':>20}  {'std error':>10}  status")
+    for j in rep["joints"]:
+        std = "-" if j["std_error_Nm_per_rad"] is None else f"{j['std_error_Nm_per_rad']:.3g}"
+        status = "identified" if j["identified"] else "NOT identified"
+        if j["note"]:
+            status += f": {j['note']}"
+        print(f"{j['joint']:>5}  {j['stiffness_Nm_per_rad']:>20.6g}  {std:>10}  {status}")
+    for e in rep["effects"]:
+        std = "-" if e["std_error"] is None else f"{e['std_error']:.3g}"
+        status = "identified" if e["identified"] else "NOT identified"
+        if e["note"]:
+            status += f": {e['note']}"
+        print(f"  {e['effect']}.{e['param']} = {e['value']:.6g} (std {std}) {status}")
+    cond = rep["condition_number"]
+    print(f"condition number (column-normalised regressor): "
+          f"{'n/a' if cond is None else f'{cond:.4g}'}")
+    print(f"RMS position residual: before {rep['rms_before_mm']:.4f} mm, "
+          f"after {rep['rms_after_mm']:.4f} mm")
+    if output is not None:
+        print(f"wrote {output}")
+    return 0

@@ -1,0 +1,99 @@
+"""Checks against the papers (issue 2 §8) and the workspace index maps behind them."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+from rfsw_plan.elastostatics.compliance import (
+    complementary_stiffness,
+    dexterity,
+    kc_influence_index,
+)
+from rfsw_plan.elastostatics.workspace import index_map, sample_joint_grid
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.kinematics import load_robot
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "paper_checks.py"
+
+
+@pytest.fixture(scope="module")
+def paper() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("paper_checks", EXAMPLE)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["paper_checks"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_zk500_lateral_deflection_within_10_percent_of_measured(paper: ModuleType) -> None:
+    s = paper.zk500_seam_check()
+    # Tool straight down at the seam start (seed 001 Table 6).
+    robot = load_robot("zk500")
+    T = robot.fk(np.radians(s.q_deg))
+    np.testing.assert_allclose(T[:3, 3], paper.SEAM_START, atol=1e-6)
+    np.testing.assert_allclose(T[:3, 2], [0.0, 0.0, -1.0], atol=1e-6)
+    assert s.q_deg[2] > 0 and s.q_deg[1] > 0  # elbow-up branch of Table 2 pose 1
+    assert abs(s.lateral_mm - paper.MEASURED_MM) <= 0.1 * paper.MEASURED_MM, s.lateral_mm
+    t = (paper.SEAM_END - paper.SEAM_START) / np.linalg.norm(paper.SEAM_END - paper.SEAM_START)
+    lat = np.cross([0.0, 0.0, 1.0], t)
+    lat /= np.linalg.norm(lat)
+    assert s.wrench[:3] @ lat == pytest.approx(paper.FL_N, rel=1e-12)  # lateral force along l
+    assert s.wrench[2] > 4800.0  # down force pushes the tool up
+
+
+def test_fanuc_nu_p_map_is_sane(paper: ModuleType) -> None:
+    maps = paper.fanuc_nu_p_maps(n_points=15)
+    eq10 = maps["eq. 10 Kq (k6 = 1e4 assumed)"]
+    table2 = maps["Table 2 (identified)"]
+    for mp in (eq10, table2):
+        nu = mp.nu_p[np.isfinite(mp.nu_p)]
+        assert nu.size == 15 * 15
+        assert np.all((nu >= 0) & (nu < 1))
+        assert nu.max() > 0
+        assert np.all(mp.kappa_f >= 1.0 - 1e-12)
+    # nu_p is first order in F/K: the stiffer identified robot has the smaller index.
+    assert np.nanmax(table2.nu_p) < np.nanmax(eq10.nu_p)
+    assert np.nanmedian(table2.nu_p) < 0.05
+
+
+def test_index_map_matches_pointwise_functions() -> None:
+    robot = load_robot("fanuc_s900ib_400")
+    grid = sample_joint_grid(robot, np.radians([0, 0, 0, 45, 45, 45]), n_points=(4, 5))
+    assert grid.q.shape == (20, 6) and grid.shape == (4, 5)
+    np.testing.assert_allclose(grid.q[:, [0, 3, 4, 5]], np.radians([[0, 45, 45, 45]] * 20))
+    assert grid.q[0, 1] == pytest.approx(robot.description.lower[1])
+    assert grid.q[-1, 2] == pytest.approx(robot.description.upper[2])
+    for i in (0, 7, 19):
+        np.testing.assert_allclose(grid.position[i], robot.fk(grid.q[i])[:3, 3], atol=1e-12)
+    F = np.array([1000.0, -3000.0, -4000.0, -200.0, 200.0, -200.0])
+    Kq = np.array([1e6, 4e5, 4e5, 1e4, 1e4, 1e4])
+    mp = index_map(robot, grid, F, Kq)
+    for i in (0, 7, 19):
+        J = robot.jacobian(grid.q[i])
+        Kc = complementary_stiffness(robot.jacobian_derivatives(grid.q[i]), F)
+        assert mp.nu_p[i] == pytest.approx(kc_influence_index(J, np.diag(Kq), Kc, F), rel=1e-9)
+        assert mp.kappa_f[i] == pytest.approx(dexterity(J), rel=1e-12)
+    pc = mp.percentiles((50.0,))
+    assert pc["max"] == pytest.approx(np.nanmax(mp.nu_p))
+
+
+def test_workspace_bad_input() -> None:
+    robot = load_robot("zk500")
+    with pytest.raises(InputError, match="joint values"):
+        sample_joint_grid(robot, np.zeros(5))
+    with pytest.raises(InputError, match="two different joints"):
+        sample_joint_grid(robot, np.zeros(6), swept=(1, 1))
+    with pytest.raises(InputError, match="at least 2"):
+        sample_joint_grid(robot, np.zeros(6), n_points=(1, 5))
+    grid = sample_joint_grid(robot, np.zeros(6), n_points=(2, 2))
+    with pytest.raises(InputError, match="6 values"):
+        index_map(robot, grid, np.zeros(5))
+    with pytest.raises(InputError, match="Kq"):
+        index_map(robot, grid, np.ones(6), np.ones(5))
