@@ -1,0 +1,106 @@
+"""``rfsw-plan plan PROBLEM -o DIR``: plan, verify, time and write corrected waypoints."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from rfsw_plan.exceptions import InfeasibleError, InputError
+
+NAME = "plan"
+HELP = "plan poses and fake-target offsets, verify them, time them and write waypoint files"
+
+_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png")
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("problem", help="bundled problem name (e.g. zk500_table6_seam) or file")
+    parser.add_argument("-o", "--output", default=None,
+                        help="output directory (default: out/<problem>)")
+    parser.add_argument("--json", action="store_true", help="print the plan.json summary")
+    parser.add_argument("--spacing-mm", type=float, default=None,
+                        help="waypoint spacing along the seam [mm] (default: the problem's)")
+    parser.add_argument("--force-uncertainty", type=float, default=None,
+                        help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a [planning] option, file units (e.g. w_stiffness=0)")
+
+
+def _overrides(items: list[str]) -> dict[str, Any]:
+    from rfsw_plan.planning.options import _FILE_KEYS, options_from_table
+
+    table: dict[str, Any] = {}
+    for it in items:
+        key, sep, val = it.partition("=")
+        if not sep:
+            raise InputError("--set", it, "missing '='", "KEY=VALUE")
+        v: Any
+        if val.lower() in ("true", "false"):
+            v = val.lower() == "true"
+        else:
+            try:
+                v = float(val)
+            except ValueError:
+                raise InputError("--set", key, f"got '{val}'", "a number or true/false") from None
+        table[key.strip()] = v
+    parsed = options_from_table(table, "--set")
+    return {_FILE_KEYS.get(k, (k, 1.0))[0]: getattr(parsed, _FILE_KEYS.get(k, (k, 1.0))[0])
+            for k in table}
+
+
+def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.io.waypoints import plot_lateral_error, write_plan_json, write_waypoints_csv
+    from rfsw_plan.planning.api import options_from_problem, plan
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.robot.kinematics import load_robot
+
+    problem = load_problem(args.problem)
+    over = _overrides(args.set)
+    if args.force_uncertainty is not None:
+        if args.force_uncertainty < 0:
+            raise InputError("--force-uncertainty", "", f"got {args.force_uncertainty}", ">= 0")
+        over["force_uncertainty"] = args.force_uncertainty
+    if args.spacing_mm is not None and not args.spacing_mm > 0:
+        raise InputError("--spacing-mm", "", f"got {args.spacing_mm}", "> 0")
+    opts = options_from_problem(problem, over)
+    out = Path(args.output) if args.output else Path("out") / problem.name
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        result = plan(problem, opts, spacing=None if args.spacing_mm is None
+                      else args.spacing_mm * 1e-3)
+    except InfeasibleError as exc:
+        for name in _OUTPUTS:  # nothing left behind that claims success
+            (out / name).unlink(missing_ok=True)
+        write_plan_json(out / "plan.json", {
+            "status": "infeasible", "problem": problem.name, "message": str(exc),
+            "waypoint": exc.waypoint, "constraint": exc.constraint,
+            "margin_mm": None if exc.margin is None else exc.margin * 1e3,
+        })
+        raise
+    model = ElastostaticModel(load_robot(problem.robot))
+    summary = result.summary()
+    write_waypoints_csv(out / "waypoints.csv", result, model)
+    plot_lateral_error(out / "lateral_error.png", result)
+    summary["files"] = [str(out / n) for n in _OUTPUTS]
+    write_plan_json(out / "plan.json", summary)
+    if args.json:
+        brief = {k: v for k, v in summary.items() if k != "waypoints"}
+        print(json.dumps(brief, indent=2))
+        return 0
+    print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
+          f"{result.iterations} IPOPT iterations, branch {result.branch})")
+    print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} {'k_lat N/mm':>11}")
+    for b in result.baselines:
+        d = b.to_dict()
+        print(f"{b.name:<8} {d['max_abs_lateral_mm']:>10.3f} {d['rms_lateral_mm']:>8.3f} "
+              f"{d['worst_case_lateral_mm']:>9.3f} {d['min_lateral_stiffness_N_mm']:>11.1f}")
+    ww = summary["worst_waypoint"]
+    print(f"worst waypoint {ww['index']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm): "
+          f"e = {ww['e_lat_mm']:+.3f} mm, margin {ww['margin_mm']:.3f} mm")
+    print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); files in {out}",
+          file=sys.stdout)
+    return 0

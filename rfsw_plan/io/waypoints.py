@@ -1,0 +1,174 @@
+"""Corrected waypoint files: ``waypoints.csv`` (one row per timed sample) and ``plan.json``.
+
+``waypoints.csv`` columns (units in the names, vectors in the robot base frame):
+
+``t_s, s_mm, phase``
+    Time, arc length along the seam, phase (approach, plunge, dwell, accelerate, weld,
+    decelerate, retract).
+``seam_x_mm, seam_y_mm, seam_z_mm``
+    The seam (joint line) point the tool is at.
+``x_mm, y_mm, z_mm, qw, qx, qy, qz``
+    Commanded TCP pose (the fake target): FK of the planned joints.
+``A_deg, B_deg, C_deg`` (KUKA, ``euler = "kuka_abc"``) or ``W_deg, P_deg, R_deg`` (FANUC,
+``"fanuc_wpr"``)
+    The same orientation in the maker's convention: R = Rz(A) Ry(B) Rx(C) = Rz(R) Ry(P) Rx(W).
+``q1_deg ... qn_deg``
+    Planned joint values (controller joints of the robot file).
+``fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm``
+    The process wrench on the tool the plan assumes.
+``off_lat_mm, off_norm_mm``
+    Fake-target offset along l (toward the advancing side) and n (tool axis).
+``dx_mm, dy_mm, dz_mm``
+    Predicted TCP deflection under the wrench.
+``e_lat_mm, margin_mm``
+    Predicted lateral pin error and its margin to the nearest window bound (empty outside
+    plunge, dwell and welding).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.planning.result import PlanResult
+
+FloatArray = NDArray[np.float64]
+
+#: Euler columns per maker convention.
+EULER_COLUMNS = {"kuka_abc": ("A_deg", "B_deg", "C_deg"), "fanuc_wpr": ("W_deg", "P_deg", "R_deg")}
+#: Phases in which the pin is in the material.
+CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+
+
+def maker_euler(R: FloatArray, convention: str) -> FloatArray:
+    """Maker Euler angles [rad] of rotation matrices (m, 3, 3), shape (m, 3).
+
+    ``kuka_abc``: (A, B, C) with R = Rz(A) Ry(B) Rx(C). ``fanuc_wpr``: (W, P, R) with
+    R = Rz(R) Ry(P) Rx(W) (fixed-axis x, y, z).
+    """
+    zyx = Rotation.from_matrix(R).as_euler("ZYX")  # intrinsic z, y', x'' = (A, B, C)
+    if convention == "kuka_abc":
+        return zyx
+    if convention == "fanuc_wpr":
+        return zyx[:, ::-1]
+    raise InputError("robot", "euler", f"got '{convention}'", "kuka_abc or fanuc_wpr")
+
+
+def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[str],
+                                                                          NDArray[Any]]:
+    """Header and rows (object array) of ``waypoints.csv``."""
+    tr = result.trajectory
+    task = result.task
+    robot = model.robot
+    n = robot.nq
+    batch = model.batch(tr.q)
+    T = batch.T
+    dX = model.deflection_batch(batch, tr.wrench)
+    m = task.n_start
+    sw = task.s[m:]
+    fr = task.frames
+
+    def at_s(a: FloatArray) -> FloatArray:
+        return np.stack([np.interp(tr.s, sw, a[m:, i]) for i in range(a.shape[1])], axis=1)
+
+    seam_p = at_s(fr.p)
+    lat = at_s(fr.l)
+    lat /= np.linalg.norm(lat, axis=1, keepdims=True)
+    e_lat = np.einsum("ki,ki->k", lat, T[:, :3, 3] + dX[:, :3] - seam_p)
+    contact = np.isin(tr.phase, CONTACT_PHASES)
+    w = result.window
+    margin = np.minimum(e_lat - w.lower, w.upper - e_lat)
+    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()  # x, y, z, w
+    header = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm",
+              "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
+    cols: list[NDArray[Any]] = [tr.t, tr.s * 1e3, tr.phase, *(seam_p * 1e3).T,
+                                *(T[:, :3, 3] * 1e3).T, quat[:, 3], quat[:, 0], quat[:, 1],
+                                quat[:, 2]]
+    if result.euler in EULER_COLUMNS:
+        header += list(EULER_COLUMNS[result.euler])
+        cols += list(np.rad2deg(maker_euler(T[:, :3, :3], result.euler)).T)
+    header += [f"q{j + 1}_deg" for j in range(n)]
+    cols += list(np.rad2deg(tr.q).T)
+    header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
+               "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm"]
+    cols += list(tr.wrench.T) + list((tr.offsets * 1e3).T) + list((dX[:, :3] * 1e3).T)
+    cols += [np.where(contact, e_lat * 1e3, np.nan), np.where(contact, margin * 1e3, np.nan)]
+    rows = np.empty((len(tr), len(header)), dtype=object)
+    for j, c in enumerate(cols):
+        rows[:, j] = c
+    return header, rows
+
+
+def write_waypoints_csv(path: str | Path, result: PlanResult, model: ElastostaticModel) -> Path:
+    """Write ``waypoints.csv`` (see the module docstring for the columns)."""
+    header, rows = waypoint_table(result, model)
+    p = Path(path)
+    with p.open("w", newline="") as fh:
+        wr = csv.writer(fh)
+        wr.writerow(header)
+        for r in rows:
+            wr.writerow([_fmt(v) for v in r])
+    return p
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, str | np.str_):
+        return str(v)
+    x = float(v)
+    return "" if not np.isfinite(x) else f"{x:.6f}"
+
+
+def write_plan_json(path: str | Path, summary: dict[str, Any]) -> Path:
+    """Write ``plan.json`` (the :meth:`PlanResult.summary` plus anything the caller adds)."""
+    p = Path(path)
+    p.write_text(json.dumps(summary, indent=2, default=_json_default))
+    return p
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.floating | np.integer):
+        return o.item()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
+    """``lateral_error.png``: predicted lateral error along the seam, before and after, with
+    the window band (weld waypoints; the stationary start waypoints at s = 0 as markers)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    task = result.task
+    m = task.n_start
+    s = task.s * 1e3
+    w = result.window
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    ax.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
+               label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:g}] mm")
+    for e, lab, c in ((result.e_none, "no compensation", "tab:red"),
+                      (result.e_mirror, "mirror fake targets", "tab:orange"),
+                      (result.e_lat, "planned (NLP)", "tab:blue")):
+        ax.plot(s[m:], e[m:] * 1e3, color=c, label=lab)
+        if m:
+            ax.plot(np.zeros(m), e[:m] * 1e3, "o", color=c, ms=3)
+    ax.set_xlabel("arc length s [mm] (dots at s = 0: plunge and dwell)")
+    ax.set_ylabel("predicted lateral pin error [mm]")
+    ax.set_title(f"{result.problem_name}: predicted lateral error")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    p = Path(path)
+    fig.savefig(p, dpi=120)
+    plt.close(fig)
+    return p

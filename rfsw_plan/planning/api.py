@@ -1,0 +1,250 @@
+"""``plan(problem)``: the whole planning pipeline.
+
+1. Waypoints: the seam frames at the problem's spacing plus stationary waypoints over the
+   plunge and dwell force ramp (:func:`~rfsw_plan.planning.task.task_from_schedule`).
+2. Branches: the taught path (IK) from the problem's seed and from elbow/wrist/shoulder flips;
+   the continuous ones are ranked by worst-case deviation and lateral stiffness, the best is
+   planned (the others are reported).
+3. Baselines: no compensation and the mirror fixed point (numeric).
+4. NLP from the mirror baseline, with an outer correction loop for effects the symbolic model
+   lacks and a re-linearisation of the singularity constraint.
+5. Independent numeric verification; an infeasible plan raises :class:`InfeasibleError`.
+6. Time parameterisation (TOPPRA speed check, Ruckig pieces, limit check at every sample).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import Any
+
+import numpy as np
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InfeasibleError, UnreachableError
+from rfsw_plan.planning.baselines import (
+    BaselinePlan,
+    branch_seeds,
+    metrics,
+    mirror_compensation,
+    no_compensation,
+)
+from rfsw_plan.planning.nlp import (
+    build_plan_nlp,
+    nlp_prediction,
+    solve_plan_nlp,
+    update_parameters,
+)
+from rfsw_plan.planning.options import PlanOptions, options_from_table
+from rfsw_plan.planning.result import BranchInfo, PlanResult
+from rfsw_plan.planning.task import FloatArray, PlanTask, task_from_schedule
+from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import Robot, load_robot
+from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+
+log = logging.getLogger(__name__)
+
+
+def options_from_problem(problem: Any, overrides: dict[str, Any] | None = None) -> PlanOptions:
+    """Planner options from a problem's ``[planning]`` table (plus keyword overrides, SI)."""
+    pl = problem.planning
+    extra = dict(getattr(pl, "extra", {}) or {})
+    parsed = options_from_table(extra, f"{problem.path or problem.name}: planning")
+    kw: dict[str, Any] = {_si(k): getattr(parsed, _si(k)) for k in extra}
+    if pl.q_seed is not None:
+        kw["q_seed"] = tuple(float(x) for x in pl.q_seed)
+    kw["tool_rotation"] = float(pl.tool_rotation)
+    kw["force_uncertainty"] = float(pl.force_uncertainty)
+    if pl.offset_rate is not None:
+        kw["offset_rate"] = float(pl.offset_rate)
+    kw.update(overrides or {})
+    return PlanOptions(**kw)
+
+
+def _si(file_key: str) -> str:
+    from rfsw_plan.planning.options import _FILE_KEYS
+
+    return _FILE_KEYS.get(file_key, (file_key, 1.0))[0]
+
+
+def tool_rotation_of(robot: Robot, task: PlanTask, q: FloatArray) -> FloatArray:
+    """Rotation of the TCP x axis about the tool axis relative to rotation 0 [rad], (K,)."""
+    R0 = tcp_orientation(task.frames, 0.0)
+    T = robot.batch_fk_jacobian(q)[0]
+    x = T[:, :3, 0]
+    return np.unwrap(np.arctan2(np.einsum("ki,ki->k", x, R0[:, :, 1]),
+                                np.einsum("ki,ki->k", x, R0[:, :, 0])))
+
+
+def choose_branch(
+    model: ElastostaticModel, task: PlanTask, q_seed: FloatArray, opts: PlanOptions
+) -> tuple[BaselinePlan, str, tuple[BranchInfo, ...]]:
+    """Taught paths on all branches; the best continuous, non-singular one.
+
+    Ranked by the largest worst-case deviation (smaller first), then by the smallest lateral
+    stiffness (larger first).
+
+    Raises:
+        UnreachableError: No branch reaches every waypoint (the seed's error is re-raised).
+        InfeasibleError: Every reachable branch passes a singularity or a joint-step jump.
+    """
+    robot = model.robot
+    seeds = branch_seeds(robot, q_seed) if opts.branches else [("seed", q_seed)]
+    infos: list[BranchInfo] = []
+    cands: list[tuple[float, float, str, BaselinePlan]] = []
+    first_err: Exception | None = None
+    nan_q = np.full(robot.nq, np.nan)
+    for name, seed in seeds:
+        try:
+            taught = no_compensation(robot, task, seed, opts.tool_rotation)
+        except UnreachableError as exc:
+            first_err = first_err or exc
+            infos.append(BranchInfo(name, False, nan_q, np.nan, np.nan, str(exc)))
+            continue
+        if any(np.allclose(taught.q, c[3].q, atol=1e-4) for c in cands):
+            infos.append(BranchInfo(name, False, taught.q[0], np.nan, np.nan,
+                                    "same branch as an earlier seed"))
+            continue
+        pred = predict(model, task, taught.q, opts.force_uncertainty, opts.length_scale)
+        step = np.max(np.abs(np.diff(taught.q, axis=0))) if len(task) > 1 else 0.0
+        kmax = float(np.max(pred.kappa))
+        note = ""
+        if kmax > opts.kappa_max:
+            k = int(np.argmax(pred.kappa))
+            note = (f"path through a singularity at waypoint {k} (s = {task.s[k] * 1e3:.1f} mm): "
+                    f"kappa_f = {kmax:.3g} > {opts.kappa_max:g}")
+        elif step > opts.joint_step:
+            note = f"joint step {np.rad2deg(step):.1f} deg between waypoints (branch flip)"
+        kmin = float(np.min(pred.lateral_stiffness))
+        wmax = float(np.max(pred.worst))
+        infos.append(BranchInfo(name, not note, taught.q[0], kmin, wmax, note))
+        if not note:
+            cands.append((wmax, -kmin, name, taught))
+    if not cands:
+        bad = [i for i in infos if i.note and "singularity" in i.note]
+        if bad:
+            raise InfeasibleError(bad[0].note, constraint="singularity")
+        if first_err is not None:
+            raise first_err
+        raise InfeasibleError("no continuous configuration branch: " + infos[0].note,
+                              constraint="joint_step")
+    cands.sort(key=lambda c: (round(c[0], 6), round(c[1], 0)))
+    best = cands[0]
+    return best[3], best[2], tuple(infos)
+
+
+def plan(
+    problem: Any,
+    options: PlanOptions | None = None,
+    spacing: float | None = None,
+    model: ElastostaticModel | None = None,
+    compile_c: bool | None = None,
+) -> PlanResult:
+    """Plan poses and fake-target offsets for a problem, verify and time them.
+
+    Args:
+        problem: A :class:`~rfsw_plan.process.problem.Problem` or a problem name / path.
+        options: Planner options (default: from the problem's ``[planning]`` table).
+        spacing: Waypoint spacing along the seam [m] (default: the problem's).
+        model: Elastostatic model (default: the robot file's model).
+        compile_c: Compile the NLP functions to C (None: automatic by size).
+
+    Raises:
+        UnreachableError: The seam leaves the workspace (first waypoint, by how far).
+        InfeasibleError: Singular path, infeasible window, or infeasible weld speed; names the
+            waypoint, constraint and margin. Exit code 3 in the CLI.
+    """
+    from rfsw_plan.process.problem import Problem, load_problem
+
+    t_all = time.perf_counter()
+    if not isinstance(problem, Problem):
+        problem = load_problem(problem)
+    opts = options or options_from_problem(problem)
+    robot = load_robot(problem.robot)
+    model = model or ElastostaticModel(robot)
+    robot = model.robot
+    window: WeldWindow = problem.window
+    frames = problem.seam.frames(spacing or problem.spacing)
+    process = problem.process
+    sched = process.schedule(frames, 0.05, approach=False)
+    task = task_from_schedule(frames, sched, opts.max_start_waypoints)
+    q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
+    return plan_task(model, task, window, q_seed, opts, problem.name, compile_c,
+                     TimingLimits(clearance=opts.clearance, approach_speed=opts.approach_speed,
+                                  plunge_speed=process.plunge_speed, dt=opts.sample_dt),
+                     t_all)
+
+
+def plan_task(
+    model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_seed: FloatArray,
+    opts: PlanOptions, name: str = "", compile_c: bool | None = None,
+    timing: TimingLimits | None = None, t_start: float | None = None,
+) -> PlanResult:
+    """The pipeline of :func:`plan` on an explicit task (see there)."""
+    t_all = t_start if t_start is not None else time.perf_counter()
+    robot = model.robot
+    taught, branch, infos = choose_branch(model, task, np.asarray(q_seed, float), opts)
+    mirror = mirror_compensation(model, task, taught.q, opts.tool_rotation)
+
+    t0 = time.perf_counter()
+    nlp = build_plan_nlp(model, task, window, mirror.q, mirror.offsets, opts,
+                         compile_c=compile_c, load_steps=np.diff(mirror.offsets, axis=0))
+    x = nlp.x0
+    corr = np.zeros((len(task), 2))
+    iters = 0
+    sol = None
+    outer = 0
+    for outer in range(1, opts.max_outer + 1):
+        sol = solve_plan_nlp(nlp, x)
+        iters += sol.iterations
+        x = sol.x
+        pred = predict(model, task, sol.q, opts.force_uncertainty, opts.length_scale)
+        full = np.column_stack([pred.e_lat, pred.e_norm])
+        new_corr = full - nlp_prediction(nlp, x)
+        change = float(np.max(np.abs(new_corr - corr)))
+        kappa_ok = bool(np.all(pred.kappa <= opts.kappa_max))
+        log.info("outer %d: correction change %.3g m, max kappa %.3g", outer, change,
+                 float(np.max(pred.kappa)))
+        if change < opts.outer_tol and kappa_ok:
+            break
+        corr = new_corr
+        nlp = update_parameters(nlp, correction=corr,
+                                q_lin=None if kappa_ok else sol.q)
+    assert sol is not None
+    solve_time = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ver = verify_plan(model, task, window, sol.q, sol.offsets, opts.force_uncertainty,
+                      opts.robust_hard, opts.joint_step * (1 + 1e-6), opts.kappa_max,
+                      opts.length_scale)
+    verify_time = time.perf_counter() - t0
+    if not ver.feasible:
+        msg = ver.messages[0]
+        if not sol.success:
+            msg += f" (IPOPT: {sol.status})"
+        raise InfeasibleError(msg, ver.worst_waypoint, ver.binding, ver.binding_margin)
+
+    t0 = time.perf_counter()
+    traj = time_parameterise(robot, task, sol.q, sol.offsets, timing)
+    timing_time = time.perf_counter() - t0
+
+    base = (metrics("none", model, task, taught.q, window, opts.force_uncertainty),
+            metrics("mirror", model, task, mirror.q, window, opts.force_uncertainty),
+            metrics("nlp", model, task, sol.q, window, opts.force_uncertainty))
+    e_none = predict(model, task, taught.q, 0.0).e_lat
+    e_mirror = predict(model, task, mirror.q, 0.0).e_lat
+    return PlanResult(
+        status="optimal" if sol.success else "verified",
+        problem_name=name, robot_name=robot.name, euler=robot.description.euler, task=task,
+        window=window, options=opts, q=sol.q, offsets=sol.offsets,
+        tool_rotation=tool_rotation_of(robot, task, sol.q), verification=ver,
+        baselines=base, e_none=e_none, e_mirror=e_mirror, branch=branch, branches=infos,
+        solver_status=sol.status, iterations=iters, outer_iterations=outer,
+        skipped_effects=nlp.skipped, solve_time=solve_time, verify_time=verify_time,
+        timing_time=timing_time, total_time=time.perf_counter() - t_all, trajectory=traj,
+    )
+
+
+__all__ = ["choose_branch", "options_from_problem", "plan", "plan_task"]

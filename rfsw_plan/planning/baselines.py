@@ -1,0 +1,210 @@
+"""Baselines the NLP is compared with, and the taught path that seeds it.
+
+1. ``none``: the robot is taught to the seam (IK along the waypoints at a fixed tool rotation)
+   and nothing is compensated.
+2. ``mirror``: what an engineer does by hand. At every waypoint, shift the target by minus the
+   predicted deflection (lateral and normal), re-teach the point (IK on the same branch and
+   tool rotation) and repeat until the shift stops changing: the fixed point
+   o = -(l, n) . dX(q(p + o), F).
+
+Both only use the numeric model (:func:`rfsw_plan.planning.verify.predict`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import UnreachableError
+from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.planning.verify import predict
+from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.ik import solve_ik
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+
+
+def commanded_poses(task: PlanTask, offsets: FloatArray, rotation: float) -> FloatArray:
+    """Commanded TCP poses p + o_lat l + o_norm n with the TCP z axis -n, (K, 4, 4)."""
+    R = tcp_orientation(task.frames, rotation)
+    T = np.tile(np.eye(4), (len(task), 1, 1))
+    T[:, :3, :3] = R
+    o = np.asarray(offsets, dtype=float)
+    T[:, :3, 3] = task.target + o[:, :1] * task.frames.l + o[:, 1:2] * task.frames.n
+    return T
+
+
+def ik_path(
+    robot: Robot, poses: FloatArray, q_seed: FloatArray, q_warm: FloatArray | None = None,
+    tol: float = 1e-7, s: FloatArray | None = None,
+) -> FloatArray:
+    """Joint values along poses (K, 4, 4) by IK continuation from ``q_seed`` [rad], (K, n).
+
+    ``s`` [m] (K,) is the arc length reported in the error message.
+
+    Raises:
+        UnreachableError: Names the first waypoint IK cannot reach and by how far.
+    """
+    K = len(poses)
+    Q = np.zeros((K, robot.nq))
+    q = np.asarray(q_seed, dtype=float)
+    for k in range(K):
+        seed = q if q_warm is None else q_warm[k]
+        res = solve_ik(robot, poses[k], seed, tol_pos=tol, tol_rot=tol,
+                       max_iter=400 if k == 0 else 100)
+        if not res.converged:
+            res2 = solve_ik(robot, poses[k], q, tol_pos=tol, tol_rot=tol, max_iter=400)
+            res = res2 if res2.position_error + res2.rotation_error < \
+                res.position_error + res.rotation_error else res
+        if not res.converged:
+            s_k = float(s[k]) * 1e3 if s is not None else _s(poses, k)
+            raise UnreachableError(
+                f"seam waypoint {k} (s = {s_k:.1f} mm) is unreachable: "
+                f"the closest pose within the joint limits misses it by "
+                f"{res.position_error * 1e3:.2f} mm and {np.rad2deg(res.rotation_error):.2f} deg"
+            )
+        q = res.q
+        Q[k] = q
+    return Q
+
+
+def _s(poses: FloatArray, k: int) -> float:
+    p = poses[: k + 1, :3, 3]
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1)) * 1e3) if k else 0.0
+
+
+def branch_seeds(robot: Robot, q_seed: FloatArray) -> list[tuple[str, FloatArray]]:
+    """Seeds for the configuration branches of a 6R arm with a spherical wrist [rad].
+
+    The seed itself, the wrist flip (q4 + pi, -q5, q6 + pi), an elbow flip (q3 mirrored about
+    the stretched arm, q2 compensating) and a shoulder flip (q1 + pi), and combinations. IK from
+    each seed decides where it really lands; duplicates are removed by the caller.
+    """
+    q = np.asarray(q_seed, dtype=float)
+    out = [("seed", q.copy())]
+    if robot.nq != 6:
+        return out
+
+    def wrap(x: FloatArray) -> FloatArray:
+        lo, hi = robot.description.lower, robot.description.upper
+        y = x.copy()
+        for j in range(6):
+            while y[j] > hi[j]:
+                y[j] -= 2 * np.pi
+            while y[j] < lo[j]:
+                y[j] += 2 * np.pi
+        return y
+
+    wrist = q + np.array([0, 0, 0, np.pi, -2 * q[4], np.pi])
+    elbow = q + np.array([0, q[2] * 0.8, -2 * q[2] - 0.3, 0, 0, 0])
+    shoulder = q + np.array([np.pi, -2 * q[1], 0, 0, 0, 0])
+    out += [("wrist_flip", wrap(wrist)), ("elbow_flip", wrap(elbow)),
+            ("elbow_wrist_flip", wrap(elbow + (wrist - q))), ("shoulder_flip", wrap(shoulder))]
+    return out
+
+
+@dataclass(frozen=True)
+class BaselineMetrics:
+    """Figures of one strategy on the same problem (weld waypoints only).
+
+    Attributes:
+        name: ``none``, ``mirror`` or ``nlp``.
+        max_abs_lateral: max |e_lat| [m].
+        rms_lateral: RMS of e_lat [m].
+        worst_case: max over waypoints of the worst-case |e_lat| under the force uncertainty
+            (|e - centre| + r + |centre|, i.e. the farthest point of e +- r from 0) [m].
+        min_lateral_stiffness: min over waypoints of 1 / (l^T C_tt l) [N/m].
+        inside_fraction: Fraction of weld waypoints with e_lat inside the window.
+    """
+
+    name: str
+    max_abs_lateral: float
+    rms_lateral: float
+    worst_case: float
+    min_lateral_stiffness: float
+    inside_fraction: float
+
+    def to_dict(self) -> dict[str, float | str]:
+        """File units: mm and N/mm."""
+        return {
+            "strategy": self.name,
+            "max_abs_lateral_mm": self.max_abs_lateral * 1e3,
+            "rms_lateral_mm": self.rms_lateral * 1e3,
+            "worst_case_lateral_mm": self.worst_case * 1e3,
+            "min_lateral_stiffness_N_mm": self.min_lateral_stiffness * 1e-3,
+            "inside_window_fraction": self.inside_fraction,
+        }
+
+
+def metrics(
+    name: str, model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
+    uncertainty: float,
+) -> BaselineMetrics:
+    """Metrics of joint values q (K, n) on the task's weld waypoints."""
+    pred = predict(model, task, q, uncertainty)
+    sl = task.weld
+    e, r = pred.e_lat[sl], pred.worst[sl]
+    worst = np.maximum(np.abs(e + r), np.abs(e - r))
+    inside = (e >= window.lower) & (e <= window.upper)
+    return BaselineMetrics(name, float(np.max(np.abs(e))), float(np.sqrt(np.mean(e ** 2))),
+                           float(np.max(worst)), float(np.min(pred.lateral_stiffness[sl])),
+                           float(np.mean(inside)))
+
+
+@dataclass(frozen=True)
+class BaselinePlan:
+    """Joint values and offsets of a baseline.
+
+    Attributes:
+        name: ``none`` or ``mirror``.
+        q: Joint values [rad], (K, n).
+        offsets: Offsets (lateral, normal) [m], (K, 2).
+        iterations: Fixed-point iterations (mirror).
+        converged: The fixed point converged (mirror).
+    """
+
+    name: str
+    q: FloatArray
+    offsets: FloatArray
+    iterations: int = 0
+    converged: bool = True
+
+
+def no_compensation(robot: Robot, task: PlanTask, q_seed: FloatArray,
+                    rotation: float = 0.0) -> BaselinePlan:
+    """Baseline 1: taught to the seam, no offsets."""
+    off = np.zeros((len(task), 2))
+    q = ik_path(robot, commanded_poses(task, off, rotation), q_seed, s=task.s)
+    return BaselinePlan("none", q, off)
+
+
+def mirror_compensation(
+    model: ElastostaticModel, task: PlanTask, q_taught: FloatArray, rotation: float = 0.0,
+    max_iter: int = 20, tol: float = 1e-7,
+) -> BaselinePlan:
+    """Baseline 2: per-waypoint fixed-point 'mirror' fake targets at the taught configuration.
+
+    o^{j+1} = o^j - (e_lat, e_norm)(q^j), q^j = IK(p + o^j) on the taught branch and tool
+    rotation, until the change is below tol [m].
+    """
+    robot = model.robot
+    off = np.zeros((len(task), 2))
+    q = np.asarray(q_taught, dtype=float)
+    converged = False
+    it = 0
+    while it < max_iter:
+        it += 1
+        pred = predict(model, task, q, 0.0)
+        err = np.column_stack([pred.e_lat, pred.e_norm])
+        step = -err
+        off = off + step
+        q = ik_path(robot, commanded_poses(task, off, rotation), q[0], q_warm=q, s=task.s)
+        if np.max(np.abs(step)) < tol:
+            converged = True
+            break
+    return BaselinePlan("mirror", q, off, it, converged)

@@ -1,0 +1,600 @@
+"""The planning NLP: joint values and fake-target offsets along the seam (CasADi + IPOPT).
+
+Decision variables per waypoint k (one column of W, shape (n + 3, K)):
+
+* ``q_k`` [rad] (n): the robot configuration. The TCP position is fixed by the constraints,
+  and of the orientation only the tool axis: the rotation of the axisymmetric tool about its
+  axis is free and the solver uses it.
+* ``o_k`` [mm] (2): the fake-target offset, lateral (along l) and normal (along n).
+* ``sigma_k`` [mm]: how far the worst case leaves the window (exact L1 penalty; fixed to 0 with
+  ``robust_hard``).
+
+Per waypoint, with p_k the nominal target, F_k the wrench (base frame) and C_X the Cartesian
+compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11, seed 002 eq. 2):
+
+* FK_p(q_k) = p_k + o_lat l_k + o_norm n_k and R(q_k) e_z . t_k = R(q_k) e_z . l_k = 0,
+  R(q_k) e_z . n_k <= -1/2 (the TCP z axis is -n_k);
+* e_k = l_k . (FK_p(q_k) + [C_X(q_k) F_k]_p - p_k) + c_k (c_k: outer correction for effects
+  the symbolic model lacks), lower + margin <= e_k <= upper - margin;
+* robust window: the box |delta f_i| <= u |f_i| moves e_k by at most
+  r_k = sum_i u |f_ik| |l_k^T C_tt(q_k) b_ik| (b = t, l, n; deflection is linear in F), so
+  e_k - r_k + sigma_k >= lower and e_k + r_k - sigma_k <= upper. |x| is the smooth
+  sqrt(x^2 + eps^2) - eps with eps = 1e-4 mm (under-estimates |x| by < 1e-4 mm; auxiliary
+  variables with +-x <= a were exact too but their degenerate rows at zero force slowed
+  IPOPT down several times);
+* sign_k det(J_n(q_k)) >= floor_k (J_n: J with its translational rows divided by a length
+  scale), a smooth stand-in for the kappa_f bound of seed 000 eq. 5.
+
+Between neighbours: |q_{k+1} - q_k| <= joint step; |o_{k+1} - o_k| <= offset rate * travel
+(+ offset speed * time while stationary) + the step the load change itself demands (the mirror
+baseline's step; see ``load_steps``).
+
+Objective (weights in :mod:`rfsw_plan.planning.options`): mean over waypoints of
+w_stiffness l^T C_tt l / ref + w_worst r_k / hw + w_robust sigma_k / hw
++ w_centre ((e_k - centre) / hw)^2 + w_depth (normal error / 1 mm)^2
++ w_proximity |q_k - q_warm,k|^2 (keeps the null space, e.g. an unused tool rotation, at the
+warm start), plus mean over links of
+w_smooth_q |dq / h|^2 + w_smooth_o |do / h|^2.
+
+The NLP is one ``nlpsol`` over the stacked vector; the per-waypoint part is one SX function
+``map``-ped over the waypoints, so the KKT matrix is banded and the build cost does not grow
+with K. Built solvers are cached by (model, K).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
+from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+#: Names of the per-waypoint constraint rows, in order.
+POINT_CONSTRAINTS = (
+    "position_x", "position_y", "position_z", "axis_t", "axis_l", "axis_n",
+    "window", "robust_lower", "robust_upper", "singularity",
+)
+#: Names of the terms returned by the point function, in order.
+POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error")
+_NG = len(POINT_CONSTRAINTS)
+#: Global scalars passed to every waypoint: 5 weights, compliance reference, window centre and
+#: half width [mm], 1 / K, proximity weight.
+N_GLOB = 10
+
+
+def n_par(n: int) -> int:
+    """Per-waypoint parameters: target(3) t(3) l(3) n(3) F(6) u|f|(3) corr(2) det sign,
+    floor, value (3), q at linearisation (n), d det / dq (n)."""
+    return 26 + 2 * n
+
+
+def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
+    d = model.robot.description
+    return (d.name, d.tool.tobytes(), model.robot.geometry.placements.tobytes(),
+            model.robot.coupling.tobytes(),
+            tuple((e.label, e.params.tobytes()) for e in model.effects))
+
+
+@dataclass(frozen=True)
+class PointFunctions:
+    """Per-waypoint CasADi functions (SX, optionally compiled to C).
+
+    Attributes:
+        info: ``(w, par) -> (g (10,), terms (5,), dX (6,))``.
+        fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
+        grad: ``(w, par, glob) -> grad phi (n + 3,)``.
+        jac: ``(w, par) -> dg/dw`` dense (10, n + 3).
+        hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
+            dense upper triangle (n + 3, n + 3).
+        skipped: Effects the symbolic model lacks.
+        compiled: True if the functions run as compiled C.
+        fg_vm: ``fg`` in the CasADi virtual machine (differentiable by CasADi; the NLP
+            definition uses it, IPOPT's derivatives come from the functions above).
+    """
+
+    info: ca.Function
+    fg: ca.Function
+    grad: ca.Function
+    jac: ca.Function
+    hess: ca.Function
+    skipped: tuple[str, ...]
+    compiled: bool
+    fg_vm: ca.Function
+
+
+_POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
+_SOLVER_CACHE: OrderedDict[tuple[object, ...], tuple[ca.Function, ca.Function]] = OrderedDict()
+
+
+def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointFunctions:
+    """The per-waypoint functions of the NLP (see :class:`PointFunctions`).
+
+    Args:
+        model: Elastostatic model; its joint and tilting compliance enter symbolically.
+        compile_c: Compile them to C with the system compiler (cached on disk, see
+            :func:`_compile`); falls back to the CasADi virtual machine if that fails.
+    """
+    key = (*_model_key(model), compile_c)
+    if key in _POINT_CACHE:
+        return _POINT_CACHE[key]
+    robot = model.robot
+    n = robot.nq
+    w = ca.SX.sym("w", n + 3)
+    par = ca.SX.sym("par", n_par(n))
+    glob = ca.SX.sym("glob", N_GLOB)
+    q, o, sigma = w[:n], w[n:n + 2], w[n + 2]
+    target, t, l, nn = par[0:3], par[3:6], par[6:9], par[9:12]
+    F, uf, corr = par[12:18], par[18:21], par[21:23]
+    det_sign, det_floor, det0 = par[23], par[24], par[25]
+    q_lin, ddet = par[26:26 + n], par[26 + n:26 + 2 * n]
+    ch = symbolic_chain(robot, q)
+    C, skipped = symbolic_cartesian_compliance(model, ch)
+    dX = C @ F
+    z = ch.R[:, 2]
+    pos = 1e3 * (ch.p - target) - o[0] * l - o[1] * nn
+    pin_err = ch.p + dX[:3] - target
+    e = 1e3 * ca.dot(l, pin_err) + corr[0]
+    dep = 1e3 * ca.dot(nn, pin_err) + corr[1]
+    lC = C[:3, :3] @ l
+    proj = ca.vertcat(*(1e3 * uf[i] * ca.dot(lC, b) for i, b in enumerate((t, l, nn))))
+    eps = 1e-4
+    r = ca.sum1(ca.sqrt(proj ** 2 + eps ** 2) - eps)
+    g = ca.vertcat(
+        pos, ca.dot(z, t), ca.dot(z, l), ca.dot(z, nn), e,
+        e - r + sigma, e + r - sigma,
+        det_sign * (det0 + ca.dot(ddet, q - q_lin)) - det_floor,
+    )
+    cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
+    terms = ca.vertcat(cll, r, sigma, e, dep)
+    wt, cref, centre, hw, inv_k = glob[:5], glob[5], glob[6], glob[7], glob[8]
+    phi = inv_k * (wt[0] * cll / cref + wt[1] * r / hw + wt[2] * sigma / hw
+                   + wt[3] * ((e - centre) / hw) ** 2 + wt[4] * dep ** 2
+                   + glob[9] * ca.sumsqr(q - q_lin))
+    lam_f = ca.SX.sym("lam_f")
+    lam_g = ca.SX.sym("lam_g", _NG)
+    H = ca.hessian(lam_f * phi + ca.dot(lam_g, g), w)[0]
+    fns = [
+        ca.Function("rfsw_pt_info", [w, par], [g, terms, dX]),
+        ca.Function("rfsw_pt_fg", [w, par, glob], [phi, g]),
+        ca.Function("rfsw_pt_grad", [w, par, glob], [ca.densify(ca.gradient(phi, w))]),
+        ca.Function("rfsw_pt_jac", [w, par], [ca.densify(ca.jacobian(g, w))]),
+        ca.Function("rfsw_pt_hess", [w, par, glob, lam_f, lam_g], [ca.triu(ca.densify(H))]),
+    ]
+    compiled = False
+    fg_vm = fns[1]
+    if compile_c:
+        loaded = _compile(fns)
+        if loaded is not None:
+            fns, compiled = loaded, True
+    info, fg, grad, jac, hess = fns
+    pf = PointFunctions(info, fg, grad, jac, hess, tuple(skipped), compiled, fg_vm)
+    _POINT_CACHE[key] = pf
+    while len(_POINT_CACHE) > 8:
+        _POINT_CACHE.popitem(last=False)
+    return pf
+
+
+def _cache_dir() -> Path:
+    root = os.environ.get("RFSW_PLAN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "rfsw_plan")
+    return Path(root)
+
+
+def _compile(fns: list[ca.Function]) -> list[ca.Function] | None:
+    """Compile functions to a shared library with the system C compiler, cached on disk by a
+    hash of their serialisation. Returns the loaded functions, or None (then the caller keeps
+    the CasADi virtual machine) if no compiler is available or compilation fails."""
+    cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+    if cc is None:
+        log.info("no C compiler; the NLP runs in the CasADi virtual machine")
+        return None
+    h = hashlib.sha1(str(getattr(ca, "__version__", "")).encode())
+    for f in fns:
+        h.update(f.serialize().encode())
+    tag = h.hexdigest()[:16]
+    d = _cache_dir()
+    so = d / f"rfsw_point_{tag}.so"
+    try:
+        if not so.exists():
+            d.mkdir(parents=True, exist_ok=True)
+            t0 = time.perf_counter()
+            with tempfile.TemporaryDirectory(dir=d) as tmp:
+                cg = ca.CodeGenerator(f"rfsw_point_{tag}.c")
+                for f in fns:
+                    cg.add(f)
+                cg.generate(tmp + os.sep)
+                out = Path(tmp) / so.name
+                src = str(Path(tmp) / f"rfsw_point_{tag}.c")
+                subprocess.run([cc, "-O1", "-shared", "-fPIC", src, "-o", str(out)],
+                               check=True, capture_output=True, timeout=600)
+                os.replace(out, so)
+            log.info("compiled the NLP point functions in %.1f s (%s)", time.perf_counter() - t0,
+                     so)
+        return [ca.external(f.name(), str(so)) for f in fns]
+    except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
+        log.warning("compiling the NLP functions failed (%s); using the virtual machine", exc)
+        return None
+
+
+@dataclass(frozen=True)
+class PlanNLP:
+    """A built, unsolved planning NLP; everything needed to inspect or solve it.
+
+    Attributes:
+        solver: The CasADi ``nlpsol`` (IPOPT, exact Hessian, MUMPS).
+        nlp_function: ``(x, p) -> (f, g)`` for numeric inspection.
+        point: The per-waypoint functions.
+        robot: The robot.
+        task: The task it plans.
+        options: The options it was built with.
+        n_joints: n.
+        x0: Initial guess, shape (K (n + 3),).
+        lbx, ubx: Variable bounds, same shape.
+        lbg, ubg: Constraint bounds, shape (10 K + (n + 2)(K - 1),).
+        p: Parameter vector.
+    """
+
+    solver: ca.Function
+    nlp_function: ca.Function
+    point: PointFunctions
+    robot: Robot
+    task: PlanTask
+    options: PlanOptions
+    n_joints: int
+    x0: FloatArray
+    lbx: FloatArray
+    ubx: FloatArray
+    lbg: FloatArray
+    ubg: FloatArray
+    p: FloatArray
+
+    @property
+    def skipped(self) -> tuple[str, ...]:
+        """Effects the symbolic model lacks (handled by the outer correction)."""
+        return self.point.skipped
+
+    @property
+    def n_waypoints(self) -> int:
+        """K."""
+        return len(self.task)
+
+    @property
+    def n_w(self) -> int:
+        """Variables per waypoint, n + 3."""
+        return self.n_joints + 3
+
+    @property
+    def par(self) -> FloatArray:
+        """Per-waypoint parameters, shape (K, n_par)."""
+        K = self.n_waypoints
+        return self.p[: K * n_par(self.n_joints)].reshape(K, n_par(self.n_joints))
+
+    def constraint_names(self) -> list[str]:
+        """Name of every constraint row, e.g. ``window[12]`` or ``joint_step_q3[4]``."""
+        K, n = self.n_waypoints, self.n_joints
+        names = [f"{c}[{k}]" for k in range(K) for c in POINT_CONSTRAINTS]
+        link = [f"joint_step_q{j + 1}" for j in range(n)] + ["offset_rate_lat",
+                                                            "offset_rate_norm"]
+        names += [f"{c}[{k}]" for k in range(K - 1) for c in link]
+        return names
+
+    def unpack(self, x: FloatArray) -> dict[str, FloatArray]:
+        """Split a variable vector: q (K, n) [rad], offsets (K, 2) [m], sigma (K,) [mm]."""
+        n = self.n_joints
+        W = np.asarray(x, dtype=float).reshape(self.n_waypoints, self.n_w)
+        return {"q": W[:, :n], "offsets": W[:, n:n + 2] * 1e-3, "sigma": W[:, n + 2]}
+
+    def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Per-waypoint (g (K, 16), terms (K, 5), dX (K, 6)) at x (the NLP's own model)."""
+        K = self.n_waypoints
+        W = np.asarray(x, dtype=float).reshape(K, self.n_w)
+        g, t, dx = self.point.info.map(K)(W.T, self.par.T)
+        return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
+
+    def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
+        """A variable vector from q (K, n) [rad] and offsets (K, 2) [m]; sigma gets its
+        tightest feasible value."""
+        n = self.n_joints
+        W = np.zeros((self.n_waypoints, self.n_w))
+        W[:, :n] = q
+        W[:, n:n + 2] = np.asarray(offsets) * 1e3
+        _, terms, _ = self.point_values(W.reshape(-1))
+        e, r = terms[:, 3], terms[:, 1]
+        lo, hi = self.p[-2], self.p[-1]  # window [mm]
+        W[:, n + 2] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
+        return W.reshape(-1)
+
+    def evaluate(self, x: FloatArray) -> tuple[float, FloatArray]:
+        """Objective and constraint values at x."""
+        f, g = self.nlp_function(x, self.p)
+        return float(f), np.asarray(g).ravel()
+
+    def violations(self, x: FloatArray, tol: float = 1e-6) -> list[tuple[str, float]]:
+        """Constraint rows violated by more than tol at x, with the violation (NLP units:
+        mm, rad, 1)."""
+        _, g = self.evaluate(x)
+        v = np.maximum(self.lbg - g, g - self.ubg)
+        names = self.constraint_names()
+        return [(names[i], float(v[i])) for i in np.flatnonzero(v > tol)]
+
+
+def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
+                  ) -> tuple[ca.Function, ca.Function]:
+    nw, npar = n + 3, n_par(n)
+    X = ca.MX.sym("x", nw * K)
+    W = ca.reshape(X, nw, K)
+    P = ca.MX.sym("p", npar * K + (K - 1) + N_GLOB + 4)
+    PAR = ca.reshape(P[: npar * K], npar, K)
+    off = npar * K
+    hinv = P[off:off + K - 1].T
+    glob = P[off + K - 1: off + K - 1 + N_GLOB]
+    wq, wo = P[off + K - 1 + N_GLOB], P[off + K + N_GLOB]
+    GLOB = ca.repmat(glob, 1, K)
+
+    def mapped(f: ca.Function) -> ca.Function:
+        return f.map(K, "thread", 2) if K >= 256 else f.map(K)
+
+    phi, G = mapped(pf.fg_vm)(W, PAR, GLOB)
+    f = ca.sum2(phi)
+    g_parts = [ca.vec(G)]
+    fs = ca.MX(0)
+    if K > 1:
+        dW = W[:, 1:] - W[:, :-1]
+        dq, do = dW[:n, :], dW[n:n + 2, :]
+        fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
+              + wo * ca.sumsqr(1e-3 * do * ca.repmat(hinv, 2, 1))) / (K - 1)
+        g_parts.append(ca.vec(ca.vertcat(dq, do)))
+    f = f + fs
+    g = ca.vertcat(*g_parts)
+
+    # Exact derivatives, assembled from the per-waypoint blocks (block diagonal: the map's
+    # horizontally stacked dense blocks have the same nonzero order as the block diagonal).
+    grad = ca.vec(mapped(pf.grad)(W, PAR, GLOB)) + ca.gradient(fs, X)
+    Jb = mapped(pf.jac)(W, PAR)
+    J_pts = ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool)))
+    if K > 1:
+        J_link = ca.jacobian(g_parts[1], X)
+        J = ca.vertcat(J_pts, J_link)
+    else:
+        J = J_pts
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", g.shape[0])
+    LG = ca.reshape(lam_g[: _NG * K], _NG, K)
+    Hb = mapped(pf.hess)(W, PAR, GLOB, ca.repmat(lam_f, 1, K), LG)
+    H = ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool))))
+    if K > 1:
+        H = H + lam_f * ca.triu(ca.hessian(fs, X)[0])
+    grad_f = ca.Function("grad_f", [X, P], [f, grad], ["x", "p"], ["f", "grad_f_x"])
+    jac_g = ca.Function("jac_g", [X, P], [g, J], ["x", "p"], ["g", "jac_g_x"])
+    hess = ca.Function("hess_lag", [X, P, lam_f, lam_g], [H],
+                       ["x", "p", "lam_f", "lam_g"], ["hess_gamma_x_x"])
+    ipopt: dict[str, Any] = {
+        "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+        "ipopt.tol": opts.tol, "ipopt.constr_viol_tol": 1e-7, "ipopt.max_iter": opts.max_iter,
+        "ipopt.linear_solver": "mumps", "ipopt.hessian_approximation": "exact",
+        "ipopt.mu_strategy": "adaptive", "ipopt.warm_start_init_point": "yes",
+        "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9,
+        "ipopt.mu_init": 1e-4,
+        "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess, "calc_lam_p": False,
+    }
+    nlp_dict: dict[str, Any] = {"x": X, "p": P, "f": f, "g": g}
+    solver = ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
+    return solver, ca.Function("plan_eval", [X, P], [f, g])
+
+
+def _blockdiag(K: int, block: NDArray[np.bool_]) -> ca.Sparsity:
+    """Block-diagonal sparsity of K copies of a block pattern."""
+    r, c = np.nonzero(block)
+    br, bc = block.shape
+    rows = (r[None, :] + br * np.arange(K)[:, None]).ravel()
+    cols = (c[None, :] + bc * np.arange(K)[:, None]).ravel()
+    return ca.Sparsity.triplet(br * K, bc * K, rows.tolist(), cols.tolist())
+
+
+def _det_linearisation(robot: Robot, Q: FloatArray, length_scale: float
+                       ) -> tuple[FloatArray, FloatArray]:
+    """det J_n at Q (K, n) and its gradient dq (K, n) by central differences (h = 1e-6)."""
+    def det(Qx: FloatArray) -> FloatArray:
+        _, J = robot.batch_fk_jacobian(Qx)[:2]
+        Jn = J.copy()
+        Jn[:, :3] /= length_scale
+        return np.linalg.det(Jn)
+
+    Q = np.atleast_2d(Q)
+    d0 = det(Q)
+    grad = np.zeros_like(Q)
+    h = 1e-6
+    for j in range(Q.shape[1]):
+        dQ = np.zeros_like(Q)
+        dQ[:, j] = h
+        grad[:, j] = (det(Q + dQ) - det(Q - dQ)) / (2 * h)
+    return d0, grad
+
+
+def build_plan_nlp(
+    model: ElastostaticModel,
+    task: PlanTask,
+    window: WeldWindow,
+    q_init: FloatArray,
+    offsets_init: FloatArray,
+    options: PlanOptions | None = None,
+    correction: FloatArray | None = None,
+    compile_c: bool | None = None,
+    load_steps: FloatArray | None = None,
+) -> PlanNLP:
+    """Build the planning NLP (no solve).
+
+    Args:
+        model: Elastostatic model (its robot gives kinematics and limits).
+        task: Waypoints, frames and wrenches.
+        window: Weld window [m].
+        q_init: Warm start [rad], shape (K, n) (taught path or mirror baseline); also where
+            the singularity constraint is linearised.
+        offsets_init: Warm-start offsets (lateral, normal) [m], shape (K, 2).
+        options: Planner options.
+        correction: Outer-loop correction of the lateral and normal error [m], shape (K, 2).
+        compile_c: Compile the point functions to C; None: when K >= 200 or already cached.
+        load_steps: Offset change the load itself demands on each link (lateral, normal) [m],
+            shape (K - 1, 2), e.g. the mirror baseline's steps; added to the offset-rate bound
+            so the bound limits only the *extra* offset change (the force ramps at the weld
+            start need offsets that follow them). None: zero.
+
+    Returns:
+        The inspectable :class:`PlanNLP`.
+    """
+    opts = options or PlanOptions()
+    robot = model.robot
+    n, K = robot.nq, len(task)
+    if compile_c is None:
+        compile_c = K >= 200 or (*_model_key(model), True) in _POINT_CACHE
+    pf = point_functions(model, compile_c)
+    skey = (*_model_key(model), pf.compiled, K, opts.tol, opts.max_iter)
+    if skey in _SOLVER_CACHE:
+        solver, nlp_fn = _SOLVER_CACHE[skey]
+    else:
+        solver, nlp_fn = _build_solver(pf, K, n, opts)
+        _SOLVER_CACHE[skey] = (solver, nlp_fn)
+        while len(_SOLVER_CACHE) > 6:
+            _SOLVER_CACHE.popitem(last=False)
+
+    q_init = np.asarray(q_init, dtype=float)
+    fr = task.frames
+    F = task.wrench_base
+    corr = np.zeros((K, 2)) if correction is None else np.asarray(correction, dtype=float)
+    PAR = np.column_stack([
+        task.target, fr.t, fr.l, fr.n, F, opts.force_uncertainty * np.abs(task.force_seam),
+        corr * 1e3, np.zeros((K, 3 + 2 * n)),
+    ])
+    _set_det(PAR, robot, q_init, opts)
+    h = task.link_lengths()
+    cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
+                     [:, :3, :3], fr.l) * 1e6
+    w = opts.weights
+    glob = [w["w_stiffness"], w["w_worst"], w["w_robust"], w["w_centre"], w["w_depth"],
+            max(float(np.mean(cll0)), 1e-12), window.centre * 1e3, window.half_width * 1e3,
+            1.0 / K, w["w_proximity"]]
+    p = np.concatenate([PAR.reshape(-1), 1.0 / h, glob,
+                        [w["w_smooth_q"], w["w_smooth_o"], window.lower * 1e3,
+                         window.upper * 1e3]])
+
+    d = robot.description
+    lbw = np.concatenate([d.lower, [-np.inf, -np.inf], [0]])
+    ubw = np.concatenate([d.upper, [np.inf, np.inf], [0.0 if opts.robust_hard else np.inf]])
+    lbx, ubx = np.tile(lbw, K), np.tile(ubw, K)
+    lo, hi = window.lower * 1e3, window.upper * 1e3
+    m = opts.margin * 1e3
+    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0])
+    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, np.inf])
+    lbg_parts, ubg_parts = [np.tile(lbp, K)], [np.tile(ubp, K)]
+    if K > 1:
+        ds = task.link_travel()
+        dt = task.link_times()
+        stationary = ds <= 1e-12
+        o_step = (opts.offset_rate * ds + np.where(stationary, opts.offset_speed_stationary
+                                                   * dt, 0.0)) * 1e3 + 1e-6
+        extra = np.zeros((K - 1, 2)) if load_steps is None else np.abs(load_steps) * 1e3
+        link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
+                                   o_step + extra[:, 0], o_step + extra[:, 1]])
+        lbg_parts.append(-link_hi.reshape(-1))
+        ubg_parts.append(link_hi.reshape(-1))
+    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + 3) * K), lbx, ubx,
+                  np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
+    return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
+
+
+def _set_det(PAR: FloatArray, robot: Robot, Q: FloatArray, opts: PlanOptions) -> None:
+    n = robot.nq
+    d0, dd = _det_linearisation(robot, Q, opts.length_scale)
+    PAR[:, 23] = np.where(d0 >= 0, 1.0, -1.0)
+    PAR[:, 24] = opts.det_fraction * np.abs(d0)
+    PAR[:, 25] = d0
+    PAR[:, 26:26 + n] = Q
+    PAR[:, 26 + n:26 + 2 * n] = dd
+
+
+def update_parameters(nlp: PlanNLP, correction: FloatArray | None = None,
+                      q_lin: FloatArray | None = None) -> PlanNLP:
+    """The same NLP with a new outer correction (lateral, normal) [m] (K, 2) and/or the
+    singularity constraint re-linearised at q_lin (K, n) [rad]."""
+    K = nlp.n_waypoints
+    p = nlp.p.copy()
+    PAR = nlp.par.copy()
+    if correction is not None:
+        PAR[:, 21:23] = np.asarray(correction) * 1e3
+    if q_lin is not None:
+        floor = PAR[:, 24].copy()  # the floor stays where the warm start put it
+        _set_det(PAR, nlp.robot, np.asarray(q_lin), nlp.options)
+        PAR[:, 24] = floor
+    p[: K * PAR.shape[1]] = PAR.reshape(-1)
+    return replace(nlp, p=p)
+
+
+@dataclass(frozen=True)
+class NLPSolution:
+    """Outcome of one IPOPT solve.
+
+    Attributes:
+        x: Solution vector.
+        q: Joint values [rad], (K, n).
+        offsets: Offsets (lateral, normal) [m], (K, 2).
+        sigma: Worst-case excess over the window [m], (K,).
+        success: IPOPT reported success.
+        status: IPOPT return status.
+        iterations: IPOPT iterations.
+        solve_time: Wall time [s].
+        objective: Objective value.
+    """
+
+    x: FloatArray
+    q: FloatArray
+    offsets: FloatArray
+    sigma: FloatArray
+    success: bool
+    status: str
+    iterations: int
+    solve_time: float
+    objective: float
+
+
+def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
+    """Solve a built NLP with IPOPT, warm-started from ``x0`` (default ``nlp.x0``)."""
+    t0 = time.perf_counter()
+    res = nlp.solver(x0=nlp.x0 if x0 is None else x0, p=nlp.p, lbx=nlp.lbx, ubx=nlp.ubx,
+                     lbg=nlp.lbg, ubg=nlp.ubg)
+    dt = time.perf_counter() - t0
+    stats = nlp.solver.stats()
+    x = np.asarray(res["x"]).ravel()
+    parts = nlp.unpack(x)
+    status = str(stats.get("return_status", "unknown"))
+    log.info("NLP K=%d: %s in %d iterations, %.3f s", nlp.n_waypoints, status,
+             stats.get("iter_count", -1), dt)
+    return NLPSolution(x, parts["q"], parts["offsets"], parts["sigma"] * 1e-3,
+                       bool(stats.get("success", False)), status,
+                       int(stats.get("iter_count", -1)), dt, float(res["f"]))
+
+
+def nlp_prediction(nlp: PlanNLP, x: FloatArray) -> FloatArray:
+    """The NLP's own predicted (lateral, normal) pin error [m] at x, without the outer
+    correction, shape (K, 2)."""
+    _, terms, _ = nlp.point_values(x)
+    return (terms[:, [3, 4]] - nlp.par[:, 21:23]) * 1e-3

@@ -1,0 +1,167 @@
+"""Typed results of the planner."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.planning.baselines import BaselineMetrics
+from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.planning.verify import Verification
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.timing.trajectory import TimedTrajectory
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class BranchInfo:
+    """One configuration branch tried by the multi-start.
+
+    Attributes:
+        name: Seed name (``seed``, ``wrist_flip``, ...).
+        feasible: IK reached every waypoint on this branch.
+        q_start: Its configuration at the first waypoint [rad], (n,) (NaN if infeasible).
+        min_lateral_stiffness: min 1 / (l^T C_tt l) on the taught path [N/m] (NaN if none).
+        max_worst_case: max worst-case lateral deviation r on the taught path [m].
+        note: Why it was rejected, or empty.
+    """
+
+    name: str
+    feasible: bool
+    q_start: FloatArray
+    min_lateral_stiffness: float
+    max_worst_case: float
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """Everything the planner produces for one problem.
+
+    Attributes:
+        status: ``optimal`` (IPOPT converged, verified) or ``verified`` (IPOPT stopped early
+            but the numeric verification holds).
+        problem_name: The problem.
+        robot_name: The robot.
+        euler: Maker Euler convention of the robot (``none``, ``kuka_abc``, ``fanuc_wpr``).
+        task: The planned waypoints (stationary start waypoints, then the weld).
+        window: The weld window.
+        options: The options used.
+        q: Planned joint values [rad], (K, n).
+        offsets: Planned offsets (lateral, normal) [m], (K, 2).
+        tool_rotation: Tool rotation about its axis relative to tcp_orientation at rotation 0
+            [rad], (K,).
+        verification: The independent numeric verification.
+        baselines: Metrics of ``none``, ``mirror`` and ``nlp``, in that order.
+        e_none: Predicted lateral error without compensation [m], (K,).
+        e_mirror: Predicted lateral error of the mirror baseline [m], (K,).
+        branch: Name of the chosen configuration branch.
+        branches: All branches tried.
+        solver_status: IPOPT return status of the last solve.
+        iterations: IPOPT iterations, summed over the outer loop.
+        outer_iterations: Outer correction iterations.
+        skipped_effects: Effects corrected by the outer loop instead of the NLP.
+        solve_time: NLP wall time [s] (build + solves).
+        verify_time: Verification wall time [s].
+        timing_time: Time parameterisation wall time [s].
+        total_time: Wall time of :func:`plan` [s].
+        trajectory: The timed trajectory.
+    """
+
+    status: str
+    problem_name: str
+    robot_name: str
+    euler: str
+    task: PlanTask
+    window: WeldWindow
+    options: PlanOptions
+    q: FloatArray
+    offsets: FloatArray
+    tool_rotation: FloatArray
+    verification: Verification
+    baselines: tuple[BaselineMetrics, ...]
+    e_none: FloatArray
+    e_mirror: FloatArray
+    branch: str
+    branches: tuple[BranchInfo, ...]
+    solver_status: str
+    iterations: int
+    outer_iterations: int
+    skipped_effects: tuple[str, ...]
+    solve_time: float
+    verify_time: float
+    timing_time: float
+    total_time: float
+    trajectory: TimedTrajectory
+
+    @property
+    def e_lat(self) -> FloatArray:
+        """Verified predicted lateral pin error of the plan [m], (K,)."""
+        return self.verification.prediction.e_lat
+
+    @property
+    def worst_waypoint(self) -> int:
+        """Waypoint with the smallest window margin."""
+        return int(np.argmin(self.verification.margin))
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready summary in file units (mm, deg, N/mm, s)."""
+        v = self.verification
+        k = self.worst_waypoint
+        sl = self.task.weld
+        return {
+            "status": self.status,
+            "problem": self.problem_name,
+            "robot": self.robot_name,
+            "solver_status": self.solver_status,
+            "ipopt_iterations": self.iterations,
+            "outer_iterations": self.outer_iterations,
+            "skipped_effects": list(self.skipped_effects),
+            "branch": self.branch,
+            "branches": [{"name": b.name, "feasible": b.feasible,
+                          "min_lateral_stiffness_N_mm": b.min_lateral_stiffness * 1e-3,
+                          "max_worst_case_mm": b.max_worst_case * 1e3, "note": b.note}
+                         for b in self.branches],
+            "solve_time_s": self.solve_time,
+            "verify_time_s": self.verify_time,
+            "timing_time_s": self.timing_time,
+            "total_time_s": self.total_time,
+            "n_waypoints": len(self.task),
+            "n_start_waypoints": self.task.n_start,
+            "window_mm": [self.window.lower * 1e3, self.window.upper * 1e3],
+            "force_uncertainty": self.options.force_uncertainty,
+            "weights": self.options.weights,
+            "baselines": [b.to_dict() for b in self.baselines],
+            "worst_waypoint": {
+                "index": k, "phase": str(self.task.phase[k]), "s_mm": self.task.s[k] * 1e3,
+                "e_lat_mm": v.prediction.e_lat[k] * 1e3, "margin_mm": v.margin[k] * 1e3,
+                "worst_case_mm": v.prediction.worst[k] * 1e3,
+                "robust_margin_mm": v.robust_margin[k] * 1e3,
+            },
+            "max_abs_lateral_mm": float(np.max(np.abs(v.prediction.e_lat[sl]))) * 1e3,
+            "min_margin_mm": float(np.min(v.margin)) * 1e3,
+            "robust_window_held_fraction": float(np.mean(v.robust_margin >= -1e-9)),
+            "weld_speed_mm_s": self.trajectory.weld_speed * 1e3,
+            "max_feasible_weld_speed_mm_s": self.trajectory.max_weld_speed * 1e3,
+            "duration_s": float(self.trajectory.t[-1]),
+            "waypoints": {
+                "phase": [str(p) for p in self.task.phase],
+                "s_mm": (self.task.s * 1e3).tolist(),
+                "q_deg": np.rad2deg(self.q).tolist(),
+                "off_lat_mm": (self.offsets[:, 0] * 1e3).tolist(),
+                "off_norm_mm": (self.offsets[:, 1] * 1e3).tolist(),
+                "tool_rotation_deg": np.rad2deg(self.tool_rotation).tolist(),
+                "e_lat_mm": (v.prediction.e_lat * 1e3).tolist(),
+                "e_lat_none_mm": (self.e_none * 1e3).tolist(),
+                "e_lat_mirror_mm": (self.e_mirror * 1e3).tolist(),
+                "worst_case_mm": (v.prediction.worst * 1e3).tolist(),
+                "margin_mm": (v.margin * 1e3).tolist(),
+                "lateral_stiffness_N_mm": (v.prediction.lateral_stiffness * 1e-3).tolist(),
+                "kappa_f": v.prediction.kappa.tolist(),
+            },
+        }

@@ -1,0 +1,196 @@
+"""The planning task: the waypoints the NLP places the robot at, with their frames and loads.
+
+A task has ``K = m + k`` waypoints: first ``m`` stationary *time waypoints* at the seam start
+(plunge and dwell, where the forces ramp up while the tool does not travel), then the ``k``
+weld waypoints along the seam. Every waypoint has a seam frame, a nominal TCP target (the seam
+point; during the plunge raised along the tool axis by the depth still to go), the wrench on the
+tool and the time it is reached (stationary ones) or the travel from the previous one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.process.frames import LoadSchedule, SeamFrames
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlanTask:
+    """Waypoints to plan, base frame, SI.
+
+    Attributes:
+        frames: Seam frame of every waypoint (K rows; stationary ones repeat the start frame).
+        target: Nominal TCP target (seam point, raised along n while plunging) [m], (K, 3).
+        force_seam: Force on the tool in the seam frame (f_t, f_l, f_n) [N], (K, 3).
+        moment_base: Moment on the tool at the TCP, base frame [N m], (K, 3).
+        phase: Phase of every waypoint ("plunge", "dwell" or "weld"), (K,).
+        time: Time each waypoint is reached in the schedule [s], (K,), non-decreasing.
+        depth: Commanded plunge depth below the surface [m], (K,).
+        n_start: Number of stationary waypoints m at the start.
+        travel_speed: Weld travel speed [m/s].
+    """
+
+    frames: SeamFrames
+    target: FloatArray
+    force_seam: FloatArray
+    moment_base: FloatArray
+    phase: NDArray[np.str_]
+    time: FloatArray
+    depth: FloatArray
+    n_start: int
+    travel_speed: float
+
+    def __len__(self) -> int:
+        return int(self.target.shape[0])
+
+    @property
+    def s(self) -> FloatArray:
+        """Arc length [m], (K,)."""
+        return self.frames.s
+
+    @property
+    def wrench_base(self) -> FloatArray:
+        """Wrench on the tool at the TCP, base frame [N, N m], (K, 6)."""
+        return np.hstack([self.frames.to_base(self.force_seam), self.moment_base])
+
+    @property
+    def weld(self) -> slice:
+        """Slice of the weld waypoints."""
+        return slice(self.n_start, len(self))
+
+    def link_travel(self) -> FloatArray:
+        """Travel between neighbours [m], (K - 1,) (0 for stationary links)."""
+        return np.diff(self.s)
+
+    def link_times(self) -> FloatArray:
+        """Time between neighbours [s], (K - 1,)."""
+        return np.diff(self.time)
+
+    def link_lengths(self) -> FloatArray:
+        """Equivalent travel h of each link [m], (K - 1,): the travel, or for a stationary
+        link the distance the time step stands for at the travel speed (floor 1 um)."""
+        return np.maximum(np.maximum(self.link_travel(), self.link_times() * self.travel_speed),
+                          1e-6)
+
+
+def _stack(a: SeamFrames, b: SeamFrames) -> SeamFrames:
+    return SeamFrames(*(np.concatenate([getattr(a, f), getattr(b, f)])
+                        for f in ("s", "p", "t", "l", "n")))
+
+
+def task_constant_force(
+    frames: SeamFrames, force_seam: FloatArray, travel_speed: float
+) -> PlanTask:
+    """A task of weld waypoints only, with one seam-frame force everywhere (tests, baselines).
+
+    Args:
+        frames: Weld waypoints (k rows).
+        force_seam: Force (f_t, f_l, f_n) [N], shape (3,) or (k, 3).
+        travel_speed: Weld speed [m/s].
+    """
+    k = len(frames)
+    f = np.broadcast_to(np.asarray(force_seam, dtype=float), (k, 3)).copy()
+    return PlanTask(frames, frames.p.copy(), f, np.zeros((k, 3)), np.full(k, "weld"),
+                    (frames.s - frames.s[0]) / travel_speed, np.zeros(k), 0, float(travel_speed))
+
+
+def task_from_schedule(
+    frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12
+) -> PlanTask:
+    """The task of a seam and its load schedule.
+
+    Weld waypoints take the schedule's weld-phase force interpolated at their arc length; where
+    that force still ramps up (travel start) extra waypoints are inserted.
+    Up to ``max_start`` stationary waypoints sample plunge and dwell (where the force changes
+    most, always including the last dwell sample) so the offsets can follow the force ramp.
+
+    Args:
+        frames: Weld waypoints along the seam (k rows).
+        schedule: The process over time (plunge and dwell at s = 0, then weld).
+        max_start: Most stationary waypoints.
+    """
+    weld = schedule.mask("weld")
+    if not np.any(weld):
+        raise InputError("process", "schedule", "has no weld phase", "a weld phase")
+    sw = schedule.s[weld]
+    order = np.argsort(sw, kind="stable")
+    sw = sw[order]
+    fw = schedule.force_seam[weld][order]
+    mw = schedule.moment_base[weld][order]
+    frames = _refine_ramp(frames, sw, fw)
+    k = len(frames)
+    f = np.stack([np.interp(frames.s, sw, fw[:, i]) for i in range(3)], axis=1)
+    mom = np.stack([np.interp(frames.s, sw, mw[:, i]) for i in range(3)], axis=1)
+    t_weld0 = float(schedule.t[weld][0]) if np.any(weld) else 0.0
+    v = float((sw[-1] - sw[0]) / max(schedule.t[weld][-1] - t_weld0, 1e-12))
+    if v <= 0:
+        raise InputError("process", "weld", "travel speed is not positive", "> 0")
+    stat = np.flatnonzero(np.isin(schedule.phase, ("plunge", "dwell")))
+    stat = stat[schedule.t[stat] < t_weld0 + 1e-12] if len(stat) else stat
+    if len(stat) and max_start > 0:
+        idx = _pick_ramp_samples(schedule, stat, max_start)
+    else:
+        idx = np.zeros(0, dtype=int)
+    depth_full = float(np.max(schedule.depth)) if len(schedule) else 0.0
+    m = len(idx)
+    start = SeamFrames(np.zeros(m), *(np.repeat(getattr(frames, a)[:1], m, 0) for a in "ptln"))
+    depth_s = schedule.depth[idx]
+    target_s = start.p + (depth_full - depth_s)[:, None] * start.n
+    all_frames = _stack(start, frames)
+    return PlanTask(
+        frames=all_frames,
+        target=np.vstack([target_s, frames.p]),
+        force_seam=np.vstack([schedule.force_seam[idx], f]),
+        moment_base=np.vstack([schedule.moment_base[idx], mom]),
+        phase=np.concatenate([schedule.phase[idx].astype(str), np.full(k, "weld")]),
+        time=np.concatenate([schedule.t[idx], t_weld0 + (frames.s - frames.s[0]) / v]),
+        depth=np.concatenate([depth_s, np.full(k, depth_full)]),
+        n_start=m,
+        travel_speed=v,
+    )
+
+
+def _refine_ramp(frames: SeamFrames, sw: FloatArray, fw: FloatArray,
+                 divisions: int = 8) -> SeamFrames:
+    """Extra weld waypoints where the weld force still ramps (travel start): the waypoint
+    spacing divided by ``divisions`` up to one spacing past the end of the ramp, so the joint
+    spline resolves the offsets that follow the force."""
+    from rfsw_plan.process.seam import interpolate_frames
+
+    if len(frames) < 2:
+        return frames
+    steady = fw[-1]
+    dev = np.linalg.norm(fw - steady, axis=1) / max(float(np.linalg.norm(steady)), 1e-9)
+    ramping = np.flatnonzero(dev > 0.005)
+    if not len(ramping):
+        return frames
+    s_ramp = float(sw[ramping[-1]])
+    h = float(np.min(np.diff(frames.s)))
+    s_end = min(s_ramp + h, float(frames.s[-1]))
+    extra = np.arange(frames.s[0], s_end, h / divisions)
+    s_new = np.unique(np.concatenate([frames.s, extra]))
+    s_new = s_new[np.concatenate([[True], np.diff(s_new) > 1e-3 * h / divisions])]
+    return interpolate_frames(frames, s_new)
+
+
+def _pick_ramp_samples(
+    schedule: LoadSchedule, stat: NDArray[np.int_], max_start: int
+) -> NDArray[np.int_]:
+    """Indices of stationary samples spread evenly over the force change (+ first and last)."""
+    f = schedule.force_seam[stat]
+    step = np.linalg.norm(np.diff(f, axis=0), axis=1)
+    dt = np.diff(schedule.t[stat])
+    scale = np.max(np.linalg.norm(f, axis=1)) + 1e-9
+    # Arc length in (force, time) space: evenly in force change, but never long gaps in time.
+    span_t = max(float(schedule.t[stat][-1] - schedule.t[stat][0]), 1e-9)
+    w = np.concatenate([[0.0], np.cumsum(step / scale + 0.25 * dt / span_t)])
+    marks = np.linspace(0, w[-1], max_start + 1)[1:]
+    idx = np.unique(np.searchsorted(w, marks, side="left").clip(0, len(stat) - 1))
+    idx = np.unique(np.concatenate([[0], idx, [len(stat) - 1]]))
+    return stat[idx]

@@ -1,0 +1,280 @@
+"""The timed trajectory of a plan: approach, plunge, dwell, weld at constant speed, retract.
+
+* Weld: the planned joint values are a cubic spline q(s) in arc length; the travel is
+  s(t) = v t at the weld speed v (a process parameter, constant), with jerk-limited Ruckig
+  ramps from rest to v (``accelerate``) and from v to rest (``decelerate``) at the two ends.
+  TOPPRA gives the highest limit-feasible path speed; a weld speed above it is reported.
+* Approach and retract: Ruckig on the distance along the tool axis, mapped to joints by IK on
+  a grid (cubic spline in the distance).
+* Plunge: Ruckig on the depth, mapped through the planned stationary waypoints (cubic spline
+  in depth).
+* Dwell: the planned stationary waypoints in time (cubic spline, at rest at both ends), the
+  offsets following the force ramp.
+
+Every sample is then checked against the joint velocity, acceleration and jerk limits
+(derivatives by finite differences on the sampled joint path).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.interpolate import CubicSpline, PchipInterpolator
+
+from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.robot.ik import solve_ik
+from rfsw_plan.robot.kinematics import Robot
+from rfsw_plan.timing.ruckig_ import profile_1dof
+from rfsw_plan.timing.toppra_ import max_path_speed
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class TimingLimits:
+    """Limits of the Cartesian Ruckig pieces (joint limits come from the robot).
+
+    Attributes:
+        acceleration: Along the tool axis or the seam [m/s^2].
+        jerk: Along the tool axis or the seam [m/s^3].
+        clearance: Approach and retract distance above the surface [m].
+        approach_speed: Approach and retract speed [m/s].
+        plunge_speed: Plunge speed [m/s].
+        dt: Sample time [s].
+    """
+
+    acceleration: float = 0.1
+    jerk: float = 1.0
+    clearance: float = 20e-3
+    approach_speed: float = 20e-3
+    plunge_speed: float = 2e-3
+    dt: float = 0.01
+
+
+@dataclass(frozen=True)
+class TimedTrajectory:
+    """Sampled joint trajectory with everything the waypoint files need (SI, base frame).
+
+    Attributes:
+        t: Time [s], (N,), increasing.
+        phase: ``approach``, ``plunge``, ``dwell``, ``accelerate``, ``weld``, ``decelerate``,
+            ``retract``, (N,).
+        s: Arc length of the tool along the seam [m], (N,).
+        q: Joint values [rad], (N, n).
+        qd, qdd, qddd: Joint velocity, acceleration, jerk [rad/s, rad/s^2, rad/s^3], (N, n).
+        offsets: Planned offsets (lateral, normal) [m], (N, 2).
+        wrench: Wrench on the tool used by the plan [N, N m], (N, 6).
+        weld_speed: Travel speed during ``weld`` [m/s].
+        max_weld_speed: Highest limit-feasible constant path speed from TOPPRA [m/s].
+    """
+
+    t: FloatArray
+    phase: NDArray[np.str_]
+    s: FloatArray
+    q: FloatArray
+    qd: FloatArray
+    qdd: FloatArray
+    qddd: FloatArray
+    offsets: FloatArray
+    wrench: FloatArray
+    weld_speed: float
+    max_weld_speed: float
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def tcp_speed(self, robot: Robot) -> FloatArray:
+        """Commanded TCP speed |d FK_p / dt| [m/s], (N,)."""
+        T = robot.batch_fk_jacobian(self.q)[0]
+        return np.linalg.norm(np.gradient(T[:, :3, 3], self.t, axis=0), axis=1)
+
+    def limit_ratios(self, robot: Robot) -> dict[str, float]:
+        """max |derivative| / limit over all samples and joints, per derivative order."""
+        d = robot.description
+        return {"velocity": float(np.max(np.abs(self.qd) / d.velocity)),
+                "acceleration": float(np.max(np.abs(self.qdd) / d.acceleration)),
+                "jerk": float(np.max(np.abs(self.qddd) / d.jerk))}
+
+
+def _ik_line(robot: Robot, q_start: FloatArray, direction: FloatArray, dist: FloatArray
+             ) -> FloatArray:
+    """Joint values moving the TCP from FK(q_start) by dist_i * direction (orientation kept),
+    by IK continuation, (len(dist), n)."""
+    T0 = robot.fk(q_start)
+    out = np.zeros((len(dist), robot.nq))
+    q = q_start.copy()
+    for i, x in enumerate(dist):
+        T = T0.copy()
+        T[:3, 3] = T0[:3, 3] + x * direction
+        res = solve_ik(robot, T, q, tol_pos=1e-8, tol_rot=1e-8)
+        if not res.converged:
+            raise InfeasibleError(f"approach/retract: IK fails {x * 1e3:.1f} mm along the tool "
+                                  "axis", constraint="reach")
+        q = res.q
+        out[i] = q
+    return out
+
+
+def _grid_map(robot: Robot, q_end: FloatArray, n_axis: FloatArray, length: float
+              ) -> CubicSpline:
+    """q(x) for x in [0, length], x the distance from FK(q_end) along n_axis."""
+    xs = np.linspace(0.0, length, 11)
+    Q = _ik_line(robot, q_end, n_axis, xs)
+    return CubicSpline(xs, Q, axis=0)
+
+
+def _rest_spline(tk: FloatArray, yk: FloatArray, t: FloatArray) -> FloatArray:
+    """Cubic spline through the knots, at rest at both ends (C2 inside: bounded jerk)."""
+    return np.asarray(CubicSpline(tk, yk, axis=0, bc_type="clamped")(t))
+
+
+def time_parameterise(
+    robot: Robot, task: PlanTask, q: FloatArray, offsets: FloatArray,
+    limits: TimingLimits | None = None,
+) -> TimedTrajectory:
+    """Time a planned path and check every limit at every sample.
+
+    Args:
+        robot: The robot (joint velocity, acceleration, jerk limits).
+        task: The planned task (stationary waypoints first, then weld waypoints).
+        q: Planned joint values [rad], (K, n).
+        offsets: Planned offsets (lateral, normal) [m], (K, 2).
+        limits: Cartesian limits of the Ruckig pieces and the sample time.
+
+    Raises:
+        InfeasibleError: The weld speed exceeds what the joint limits allow (names the arc
+            length and the TOPPRA speed), or a sample violates a joint limit.
+    """
+    lim = limits or TimingLimits()
+    dt = lim.dt
+    d = robot.description
+    v = task.travel_speed
+    m = task.n_start
+    sw = task.s[m:]
+    qw = q[m:]
+    ow = offsets[m:]
+    F = task.wrench_base
+    if len(sw) < 2:
+        raise InfeasibleError("the weld needs at least two waypoints", constraint="waypoints")
+    spline = CubicSpline(sw, qw, axis=0)
+    o_spline = CubicSpline(sw, ow, axis=0)
+    f_spline = CubicSpline(sw, F[m:], axis=0)
+
+    # TOPPRA: the highest speed the joint limits allow along the weld path.
+    psl = max_path_speed(sw, qw, d.velocity, d.acceleration)
+    if v > psl.max_speed:
+        raise InfeasibleError(
+            f"weld speed {v * 1e3:.3g} mm/s is not feasible: the joint velocity and acceleration "
+            f"limits allow at most {psl.max_speed * 1e3:.3g} mm/s at s = {psl.s_at * 1e3:.1f} mm "
+            "(TOPPRA)", waypoint=int(m + np.argmin(np.abs(sw - psl.s_at))),
+            constraint="weld_speed", margin=psl.max_speed - v)
+
+    pieces: list[tuple[str, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]] = []
+    # (phase, t, s, q, offsets, wrench) with t relative to the piece start.
+    zero6 = np.zeros(6)
+    n0 = task.frames.n[0]
+    q_first = q[0]
+    depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
+    d0 = float(task.depth[0]) if m else depth_full
+    # Approach: from clearance above the first waypoint down to it.
+    up = lim.clearance
+    amap = _grid_map(robot, q_first, n0, up)
+    t, x, _, _ = profile_1dof(up, 0.0, 0.0, 0.0, lim.approach_speed, lim.acceleration,
+                              lim.jerk, dt)
+    pieces.append(("approach", t, np.zeros_like(t), amap(x), np.repeat(offsets[:1], len(t), 0),
+                   np.tile(zero6, (len(t), 1))))
+    if m:
+        plunge = np.flatnonzero(task.phase[:m] == "plunge")
+        dwell = np.flatnonzero(task.phase[:m] == "dwell")
+        # Plunge: Ruckig on the depth, through the planned plunge waypoints (the piece ends
+        # at the last waypoint at full depth; the dwell starts there).
+        idx = plunge
+        if not len(idx) or task.depth[idx[-1]] < depth_full - 1e-9:
+            idx = np.append(idx, dwell[0] if len(dwell) else m)
+            dwell = dwell[1:]
+        dep = task.depth[idx]
+        keep = np.append(np.diff(dep) > 1e-9, True)  # of equal depths keep the last
+        idx, dep = idx[keep], dep[keep]
+        end = int(idx[-1])
+        if len(idx) >= 2:
+            qmap = CubicSpline(dep, q[idx], axis=0)  # C2: no acceleration steps
+            omap = CubicSpline(dep, offsets[idx], axis=0)
+            fmap = PchipInterpolator(dep, F[idx], axis=0)
+            t, x, _, _ = profile_1dof(d0, dep[-1], 0.0, 0.0, lim.plunge_speed,
+                                      lim.acceleration, lim.jerk, dt)
+            pieces.append(("plunge", t, np.zeros_like(t), qmap(x), omap(x), fmap(x)))
+        # Dwell: the planned stationary waypoints in time, up to the first weld waypoint.
+        idx = np.concatenate([[end], dwell[dwell > end], [m]]).astype(int)
+        idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
+        tt = task.time[idx] - task.time[idx[0]]
+        keep = np.append(np.diff(tt) > 1e-9, True)
+        idx, tt = idx[keep], tt[keep]
+        if len(idx) >= 2:
+            T = tt[-1]
+            t = np.linspace(0.0, T, max(int(np.ceil(T / dt)), 1) + 1)
+            pieces.append(("dwell", t, np.zeros_like(t), _rest_spline(tt, q[idx], t),
+                           _rest_spline(tt, offsets[idx], t),
+                           PchipInterpolator(tt, F[idx], axis=0)(t)))
+    # Weld: ramp up, constant speed, ramp down (Ruckig velocity interface on s).
+    t_a, s_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, lim.acceleration, lim.jerk, dt)
+    L = float(sw[-1] - sw[0])
+    if 2 * s_a[-1] >= L:
+        raise InfeasibleError("the seam is shorter than the acceleration to the weld speed",
+                              constraint="weld_speed")
+    s_a = s_a + sw[0]
+    pieces.append(("accelerate", t_a, s_a, spline(s_a), o_spline(s_a), f_spline(s_a)))
+    s_start, s_end = s_a[-1], sw[-1] - (s_a[-1] - sw[0])
+    T = (s_end - s_start) / v
+    n_w = max(int(np.ceil(T / dt)), 1)
+    t = np.linspace(0.0, T, n_w + 1)
+    s = s_start + v * t
+    pieces.append(("weld", t, s, spline(s), o_spline(s), f_spline(s)))
+    s_d = s_end + (s_a[-1] - s_a[::-1])  # mirror of the ramp up
+    pieces.append(("decelerate", t_a, s_d, spline(s_d), o_spline(s_d), f_spline(s_d)))
+    # Retract: up along the tool axis by the depth plus the clearance.
+    n_end = task.frames.n[-1]
+    rdist = depth_full + lim.clearance
+    rmap = _grid_map(robot, q[-1], n_end, rdist)
+    t, x, _, _ = profile_1dof(0.0, rdist, 0.0, 0.0, lim.approach_speed, lim.acceleration,
+                              lim.jerk, dt)
+    pieces.append(("retract", t, np.full_like(t, sw[-1]), rmap(x),
+                   np.repeat(offsets[-1:], len(t), 0), np.tile(zero6, (len(t), 1))))
+
+    # Concatenate; drop the first sample of each piece after the first (it repeats the end).
+    ts, ph, ss, qs, os_, fs = [], [], [], [], [], []
+    t0 = 0.0
+    for i, (name, t, s, qq, oo, ff) in enumerate(pieces):
+        sl = slice(1, None) if i else slice(None)
+        ts.append(t0 + t[sl])
+        ph.append(np.full(len(t[sl]), name))
+        ss.append(s[sl])
+        qs.append(qq[sl])
+        os_.append(oo[sl])
+        fs.append(ff[sl])
+        t0 += float(t[-1])
+    t = np.concatenate(ts)
+    Q = np.vstack(qs)
+    qd = np.gradient(Q, t, axis=0)
+    qdd = np.gradient(qd, t, axis=0)
+    qddd = np.gradient(qdd, t, axis=0)
+    traj = TimedTrajectory(t, np.concatenate(ph), np.concatenate(ss), Q, qd, qdd, qddd,
+                           np.vstack(os_), np.vstack(fs), v, psl.max_speed)
+    _check_limits(robot, traj)
+    return traj
+
+
+def _check_limits(robot: Robot, traj: TimedTrajectory) -> None:
+    d = robot.description
+    for name, val, limit in (("velocity", traj.qd, d.velocity),
+                             ("acceleration", traj.qdd, d.acceleration),
+                             ("jerk", traj.qddd, d.jerk)):
+        ratio = np.abs(val) / limit
+        i, j = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        if ratio[i, j] > 1.0:
+            raise InfeasibleError(
+                f"joint {j + 1} {name} limit exceeded by {100 * (ratio[i, j] - 1):.1f} % at "
+                f"t = {traj.t[i]:.2f} s ({traj.phase[i]}, s = {traj.s[i] * 1e3:.1f} mm)",
+                constraint=f"joint_{name}_q{j + 1}", margin=float(1.0 - ratio[i, j]))

@@ -1,0 +1,84 @@
+"""Baselines: taught path, mirror fixed point, branches, metrics."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_nlp import F_SEAM, Q_SEED, zk500_frames
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import UnreachableError
+from rfsw_plan.planning.baselines import (
+    branch_seeds,
+    commanded_poses,
+    metrics,
+    mirror_compensation,
+    no_compensation,
+)
+from rfsw_plan.planning.task import task_constant_force
+from rfsw_plan.planning.verify import predict
+from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import load_robot
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = ElastostaticModel(load_robot("zk500"))
+    task = task_constant_force(zk500_frames(6), F_SEAM, 3e-3)
+    return model, task
+
+
+def test_taught_path_reaches_the_seam(setup):
+    model, task = setup
+    base = no_compensation(model.robot, task, Q_SEED, rotation=0.3)
+    T = commanded_poses(task, base.offsets, 0.3)
+    for k in range(len(task)):
+        np.testing.assert_allclose(model.robot.fk(base.q[k]), T[k], atol=1e-6)
+
+
+def test_mirror_fixed_point_cancels_the_predicted_error(setup):
+    model, task = setup
+    base = no_compensation(model.robot, task, Q_SEED)
+    mir = mirror_compensation(model, task, base.q)
+    assert mir.converged
+    pred = predict(model, task, mir.q, 0.0)
+    assert np.max(np.abs(pred.e_lat)) < 1e-6
+    assert np.max(np.abs(pred.e_norm)) < 1e-6
+    # The offset mirrors the deflection: about -4.9 mm lateral (seed 001).
+    assert mir.offsets[0, 0] == pytest.approx(-4.9e-3, abs=0.2e-3)
+
+
+def test_metrics_are_consistent(setup):
+    model, task = setup
+    base = no_compensation(model.robot, task, Q_SEED)
+    m = metrics("none", model, task, base.q, WeldWindow(), 0.2)
+    pred = predict(model, task, base.q, 0.2)
+    assert m.max_abs_lateral == pytest.approx(np.max(np.abs(pred.e_lat)))
+    assert m.rms_lateral <= m.max_abs_lateral
+    assert m.worst_case == pytest.approx(np.max(np.abs(pred.e_lat) + pred.worst))
+    assert m.min_lateral_stiffness == pytest.approx(np.min(pred.lateral_stiffness))
+    assert m.inside_fraction == 0.0
+    d = m.to_dict()
+    assert d["max_abs_lateral_mm"] == pytest.approx(m.max_abs_lateral * 1e3)
+
+
+def test_wrist_flip_seed_reaches_the_same_pose_on_another_branch(setup):
+    model, task = setup
+    seeds = dict(branch_seeds(model.robot, Q_SEED))
+    assert {"seed", "wrist_flip", "elbow_flip", "shoulder_flip"} <= set(seeds)
+    a = no_compensation(model.robot, task, seeds["seed"])
+    b = no_compensation(model.robot, task, seeds["wrist_flip"])
+    assert not np.allclose(a.q, b.q, atol=1e-3)
+    np.testing.assert_allclose(model.robot.fk(a.q[0]), model.robot.fk(b.q[0]), atol=1e-6)
+
+
+def test_unreachable_seam_names_waypoint_and_distance():
+    model = ElastostaticModel(load_robot("zk500"))
+    fr = zk500_frames(5)
+    far = SeamFrames(fr.s, fr.p + np.array([0, -2.0, 0]) * (fr.s[:, None] > 0.05), fr.t, fr.l,
+                     fr.n)
+    task = task_constant_force(far, F_SEAM, 3e-3)
+    pattern = r"seam waypoint 2 \(s = 56.8 mm\) .*misses it by \d"
+    with pytest.raises(UnreachableError, match=pattern):
+        no_compensation(model.robot, task, Q_SEED)

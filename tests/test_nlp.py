@@ -1,0 +1,196 @@
+"""The planning NLP: inspectable build, exact derivatives, CasADi vs numeric model, solve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
+from rfsw_plan.planning.nlp import (
+    POINT_CONSTRAINTS,
+    build_plan_nlp,
+    n_par,
+    nlp_prediction,
+    point_functions,
+    solve_plan_nlp,
+)
+from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.task import task_constant_force
+from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import load_robot
+
+Q_SEED = np.deg2rad([-82.6, 41.73, 18.5, 0.18, 30.22, 11.57])
+F_SEAM = np.array([-899.80, 1350.87, 4842.58])  # seed 001 steady forces (f_t, f_l, f_n) [N]
+
+
+def zk500_frames(k: int) -> SeamFrames:
+    a = np.array([269.52, -2070.91, 663.15]) * 1e-3
+    b = np.array([278.10, -1957.60, 664.05]) * 1e-3
+    L = float(np.linalg.norm(b - a))
+    t = np.tile((b - a) / L, (k, 1))
+    n = np.tile([0.0, 0.0, 1.0], (k, 1))
+    n -= np.einsum("ki,ki->k", n, t)[:, None] * t
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    s = np.linspace(0.0, L, k)
+    return SeamFrames(s, a + s[:, None] * t[0], t, np.cross(n, t), n)
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = ElastostaticModel(load_robot("zk500"))
+    task = task_constant_force(zk500_frames(7), F_SEAM, 3e-3)
+    taught = no_compensation(model.robot, task, Q_SEED)
+    mirror = mirror_compensation(model, task, taught.q)
+    nlp = build_plan_nlp(model, task, WeldWindow(), mirror.q, mirror.offsets, PlanOptions(),
+                         compile_c=False)
+    return model, task, taught, mirror, nlp
+
+
+def test_build_is_inspectable_without_solving(setup):
+    _, task, _, mirror, nlp = setup
+    K, n = len(task), 6
+    assert nlp.x0.shape == (K * (n + 3),)
+    assert len(nlp.constraint_names()) == nlp.lbg.shape[0] == nlp.ubg.shape[0]
+    assert nlp.constraint_names()[6] == "window[0]"
+    parts = nlp.unpack(nlp.x0)
+    np.testing.assert_allclose(parts["q"], mirror.q)
+    np.testing.assert_allclose(parts["offsets"], mirror.offsets)
+    # The mirror warm start satisfies every constraint (up to the IK tolerance).
+    assert all(v < 1e-3 for _, v in nlp.violations(nlp.x0, 1e-9))
+
+
+def test_casadi_prediction_matches_numeric_model(setup):
+    model, task, taught, _, nlp = setup
+    x = nlp.pack(taught.q, np.zeros((len(task), 2)))
+    ours = nlp_prediction(nlp, x)
+    pred = predict(model, task, taught.q, 0.2)
+    np.testing.assert_allclose(ours[:, 0], pred.e_lat, atol=1e-10)
+    np.testing.assert_allclose(ours[:, 1], pred.e_norm, atol=1e-10)
+    _, terms, _ = nlp.point_values(x)
+    # worst case: the smooth |.| is within 3e-4 mm of the numeric r (eps = 1e-4 mm)
+    np.testing.assert_allclose(terms[:, 1] * 1e-3, pred.worst, atol=3e-7)
+    np.testing.assert_allclose(1e6 / terms[:, 0], pred.lateral_stiffness, rtol=1e-9)
+
+
+@pytest.mark.parametrize("robot_name", ["zk500", "kuka_kr600_r2830"])
+def test_point_derivatives_match_finite_differences(robot_name):
+    model = ElastostaticModel(load_robot(robot_name))
+    pf = point_functions(model, compile_c=False)
+    rng = np.random.default_rng(4)
+    n = model.robot.nq
+    w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 2), rng.uniform(0, 1, 1)])
+    q = w[:n]
+    R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    par = np.zeros(n_par(n))
+    par[0:3] = model.robot.fk(q)[:3, 3] + rng.normal(0, 1e-3, 3)  # target near the TCP
+    par[3:12] = R.T.ravel()  # t, l, n orthonormal
+    par[12:18] = np.concatenate([rng.normal(0, 2e3, 3), rng.normal(0, 50, 3)])
+    par[18:21] = 0.2 * np.abs(R.T @ par[12:15])
+    par[21:23] = rng.normal(0, 0.1, 2)
+    par[23:26] = [1.0, 0.01, 0.3]
+    par[26:26 + n] = q + 0.01
+    par[26 + n:] = rng.normal(0, 0.1, n)
+    glob = np.array([1, 1, 10, 0.1, 0.1, 3.0, -0.275, 0.975, 0.1, 1e-3])
+    lam = rng.normal(0, 1, len(POINT_CONSTRAINTS))
+    J = np.asarray(pf.jac(w, par))
+    grad = np.asarray(pf.grad(w, par, glob)).ravel()
+    H = np.asarray(pf.hess(w, par, glob, 0.7, lam))
+    H = np.triu(H) + np.triu(H, 1).T
+    h = 1e-6
+
+    def g_of(x):
+        return np.asarray(pf.fg(x, par, glob)[1]).ravel()
+
+    def phi_of(x):
+        return float(pf.fg(x, par, glob)[0])
+
+    def lag_grad(x):
+        return 0.7 * np.asarray(pf.grad(x, par, glob)).ravel() + np.asarray(pf.jac(x, par)).T @ lam
+
+    for i in range(len(w)):
+        e = np.zeros_like(w)
+        e[i] = h
+        np.testing.assert_allclose(J[:, i], (g_of(w + e) - g_of(w - e)) / (2 * h), rtol=1e-5,
+                                   atol=1e-5)
+        assert grad[i] == pytest.approx((phi_of(w + e) - phi_of(w - e)) / (2 * h), rel=1e-5,
+                                        abs=1e-6)
+        np.testing.assert_allclose(H[:, i], (lag_grad(w + e) - lag_grad(w - e)) / (2 * h),
+                                   rtol=1e-4, atol=1e-4)
+
+
+def test_solve_keeps_verified_error_in_window(setup):
+    model, task, taught, _, nlp = setup
+    sol = solve_plan_nlp(nlp)
+    assert sol.success, sol.status
+    w = WeldWindow()
+    ver = verify_plan(model, task, w, sol.q, sol.offsets, 0.2, joint_step=0.35,
+                      kappa_max=200)
+    assert ver.feasible, ver.messages
+    e = ver.prediction.e_lat
+    assert np.all(e >= w.lower + 1e-4 - 1e-9) and np.all(e <= w.upper - 1e-4 + 1e-9)
+    # Uncompensated the same waypoints are ~4.9 mm off (seed 001).
+    e0 = predict(model, task, taught.q, 0.0).e_lat
+    assert np.min(e0) > 4.0e-3 and np.max(e0) == pytest.approx(4.9e-3, abs=0.1e-3)
+    # The robust excess sigma is what leaves the window under +-20 % force.
+    r = ver.prediction.worst
+    np.testing.assert_allclose(sol.sigma, np.maximum(0, np.maximum(w.lower - (e - r),
+                                                                    e + r - w.upper)),
+                               atol=1e-6)
+
+
+def test_robust_hard_reports_infeasible_when_stiffness_cannot_buy_the_margin(setup):
+    model, task, _, mirror, _ = setup
+    opts = PlanOptions(robust_hard=True, max_iter=60)
+    nlp = build_plan_nlp(model, task, WeldWindow(), mirror.q, mirror.offsets, opts,
+                         compile_c=False)
+    sol = solve_plan_nlp(nlp)
+    # +-20 % of seed 001's forces moves the pin by ~1.2 mm > half the window (0.975 mm).
+    assert not sol.success
+    ver = verify_plan(model, task, WeldWindow(), sol.q, sol.offsets, 0.2, robust_hard=True)
+    assert not ver.feasible
+
+
+def _angled_tool_kr600(angle_deg: float):
+    import dataclasses
+
+    from rfsw_plan.robot.description import load_robot_description
+    from rfsw_plan.robot.kinematics import Robot
+
+    d = load_robot_description("kuka_kr600_r2830")
+    a = np.deg2rad(angle_deg)
+    T = np.eye(4)
+    T[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
+    T[:3, 3] = T[:3, :3] @ np.array([0, 0, 0.3]) + np.array([0, 0, 0.15])
+    return ElastostaticModel(Robot(dataclasses.replace(d, tool=T)))
+
+
+@pytest.mark.xfail(strict=True, reason="known gap (issue 4 §8): on this fixture IPOPT ends in "
+                   "different local optima; the stiffness weight does not reliably raise the "
+                   "minimum lateral stiffness")
+def test_kr600_stiffness_weight_turns_the_tool_and_raises_min_lateral_stiffness():
+    """On kr600_curved_seam's seam and process, with a spindle mounted 30 deg off the flange
+    axis (with the bundled coaxial tool the rotation about the tool axis is joint 6 alone and
+    cannot change the compliance; see the report)."""
+    from rfsw_plan.planning.api import options_from_problem, plan_task
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.process.seam import interpolate_frames
+
+    model = _angled_tool_kr600(30.0)
+    pb = load_problem("kr600_curved_seam")
+    fr = pb.frames()
+    fr = interpolate_frames(fr, np.linspace(0, fr.s[-1], 25))
+    task = task_constant_force(fr, pb.process.steady_force_seam(), pb.process.travel_speed)
+    out = {}
+    for w in (0.0, 3.0):
+        opts = options_from_problem(pb, {"w_stiffness": w, "branches": False})
+        out[w] = plan_task(model, task, pb.window, pb.q_seed(), opts, "kr600")
+    rot0, rot1 = out[0.0].tool_rotation, out[3.0].tool_rotation
+    assert np.max(np.abs(rot1 - rot0)) > np.deg2rad(5.0)
+    k0 = out[0.0].baselines[2].min_lateral_stiffness
+    k1 = out[3.0].baselines[2].min_lateral_stiffness
+    assert k1 > 1.01 * k0
+    for r in out.values():
+        assert r.verification.feasible

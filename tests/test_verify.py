@@ -1,0 +1,76 @@
+"""Independent verification: numeric model, every waypoint, named failures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_nlp import F_SEAM, Q_SEED, zk500_frames
+
+from rfsw_plan.elastostatics.compliance import deflection
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
+from rfsw_plan.planning.task import task_constant_force
+from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.kinematics import load_robot
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = ElastostaticModel(load_robot("zk500"))
+    task = task_constant_force(zk500_frames(5), F_SEAM, 3e-3)
+    base = no_compensation(model.robot, task, Q_SEED)
+    mir = mirror_compensation(model, task, base.q)
+    return model, task, base, mir
+
+
+def test_prediction_equals_joint_compliance_formula(setup):
+    model, task, base, _ = setup
+    pred = predict(model, task, base.q, 0.2)
+    F = task.wrench_base
+    for k in range(len(task)):
+        T, J = model.robot.fk_jacobian(base.q[k])
+        dX = deflection(J, model.robot.joint_compliance, F[k])
+        e = task.frames.l[k] @ (T[:3, 3] + dX[:3] - task.frames.p[k])
+        assert pred.e_lat[k] == pytest.approx(e, abs=1e-12)
+    # Worst case by brute force over the corners of the +-20 % box.
+    k = 2
+    corners = np.array(np.meshgrid(*[[-1, 1]] * 3)).reshape(3, -1).T
+    Ctt = model.cartesian_compliance(model.batch(base.q[k]))[0, :3, :3]
+    R = task.frames.rotation()[k]
+    changes = [task.frames.l[k] @ Ctt @ R @ (0.2 * c * task.force_seam[k]) for c in corners]
+    assert pred.worst[k] == pytest.approx(max(changes), rel=1e-12)
+
+
+def test_mirror_plan_verifies_and_uncompensated_fails_naming_the_waypoint(setup):
+    model, task, base, mir = setup
+    ok = verify_plan(model, task, WeldWindow(), mir.q, mir.offsets)
+    assert ok.feasible and not ok.messages
+    bad = verify_plan(model, task, WeldWindow(), base.q, base.offsets)
+    assert not bad.feasible
+    assert bad.binding == "window"
+    k = int(np.argmax(bad.prediction.e_lat))
+    assert bad.worst_waypoint == k
+    assert bad.binding_margin == pytest.approx(0.7e-3 - bad.prediction.e_lat[k])
+    with pytest.raises(InfeasibleError, match=f"waypoint {k} .*window violated by") as ei:
+        bad.raise_if_infeasible()
+    assert ei.value.waypoint == k and ei.value.constraint == "window"
+    assert ei.value.margin is not None and ei.value.margin < 0
+
+
+def test_commanded_pose_mismatch_is_caught(setup):
+    model, task, _, mir = setup
+    off = mir.offsets.copy()
+    off[3, 1] += 1e-3  # the joints no longer put the TCP at the commanded fake target
+    ver = verify_plan(model, task, WeldWindow(), mir.q, off)
+    assert not ver.feasible and ver.binding == "pose" and ver.worst_waypoint == 3
+
+
+def test_singularity_and_joint_step_checks(setup):
+    model, task, _, mir = setup
+    ver = verify_plan(model, task, WeldWindow(), mir.q, mir.offsets, kappa_max=1.5)
+    assert not ver.feasible and ver.binding == "singularity"
+    q = mir.q.copy()
+    ver = verify_plan(model, task, WeldWindow(), q, mir.offsets, joint_step=1e-6)
+    assert not ver.feasible and ver.binding.startswith("joint_step_q")

@@ -1,0 +1,86 @@
+"""Waypoint files: columns, units, maker Euler angles, plan.json, plot."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.io.waypoints import (
+    maker_euler,
+    plot_lateral_error,
+    write_plan_json,
+    write_waypoints_csv,
+)
+from rfsw_plan.planning.api import plan
+from rfsw_plan.robot.kinematics import load_robot
+
+REQUIRED = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "x_mm", "y_mm",
+            "z_mm", "qw", "qx", "qy", "qz", "q1_deg", "q6_deg", "fx_N", "fy_N", "fz_N",
+            "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "dx_mm", "dy_mm", "dz_mm",
+            "e_lat_mm", "margin_mm"]
+
+
+def test_maker_euler_conventions():
+    rng = np.random.default_rng(1)
+    R = Rotation.random(5, random_state=rng).as_matrix()
+    abc = maker_euler(R, "kuka_abc")
+    for k in range(5):
+        A, B, C = abc[k]
+        Rz = Rotation.from_euler("z", A).as_matrix()
+        Ry = Rotation.from_euler("y", B).as_matrix()
+        Rx = Rotation.from_euler("x", C).as_matrix()
+        np.testing.assert_allclose(Rz @ Ry @ Rx, R[k], atol=1e-12)
+    wpr = maker_euler(R, "fanuc_wpr")
+    np.testing.assert_allclose(wpr, abc[:, ::-1])
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    out = tmp_path_factory.mktemp("plan")
+    res = plan("zk500_table6_seam")
+    model = ElastostaticModel(load_robot("zk500"))
+    write_waypoints_csv(out / "waypoints.csv", res, model)
+    write_plan_json(out / "plan.json", res.summary())
+    plot_lateral_error(out / "lateral_error.png", res)
+    return out, res, model
+
+
+def test_csv_columns_and_consistency(written):
+    out, res, model = written
+    rows = list(csv.DictReader((out / "waypoints.csv").open()))
+    assert set(REQUIRED) <= set(rows[0])
+    assert len(rows) == len(res.trajectory)
+    # The commanded pose is FK of the joints; the quaternion is unit.
+    for r in rows[:: max(len(rows) // 20, 1)]:
+        q = np.deg2rad([float(r[f"q{j}_deg"]) for j in range(1, 7)])
+        T = model.robot.fk(q)
+        np.testing.assert_allclose([float(r[k]) for k in ("x_mm", "y_mm", "z_mm")],
+                                   T[:3, 3] * 1e3, atol=1e-5)
+        quat = np.array([float(r[k]) for k in ("qx", "qy", "qz", "qw")])
+        np.testing.assert_allclose(Rotation.from_quat(quat).as_matrix(), T[:3, :3], atol=1e-5)
+    # Welding samples: predicted error inside the window everywhere, margins consistent.
+    weld = [r for r in rows if r["phase"] == "weld"]
+    e = np.array([float(r["e_lat_mm"]) for r in weld])
+    m = np.array([float(r["margin_mm"]) for r in weld])
+    assert np.all(e > -1.25) and np.all(e < 0.7)
+    np.testing.assert_allclose(m, np.minimum(e + 1.25, 0.7 - e), atol=2e-6)
+    # No margin outside the material.
+    assert all(r["margin_mm"] == "" for r in rows if r["phase"] in ("approach", "retract"))
+
+
+def test_plan_json_summary(written):
+    out, res, _ = written
+    d = json.loads((out / "plan.json").read_text())
+    assert d["status"] in ("optimal", "verified")
+    names = [b["strategy"] for b in d["baselines"]]
+    assert names == ["none", "mirror", "nlp"]
+    assert {"max_abs_lateral_mm", "rms_lateral_mm", "worst_case_lateral_mm",
+            "min_lateral_stiffness_N_mm"} <= set(d["baselines"][0])
+    assert d["baselines"][0]["max_abs_lateral_mm"] > 4.0
+    assert len(d["waypoints"]["e_lat_mm"]) == len(res.task)
+    assert (out / "lateral_error.png").stat().st_size > 10_000
