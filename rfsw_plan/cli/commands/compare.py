@@ -1,0 +1,111 @@
+"""``rfsw-plan compare PROBLEM``: offline plan against real-time compensation on a virtual weld."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+from pathlib import Path
+
+from rfsw_plan.exceptions import InputError
+
+NAME = "compare"
+HELP = "compare offline pre-compensation with seed 000/002 real-time compensation on a " \
+    "virtual weld"
+
+log = logging.getLogger(__name__)
+
+_STRATEGIES = ("none", "realtime_seed000", "realtime_seed002", "offline", "hybrid")
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("problem", metavar="PROBLEM",
+                        help="problem file or bundled stem (e.g. zk500_table6_seam)")
+    parser.add_argument("-o", "--output", metavar="DIR", default=None,
+                        help="output folder (default out/<problem>)")
+    parser.add_argument("--truth-effect", action="append", default=[],
+                        metavar="NAME[=key=value,...]",
+                        help="effect the truth robot has and the model lacks (repeatable), "
+                        "e.g. tilting_compliance:j3 or payload_gravity=m=150 (SI values)")
+    parser.add_argument("--truth-stiffness-scale", type=float, default=1.0, metavar="X",
+                        help="truth joint stiffness / model joint stiffness (default 1)")
+    parser.add_argument("--strategies", nargs="+", default=list(_STRATEGIES), metavar="NAME",
+                        help=f"strategies to run (default all: {', '.join(_STRATEGIES)})")
+    parser.add_argument("--cycle-ms", type=float, default=4.0, metavar="MS",
+                        help="controller cycle [ms] (default 4, KUKA RSI)")
+    parser.add_argument("--sensor-rate-hz", type=float, default=1000.0, metavar="HZ",
+                        help="force sensor sample rate [Hz] (default 1000)")
+    parser.add_argument("--sensor-delay-ms", type=float, default=4.0, metavar="MS",
+                        help="force sensor delay [ms] (default 4)")
+    parser.add_argument("--sensor-noise-N", type=float, default=30.0, metavar="N",
+                        help="sensor noise std per force component [N] (default 30; moments "
+                        "get 0.1 m times this)")
+    parser.add_argument("--force-drift", type=float, default=0.10, metavar="FRACTION",
+                        help="slow process-force variation along the seam (default 0.10)")
+    parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    parser.add_argument("--seed000-average", type=float, default=50.0, metavar="PERCENT",
+                        help="seed 000 averaging percentage (default 50)")
+    parser.add_argument("--seed000-update-ms", type=float, default=250.0, metavar="MS",
+                        help="seed 000 model/average update period [ms] (default 250; 0 = "
+                        "every controller cycle)")
+    parser.add_argument("--maf-samples", type=int, default=320, metavar="N",
+                        help="seed 002 moving-average length in 0.5 ms steps (default 320)")
+    parser.add_argument("--no-sensitivity", action="store_true",
+                        help="skip the reruns with a softer truth, a hidden effect, 3x noise")
+    parser.add_argument("--no-plot", action="store_true", help="do not write the PNG")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.realtime.compare import (
+        CompareOptions,
+        compare,
+        format_markdown,
+        format_table,
+        parse_effect_arg,
+        plot_lateral,
+    )
+    from rfsw_plan.realtime.simulator import ProcessVariation, SensorModel
+
+    if not args.cycle_ms > 0:
+        raise InputError("--cycle-ms", "", f"controller cycle {args.cycle_ms:g} ms", "> 0 ms")
+    if args.seed000_update_ms < 0:
+        raise InputError("--seed000-update-ms", "", f"got {args.seed000_update_ms:g}",
+                         ">= 0 (0 = every cycle)")
+    effects = tuple(parse_effect_arg(e) for e in args.truth_effect)
+    sensor = SensorModel(
+        rate_hz=args.sensor_rate_hz, delay_s=args.sensor_delay_ms * 1e-3,
+        noise_force_N=args.sensor_noise_N, noise_moment_Nm=0.1 * args.sensor_noise_N,
+        seed=args.seed,
+    )
+    options = CompareOptions(
+        strategies=tuple(args.strategies),
+        cycle_s=args.cycle_ms * 1e-3,
+        sensor=sensor,
+        variation=ProcessVariation(amplitude=args.force_drift),
+        truth_stiffness_scale=args.truth_stiffness_scale,
+        truth_effects=effects,
+        sensitivity=not args.no_sensitivity,
+        seed000_average_percent=args.seed000_average,
+        seed000_update_s=args.seed000_update_ms * 1e-3 if args.seed000_update_ms > 0 else None,
+        seed002_maf_samples=args.maf_samples,
+    )
+    problem = load_problem(args.problem)
+    result = compare(problem, options)
+    out = Path(args.output) if args.output else Path("out") / problem.name
+    out.mkdir(parents=True, exist_ok=True)
+    data = result.to_dict()
+    (out / "compare.json").write_text(json.dumps(data, indent=1))
+    (out / "compare.md").write_text(format_markdown(result))
+    files = ["compare.json", "compare.md"]
+    if not args.no_plot:
+        plot_lateral(result, str(out / "compare_lateral.png"))
+        files.append("compare_lateral.png")
+    data["files"] = [str(out / f) for f in files]
+    if args.json:
+        print(json.dumps(data))
+        return 0
+    print(format_table(result))
+    print(f"wrote {', '.join(files)} to {out}")
+    return 0
