@@ -119,11 +119,32 @@ def rms(res: FloatArray) -> float:
     return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
 
 
+def _compliance_parts(
+    model: ElastostaticModel, batch: PoseBatch
+) -> tuple[FloatArray, list[Effect]]:
+    """Cartesian compliance (m, 6, 6) of the wrench-linear compliance effects, and the
+    compliance effects that are not linear in the wrench (no Cartesian compliance)."""
+    C = np.zeros((len(batch), 6, 6))
+    nonlinear: list[Effect] = []
+    for e in model.effects:
+        if e.kind == "compliance":
+            Ce = e.cartesian_compliance(batch, e.params)
+            if Ce is None:
+                nonlinear.append(e)
+            else:
+                C += Ce
+    return C, nonlinear
+
+
 def _effect_position_jacobian(
     model: ElastostaticModel, effect: Effect, batch: PoseBatch, F_logged: FloatArray,
-    F_true: FloatArray,
+    F_true: FloatArray, parts: tuple[FloatArray, list[Effect]] | None = None,
 ) -> FloatArray:
-    """d(predicted TCP position)/d(theta_effect), shape (m, 3, p)."""
+    """d(predicted TCP position)/d(theta_effect), shape (m, 3, p).
+
+    ``parts`` is :func:`_compliance_parts` of the model, computed once per evaluation when
+    several wrench effects need it.
+    """
     th = effect.params
     if effect.kind == "compliance":
         return effect.deflection_regressor(batch, F_true, th)[:, :3, :]
@@ -131,18 +152,17 @@ def _effect_position_jacobian(
         return effect.offset_regressor(batch, th)[:, :3, :]
     # Wrench effect: chain rule through the compliance effects, dX/dF . dF/dtheta.
     dF = effect.wrench_regressor(batch, F_logged, th)  # (m, 6, p)
-    C = model.cartesian_compliance(batch)  # linear compliance part
-    out = np.einsum("mab,mbp->map", C, dF)[:, :3, :]
-    for e in model.effects:
-        if e.kind == "compliance" and e.cartesian_compliance(batch, e.params) is None:
-            # Non-linear-in-wrench compliance: directional finite difference per column.
-            base = e.deflection(batch, F_true, e.params)[:, :3]
-            for k in range(dF.shape[2]):
-                h = 1e-6 * max(1.0, float(np.max(np.abs(F_true))))
-                scale = np.max(np.abs(dF[:, :, k])) or 1.0
-                step = dF[:, :, k] / scale * h
-                moved = e.deflection(batch, F_true + step, e.params)[:, :3]
-                out[:, :, k] += (moved - base) / h * scale
+    C, nonlinear = parts if parts is not None else _compliance_parts(model, batch)
+    out = np.matmul(C, dF)[:, :3, :]  # linear compliance part
+    for e in nonlinear:
+        # Non-linear-in-wrench compliance: directional finite difference per column.
+        base = e.deflection(batch, F_true, e.params)[:, :3]
+        for k in range(dF.shape[2]):
+            h = 1e-6 * max(1.0, float(np.max(np.abs(F_true))))
+            scale = np.max(np.abs(dF[:, :, k])) or 1.0
+            step = dF[:, :, k] / scale * h
+            moved = e.deflection(batch, F_true + step, e.params)[:, :3]
+            out[:, :, k] += (moved - base) / h * scale
     return out
 
 
@@ -151,7 +171,8 @@ def position_jacobian(
 ) -> FloatArray:
     """Stacked d(position)/d(theta) for the given effects, shape (m, 3, P)."""
     F_true = model.true_wrench(batch, wrench)
-    blocks = [_effect_position_jacobian(model, e, batch, wrench, F_true) for e in effects]
+    parts = _compliance_parts(model, batch) if any(e.kind == "wrench" for e in effects) else None
+    blocks = [_effect_position_jacobian(model, e, batch, wrench, F_true, parts) for e in effects]
     return np.concatenate(blocks, axis=2)
 
 

@@ -1,0 +1,114 @@
+"""``rfsw-plan validate``: compare the model with measurements and find the missing effect."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from rfsw_plan.elastostatics.effects import EFFECTS
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.measurements import read_measurements
+from rfsw_plan.robot.kinematics import load_robot
+
+if TYPE_CHECKING:
+    from rfsw_plan.validation.report import ReportFiles
+    from rfsw_plan.validation.workbench import ValidationResult
+
+NAME = "validate"
+HELP = "compare the model with measurements, diagnose the missing effect, add it and re-identify"
+
+_EPILOG = f"""\
+Effects for --add: {", ".join(n for n in EFFECTS if n != "joint_compliance")}; per-joint ones
+take :jN (1-based), e.g. --add tilting_compliance:j2 --add payload_gravity.
+Verdicts: adequate (held-out residual at the noise floor), missing (names the effect and
+joint), unexplained (no library effect reaches the noise floor; see what the residual
+correlates with). The loop: validate -> validate --add EFFECT --save-robot NEW.toml ->
+validate --robot NEW.toml ... until adequate.
+"""
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = _EPILOG
+    parser.add_argument("--robot", required=True, help="bundled robot name or robot TOML file")
+    parser.add_argument("--data", required=True, metavar="FILE.csv", help="measurement CSV")
+    parser.add_argument("-o", "--output", metavar="DIR",
+                        help="report directory (default: validate_<data file stem>)")
+    parser.add_argument("--json", action="store_true",
+                        help="print one JSON object on stdout instead of the text summary")
+    parser.add_argument("--noise-mm", type=float, metavar="S",
+                        help="1-sigma position noise [mm] (default: from repeated samples)")
+    parser.add_argument("--add", action="append", default=[], metavar="EFFECT[:jN]",
+                        help="add an effect and re-identify all parameters (repeatable)")
+    parser.add_argument("--save-robot", metavar="NEW_FILE.toml",
+                        help="write the re-identified (extended) robot description")
+    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the fold split (default 0)")
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not write report.html, PNGs and validate.json")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.validation.report import result_json, write_report
+    from rfsw_plan.validation.workbench import save_extended_robot, validate
+
+    if args.noise_mm is not None and not args.noise_mm > 0:
+        raise InputError("--noise-mm", "", f"{args.noise_mm:g}", "a positive noise in mm")
+    if args.folds < 2:
+        raise InputError("--folds", "", f"{args.folds}", "at least 2")
+    robot = load_robot(args.robot)
+    model = ElastostaticModel(robot)
+    data = read_measurements(args.data, robot.nq)
+    result = validate(
+        model, data,
+        noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
+        add=args.add, folds=args.folds, seed=args.seed,
+    )
+    files = None
+    if not args.no_report:
+        out = Path(args.output) if args.output else Path(f"validate_{Path(args.data).stem}")
+        files = write_report(result, out)
+    saved = save_extended_robot(result, args.save_robot) if args.save_robot else None
+    if args.json:
+        print(result_json(result))
+        return 0
+    _print_summary(result, files, saved)
+    return 0
+
+
+def _print_summary(
+    result: ValidationResult, files: ReportFiles | None, saved: Path | None
+) -> None:
+    dg = result.diagnosis
+    out = sys.stdout
+    noise = "unknown" if dg.noise.sigma is None else f"{dg.noise.sigma * 1e3:.4g} mm"
+    print(f"robot {result.robot}, {result.analysis.n_samples} samples, effects: "
+          f"{', '.join(result.model.labels)}", file=out)
+    print(f"RMS {result.rms * 1e3:.4g} mm, held-out RMS {dg.heldout_rms * 1e3:.4g} mm, "
+          f"noise floor {noise} ({dg.noise.source})", file=out)
+    if result.add is not None:
+        ad = result.add
+        print("added and re-identified:", file=out)
+        print(f"  {'model':<60} {'held-out RMS':>13} {'RMS':>9}", file=out)
+        for cv, rms in ((ad.before, ad.rms_before), (ad.after, ad.rms_after)):
+            print(f"  {', '.join(cv.labels):<60} {cv.heldout_rms * 1e3:10.4g} mm "
+                  f"{rms * 1e3:6.4g} mm", file=out)
+        for s in ad.not_added:
+            print(f"  not fitted: {s.label}: {s.reason}", file=out)
+    print(f"verdict: {dg.message}", file=out)
+    if dg.candidates:
+        print("best candidates (held-out RMS after adding):", file=out)
+        for c in dg.candidates[:5]:
+            flag = "significant" if c.significant else "not significant"
+            print(f"  {c.label:<34} {c.rms_after * 1e3:8.4g} mm  explains "
+                  f"{100 * c.explained_fraction:5.1f} %  ({flag})", file=out)
+    if dg.skipped:
+        print("not identifiable from this data: "
+              + ", ".join(s.label for s in dg.skipped), file=out)
+    if files is not None:
+        print(f"report: {files.html}  json: {files.json}", file=out)
+    if saved is not None:
+        print(f"wrote robot description {saved}", file=out)

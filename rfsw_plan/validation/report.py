@@ -1,0 +1,403 @@
+"""The validation report: ``report.html`` (self-contained), PNG plots and ``validate.json``.
+
+The HTML embeds every plot as a base64 PNG and uses no external resource, so it opens in a
+browser without network. Matplotlib is imported lazily (Agg backend).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rfsw_plan.validation.workbench import ValidationResult
+
+#: At most this many points are drawn per scatter plot (a seeded random subset).
+MAX_POINTS = 4000
+_AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
+
+
+@dataclass(frozen=True)
+class ReportFiles:
+    """Files written by :func:`write_report`.
+
+    Attributes:
+        html: The self-contained report.
+        json: ``validate.json``.
+        plots: PNG plots by name.
+    """
+
+    html: Path
+    json: Path
+    plots: dict[str, Path]
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _clean(o: Any) -> Any:
+    """Replace NaN/inf by None so that the JSON is strict."""
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, list | tuple):
+        return [_clean(v) for v in o]
+    if isinstance(o, float | np.floating) and not math.isfinite(float(o)):
+        return None
+    return o
+
+
+def result_json(result: ValidationResult) -> str:
+    """The validation result as one strict JSON object (NaN -> null)."""
+    return json.dumps(_clean(result.to_json()), indent=2, default=_json_default,
+                      allow_nan=False)
+
+
+# --------------------------------------------------------------------------------------------
+# Plots
+
+
+def _subset(m: int) -> np.ndarray:
+    if m <= MAX_POINTS:
+        return np.arange(m)
+    return np.sort(np.random.default_rng(0).choice(m, MAX_POINTS, replace=False))
+
+
+def _scatter_axes(ax: Any, x: np.ndarray, res_mm: np.ndarray, idx: np.ndarray) -> None:
+    for a in range(3):
+        ok = np.isfinite(res_mm[idx, a])
+        if np.any(ok):
+            ax.scatter(x[idx][ok], res_mm[idx, a][ok], s=3, alpha=0.5, color=_AXIS_COLORS[a],
+                       label="xyz"[a], rasterized=True)
+    ax.axhline(0.0, color="k", lw=0.5)
+
+
+def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
+    """Draw the report's PNG plots into ``out_dir``; returns name -> path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    an = result.analysis
+    dg = result.diagnosis
+    res_mm = an.residual * 1e3
+    m = res_mm.shape[0]
+    idx = _subset(m)
+    noise_mm = None if dg.noise.sigma is None else dg.noise.sigma * 1e3
+    plots: dict[str, Path] = {}
+
+    def save(fig: Any, name: str) -> None:
+        path = out_dir / f"{name}.png"
+        fig.tight_layout()
+        fig.savefig(path, dpi=90)
+        plt.close(fig)
+        plots[name] = path
+
+    # Histogram per axis.
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for a in range(3):
+        v = res_mm[:, a][np.isfinite(res_mm[:, a])]
+        if v.size:
+            ax.hist(v, bins=60, histtype="step", color=_AXIS_COLORS[a], label="xyz"[a])
+    if noise_mm:
+        for s in (-noise_mm, noise_mm):
+            ax.axvline(s, color="k", ls="--", lw=0.8)
+    ax.set_xlabel("residual measured - predicted [mm]")
+    ax.set_ylabel("samples")
+    ax.set_title("Residual distribution (dashed: +-1 sigma noise floor)")
+    ax.legend()
+    save(fig, "residual_histogram")
+
+    # Against time (or sample order) and extra columns.
+    seq = [k for k in ("time", "sample_order") if k in an.features]
+    extra = [k for k in an.features if k in result_extra_names(result)]
+    cols = seq + extra
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.6 * len(cols)), squeeze=False)
+    for ax, name in zip(axes[:, 0], cols, strict=True):
+        x = np.asarray(an.features[name], dtype=float)
+        _scatter_axes(ax, x, res_mm, idx)
+        ax.set_xlabel("t [s]" if name == "time" else name)
+        ax.set_ylabel("residual [mm]")
+    axes[0, 0].legend(loc="upper right", markerscale=3)
+    axes[0, 0].set_title("Residual against time and extra columns")
+    save(fig, "residual_vs_time")
+
+    # Against each joint torque.
+    n = an.tau.shape[1]
+    ncol = 3
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.8 * nrow), squeeze=False)
+    for j in range(nrow * ncol):
+        ax = axes[j // ncol, j % ncol]
+        if j >= n:
+            ax.axis("off")
+            continue
+        _scatter_axes(ax, an.tau[:, j] / 1e3, res_mm, idx)
+        ax.set_xlabel(f"joint {j + 1} torque [kN m]")
+        ax.set_ylabel("residual [mm]")
+    axes[0, 0].legend(loc="upper right", markerscale=3)
+    fig.suptitle("Residual against each joint torque J^T F")
+    save(fig, "residual_vs_torque")
+
+    # Against force magnitude and direction.
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
+    f = np.asarray(an.features["force_magnitude"], dtype=float)
+    u = np.asarray(an.features["force_direction"], dtype=float)
+    elev = np.degrees(np.arcsin(np.clip(u[:, 2], -1, 1)))
+    _scatter_axes(axes[0], f / 1e3, res_mm, idx)
+    axes[0].set_xlabel("|f| [kN]")
+    axes[0].set_ylabel("residual [mm]")
+    _scatter_axes(axes[1], elev, res_mm, idx)
+    axes[1].set_xlabel("force elevation above the base xy plane [deg]")
+    axes[0].legend(loc="upper right", markerscale=3)
+    fig.suptitle("Residual against force magnitude and direction")
+    save(fig, "residual_vs_force")
+
+    # Workspace map.
+    norm = np.sqrt(np.nansum(res_mm**2, axis=1))
+    tcp = an.tcp
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, (a, b, la, lb) in zip(axes, ((0, 1, "x", "y"), (0, 2, "x", "z")), strict=True):
+        sc = ax.scatter(tcp[idx, a], tcp[idx, b], c=norm[idx], s=8, cmap="viridis",
+                        rasterized=True)
+        ax.set_xlabel(f"TCP {la} [m]")
+        ax.set_ylabel(f"TCP {lb} [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        fig.colorbar(sc, ax=ax, label="|residual| [mm]")
+    fig.suptitle("Where in the workspace the model fails (base frame)")
+    save(fig, "workspace_map")
+
+    # Candidates.
+    cands = dg.candidates[:15]
+    if cands:
+        fig, ax = plt.subplots(figsize=(7, 0.35 * len(cands) + 1.5))
+        y = np.arange(len(cands))
+        colors = ["tab:green" if c.significant else "tab:gray" for c in cands]
+        ax.barh(y, [c.rms_after * 1e3 for c in cands], color=colors)
+        ax.set_yticks(y, [c.label for c in cands])
+        ax.invert_yaxis()
+        ax.axvline(dg.heldout_rms * 1e3, color="tab:red", label="current model")
+        if noise_mm:
+            ax.axvline(noise_mm, color="k", ls="--", label="noise floor")
+        ax.set_xlabel("held-out RMS with the effect added [mm]")
+        ax.set_title("Candidate effects (green: significant)")
+        ax.legend(loc="lower right")
+        save(fig, "candidates")
+
+    # Correlations.
+    corr = dg.correlations[:12]
+    if corr:
+        fig, ax = plt.subplots(figsize=(7, 0.35 * len(corr) + 1.5))
+        y = np.arange(len(corr))
+        ax.barh(y, [c.r2 for c in corr],
+                color=["tab:orange" if c.significant else "tab:gray" for c in corr])
+        ax.set_yticks(y, [c.feature for c in corr])
+        ax.invert_yaxis()
+        ax.set_xlim(0, 1)
+        ax.set_xlabel("share of the held-out residual explained (R^2)")
+        ax.set_title("What the residual correlates with (orange: significant)")
+        save(fig, "correlations")
+
+    # Before / after adding effects.
+    if result.add is not None:
+        ad = result.add
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        labels = ["before", "after\n+" + "\n+".join(ad.added) if ad.added else "after"]
+        vals = [ad.before.heldout_rms * 1e3, ad.after.heldout_rms * 1e3]
+        ax.bar(labels, vals, color=["tab:red", "tab:green"])
+        if noise_mm:
+            ax.axhline(noise_mm, color="k", ls="--", label="noise floor")
+            ax.axhline(1.5 * noise_mm, color="k", ls=":", label="1.5 x noise floor")
+            ax.legend()
+        ax.set_ylabel("held-out RMS [mm]")
+        ax.set_title("Adding effects: error on data the fit did not see")
+        save(fig, "before_after")
+    return plots
+
+
+def result_extra_names(result: ValidationResult) -> list[str]:
+    """Names of the extra numeric columns present in the features."""
+    n = result.analysis.tau.shape[1]
+    known = {"time", "sample_order", "force_magnitude", "force_direction", "tcp_position"}
+    known |= {f"q{j + 1}" for j in range(n)} | {f"tau_j{j + 1}" for j in range(n)}
+    return [k for k in result.analysis.features if k not in known]
+
+
+# --------------------------------------------------------------------------------------------
+# HTML
+
+
+def _f(v: float | None, scale: float = 1e3, digits: int = 4) -> str:
+    if v is None or not math.isfinite(v):
+        return "-"
+    return f"{v * scale:.{digits}g}"
+
+
+def _table(header: list[str], rows: list[list[str]]) -> str:
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def _img(path: Path, alt: str) -> str:
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}"></figure>'
+
+
+_CSS = """
+body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
+table{border-collapse:collapse;margin:0.5em 0 1em}
+td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em}
+th{background:#eee}td:first-child{text-align:left}
+.verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
+.adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}
+img{max-width:100%}figure{margin:0.5em 0}
+"""
+
+
+def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
+    """The report as one self-contained HTML string (plots inline)."""
+    dg = result.diagnosis
+    an = result.analysis
+    noise = dg.noise
+    parts: list[str] = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+        f"<title>rfsw-plan validate: {html.escape(result.robot)}</title>",
+        f"<style>{_CSS}</style></head><body>",
+        f"<h1>Model against measurement: {html.escape(result.robot)}</h1>",
+        f"<p>Data: {html.escape(result.data_source)} ({an.n_samples} samples, "
+        f"{an.n_observations} measured values). Model effects: "
+        f"{html.escape(', '.join(result.model.labels))}. {dg.folds}-fold cross-validation "
+        "grouped by pose.</p>",
+        f"<p class='verdict {dg.verdict}'><b>{dg.verdict.upper()}</b>: "
+        f"{html.escape(dg.message.removeprefix(f'{dg.verdict}: '))}</p>",
+        "<h2>Summary</h2>",
+        _table(
+            ["quantity", "value [mm]"],
+            [
+                ["RMS residual of the model (all samples)", _f(result.rms)],
+                ["held-out RMS (model re-identified per fold)", _f(dg.heldout_rms)],
+                ["RMS after re-identifying on all samples", _f(result.identification.rms_after)],
+                [f"noise floor (1 sigma, {noise.source})", _f(noise.sigma)],
+                ["max |residual|", _f(an.max_abs)],
+                *[[f"{p:g}th percentile of |residual|", _f(v)]
+                  for p, v in an.percentiles.items()],
+            ],
+        ),
+    ]
+    if result.add is not None:
+        ad = result.add
+        parts += [
+            "<h2>Adding effects and re-identifying</h2>",
+            _table(
+                ["model", "held-out RMS [mm]", "RMS all samples [mm]"],
+                [
+                    [", ".join(ad.before.labels), _f(ad.before.heldout_rms), _f(ad.rms_before)],
+                    [", ".join(ad.after.labels), _f(ad.after.heldout_rms), _f(ad.rms_after)],
+                ],
+            ),
+        ]
+        if ad.not_added:
+            parts.append("<p>Not fitted: " + html.escape(
+                "; ".join(f"{s.label}: {s.reason}" for s in ad.not_added)) + "</p>")
+        parts.append(_table(
+            ["effect", "parameter", "value [SI]", "std error", "prior", "note"],
+            [[e.effect, e.name, f"{e.value:.5g}", f"{e.std_error:.2g}", f"{e.prior:.5g}",
+              e.note] for e in ad.after.fit.estimates],
+        ))
+        if "before_after" in plots:
+            parts.append(_img(plots["before_after"], "held-out RMS before and after"))
+    parts += [
+        "<h2>Diagnosis: candidate effects</h2>",
+        "<p>Each effect is added to the current model, all parameters are re-identified on "
+        "the training folds and the model is scored on the held-out fold. Significant = the "
+        "held-out improvement passes an F test at the strict level (noise alone does not).</p>",
+        _table(
+            ["effect", "joint", "held-out RMS after [mm]", "explained fraction", "p-value",
+             "significant", "note"],
+            [[c.effect, "-" if c.joint is None else str(c.joint), _f(c.rms_after),
+              f"{c.explained_fraction:.3f}", f"{c.p_value:.2g}",
+              "yes" if c.significant else "no",
+              "indistinguishable from the best" if c.tied_with_best else ""]
+             for c in dg.candidates],
+        ),
+    ]
+    if "candidates" in plots:
+        parts.append(_img(plots["candidates"], "candidates"))
+    if dg.chain:
+        parts.append(_table(
+            ["step", "effect added", "held-out RMS before [mm]", "after [mm]"],
+            [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after)]
+             for i, s in enumerate(dg.chain)],
+        ))
+    if dg.skipped:
+        parts += ["<h3>Not identifiable from this data (not fitted)</h3>",
+                  _table(["effect", "reason"], [[s.label, s.reason] for s in dg.skipped])]
+    parts += [
+        "<h2>What the residual correlates with</h2>",
+        "<p>Share of the held-out residual explained by each feature (cubic fit for a "
+        "scalar, quadratic for a vector). A strong feature outside the library (time, "
+        "temperature) points at physics the model lacks.</p>",
+        _table(
+            ["feature", "R^2", "adjusted R^2", "p-value", "significant", "what"],
+            [[c.feature, f"{c.r2:.3f}", f"{c.adj_r2:.3f}", f"{c.p_value:.2g}",
+              "yes" if c.significant else "no", c.description] for c in dg.correlations],
+        ),
+    ]
+    if "correlations" in plots:
+        parts.append(_img(plots["correlations"], "correlations"))
+    parts += [
+        "<h2>Where the model fails</h2>",
+        "<h3>Per axis and per direction</h3>",
+        _table(
+            ["axis", "n", "RMS [mm]", "mean [mm]", "max |r| [mm]"],
+            [[a.name, str(a.n), _f(a.rms), _f(a.mean), _f(a.max_abs)]
+             for a in (*an.per_axis, *an.per_direction)],
+        ),
+        "<h3>Per joint</h3>",
+        _table(
+            ["joint", "torque range [kN m]", "R^2 torque", "R^2 angle", "R^2 joint motion",
+             "RMS tau>0 [mm]", "RMS tau<0 [mm]"],
+            [[str(j.joint), f"{j.tau_min / 1e3:.3g} .. {j.tau_max / 1e3:.3g}",
+              f"{j.r2_torque:.3f}", f"{j.r2_angle:.3f}", f"{j.r2_joint_motion:.3f}",
+              _f(j.rms_tau_pos), _f(j.rms_tau_neg)] for j in an.per_joint],
+        ),
+    ]
+    for name, alt in (
+        ("residual_histogram", "residual histogram"),
+        ("workspace_map", "workspace map"),
+        ("residual_vs_torque", "residual against joint torques"),
+        ("residual_vs_force", "residual against force"),
+        ("residual_vs_time", "residual against time"),
+    ):
+        if name in plots:
+            parts.append(_img(plots[name], alt))
+    parts.append(f"<p><small>Computed in {result.seconds:.1f} s.</small></p></body></html>")
+    return "\n".join(parts)
+
+
+def write_report(result: ValidationResult, out_dir: str | Path) -> ReportFiles:
+    """Write report.html, validate.json and the PNG plots into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    plots = make_plots(result, out)
+    json_path = out / "validate.json"
+    json_path.write_text(result_json(result) + "\n")
+    html_path = out / "report.html"
+    html_path.write_text(render_html(result, plots), encoding="utf-8")
+    return ReportFiles(html=html_path, json=json_path, plots=plots)

@@ -1,0 +1,278 @@
+"""The validate -> add -> re-identify loop of the model-against-measurement workbench.
+
+:func:`validate` compares a model with measurements: it predicts every sample, analyses the
+residual (:mod:`rfsw_plan.validation.residuals`), optionally adds effects and re-identifies
+all parameters (scoring before/after on held-out folds), and always runs the diagnosis
+(:mod:`rfsw_plan.validation.diagnosis`) on the resulting model. :func:`save_extended_robot`
+writes the re-identified model as a robot description that ``predict`` and the planner load
+with its effects.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rfsw_plan.elastostatics.effects import make_effect, parse_effect_label
+from rfsw_plan.elastostatics.identification import IdentificationResult
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.measurements import MeasurementSet
+from rfsw_plan.robot.description import save_robot_description
+from rfsw_plan.validation.diagnosis import (
+    DEFAULT_FOLDS,
+    CrossValidation,
+    Diagnosis,
+    Skipped,
+    cross_validate,
+    diagnose,
+    make_folds,
+)
+from rfsw_plan.validation.residuals import (
+    ResidualAnalysis,
+    analyze_residuals,
+    estimate_noise_floor,
+)
+
+
+@dataclass(frozen=True)
+class AddResult:
+    """Outcome of adding effects and re-identifying everything.
+
+    Attributes:
+        requested: Effect labels asked for.
+        added: Effects actually added.
+        not_added: Effects not added, with the reason: the effect says the data cannot
+            identify it, or identification kept all its parameters at their priors.
+        before: Held-out score of the model before adding.
+        after: Held-out score of the extended model (its fit is the re-identified model).
+        rms_before: RMS residual of the model as given, all samples [m].
+        rms_after: RMS residual of the re-identified extended model, all samples [m].
+    """
+
+    requested: tuple[str, ...]
+    added: tuple[str, ...]
+    not_added: tuple[Skipped, ...]
+    before: CrossValidation = field(repr=False)
+    after: CrossValidation = field(repr=False)
+    rms_before: float
+    rms_after: float
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON form (mm)."""
+        return {
+            "requested": list(self.requested),
+            "added": list(self.added),
+            "not_added": [{"label": s.label, "reason": s.reason} for s in self.not_added],
+            "heldout_rms_before_mm": self.before.heldout_rms * 1e3,
+            "heldout_rms_after_mm": self.after.heldout_rms * 1e3,
+            "rms_before_mm": self.rms_before * 1e3,
+            "rms_after_mm": self.rms_after * 1e3,
+            "parameters": [
+                {"effect": e.effect, "name": e.name, "value": e.value, "prior": e.prior,
+                 "std_error": None if np.isnan(e.std_error) else e.std_error,
+                 "identified": e.identified, "note": e.note}
+                for e in self.after.fit.estimates
+            ],
+        }
+
+
+@dataclass(frozen=True)
+class ValidationResult:
+    """Everything ``rfsw-plan validate`` computed.
+
+    Attributes:
+        robot: Robot name.
+        data_source: Measurement file.
+        model: The evaluated model: the given one, or the re-identified extended one when
+            effects were added.
+        rms: RMS residual of ``model`` on all samples [m].
+        analysis: Residual analysis of ``model`` on all samples.
+        diagnosis: Diagnosis of ``model``'s form.
+        identification: ``model``'s form re-identified on all samples (what --save-robot
+            writes).
+        add: The add-and-re-identify step, if effects were added.
+        seconds: Wall time [s].
+    """
+
+    robot: str
+    data_source: str
+    model: ElastostaticModel = field(repr=False)
+    rms: float
+    analysis: ResidualAnalysis = field(repr=False)
+    diagnosis: Diagnosis
+    identification: IdentificationResult = field(repr=False)
+    add: AddResult | None = None
+    seconds: float = 0.0
+
+    @property
+    def verdict(self) -> str:
+        """The diagnosis verdict."""
+        return self.diagnosis.verdict
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``validate --json`` and ``validate.json`` (lengths in mm)."""
+        d = self.diagnosis
+        noise = d.noise
+        return {
+            "robot": self.robot,
+            "data": self.data_source,
+            "model_effects": list(self.model.labels),
+            "rms_mm": self.rms * 1e3,
+            "heldout_rms_mm": d.heldout_rms * 1e3,
+            "refit_rms_mm": self.identification.rms_after * 1e3,
+            "noise_floor_mm": None if noise.sigma is None else noise.sigma * 1e3,
+            "noise_source": noise.source,
+            "verdict": d.verdict,
+            "message": d.message,
+            "missing": d.to_json()["missing"],
+            "candidates": [c.to_json() for c in d.candidates],
+            "not_identifiable": [{"label": s.label, "reason": s.reason} for s in d.skipped],
+            "correlations": d.to_json()["correlations"],
+            "diagnosis": d.to_json(),
+            "residuals": self.analysis.to_json(),
+            "add": None if self.add is None else self.add.to_json(),
+            "folds": d.folds,
+            "n_samples": self.analysis.n_samples,
+            "seconds": self.seconds,
+        }
+
+
+def check_effect_labels(model: ElastostaticModel, labels: Sequence[str]) -> list[str]:
+    """Validate effect labels to add (name known, joint in range, not already in the model).
+
+    Raises:
+        UnknownNameError: Unknown effect name (lists the known ones).
+        InputError: Joint index missing / out of range, effect given twice or already in the
+            model.
+    """
+    out: list[str] = []
+    for raw in labels:
+        cls, joint = parse_effect_label(raw, model.robot.nq)
+        label = cls.name if joint is None else f"{cls.name}:j{joint + 1}"
+        if label == "joint_compliance" or model.has(label):
+            raise InputError("--add", label, "effect is already in the model",
+                             f"one of the effects it lacks (it has {', '.join(model.labels)})")
+        if label in out:
+            raise InputError("--add", label, "given more than once")
+        out.append(label)
+    return out
+
+
+def _rms(res: np.ndarray) -> float:
+    r = res[np.isfinite(res)]
+    return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
+
+
+def validate(
+    model: ElastostaticModel,
+    data: MeasurementSet,
+    *,
+    noise_m: float | None = None,
+    add: Sequence[str] = (),
+    folds: int = DEFAULT_FOLDS,
+    seed: int = 0,
+) -> ValidationResult:
+    """Compare a model with measurements, optionally add effects, and diagnose what is missing.
+
+    Args:
+        model: The model of the robot file (its effects are never suggested again).
+        data: Samples with joint values, logged wrench (TCP, base frame) and measured TCP
+            position (base frame).
+        noise_m: Noise floor given by the user [m] (default: from repeated samples).
+        add: Effect labels (``name`` or ``name:jN``) to add before re-identifying.
+        folds: Cross-validation folds.
+        seed: Seed of the fold assignment.
+
+    Raises:
+        IdentificationError: Too few samples/poses for what was asked (says how many).
+        UnknownNameError, InputError: Bad effect label, bad noise, mismatched joints.
+    """
+    t0 = time.perf_counter()
+    if data.n_joints != model.robot.nq:
+        raise InputError(data.source, "joint columns",
+                         f"data has {data.n_joints} joints but robot {model.robot.name} has "
+                         f"{model.robot.nq}", f"{model.robot.nq} joint columns")
+    labels = check_effect_labels(model, add)
+    batch = model.batch(data.q)
+    pred = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
+    residual0 = np.where(data.measured, data.position - pred, np.nan)
+    noise = estimate_noise_floor(data, residual0, noise_m)
+    fold = make_folds(data, folds, seed)
+    before = cross_validate(model, data, fold, batch)
+
+    add_result: AddResult | None = None
+    if labels:
+        F_true = model.true_wrench(batch, data.wrench)
+        extended = model
+        added: list[str] = []
+        not_added: list[Skipped] = []
+        for label in labels:
+            reason = make_effect(model.robot, label).identifiable(batch, F_true)
+            if reason:
+                not_added.append(Skipped(label, f"not identifiable from this data: {reason}"))
+                continue
+            extended = extended.with_effect(label)
+            added.append(label)
+        after = cross_validate(extended, data, fold, batch) if added else before
+        dropped = []
+        for label in added:
+            est = [e for e in after.fit.estimates if e.effect == label]
+            if not any(e.identified for e in est):
+                why = next((e.note for e in est if e.note), "no parameter identified")
+                not_added.append(Skipped(label, f"not identified from this data: {why}"))
+                dropped.append(label)
+        if dropped:  # an effect the data cannot fit would only carry its prior: leave it out
+            added = [x for x in added if x not in dropped]
+            extended = model
+            for label in added:
+                extended = extended.with_effect(label)
+            after = cross_validate(extended, data, fold, batch) if added else before
+        evaluated = after.fit.model
+        add_result = AddResult(
+            requested=tuple(labels),
+            added=tuple(added),
+            not_added=tuple(not_added),
+            before=before,
+            after=after,
+            rms_before=_rms(residual0),
+            rms_after=after.fit.rms_after,
+        )
+        base = after
+    else:
+        evaluated = model
+        base = before
+
+    analysis = analyze_residuals(evaluated, data, noise=noise, batch=batch)
+    diagnosis = diagnose(evaluated, data, noise, folds, seed, batch=batch, base=base)
+    return ValidationResult(
+        robot=model.robot.name,
+        data_source=data.source,
+        model=evaluated,
+        rms=analysis.rms,
+        analysis=analysis,
+        diagnosis=diagnosis,
+        identification=base.fit,
+        add=add_result,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+def save_extended_robot(result: ValidationResult, path: str | Path) -> Path:
+    """Write the re-identified model (stiffness and effects) as a robot description TOML.
+
+    The file keeps the robot's kinematics, limits and name; ``predict`` and the planner load
+    its ``[[effects]]`` through :class:`~rfsw_plan.elastostatics.model.ElastostaticModel`.
+    """
+    fit = result.identification
+    note = (
+        f"re-identified by rfsw-plan validate from {result.data_source} "
+        f"({fit.n_samples} samples, RMS {fit.rms_after * 1e3:.4g} mm, effects: "
+        f"{', '.join(fit.model.labels)})"
+    )
+    return save_robot_description(fit.model.to_description(note), path)
