@@ -80,14 +80,21 @@ def tool_rotation_of(robot: Robot, task: PlanTask, q: FloatArray) -> FloatArray:
 
 def choose_branch(
     model: ElastostaticModel, task: PlanTask, q_seed: FloatArray, opts: PlanOptions
-) -> tuple[BaselinePlan, str, tuple[BranchInfo, ...]]:
-    """Taught paths on all branches; the best continuous, non-singular one.
+) -> tuple[BaselinePlan, str, tuple[BranchInfo, ...], float]:
+    """Taught paths on all branches (and tool rotations); the best continuous, non-singular one.
 
-    Ranked by the largest worst-case deviation (smaller first), then by the smallest lateral
-    stiffness (larger first).
+    With ``w_stiffness > 0`` every branch is also tried at ``rotation_starts`` tool rotations
+    about the tool axis, and candidates are ranked by the mean lateral compliance (the NLP's
+    stiffness term), so the local NLP starts in the stiffest basin. Otherwise they are ranked
+    by the largest worst-case deviation (smaller first), then by the smallest lateral stiffness
+    (larger first), at the problem's tool rotation.
 
     Raises:
         UnreachableError: No branch reaches every waypoint (the seed's error is re-raised).
+
+    Returns:
+        The best taught path, its branch name, every candidate's summary, and its tool
+        rotation [rad].
         InfeasibleError: Every reachable branch passes a singularity or a joint-step jump.
     """
     robot = model.robot
@@ -96,9 +103,16 @@ def choose_branch(
     cands: list[tuple[float, float, str, BaselinePlan]] = []
     first_err: Exception | None = None
     nan_q = np.full(robot.nq, np.nan)
-    for name, seed in seeds:
+    by_stiffness = opts.w_stiffness > 0 and opts.rotation_starts > 1
+    n_rot = opts.rotation_starts if by_stiffness else 1
+    starts = [
+        (f"{name}" if k == 0 else f"{name}@{np.rad2deg(2 * np.pi * k / n_rot):.0f}deg",
+         seed, opts.tool_rotation + 2 * np.pi * k / n_rot)
+        for name, seed in seeds for k in range(n_rot)
+    ]
+    for name, seed, rotation in starts:
         try:
-            taught = no_compensation(robot, task, seed, opts.tool_rotation)
+            taught = no_compensation(robot, task, seed, rotation)
         except UnreachableError as exc:
             first_err = first_err or exc
             infos.append(BranchInfo(name, False, nan_q, np.nan, np.nan, str(exc)))
@@ -121,7 +135,8 @@ def choose_branch(
         wmax = float(np.max(pred.worst))
         infos.append(BranchInfo(name, not note, taught.q[0], kmin, wmax, note))
         if not note:
-            cands.append((wmax, -kmin, name, taught))
+            primary = float(np.mean(pred.lateral_compliance)) if by_stiffness else wmax
+            cands.append((primary, -kmin, name, taught, rotation))
     if not cands:
         bad = [i for i in infos if i.note and "singularity" in i.note]
         if bad:
@@ -130,9 +145,9 @@ def choose_branch(
             raise first_err
         raise InfeasibleError("no continuous configuration branch: " + infos[0].note,
                               constraint="joint_step")
-    cands.sort(key=lambda c: (round(c[0], 6), round(c[1], 0)))
+    cands.sort(key=lambda c: (c[0], c[1]) if by_stiffness else (round(c[0], 6), round(c[1], 0)))
     best = cands[0]
-    return best[3], best[2], tuple(infos)
+    return best[3], best[2], tuple(infos), best[4]
 
 
 def plan(
@@ -185,12 +200,21 @@ def plan_task(
     """The pipeline of :func:`plan` on an explicit task (see there)."""
     t_all = t_start if t_start is not None else time.perf_counter()
     robot = model.robot
-    taught, branch, infos = choose_branch(model, task, np.asarray(q_seed, float), opts)
-    mirror = mirror_compensation(model, task, taught.q, opts.tool_rotation)
+    start, branch, infos, rotation = choose_branch(model, task, np.asarray(q_seed, float), opts)
+    warm = mirror_compensation(model, task, start.q, rotation)
+    # Baselines 1 and 2 are what an engineer gets at the taught tool rotation on this branch;
+    # the NLP may start elsewhere when the stiffness multi-start found a stiffer rotation.
+    taught, mirror = start, warm
+    if rotation != opts.tool_rotation:
+        try:
+            taught = no_compensation(robot, task, start.q[0], opts.tool_rotation)
+            mirror = mirror_compensation(model, task, taught.q, opts.tool_rotation)
+        except UnreachableError:
+            log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
 
     t0 = time.perf_counter()
-    nlp = build_plan_nlp(model, task, window, mirror.q, mirror.offsets, opts,
-                         compile_c=compile_c, load_steps=np.diff(mirror.offsets, axis=0))
+    nlp = build_plan_nlp(model, task, window, warm.q, warm.offsets, opts,
+                         compile_c=compile_c, load_steps=np.diff(warm.offsets, axis=0))
     x = nlp.x0
     corr = np.zeros((len(task), 2))
     iters = 0

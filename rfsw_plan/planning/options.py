@@ -55,6 +55,10 @@ class PlanOptions:
         q_seed: Seed configuration of the main branch [rad], shape (n,), or None.
         tool_rotation: Initial tool rotation about its axis [rad] (the NLP frees it).
         branches: Try the configuration branches (elbow, wrist, shoulder flips).
+        rotation_starts: Number of tool rotations about the tool axis, evenly spaced from
+            ``tool_rotation``, tried as warm starts on every branch when ``w_stiffness > 0``
+            (1 = only ``tool_rotation``). The NLP is local; this multi-start is what lets the
+            stiffness objective choose the rotation globally.
         max_start_waypoints: Stationary waypoints planned over plunge and dwell.
         max_outer: Outer correction iterations for effects the NLP does not model symbolically.
         outer_tol: Convergence of the outer correction [m].
@@ -80,6 +84,7 @@ class PlanOptions:
     q_seed: tuple[float, ...] | None = None
     tool_rotation: float = 0.0
     branches: bool = True
+    rotation_starts: int = 8
     max_start_waypoints: int = 12
     max_outer: int = 5
     outer_tol: float = 1e-6
@@ -113,6 +118,8 @@ class PlanOptions:
                 raise InputError("planning", name, f"got {getattr(self, name)}", "> 0")
         if self.kappa_max <= 1:
             raise InputError("planning", "kappa_max", f"got {self.kappa_max}", "> 1")
+        if self.rotation_starts < 1:
+            raise InputError("planning", "rotation_starts", f"got {self.rotation_starts}", ">= 1")
         if self.max_start_waypoints < 0 or self.max_outer < 1 or self.max_iter < 1:
             raise InputError("planning", "max_start_waypoints/max_outer/max_iter",
                              "out of range", "max_start_waypoints >= 0, the others >= 1")
