@@ -39,7 +39,7 @@ def test_poses_look_like_a_load_campaign() -> None:
     robot = load_robot("fanuc_s900ib_400")
     data = simulate_campaign(robot, poses=30, loads_per_pose=4, noise_mm=0.0, seed=1)
     assert len(data) == 120 and data.n_joints == 6
-    T, _ = robot.batch_fk_jacobian(data.q)[:2]
+    T, _ = robot.batch_fk_jacobian(data.q)
     tool_z = T[:, :3, 2]
     assert np.all(-tool_z[:, 2] >= np.cos(np.radians(TOOL_DOWN_DEG)) - 1e-12)  # tool down
     assert np.all(T[:, 0, 3] > 0.3)  # in front of the robot
@@ -68,7 +68,7 @@ def test_wrench_pattern_per_pose() -> None:
 def test_every_joint_torque_changes_sign_within_each_pose() -> None:
     robot = load_robot("zk500")
     data = simulate_campaign(robot, poses=10, loads_per_pose=6, noise_mm=0.0, seed=3)
-    _, J = robot.batch_fk_jacobian(data.q)[:2]
+    _, J = robot.batch_fk_jacobian(data.q)
     tau = np.einsum("mak,ma->mk", J, data.wrench).reshape(10, 6, 6)
     loaded = tau[:, 1:-1]
     assert np.all((loaded.max(axis=1) > 0) & (loaded.min(axis=1) < 0))

@@ -51,7 +51,7 @@ def test_deflection_is_eq11(robot: Robot) -> None:
     rng = np.random.default_rng(10)
     Q = random_q(robot, 8, seed=10)
     F = random_wrench(rng, 8)
-    _, J = robot.batch_fk_jacobian(Q)[:2]
+    _, J = robot.batch_fk_jacobian(Q)
     Cq = robot.joint_compliance
     dX = deflection(J, Cq, F)
     assert dX.shape == (8, 6)
@@ -144,7 +144,7 @@ def test_dexterity_at_least_one_and_grows_towards_singularity() -> None:
 def test_directional_stiffness_is_force_over_displacement(robot: Robot) -> None:
     rng = np.random.default_rng(15)
     Q = random_q(robot, 4, seed=15)
-    _, J = robot.batch_fk_jacobian(Q)[:2]
+    _, J = robot.batch_fk_jacobian(Q)
     C = cartesian_compliance(J, robot.joint_compliance)
     dirs = rng.normal(size=(4, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)

@@ -312,3 +312,19 @@ def test_identify_with_joint_compliance_free(zk500: Robot, label: str) -> None:
             assert est.value == pytest.approx(want, rel=1e-6, abs=1e-9)
     ok = res.joint_identified
     np.testing.assert_allclose(res.stiffness[ok], k_true[ok], rtol=1e-6)
+
+
+def test_kc_basis_is_cached_per_batch_and_gives_the_same_numbers(fanuc: Robot) -> None:
+    from rfsw_plan.elastostatics.effects.complementary_stiffness import (
+        complementary_stiffness_basis,
+    )
+
+    q, F = _campaign_like(fanuc, 4, seed=3)
+    batch = PoseBatch.from_q(fanuc, q)
+    assert not batch.cache
+    first = batch_complementary_stiffness(batch, F)
+    basis = complementary_stiffness_basis(batch)
+    assert complementary_stiffness_basis(batch) is basis  # kept in the batch
+    np.testing.assert_array_equal(batch_complementary_stiffness(batch, F), first)
+    fresh = batch_complementary_stiffness(PoseBatch.from_q(fanuc, q), 2.0 * F)
+    np.testing.assert_allclose(fresh, 2.0 * first, rtol=1e-12, atol=0)  # linear in F

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.elastostatics.effects import JointCompliance
-from rfsw_plan.elastostatics.identification import identify, residuals, rms
+from rfsw_plan.elastostatics.identification import axis_variances, identify, residuals, rms
 from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.exceptions import IdentificationError
 from rfsw_plan.io.measurements import MeasurementSet
@@ -149,3 +149,38 @@ def test_identified_stiffness_is_always_positive() -> None:
     for e in res.estimates:
         assert e.value > 0, e
     assert any("not positive" in e.note for e in res.estimates)
+
+
+def test_axis_variances_blank_and_exact_axes_get_finite_positive_values() -> None:
+    res = np.array([[1e-5, 0.0, np.nan], [-3e-5, 0.0, np.nan], [np.nan, 0.0, np.nan]])
+    var = axis_variances(res)
+    np.testing.assert_allclose(var, [5e-10, 5e-10, 5e-10])  # x: (1 + 9)e-10 / 2
+    np.testing.assert_array_equal(axis_variances(np.zeros((4, 3))), np.ones(3))
+    np.testing.assert_array_equal(axis_variances(np.full((2, 3), np.nan)), np.ones(3))
+
+
+@pytest.mark.filterwarnings("error")
+def test_wls_without_sigma_on_an_exact_fit_keeps_equal_weights() -> None:
+    """The prior is the truth: every residual is exactly zero, no division by zero."""
+    prior = load_model("zk500")
+    data = synthetic(prior, 30, seed=14)
+    res = identify(prior, data, method="wls")
+    ident = res.joint_identified
+    assert ident[:5].all()
+    np.testing.assert_allclose(res.stiffness[ident], prior.stiffness[ident], rtol=1e-9)
+    assert np.all(np.isfinite(res.stiffness_std[ident]))
+    assert res.rms_after < 1e-12
+
+
+@pytest.mark.filterwarnings("error")
+def test_wls_without_sigma_with_a_blank_axis_returns_truth() -> None:
+    """A never-measured axis (y blank everywhere) gives no empty-slice mean in the weights."""
+    prior = load_model("zk500")
+    truth, k_true = truth_model(prior.robot, seed=15)
+    data = synthetic(truth, 40, seed=16)
+    pos = data.position.copy()
+    pos[:, 1] = np.nan
+    res = identify(prior, MeasurementSet(data.q, data.wrench, pos), method="wls")
+    assert res.n_observations == 80
+    ident = res.joint_identified
+    np.testing.assert_allclose(res.stiffness[ident], k_true[ident], rtol=1e-6)

@@ -38,7 +38,7 @@ def test_bundled_robots_are_the_three_seed_robots() -> None:
 def test_pinocchio_casadi_batch_agree(robot: Robot) -> None:
     Q = random_q(robot, 25, seed=1)
     f = kinematics_function(robot)
-    Tb, Jb, Fb = robot.batch_fk_jacobian(Q, with_joint_frames=True)
+    Tb, Jb, Fb = robot.batch_fk_jacobian_frames(Q)
     for i, q in enumerate(Q):
         T, J = robot.fk_jacobian(q)
         p_s, R_s, J_s = (np.asarray(x) for x in f(q))
@@ -67,12 +67,12 @@ def test_symbolic_joint_frames_match_pinocchio(robot: Robot) -> None:
 def test_batch_single_row_and_large_batch_chunks(robot: Robot) -> None:
     """Chunking in the batch path must not change any number (m > BATCH_CHUNK)."""
     Q = random_q(robot, robot.BATCH_CHUNK + 7, seed=3)
-    T, J = robot.batch_fk_jacobian(Q)[:2]
+    T, J = robot.batch_fk_jacobian(Q)
     for i in (0, robot.BATCH_CHUNK - 1, robot.BATCH_CHUNK, Q.shape[0] - 1):
         T1, J1 = robot.fk_jacobian(Q[i])
         np.testing.assert_allclose(T[i], T1, atol=1e-12)
         np.testing.assert_allclose(J[i], J1, atol=1e-12)
-    T0, J0 = robot.batch_fk_jacobian(Q[5])[:2]  # 1-D input is one pose
+    T0, J0 = robot.batch_fk_jacobian(Q[5])  # 1-D input is one pose
     np.testing.assert_allclose(T0[0], T[5], atol=1e-15)
     np.testing.assert_allclose(J0[0], J[5], atol=1e-15)
 
@@ -150,7 +150,7 @@ def test_urdf_plus_stiffness_file_matches_mdh_description() -> None:
     assert urdf.nq == 6
     np.testing.assert_array_equal(urdf.stiffness, mdh.stiffness)
     Q = random_q(mdh, 10, seed=7)
-    Tb, Jb = urdf.batch_fk_jacobian(Q * URDF_SIGN)[:2]
+    Tb, Jb = urdf.batch_fk_jacobian(Q * URDF_SIGN)
     for i, q in enumerate(Q):
         T_u, J_u = urdf.fk_jacobian(q * URDF_SIGN)
         T_m, J_m = mdh.fk_jacobian(q)

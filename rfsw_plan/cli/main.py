@@ -5,12 +5,13 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
 import re
 import sys
 from collections.abc import Sequence
 from types import ModuleType
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from rfsw_plan.exceptions import RfswError
 
@@ -33,8 +34,8 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     taken as values, not as unknown options.
     """
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
-        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
         self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*$")
 
     def error(self, message: str) -> NoReturn:
@@ -75,6 +76,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except RfswError as exc:
         print(f"rfsw-plan {args.command}: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except BrokenPipeError:
+        # Output piped into a reader that closed early (``| head``): no traceback; silence
+        # the interpreter's own flush of stdout at exit (Python docs, "Note on SIGPIPE").
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except KeyboardInterrupt:
         print("rfsw-plan: interrupted", file=sys.stderr)
         return 130

@@ -119,21 +119,33 @@ def rms(res: FloatArray) -> float:
     return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
 
 
+def axis_variances(res: FloatArray) -> FloatArray:
+    """Per-axis residual variance for the feasible-GLS weights of :func:`identify` [m^2].
+
+    Mean square of the measured (finite) entries of each axis of ``res`` (m, 3). An axis
+    without a measured entry, or whose residual is exactly zero, takes the largest positive
+    variance of the other axes (its weight then does not exceed theirs); if no axis has a
+    positive variance (an exact fit), every axis takes 1, i.e. equal weights as in OLS.
+
+    Returns:
+        Strictly positive variances, shape (3,).
+    """
+    measured = np.isfinite(res)
+    count = measured.sum(axis=0)
+    square = np.where(measured, res, 0.0) ** 2
+    var = np.divide(square.sum(axis=0), count, out=np.zeros(res.shape[1]), where=count > 0)
+    usable = var > 0
+    if not usable.any():
+        return np.ones(res.shape[1])
+    return np.where(usable, var, var[usable].max())
+
+
 def _compliance_parts(
     model: ElastostaticModel, batch: PoseBatch
 ) -> tuple[FloatArray, list[Effect]]:
     """Cartesian compliance (m, 6, 6) of the wrench-linear compliance effects, and the
     compliance effects that are not linear in the wrench (no Cartesian compliance)."""
-    C = np.zeros((len(batch), 6, 6))
-    nonlinear: list[Effect] = []
-    for e in model.effects:
-        if e.kind == "compliance":
-            Ce = e.cartesian_compliance(batch, e.params)
-            if Ce is None:
-                nonlinear.append(e)
-            else:
-                C += Ce
-    return C, nonlinear
+    return model.linear_compliance(batch)
 
 
 def _effect_position_jacobian(
@@ -303,9 +315,7 @@ def identify(
 
     theta, iterations, converged = solve(w)
     if method == "wls" and data.sigma is None:
-        r = np.where(mask, data.position - model_pos(), np.nan)
-        var_axis = np.nanmean(r**2, axis=0)
-        var_axis = np.where(np.isfinite(var_axis) & (var_axis > 0), var_axis, np.nanmax(var_axis))
+        var_axis = axis_variances(np.where(mask, data.position - model_pos(), np.nan))
         w = (np.ones((len(data), 1)) / var_axis[None, :])[mask]
         theta, iterations, converged = solve(w)
 

@@ -15,6 +15,12 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects import Effect, JointCompliance, PoseBatch, make_effect
 from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.elastostatics.springs import (
+    JointSprings,
+    SpringChain,
+    spring_compliance,
+    spring_deflection,
+)
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
 from rfsw_plan.robot.kinematics import Robot
@@ -36,6 +42,7 @@ class ElastostaticModel:
         base = [e for e in effects if isinstance(e, JointCompliance)]
         rest = [e for e in effects if not isinstance(e, JointCompliance)]
         self.effects: list[Effect] = [base[0] if base else JointCompliance(robot), *rest]
+        self._spring_chain: tuple[tuple[tuple[str, int | None], ...], SpringChain] | None = None
         labels = self.labels
         dup = {x for x in labels if labels.count(x) > 1}
         if dup:
@@ -94,24 +101,49 @@ class ElastostaticModel:
                 F += e.delta_wrench(batch, logged, e.params)
         return F
 
-    def cartesian_compliance(self, batch: PoseBatch) -> FloatArray:
-        """Cartesian compliance of the wrench-linear compliance effects, shape (m, 6, 6)."""
-        C = np.zeros((len(batch), 6, 6))
+    def _springs(self) -> tuple[list[JointSprings], list[Effect]]:
+        """The spring effects (:meth:`Effect.joint_springs`) with their current compliances,
+        and every other effect, in model order."""
+        springs: list[JointSprings] = []
+        others: list[Effect] = []
         for e in self.effects:
+            axes = e.joint_springs() if e.kind == "compliance" else None
+            if axes is None or e.joint is None:
+                others.append(e)
+            else:
+                springs.append(JointSprings(e.joint, axes, e.params))
+        return springs, others
+
+    def linear_compliance(self, batch: PoseBatch) -> tuple[FloatArray, list[Effect]]:
+        """Cartesian compliance (m, 6, 6) of the wrench-linear compliance effects, and the
+        compliance effects that are not linear in the wrench (no Cartesian compliance)."""
+        springs, others = self._springs()
+        C = spring_compliance(batch, springs)
+        nonlinear: list[Effect] = []
+        for e in others:
             if e.kind == "compliance":
                 Ce = e.cartesian_compliance(batch, e.params)
-                if Ce is not None:
+                if Ce is None:
+                    nonlinear.append(e)
+                else:
                     C += Ce
-        return C
+        return C, nonlinear
+
+    def cartesian_compliance(self, batch: PoseBatch) -> FloatArray:
+        """Cartesian compliance of the wrench-linear compliance effects, shape (m, 6, 6)."""
+        return self.linear_compliance(batch)[0]
 
     def deflection_batch(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """TCP deflection [m, rad], base frame, shape (m, 6), for a logged wrench (m, 6).
 
         dX = sum_compliance dX_e(F_true) + sum_geometric offset_e, F_true = F + sum dF_e.
+        The spring effects (tilting compliance) are summed in one vectorised step
+        (:func:`~rfsw_plan.elastostatics.springs.spring_deflection`).
         """
         F = self.true_wrench(batch, wrench)
-        dX = np.zeros((len(batch), 6))
-        for e in self.effects:
+        springs, others = self._springs()
+        dX = spring_deflection(batch, springs, F)
+        for e in others:
             if e.kind == "compliance":
                 dX += e.deflection(batch, F, e.params)
             elif e.kind == "geometric":
@@ -126,9 +158,29 @@ class ElastostaticModel:
         single = np.ndim(q) == 1
         if self.is_linear_joint_model():
             return self._joint_deflection_fast(q, wrench, single)
+        if single and self.is_spring_model():
+            return self._spring_deflection_single(q, wrench)
         batch = self.batch(q)
         dX = self.deflection_batch(batch, np.atleast_2d(wrench))
         return dX[0] if single else dX
+
+    def _spring_deflection_single(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
+        """One pose of a joint-plus-spring model with one Pinocchio Jacobian call.
+
+        Same equations as :class:`JointCompliance` and the spring effects; the chain with one
+        virtual joint per spring (:class:`~rfsw_plan.elastostatics.springs.SpringChain`) is
+        built once per effect layout.
+        """
+        springs = self.effects[1:]
+        key = tuple((e.name, e.joint) for e in springs)
+        if self._spring_chain is None or self._spring_chain[0] != key:
+            layout = [(int(e.joint), axes) for e in springs
+                      if e.joint is not None and (axes := e.joint_springs()) is not None]
+            self._spring_chain = (key, SpringChain(self.robot, layout))
+        chain = self._spring_chain[1]
+        c_springs = np.concatenate([e.params for e in springs])
+        return chain.deflection(np.asarray(q, dtype=float), wrench,
+                                self.joint_compliance.params, c_springs)
 
     def _joint_deflection_fast(
         self, q: FloatArray, wrench: FloatArray, single: bool
@@ -143,10 +195,10 @@ class ElastostaticModel:
             _, J = self.robot.fk_jacobian(np.asarray(q, dtype=float))
             F = np.asarray(wrench, dtype=float).reshape(6)
             return J @ (c * (F @ J))
-        _, J = self.robot.batch_fk_jacobian(q)[:2]
+        _, J = self.robot.batch_fk_jacobian(q)
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (J.shape[0], 6))
-        tau = np.einsum("mjk,mj->mk", J, F)  # joint torques [N m]
-        return np.einsum("mak,mk->ma", J, tau * c)
+        tau = np.matmul(F[:, None, :], J)[:, 0]  # joint torques [N m]
+        return np.matmul(J, (tau * c)[:, :, None])[:, :, 0]
 
     def predict_position(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
         """Loaded TCP position [m], base frame: FK(q) + dX_translation; shape (m, 3)."""
@@ -156,6 +208,13 @@ class ElastostaticModel:
     def is_linear_joint_model(self) -> bool:
         """True if the model is joint compliance only (the fast path applies)."""
         return len(self.effects) == 1
+
+    def is_spring_model(self) -> bool:
+        """True if every effect after the joint compliance is a spring effect
+        (:meth:`Effect.joint_springs`, e.g. tilting compliance): linear in the wrench, and a
+        single pose is one Pinocchio Jacobian call."""
+        return all(e.kind == "compliance" and e.joint is not None
+                   and e.joint_springs() is not None for e in self.effects[1:])
 
     # -- storage -----------------------------------------------------------------------------
     def to_description(self, source_note: str | None = None) -> RobotDescription:

@@ -104,7 +104,7 @@ def sample_joint_grid(
     Q = np.tile(q0, (A.size, 1))
     Q[:, swept[0]] = A.ravel()
     Q[:, swept[1]] = B.ravel()
-    T, _ = robot.batch_fk_jacobian(Q)[:2]
+    T, _ = robot.batch_fk_jacobian(Q)
     return JointGrid(Q, T[:, :3, 3].copy(), (swept[0], swept[1]), (axes[0], axes[1]),
                      (int(n_points[0]), int(n_points[1])))
 
@@ -131,7 +131,7 @@ def index_map(
         K = np.diag(K)
     if K.shape != (robot.nq, robot.nq):
         raise InputError("Kq", "", f"has shape {K.shape}", f"({robot.nq}, {robot.nq})")
-    _, J = robot.batch_fk_jacobian(grid.q)[:2]
+    _, J = robot.batch_fk_jacobian(grid.q)
     m = grid.q.shape[0]
     kappa = np.array([dexterity(J[i], length_scale) for i in range(m)])
     Kc = np.einsum("mkaj,a->mjk", robot.batch_jacobian_derivatives(grid.q), F)  # eq. 6

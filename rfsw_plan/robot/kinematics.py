@@ -235,9 +235,7 @@ class Robot:
     #: Poses evaluated per chunk in :meth:`batch_fk_jacobian` (keeps the working set in cache).
     BATCH_CHUNK = 4096
 
-    def batch_fk_jacobian(
-        self, Q: FloatArray, with_joint_frames: bool = False
-    ) -> tuple[FloatArray, FloatArray] | tuple[FloatArray, FloatArray, FloatArray]:
+    def batch_fk_jacobian(self, Q: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Vectorised TCP poses and Jacobians for many configurations.
 
         Same numbers as :meth:`fk_jacobian` (checked in tests to 1e-12), computed with NumPy
@@ -247,27 +245,43 @@ class Robot:
         few element-wise operations; poses are processed in chunks of :attr:`BATCH_CHUNK`.
 
         Args:
-            Q: Controller joint values [rad], shape (m, n).
-            with_joint_frames: Also return the chain joint frames, shape (m, n, 4, 4).
+            Q: Controller joint values [rad], shape (m, n) (or (n,) for one pose).
 
         Returns:
-            ``(T, J)`` with T shape (m, 4, 4) [m] and J shape (m, 6, n), plus the joint frames
-            when asked.
+            ``(T, J)``: TCP poses in the base frame, shape (m, 4, 4) [m], and base-frame TCP
+            Jacobians wrt controller joints, shape (m, 6, n).
+        """
+        return self._batch(np.atleast_2d(np.asarray(Q, dtype=float)), None)
+
+    def batch_fk_jacobian_frames(
+        self, Q: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """:meth:`batch_fk_jacobian` plus the chain joint frames.
+
+        Args:
+            Q: Controller joint values [rad], shape (m, n) (or (n,) for one pose).
+
+        Returns:
+            ``(T, J, frames)``: T shape (m, 4, 4) [m] and J shape (m, 6, n) as in
+            :meth:`batch_fk_jacobian`, and the chain joint frames in the base frame, shape
+            (m, n, 4, 4) [m] (same as :meth:`joint_frames` per pose).
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        frames = np.zeros((*Q.shape, 4, 4))
+        frames[:, :, 3, 3] = 1.0
+        T, J = self._batch(Q, frames)
+        return T, J, frames
+
+    def _batch(self, Q: FloatArray, frames: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+        """Chunked driver of :meth:`_batch_chunk` for Q (m, n); fills ``frames`` if given."""
         m, n = Q.shape
         T = np.zeros((m, 4, 4))
         T[:, 3, 3] = 1.0
         J = np.empty((m, 6, n))
-        frames = np.zeros((m, n, 4, 4)) if with_joint_frames else None
-        if frames is not None:
-            frames[:, :, 3, 3] = 1.0
         for lo in range(0, m, self.BATCH_CHUNK):
             hi = min(lo + self.BATCH_CHUNK, m)
             self._batch_chunk(Q[lo:hi], T[lo:hi], J[lo:hi],
                               None if frames is None else frames[lo:hi])
-        if frames is not None:
-            return T, J, frames
         return T, J
 
     def _batch_chunk(
@@ -336,7 +350,7 @@ class Robot:
             Q: Controller joint values [rad], shape (m, n).
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
-        T, _, frames = self.batch_fk_jacobian(Q, with_joint_frames=True)  # type: ignore[misc]
+        T, _, frames = self.batch_fk_jacobian_frames(Q)
         n = self.nq
         p = T[:, :3, 3]
         z = np.einsum("mnab,nb->mna", frames[:, :, :3, :3], self.geometry.axes)  # (m, n, 3)

@@ -162,7 +162,7 @@ def campaign_poses(robot: Robot, n: int, rng: np.random.Generator) -> FloatArray
     count = 0
     for _ in range(400):
         Q = rng.uniform(lo, hi, (chunk, robot.nq))
-        T, J = robot.batch_fk_jacobian(Q)[:2]
+        T, J = robot.batch_fk_jacobian(Q)
         down = -T[:, 2, 2] >= cos_down
         p = T[:, :3, 3]
         radius = np.hypot(p[:, 0], p[:, 1])

@@ -18,10 +18,9 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    rows = []
-    for name in bundled_robot_names():
-        d = load_robot_description(name)
-        rows.append(
+    descriptions = [load_robot_description(name) for name in bundled_robot_names()]
+    if args.json:
+        rows = [
             {
                 "name": d.name,
                 "title": d.title,
@@ -30,13 +29,14 @@ def run(args: argparse.Namespace) -> int:
                 "effects": [e.name for e in d.effects],
                 "file": str(d.path),
             }
-        )
-    if args.json:
+            for d in descriptions
+        ]
         print(json.dumps({"robots": rows}, indent=2))
         return 0
-    for r in rows:
-        k = ", ".join(f"{v:.3g}" for v in np.asarray(r["stiffness_Nm_per_rad"]))
-        extra = f"; effects: {', '.join(r['effects'])}" if r["effects"] else ""
-        print(f"{r['name']:<20} {r['title']}")
+    for d in descriptions:
+        k = ", ".join(f"{v:.3g}" for v in np.asarray(d.stiffness, dtype=float))
+        effects = [e.name for e in d.effects]
+        extra = f"; effects: {', '.join(effects)}" if effects else ""
+        print(f"{d.name:<20} {d.title}")
         print(f"{'':<20} k = [{k}] N m/rad{extra}")
     return 0

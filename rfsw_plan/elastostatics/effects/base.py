@@ -26,8 +26,8 @@ from __future__ import annotations
 
 import abc
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import ClassVar, Literal
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -50,6 +50,10 @@ class PoseBatch:
         T: TCP poses in the base frame [m], shape (m, 4, 4).
         J: TCP Jacobians (base frame, wrt controller joints), shape (m, 6, n).
         frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4).
+        cache: Wrench-independent quantities derived from the poses by effects, keyed by
+            the effect's name (e.g. the complementary-stiffness basis), so that repeated
+            evaluations on the same batch (identification iterations) compute them once.
+            Not part of equality; the arrays above must not be modified in place.
     """
 
     robot: Robot
@@ -57,12 +61,13 @@ class PoseBatch:
     T: FloatArray
     J: FloatArray
     frames: FloatArray
+    cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_q(cls, robot: Robot, q: FloatArray) -> PoseBatch:
         """Evaluate kinematics for joint values [rad], shape (m, n) or (n,)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
-        T, J, frames = robot.batch_fk_jacobian(Q, with_joint_frames=True)  # type: ignore[misc]
+        T, J, frames = robot.batch_fk_jacobian_frames(Q)
         return cls(robot, Q, T, J, frames)
 
     def __len__(self) -> int:
@@ -146,6 +151,17 @@ class Effect(abc.ABC):
 
     def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray | None:
         """Cartesian compliance (m, 6, 6) if the deflection is linear in the wrench, else None."""
+        return None
+
+    def joint_springs(self) -> FloatArray | None:
+        """Spring axes (k, 3) in the frame of chain joint :attr:`joint`, or None.
+
+        An effect that returns axes declares that it is k linear rotational springs through
+        that joint's origin, about those axes, with compliances theta (k,) [rad/(N m)]:
+        dX = sum_s theta_s j_s (j_s^T F), j_s the TCP twist of a unit turn (seed 002 eq. 2).
+        The model then evaluates all such effects together
+        (:mod:`rfsw_plan.elastostatics.springs`); its :meth:`deflection` must agree.
+        """
         return None
 
     # -- kind "wrench" -----------------------------------------------------------------------

@@ -6,6 +6,52 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
 
+#: Largest basis (floats) kept in :attr:`PoseBatch.cache`: 2e7 floats = 160 MB, i.e.
+#: ~9e4 poses of a six-axis robot; larger batches recompute it per call.
+BASIS_CACHE_MAX = 20_000_000
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b over the last axis, broadcast (written out: np.cross has a large fixed cost)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def complementary_stiffness_basis(batch: PoseBatch) -> FloatArray:
+    """Kc_chain per unit wrench component: Kc_chain = basis @ F, shape (m, n * n, 6).
+
+    Kc is linear in the wrench (seed 000 eq. 6). With the scalar triple product,
+    z_i . (v_j x f) = f . (z_i x v_j) and z_i . (z_j x mu) = mu . (z_i x z_j), so
+    (see :func:`batch_complementary_stiffness`)
+
+        Kc_chain[j, i] = [z_min x v_max; [i < j] z_i x z_j] . F,
+
+    and row ``j * n + i`` of the basis holds that 6-vector. It depends only on the poses and
+    is kept in ``batch.cache`` (unless larger than :data:`BASIS_CACHE_MAX`).
+    """
+    cached: FloatArray | None = batch.cache.get(ComplementaryStiffness.name)
+    if cached is not None:
+        return cached
+    robot = batch.robot
+    n = robot.nq
+    R = batch.frames[:, :, :3, :3]
+    z = np.matmul(R, robot.geometry.axes[:, :, None])[..., 0]  # joint axes, (m, n, 3)
+    r = batch.T[:, None, :3, 3] - batch.frames[:, :, :3, 3]  # TCP minus joint origin [m]
+    v = _cross(z, r)  # TCP velocity of a unit joint rate, (m, n, 3)
+    zv = _cross(z[:, :, None, :], v[:, None, :, :])  # [i, j] = z_i x v_j, (m, n, n, 3)
+    zz = _cross(z[:, :, None, :], z[:, None, :, :])  # [i, j] = z_i x z_j
+    upper = np.triu(np.ones((n, n), dtype=bool), k=1)[None, :, :, None]  # [i, j]: i < j
+    basis = np.empty((len(batch), n, n, 6))  # [m, i, j] = Kc_chain[j, i] per component
+    basis[..., :3] = np.where(upper, zv, zv.transpose(0, 2, 1, 3))  # zv[min(i,j), max(i,j)]
+    basis[..., 3:] = np.where(upper, zz, 0.0)
+    out = np.ascontiguousarray(basis.transpose(0, 2, 1, 3)).reshape(len(batch), n * n, 6)
+    if out.size <= BASIS_CACHE_MAX:
+        batch.cache[ComplementaryStiffness.name] = out
+    return out
+
 
 def batch_complementary_stiffness(batch: PoseBatch, wrench: FloatArray) -> FloatArray:
     """Kc = [dJ^T/dq_1 F ... dJ^T/dq_n F] for every pose (seed 000 eq. 6), shape (m, n, n).
@@ -18,28 +64,22 @@ def batch_complementary_stiffness(batch: PoseBatch, wrench: FloatArray) -> Float
 
     and Kc = G^T Kc_chain G on the controller joints (q_chain = G q). Same numbers as
     :func:`rfsw_plan.elastostatics.compliance.complementary_stiffness` with
-    :meth:`Robot.jacobian_derivatives`, without building dJ (O(m n^2)).
+    :meth:`Robot.jacobian_derivatives`, without building dJ (O(m n^2)); the wrench-independent
+    part is :func:`complementary_stiffness_basis`, computed once per batch.
 
     Args:
         batch: Poses.
-        wrench: Wrench at the TCP, base frame [N, N m], shape (m, 6).
+        wrench: Wrench at the TCP, base frame [N, N m], shape (m, 6) or (6,).
     """
     robot = batch.robot
     n = robot.nq
     F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-    z = np.einsum("mjab,jb->mja", batch.frames[:, :, :3, :3], robot.geometry.axes)  # (m, n, 3)
-    r = batch.T[:, None, :3, 3] - batch.frames[:, :, :3, 3]  # TCP minus joint origin [m]
-    v = np.cross(z, r)
-    A = np.einsum("mia,mja->mij", z, np.cross(v, F[:, None, :3]))  # z_i . (v_j x f)
-    B = np.einsum("mia,mja->mij", z, np.cross(z, F[:, None, 3:]))  # z_i . (z_j x mu)
-    upper = np.triu(np.ones((n, n), dtype=bool), k=1)  # [i, j]: i < j
-    # Kc_chain[j, i]: entry (min, max) of A, plus B[i, j] when i < j.
-    sym = np.where(upper, A, A.transpose(0, 2, 1))  # sym[i, j] = A[min(i,j), max(i,j)]
-    Kc_chain = (sym + np.where(upper, B, 0.0)).transpose(0, 2, 1)
+    basis = complementary_stiffness_basis(batch)
+    Kc_chain = np.matmul(basis, F[:, :, None]).reshape(len(batch), n, n)
     G = robot.coupling
     if np.array_equal(G, np.eye(n)):
         return Kc_chain
-    return np.einsum("ja,mjk,kb->mab", G, Kc_chain, G)
+    return np.matmul(G.T, np.matmul(Kc_chain, G))
 
 
 class ComplementaryStiffness(Effect):
@@ -76,10 +116,10 @@ class ComplementaryStiffness(Effect):
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
         k = np.asarray(self.robot.stiffness, dtype=float)
         Kc = batch_complementary_stiffness(batch, F)  # column k is dJ^T/dq_k F [N m/rad]
-        tau = np.einsum("mak,ma->mk", batch.J, F)  # joint torques J^T F [N m]
+        tau = np.matmul(F[:, None, :], batch.J)[:, 0]  # joint torques J^T F [N m]
         dq_full = np.linalg.solve(np.diag(k)[None] - Kc, tau[:, :, None])[:, :, 0]
         extra = dq_full - tau / k  # joint deflection the linear model misses [rad]
-        return np.einsum("mak,mk->ma", batch.J, extra)[:, :, None]
+        return np.matmul(batch.J, extra[:, :, None])
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * float(theta[0])

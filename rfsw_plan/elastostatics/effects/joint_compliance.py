@@ -30,12 +30,12 @@ class JointCompliance(Effect):
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:
-        tau = np.einsum("mjk,mj->mk", batch.J, wrench)  # joint torques [N m]
-        return batch.J * tau[:, None, :]
+        tau = np.matmul(wrench[:, None, :], batch.J)  # joint torques [N m], (m, 1, n)
+        return batch.J * tau
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        tau = np.einsum("mjk,mj->mk", batch.J, wrench)  # joint torques J^T F [N m]
-        return np.einsum("mak,mk->ma", batch.J, tau * theta)  # J diag(c) J^T F
+        tau = np.matmul(wrench[:, None, :], batch.J)[:, 0]  # joint torques J^T F [N m]
+        return np.matmul(batch.J, (tau * theta)[:, :, None])[:, :, 0]  # J diag(c) J^T F
 
     def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
-        return np.einsum("mak,k,mbk->mab", batch.J, theta, batch.J)
+        return np.matmul(batch.J * theta, batch.J.transpose(0, 2, 1))

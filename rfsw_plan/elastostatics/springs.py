@@ -1,0 +1,204 @@
+"""Linear rotational springs at the joint frames, evaluated together.
+
+A *spring effect* (:meth:`Effect.joint_springs`, e.g. tilting compliance) is a set of k linear
+rotational springs through the origin o of one chain joint frame, each about an axis a_s fixed
+in that frame, with compliances c_s [rad/(N m)]. Under the TCP wrench F = [f; mu] (base frame)
+spring s turns by c_s j_s^T F, with the TCP twist of a unit turn j_s = [u_s x r; u_s],
+u_s = R a_s the axis in the base frame and r = p - o (seed 002 eq. 2). Summed over the springs
+of a joint:
+
+    M = r x f + mu                (moment of the wrench about o, base frame [N m])
+    w = R C_l R^T M,  C_l = sum_s c_s a_s a_s^T   (rotation of the joint frame [rad])
+    dX = [w x r; w]               (TCP deflection [m, rad], base frame)
+
+so every spring effect of a model costs one 3x3 rotation sandwich per pose, vectorised over
+the poses and over the effects at once (:func:`spring_deflection`). The Cartesian compliance
+C = sum_s c_s j_s j_s^T is one batched product over the stacked twists
+(:func:`spring_compliance`).
+
+For one pose, :class:`SpringChain` adds one virtual revolute joint (at zero angle) per spring
+to a copy of the Pinocchio chain: a single frame-Jacobian call then returns the TCP Jacobian
+and every spring twist j_s, and dX = J_c C J_c^T F as for the joint compliance.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.robot.kinematics import Robot
+
+
+@dataclass(frozen=True)
+class JointSprings:
+    """The springs of one effect at one chain joint.
+
+    Attributes:
+        joint: 0-based chain joint index.
+        axes: Spring axes in that joint's frame, unit vectors, shape (k, 3).
+        compliance: Spring compliances [rad/(N m)], shape (k,).
+    """
+
+    joint: int
+    axes: FloatArray
+    compliance: FloatArray
+
+    def local_compliance(self) -> FloatArray:
+        """C_l = sum_s c_s a_s a_s^T in the joint frame [rad/(N m)], shape (3, 3)."""
+        return self.axes.T @ (self.compliance[:, None] * self.axes)
+
+
+def _stack(batch: PoseBatch, springs: Sequence[JointSprings]) -> tuple[
+    FloatArray, FloatArray, FloatArray
+]:
+    """Joint rotations R (m, E, 3, 3), TCP-minus-joint-origin r (m, E, 3) [m] and the local
+    compliances C_l (E, 3, 3) of E spring effects."""
+    frames = batch.frames[:, [s.joint for s in springs]]  # (m, E, 4, 4)
+    R = frames[..., :3, :3]
+    r = batch.T[:, None, :3, 3] - frames[..., :3, 3]
+    Cl = np.stack([s.local_compliance() for s in springs])
+    return R, r, Cl
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b over the last axis (written out: np.cross has a large fixed cost)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def spring_deflection(
+    batch: PoseBatch, springs: Sequence[JointSprings], wrench: FloatArray
+) -> FloatArray:
+    """Summed TCP deflection of spring effects [m, rad], base frame, shape (m, 6).
+
+    Args:
+        batch: Poses (needs the joint frames).
+        springs: The spring effects (any joints, any number of axes each).
+        wrench: True wrench at the TCP [N, N m], base frame, shape (m, 6).
+    """
+    dX = np.zeros((len(batch), 6))
+    if not springs:
+        return dX
+    R, r, Cl = _stack(batch, springs)
+    F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+    M = _cross(r, F[:, None, :3]) + F[:, None, 3:]  # moment about each joint origin [N m]
+    local = np.matmul(M[:, :, None, :], R)  # (R^T M)^T, (m, E, 1, 3)
+    w = np.matmul(R, np.matmul(local, Cl)[..., 0, :, None])[..., 0]  # R C_l R^T M [rad]
+    dX[:, :3] = _cross(w, r).sum(axis=1)
+    dX[:, 3:] = w.sum(axis=1)
+    return dX
+
+
+def spring_twists(batch: PoseBatch, springs: Sequence[JointSprings]) -> FloatArray:
+    """TCP twists j_s = [u_s x r; u_s] of unit turns of every spring, base frame, shape
+    (m, 6, s), springs in order (seed 002 eq. 2)."""
+    p = batch.T[:, :3, 3]
+    out = np.empty((len(batch), 6, sum(len(s.axes) for s in springs)))
+    k = 0
+    for s in springs:
+        frame = batch.frames[:, s.joint]
+        u = np.matmul(frame[:, :3, :3], s.axes.T)  # (m, 3, k) base frame
+        r = p - frame[:, :3, 3]  # TCP minus joint origin [m]
+        kk = k + len(s.axes)
+        out[:, :3, k:kk] = _cross(u.transpose(0, 2, 1), r[:, None, :]).transpose(0, 2, 1)
+        out[:, 3:, k:kk] = u
+        k = kk
+    return out
+
+
+def spring_compliance(batch: PoseBatch, springs: Sequence[JointSprings]) -> FloatArray:
+    """Summed Cartesian compliance of spring effects, base frame, shape (m, 6, 6).
+
+    C = sum_s c_s j_s j_s^T, one batched product over all springs (:func:`spring_twists`).
+    """
+    if not springs:
+        return np.zeros((len(batch), 6, 6))
+    jt = spring_twists(batch, springs)
+    c = np.concatenate([s.compliance for s in springs])
+    return np.matmul(jt * c, jt.transpose(0, 2, 1))
+
+
+class SpringChain:
+    """The Pinocchio chain of a robot with one virtual revolute joint per spring.
+
+    Virtual joint s sits at zero angle right after its chain joint with identity placement,
+    so the kinematics are those of the robot and its Jacobian column is the spring twist j_s.
+
+    Args:
+        robot: The robot.
+        layout: (chain joint, axes (k, 3) in that joint's frame) per spring effect, in the
+            order their compliances are passed to :meth:`deflection`.
+    """
+
+    def __init__(self, robot: Robot, layout: Sequence[tuple[int, FloatArray]]) -> None:
+        g = robot.geometry
+        self.robot = robot
+        model = pin.Model()
+        parent = 0
+        real: list[int] = []
+        slots: dict[int, list[tuple[int, FloatArray]]] = {}
+        offset = 0
+        for joint, axes in layout:
+            slots.setdefault(joint, []).append((offset, np.asarray(axes, dtype=float)))
+            offset += len(axes)
+        order = np.empty(offset, dtype=int)
+        for i in range(robot.nq):
+            M = g.placements[i]
+            parent = model.addJoint(parent, pin.JointModelRevoluteUnaligned(g.axes[i]),
+                                    pin.SE3(M[:3, :3], M[:3, 3]), f"joint{i + 1}")
+            real.append(model.joints[parent].idx_v)
+            for start, axes in slots.get(i, []):
+                for s, a in enumerate(axes):
+                    parent = model.addJoint(parent, pin.JointModelRevoluteUnaligned(a),
+                                            pin.SE3.Identity(), f"spring{start + s}")
+                    order[start + s] = model.joints[parent].idx_v
+        tcp = g.tcp
+        self.tcp_id = model.addFrame(
+            pin.Frame("tcp", parent, pin.SE3(tcp[:3, :3], tcp[:3, 3]), pin.FrameType.OP_FRAME)
+        )
+        self.model = model
+        self.data = model.createData()
+        self.real = np.array(real)
+        self.spring_v = order  # velocity index of spring s (layout order)
+        self.identity = bool(np.array_equal(robot.coupling, np.eye(robot.nq)))
+        self._q = np.zeros(model.nq)
+        self._c = np.zeros(model.nv)
+
+    def jacobian(self, q: FloatArray) -> FloatArray:
+        """TCP Jacobian over chain and spring coordinates (6, nv), base frame [v; w], at the
+        controller joint values q [rad] (n,) with every spring at rest."""
+        self._q[self.real] = self.robot.chain_q(q)
+        return pin.computeFrameJacobian(self.model, self.data, self._q, self.tcp_id,
+                                        pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+
+    def deflection(
+        self, q: FloatArray, wrench: FloatArray, joint_compliance: FloatArray,
+        spring_compliance: FloatArray,
+    ) -> FloatArray:
+        """dX = J diag(c) J^T F + sum_s c_s j_s j_s^T F [m, rad], base frame, shape (6,).
+
+        Args:
+            q: Controller joint values [rad], shape (n,).
+            wrench: True wrench at the TCP [N, N m], base frame, shape (6,).
+            joint_compliance: Controller joint compliances c [rad/(N m)], shape (n,).
+            spring_compliance: Spring compliances in layout order [rad/(N m)], shape (s,).
+        """
+        Jx = self.jacobian(q)
+        F = np.asarray(wrench, dtype=float).reshape(6)
+        tau = F @ Jx  # joint and spring moments [N m]
+        c = self._c
+        c[self.spring_v] = spring_compliance
+        if self.identity:
+            c[self.real] = joint_compliance
+            return Jx @ (c * tau)
+        c[self.real] = 0.0
+        G = self.robot.coupling
+        Jr = Jx[:, self.real]
+        return Jx @ (c * tau) + Jr @ (G @ (joint_compliance * (G.T @ tau[self.real])))
