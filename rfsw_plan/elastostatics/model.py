@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Literal
 
 import numpy as np
 
@@ -24,6 +25,11 @@ from rfsw_plan.elastostatics.springs import (
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
 from rfsw_plan.robot.kinematics import Robot
+
+#: How a seam's points relate to the robot: taught with this robot and tool, or absolute
+#: (CAD or measured) in the calibrated base frame. See
+#: :meth:`ElastostaticModel.process_deflection`.
+SeamReference = Literal["taught", "absolute"]
 
 
 class ElastostaticModel:
@@ -199,6 +205,67 @@ class ElastostaticModel:
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (J.shape[0], 6))
         tau = np.matmul(F[:, None, :], J)[:, 0]  # joint torques [N m]
         return np.matmul(J, (tau * c)[:, :, None])[:, :, 0]
+
+    def physical(self) -> ElastostaticModel:
+        """This model without its sensor-only effects (see :attr:`Effect.sensor_only`).
+
+        The model to use for a wrench that did not come from the force sensor. Returns
+        ``self`` when there is nothing to drop.
+        """
+        keep = [e for e in self.effects if not e.sensor_only]
+        return self if len(keep) == len(self.effects) else ElastostaticModel(self.robot, keep)
+
+    def process_deflection(
+        self, q: FloatArray, wrench: FloatArray, reference: SeamReference = "taught"
+    ) -> FloatArray:
+        """TCP deflection [m, rad], base frame, caused by a *modelled* process wrench.
+
+        Used wherever the wrench comes from the process model rather than a sensor log
+        (planning, deviation, the truth of a virtual weld):
+
+        * sensor-only effects are dropped (:meth:`physical`): they distort a sensor's reading,
+          not the robot;
+        * ``reference="taught"``: the seam was taught with this robot and tool, so what the
+          robot already did at zero process load (payload sag, kinematic offsets...) is in the
+          taught points: dX = dX(q, F) - dX(q, 0);
+        * ``reference="absolute"``: the seam is given in the calibrated base frame (from CAD or
+          a measurement), so the full dX(q, F) counts.
+
+        For joint and tilting compliance both references give J C J^T F (seed 000 eq. 11).
+
+        Args:
+            q: Joint values [rad], shape (m, n) or (n,).
+            wrench: Process wrench at the TCP, base frame [N, N m], shape (m, 6) or (6,).
+            reference: ``taught`` or ``absolute``.
+
+        Returns:
+            Shape (m, 6), or (6,) for a single pose.
+        """
+        if reference not in ("taught", "absolute"):
+            raise InputError("reference", reference, "unknown seam reference", "taught or absolute")
+        phys = self.physical()
+        dX = phys.deflection(q, wrench)
+        if reference == "taught" and phys.has_load_independent_part():
+            dX = dX - phys.deflection(q, np.zeros_like(np.asarray(wrench, dtype=float)))
+        return dX
+
+    def process_deflection_batch(
+        self, batch: PoseBatch, wrench: FloatArray, reference: SeamReference = "taught"
+    ) -> FloatArray:
+        """:meth:`process_deflection` on precomputed kinematics, shape (m, 6)."""
+        if reference not in ("taught", "absolute"):
+            raise InputError("reference", reference, "unknown seam reference", "taught or absolute")
+        phys = self.physical()
+        W = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+        dX = phys.deflection_batch(batch, W)
+        if reference == "taught" and phys.has_load_independent_part():
+            dX = dX - phys.deflection_batch(batch, np.zeros_like(W))
+        return dX
+
+    def has_load_independent_part(self) -> bool:
+        """True if the model deflects the TCP at zero logged wrench (wrench or geometric
+        effects such as payload gravity or kinematic offsets)."""
+        return any(e.kind in ("wrench", "geometric") for e in self.effects)
 
     def predict_position(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
         """Loaded TCP position [m], base frame: FK(q) + dX_translation; shape (m, 3)."""

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import FloatArray, LoadSchedule
 
@@ -104,6 +104,7 @@ def cosimulate(
     relaxation: float = 0.5,
     tol: float = 1e-3,
     max_iter: int = 200,
+    reference: SeamReference = "taught",
 ) -> CosimResult:
     """Solve force and deflection consistently at every sample of a load schedule.
 
@@ -118,6 +119,8 @@ def cosimulate(
         relaxation: Under-relaxation omega in (0, 1].
         tol: Convergence tolerance on the force update [N].
         max_iter: Iteration cap per step.
+        reference: How the seam was obtained; see
+            :meth:`ElastostaticModel.process_deflection`.
 
     Returns:
         The converged (or last) state per step with iteration counts and residuals.
@@ -137,7 +140,7 @@ def cosimulate(
         Fs = F.copy()
         Fs[:, 2] = fn
         W = np.hstack([fr.to_base(Fs), schedule.moment_base])
-        dX = model.deflection_batch(batch, W)
+        dX = model.process_deflection_batch(batch, W, reference)
         pen = d_c - np.einsum("ki,ki->k", dX[:, :3], fr.n)
         return law.force(pen), pen, dX
 

@@ -4,7 +4,7 @@ The robot is commanded the taught configuration q_k (IK of the seam pose, no fak
 The process wrench W bends it; the elastostatic model gives the TCP deflection
 (seed 000 eq. 11, seed 001 eq. 11: dX = J K^-1 J^T W, plus any effects of the robot file)::
 
-    dX_k = model.deflection(q_k, W_k)                   (base frame, [m, rad])
+    dX_k = model.process_deflection(q_k, W_k)           (base frame, [m, rad])
     lateral   e_l = dX_k[:3] . l_k   (+ toward the advancing side, the weld-window axis)
     axial     e_n = dX_k[:3] . n_k   (+ up the tool axis: less penetration)
     along     e_t = dX_k[:3] . t_k   (+ ahead along travel)
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.cosim import CosimResult, cosimulate
 from rfsw_plan.process.forces import ProcessModel
@@ -165,6 +165,7 @@ def predict_deviation(
     window: WeldWindow | None = None,
     dt: float = 0.1,
     coupling: Coupling | None = None,
+    reference: SeamReference = "taught",
 ) -> DeviationResult:
     """Uncompensated deviation at the waypoints (steady force) and over time.
 
@@ -177,6 +178,8 @@ def predict_deviation(
         dt: Time step of the schedule [s] (seed 001 Table 6: 0.1 s).
         coupling: Optional co-simulation settings (penetration law, commanded depth); the
             time series then uses the converged axial force.
+        reference: How the seam was obtained (``taught`` or ``absolute``); see
+            :meth:`ElastostaticModel.process_deflection`.
     """
     window = WeldWindow() if window is None else window
     k = len(frames)
@@ -184,15 +187,16 @@ def predict_deviation(
     sigma = np.sign(np.linalg.det(frames.rotation()))
     M = (sigma * process.forces.spindle_torque)[:, None] * frames.n
     W = np.hstack([frames.to_base(F), M])
-    dX = model.deflection(Q, W)
+    dX = model.process_deflection(Q, W, reference)
     lat, ax, al = _components(dX, frames)
     sch = process.schedule(frames, dt)
     Qt = schedule_joints(sch, frames, Q)
-    dXt = model.deflection(Qt, sch.wrench_base)
+    dXt = model.process_deflection(Qt, sch.wrench_base, reference)
     cos = None
     if coupling is not None:
         d_c = sch.depth * (coupling.commanded_depth / process.plunge_depth)
-        cos = cosimulate(model, Qt, sch, coupling.law, commanded_depth=d_c)
+        cos = cosimulate(model, Qt, sch, coupling.law, commanded_depth=d_c,
+                         reference=reference)
         dXt = cos.deflection
     lat_t, ax_t, al_t = _components(dXt, sch.frames)
     return DeviationResult(
@@ -216,4 +220,4 @@ def problem_deviation(problem: Problem, dt: float = 0.1, cosim: bool = False) ->
         raise InputError(problem.path or problem.name, "process.coupling",
                          "no co-simulation settings", "a [process.coupling] table")
     return predict_deviation(model, frames, problem.process, Q, problem.window, dt,
-                             problem.coupling if cosim else None)
+                             problem.coupling if cosim else None, problem.seam_reference)

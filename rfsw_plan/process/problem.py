@@ -14,6 +14,8 @@ Units are in the key names (mm, deg, s, N, N m); SI inside. Layout::
     tilt_deg = 2.0                      # trailing tilt about l, |tilt| <= 15
     rotation = "cw"                     # spindle sense seen from above: "cw" | "ccw"
     reverse = false                     # travel from the last point to the first
+    reference = "taught"                # "taught" (jogged with this robot and tool, default)
+                                        # or "absolute" (CAD / measured, calibrated base frame)
     surface_normal = [0, 0, 1]          # or one [nx, ny, nz] per point
 
     [process]
@@ -55,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.process.cosim import PenetrationLaw
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
@@ -73,7 +76,7 @@ BUNDLED_PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
 
 _TOP_KEYS = {"name", "title", "robot", "seam", "process", "window", "planning", "source"}
 _SEAM_KEYS = {"points_mm", "csv", "interpolation", "spacing_mm", "tilt_deg", "rotation",
-              "reverse", "surface_normal", "source"}
+              "reverse", "surface_normal", "reference", "source"}
 _PROCESS_KEYS = {"preset", "travel_speed_mm_s", "plunge_speed_mm_s", "plunge_depth_mm",
                  "dwell_s", "retract_speed_mm_s", "approach_height_mm", "approach_speed_mm_s",
                  "rotation_speed_rpm", "thickness_mm", "material", "name", "source", "forces",
@@ -132,6 +135,10 @@ class Problem:
         window: Weld window.
         planning: Planner options.
         coupling: Co-simulation settings, or None.
+        seam_reference: ``taught`` if the seam points were taught with this robot and tool
+            (load-independent deflection such as payload sag is already in them), or
+            ``absolute`` if they are CAD/measured points in the calibrated base frame; see
+            :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection`.
         title: One-line description.
         path: File the problem came from, or None.
     """
@@ -144,6 +151,7 @@ class Problem:
     window: WeldWindow
     planning: PlanningOptions
     coupling: Coupling | None = None
+    seam_reference: SeamReference = "taught"
     title: str = ""
     path: Path | None = None
 
@@ -463,6 +471,10 @@ def load_problem(name_or_path: str | Path) -> Problem:
             raise
         raise InputError(path, f"window.{exc.where}", exc.problem, exc.expected) from None
     planning = _planning(path, top.sub("planning", None), robot)
+    reference = seam_tab.str_("reference", "taught")
+    if reference not in ("taught", "absolute"):
+        raise InputError(path, seam_tab.key("reference"), f"got '{reference}'",
+                         "'taught' or 'absolute'")
     return Problem(
         name=top.str_("name", path.stem),
         robot=robot,
@@ -472,6 +484,7 @@ def load_problem(name_or_path: str | Path) -> Problem:
         window=window,
         planning=planning,
         coupling=coupling,
+        seam_reference=reference,  # type: ignore[arg-type]  # checked above
         title=top.str_("title", ""),
         path=path,
     )

@@ -385,7 +385,7 @@ def consistency_check(
         cycle_s=cycle_s, sensor=SensorModel(noise_force_N=0.0, noise_moment_Nm=0.0),
         variation=ProcessVariation(amplitude=0.0),
     )
-    vw = VirtualWeld(schedule, model, None, cfg)
+    vw = VirtualWeld(schedule, model, None, cfg, problem.seam_reference)
     run = vw.run(NoCompensation(), vw.path_from_waypoints(frames.s - frames.s[0], q_taught))
     wt = dev.schedule.mask("weld")
     e_sim = np.interp(dev.schedule.t[wt], run.t, run.lateral_error)
@@ -443,7 +443,7 @@ def compare(
             opts = replace(opts, strategies=strategies)
     tic = time.perf_counter()
     cfg = SimConfig(cycle_s=opts.cycle_s, sensor=opts.sensor, variation=opts.variation)
-    weld_main = VirtualWeld(schedule, model, truth_main, cfg)
+    weld_main = VirtualWeld(schedule, model, truth_main, cfg, problem.seam_reference)
     paths = {"taught": weld_main.path_from_waypoints(frames.s - frames.s[0], q_taught)}
     if wp is not None:
         paths["plan"] = planned_path(weld_main, wp)
@@ -458,7 +458,8 @@ def compare(
         t_soft = truth_model(model, k * opts.truth_stiffness_scale, opts.truth_effects)
         scenarios.append(_run_scenario(
             f"stiffness_{(k - 1) * 100:+.0f}%", f"truth joint stiffness x{k:g} of the model",
-            VirtualWeld(schedule, model, t_soft, cfg), paths, opts, problem.window))
+            VirtualWeld(schedule, model, t_soft, cfg, problem.seam_reference), paths, opts,
+            problem.window))
         mid = len(frames) // 2
         weld_idx = np.flatnonzero(schedule.mask("weld"))
         i_mid = weld_idx[np.argmin(np.abs(schedule.s[weld_idx] - (frames.s[mid] - frames.s[0])))]
@@ -472,12 +473,14 @@ def compare(
                                 (*opts.truth_effects, hidden))
             scenarios.append(_run_scenario(
                 f"hidden_{hidden[0]}", f"truth has {hidden[0]} (model does not)",
-                VirtualWeld(schedule, model, t_hid, cfg), paths, opts, problem.window))
+                VirtualWeld(schedule, model, t_hid, cfg, problem.seam_reference), paths, opts,
+            problem.window))
         f = opts.noise_factor
         cfg_noise = replace(cfg, sensor=opts.sensor.scaled_noise(f))
         scenarios.append(_run_scenario(
             f"noise_x{f:g}", f"sensor noise x{f:g}",
-            VirtualWeld(schedule, model, truth_main, cfg_noise), paths, opts, problem.window))
+            VirtualWeld(schedule, model, truth_main, cfg_noise, problem.seam_reference), paths,
+            opts, problem.window))
     sim_time = time.perf_counter() - tic
     cons = consistency_check(problem, model, frames, q_taught, schedule, opts.cycle_s)
     return CompareResult(

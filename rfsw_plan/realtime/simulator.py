@@ -19,7 +19,8 @@ once, vectorised, along the nominal path; they do not depend on the controller s
 second order (a few mm of correction barely changes the compliance). After the controller
 loop the commanded joints follow from a first-order update ``q_c = q + J^+ [c; 0]`` (base
 frame, rotation unchanged), and the actual pin is evaluated exactly with the truth robot:
-``p_pin = FK(q_c) + dX_truth(q_c, F_true)``. The lateral error is
+``p_pin = FK(q_c) + dX_truth(q_c, F_true)`` (relative to zero process load for a taught
+seam). The lateral error is
 ``e = (p_pin - p_seam) . l`` [m], positive toward the advancing side.
 """
 
@@ -32,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule
 from rfsw_plan.realtime.base import ControllerInputs, FloatArray, Strategy
@@ -235,6 +236,10 @@ class VirtualWeld:
         model: The elastostatic model the controllers use.
         truth: The robot as it really is; None = the model itself.
         config: Cycle, sensor and process variation.
+        reference: How the seam was obtained (``taught`` or ``absolute``): the truth's
+            deflection under the true process wrench is taken relative to zero process load
+            for a taught seam (:meth:`ElastostaticModel.process_deflection`). The truth's
+            sensor-only effects do not move the pin.
     """
 
     def __init__(
@@ -243,8 +248,10 @@ class VirtualWeld:
         model: ElastostaticModel,
         truth: ElastostaticModel | None = None,
         config: SimConfig | None = None,
+        reference: SeamReference = "taught",
     ) -> None:
         self.config = config or SimConfig()
+        self.reference: SeamReference = reference
         self.model = model
         self.truth = truth if truth is not None else model
         self.schedule = schedule
@@ -397,7 +404,8 @@ class VirtualWeld:
             twist = np.hstack([applied, np.zeros_like(applied)])
             q_cmd = path.q + _min_norm_step(inputs.jacobian, twist)
         tb = self.truth.batch(q_cmd)
-        pin = tb.T[:, :3, 3] + self.truth.deflection_batch(tb, self.wrench_true)[:, :3]
+        dX = self.truth.process_deflection_batch(tb, self.wrench_true, self.reference)
+        pin = tb.T[:, :3, 3] + dX[:, :3]
         e = np.einsum("ki,ki->k", pin - self.seam, self.lateral)
         return WeldRun(
             strategy=label or strategy.name, path=path.name, t=self.t, s=self.s,

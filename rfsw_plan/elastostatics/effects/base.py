@@ -96,6 +96,10 @@ class Effect(abc.ABC):
     per_joint: ClassVar[bool] = False
     #: True if the contribution is linear in theta (one least-squares step identifies it).
     linear_in_params: ClassVar[bool] = True
+    #: True if the effect distorts what the force sensor logs, not the physics (sensor
+    #: misalignment, sensor bias): it applies to logged wrenches only, never to a wrench that
+    #: comes from the process model (planning, deviation, the truth of a virtual weld).
+    sensor_only: ClassVar[bool] = False
 
     def __init__(
         self, robot: Robot, joint: int | None = None, params: Mapping[str, float] | None = None

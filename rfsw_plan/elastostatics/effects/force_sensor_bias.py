@@ -25,6 +25,7 @@ class ForceSensorBias(Effect):
         "fixed in the sensor frame, so the robot is loaded differently from what is logged."
     )
     kind = "wrench"
+    sensor_only = True
 
     def param_names(self) -> tuple[str, ...]:
         return ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")

@@ -55,6 +55,7 @@ class SensorMisalignment(Effect):
         "moment point in slightly wrong directions."
     )
     kind = "wrench"
+    sensor_only = True
     linear_in_params = False
 
     def param_names(self) -> tuple[str, ...]:
