@@ -8,6 +8,7 @@ import pytest
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.nlp import (
+    ABS_EPS,
     POINT_CONSTRAINTS,
     build_plan_nlp,
     n_par,
@@ -52,7 +53,7 @@ def setup():
 def test_build_is_inspectable_without_solving(setup):
     _, task, _, mirror, nlp = setup
     K, n = len(task), 6
-    assert nlp.x0.shape == (K * (n + 3),)
+    assert nlp.x0.shape == (K * (n + 3) + 1,)
     assert len(nlp.constraint_names()) == nlp.lbg.shape[0] == nlp.ubg.shape[0]
     assert nlp.constraint_names()[6] == "window[0]"
     parts = nlp.unpack(nlp.x0)
@@ -70,8 +71,9 @@ def test_casadi_prediction_matches_numeric_model(setup):
     np.testing.assert_allclose(ours[:, 0], pred.e_lat, atol=1e-10)
     np.testing.assert_allclose(ours[:, 1], pred.e_norm, atol=1e-10)
     _, terms, _ = nlp.point_values(x)
-    # worst case: the smooth |.| is within 3e-4 mm of the numeric r (eps = 1e-4 mm)
-    np.testing.assert_allclose(terms[:, 1] * 1e-3, pred.worst, atol=3e-7)
+    # worst case: the smooth |.| over-estimates the numeric r by at most 3 eps (3 components)
+    over = terms[:, 1] * 1e-3 - pred.worst
+    assert np.all(over >= 0) and np.all(over <= 3 * ABS_EPS * 1e-3)
     np.testing.assert_allclose(1e6 / terms[:, 0], pred.lateral_stiffness, rtol=1e-9)
 
 
@@ -92,8 +94,9 @@ def test_point_derivatives_match_finite_differences(robot_name):
     par[21:23] = rng.normal(0, 0.1, 2)
     par[23:26] = [1.0, 0.01, 0.3]
     par[26:26 + n] = q + 0.01
-    par[26 + n:] = rng.normal(0, 0.1, n)
-    glob = np.array([1, 1, 10, 0.1, 0.1, 3.0, -0.275, 0.975, 0.1, 1e-3])
+    par[26 + n:26 + 2 * n] = rng.normal(0, 0.1, n)
+    par[26 + 2 * n] = 1.0  # weld waypoint: the stiffness-cap row is on
+    glob = np.array([1, 1, 10, 0.1, 0.1, 3.0, -0.275, 0.975, 0.1, 1e-3, 0.5])
     lam = rng.normal(0, 1, len(POINT_CONSTRAINTS))
     J = np.asarray(pf.jac(w, par))
     grad = np.asarray(pf.grad(w, par, glob)).ravel()
@@ -136,9 +139,11 @@ def test_solve_keeps_verified_error_in_window(setup):
     assert np.min(e0) > 4.0e-3 and np.max(e0) == pytest.approx(4.9e-3, abs=0.1e-3)
     # The robust excess sigma is what leaves the window under +-20 % force.
     r = ver.prediction.worst
-    np.testing.assert_allclose(sol.sigma, np.maximum(0, np.maximum(w.lower - (e - r),
-                                                                    e + r - w.upper)),
-                               atol=1e-6)
+    # (the NLP's smooth worst case is conservative by at most 3 eps)
+    exact = np.maximum(0, np.maximum(w.lower - (e - r), e + r - w.upper))
+    assert np.all(sol.sigma >= exact - 1e-6)
+    assert np.all(sol.sigma <= exact + 3 * ABS_EPS * 1e-3 + 1e-6)
+    assert np.max(sol.sigma) > 1e-4  # +-20 % really leaves the window somewhere
 
 
 def test_robust_hard_reports_infeasible_when_stiffness_cannot_buy_the_margin(setup):
@@ -153,44 +158,24 @@ def test_robust_hard_reports_infeasible_when_stiffness_cannot_buy_the_margin(set
     assert not ver.feasible
 
 
-def _angled_tool_kr600(angle_deg: float):
-    import dataclasses
-
-    from rfsw_plan.robot.description import load_robot_description
-    from rfsw_plan.robot.kinematics import Robot
-
-    d = load_robot_description("kuka_kr600_r2830")
-    a = np.deg2rad(angle_deg)
-    T = np.eye(4)
-    T[:3, :3] = [[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]
-    T[:3, 3] = T[:3, :3] @ np.array([0, 0, 0.3]) + np.array([0, 0, 0.15])
-    return ElastostaticModel(Robot(dataclasses.replace(d, tool=T)))
-
-
-@pytest.mark.xfail(strict=True, reason="known gap (issue 4 §8): on this fixture IPOPT ends in "
-                   "different local optima; the stiffness weight does not reliably raise the "
-                   "minimum lateral stiffness")
 def test_kr600_stiffness_weight_turns_the_tool_and_raises_min_lateral_stiffness():
-    """On kr600_curved_seam's seam and process, with a spindle mounted 30 deg off the flange
-    axis (with the bundled coaxial tool the rotation about the tool axis is joint 6 alone and
-    cannot change the compliance; see the report)."""
-    from rfsw_plan.planning.api import options_from_problem, plan_task
+    """Issue 4 §8 on the bundled kr600_curved_seam (offset FSW head, problem settings): the
+    stiffness objective turns the tool about its axis and raises the weakest waypoint's lateral
+    stiffness, compared with a zero weight; both plans verify."""
+    from rfsw_plan.planning.api import options_from_problem, plan
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.process.seam import interpolate_frames
 
-    model = _angled_tool_kr600(30.0)
     pb = load_problem("kr600_curved_seam")
-    fr = pb.frames()
-    fr = interpolate_frames(fr, np.linspace(0, fr.s[-1], 25))
-    task = task_constant_force(fr, pb.process.steady_force_seam(), pb.process.travel_speed)
-    out = {}
-    for w in (0.0, 3.0):
-        opts = options_from_problem(pb, {"w_stiffness": w, "branches": False})
-        out[w] = plan_task(model, task, pb.window, pb.q_seed(), opts, "kr600")
-    rot0, rot1 = out[0.0].tool_rotation, out[3.0].tool_rotation
-    assert np.max(np.abs(rot1 - rot0)) > np.deg2rad(5.0)
-    k0 = out[0.0].baselines[2].min_lateral_stiffness
-    k1 = out[3.0].baselines[2].min_lateral_stiffness
-    assert k1 > 1.01 * k0
+    default = PlanOptions().w_stiffness
+    assert default > 0 and options_from_problem(pb).w_stiffness == default
+    out = {w: plan(pb, options_from_problem(pb, {"w_stiffness": w}), spacing=20e-3)
+           for w in (0.0, default)}
     for r in out.values():
-        assert r.verification.feasible
+        assert r.verification.feasible and r.baselines[2].inside_fraction == 1.0
+    weld = out[0.0].task.weld
+    turn = np.abs(out[default].tool_rotation[weld] - out[0.0].tool_rotation[weld])
+    turn = np.minimum(turn % (2 * np.pi), 2 * np.pi - turn % (2 * np.pi))
+    assert np.max(turn) > np.deg2rad(10.0)
+    k0 = out[0.0].baselines[2].min_lateral_stiffness
+    k1 = out[default].baselines[2].min_lateral_stiffness
+    assert k1 > 1.02 * k0

@@ -77,3 +77,17 @@ def test_console_script_runs():
     r = subprocess.run([sys.executable, "-m", "rfsw_plan.cli.main", "plan", "--help"],
                        capture_output=True, text=True, check=False)
     assert r.returncode == 0 and "--json" in r.stdout
+
+
+def test_path_through_a_singularity_is_one_line_and_nonzero(tmp_path, capsys):
+    """A kinetostatic bound the taught path violates everywhere (kappa_f of the zk500 seam is
+    about 2; seed 000 eq. 5) stands for a seam that passes a singular configuration: every
+    branch is rejected, the error names the waypoint and kappa_f, and nothing claims success."""
+    out = tmp_path / "sing"
+    code = main(["plan", "zk500_table6_seam", "-o", str(out), "--set", "kappa_max=1.2"])
+    err = capsys.readouterr().err
+    assert code == 3
+    assert err.count("\n") == 1
+    assert "singularity at waypoint" in err and "kappa_f" in err and "> 1.2" in err
+    assert not (out / "waypoints.csv").exists()
+    assert json.loads((out / "plan.json").read_text())["constraint"] == "singularity"

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.api import plan
 from rfsw_plan.robot.kinematics import Robot, load_robot
@@ -34,21 +35,34 @@ def test_every_sample_respects_every_joint_limit(result):
     assert seen == order
 
 
-def test_weld_is_at_constant_travel_speed(result):
+def test_weld_keeps_the_predicted_pin_at_the_weld_speed(result):
+    """Issue 4 §8: during welding the (loaded, predicted) pin travels along the seam at the
+    weld speed within 1 %, including the traverse-force ramp at the weld start, where the
+    commanded TCP must run ahead of the lagging pin. Checked independently of the timing code:
+    FK + the numeric deflection of every sample, projected on the (straight) seam."""
     robot = load_robot("zk500")
+    model = ElastostaticModel(robot)
     tr = result.trajectory
-    w = tr.phase == "weld"
     v = result.task.travel_speed
     assert v == pytest.approx(3e-3)  # seed 001: 3 mm/s
-    np.testing.assert_allclose(np.gradient(tr.s, tr.t)[w][1:-1], v, rtol=1e-9)
-    # Commanded TCP speed within 1 % wherever the process force is steady (after the
-    # traverse-force ramp at the weld start the offsets change only at the offset rate).
-    steady = np.linalg.norm(tr.wrench[:, :3] - tr.wrench[w][-1, :3], axis=1) < 0.01 * 5e3
+    assert tr.pin_timed
+    w = tr.phase == "weld"
+    batch = model.batch(tr.q)
+    pin = batch.T[:, :3, 3] + model.deflection_batch(batch, tr.wrench)[:, :3]
+    fr = result.task.frames
+    s_pin = (pin - fr.p[0]) @ fr.t[0] + fr.s[0]  # along the straight seam
+    pin_speed = np.gradient(s_pin, tr.t)
+    inner = np.flatnonzero(w)[1:-1]
+    np.testing.assert_allclose(pin_speed[inner], v, rtol=0.01)
+    np.testing.assert_allclose(tr.pin_speed()[inner], v, rtol=0.01)
+    # The commanded TCP speed is v where the force is steady, and faster during the ramp.
     speed = tr.tcp_speed(robot)
+    steady = np.linalg.norm(tr.wrench[:, :3] - tr.wrench[w][-1, :3], axis=1) < 1.0  # [N]
     sel = w & steady
     sel[np.flatnonzero(w)[[0, -1]]] = False
-    assert sel.sum() > 0.8 * w.sum()
+    assert sel.sum() > 0.7 * w.sum()
     np.testing.assert_allclose(speed[sel], v, rtol=0.01)
+    assert np.max(speed[w]) > 1.1 * v
     assert tr.max_weld_speed > v
 
 

@@ -22,7 +22,7 @@ from rfsw_plan.robot.kinematics import load_robot
 REQUIRED = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "x_mm", "y_mm",
             "z_mm", "qw", "qx", "qy", "qz", "q1_deg", "q6_deg", "fx_N", "fy_N", "fz_N",
             "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "dx_mm", "dy_mm", "dz_mm",
-            "e_lat_mm", "margin_mm"]
+            "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s"]
 
 
 def test_maker_euler_conventions():

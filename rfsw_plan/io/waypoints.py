@@ -23,6 +23,10 @@
 ``e_lat_mm, margin_mm``
     Predicted lateral pin error and its margin to the nearest window bound (empty outside
     plunge, dwell and welding).
+``tcp_speed_mm_s, pin_speed_mm_s``
+    Commanded TCP speed |d x / dt| and the predicted (loaded) pin's speed along the seam. The
+    weld speed is the pin's: constant during ``weld``; the commanded TCP runs ahead of it while
+    the traverse force (and with it the pin's lag) ramps up.
 """
 
 from __future__ import annotations
@@ -98,9 +102,12 @@ def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[s
     header += [f"q{j + 1}_deg" for j in range(n)]
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
-               "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm"]
+               "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s",
+               "pin_speed_mm_s"]
     cols += list(tr.wrench.T) + list((tr.offsets * 1e3).T) + list((dX[:, :3] * 1e3).T)
     cols += [np.where(contact, e_lat * 1e3, np.nan), np.where(contact, margin * 1e3, np.nan)]
+    tcp_speed = np.linalg.norm(np.gradient(T[:, :3, 3], tr.t, axis=0), axis=1)
+    cols += [tcp_speed * 1e3, tr.pin_speed() * 1e3]
     rows = np.empty((len(tr), len(header)), dtype=object)
     for j, c in enumerate(cols):
         rows[:, j] = c

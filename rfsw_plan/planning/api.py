@@ -19,6 +19,7 @@ import time
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, UnreachableError
@@ -78,65 +79,118 @@ def tool_rotation_of(robot: Robot, task: PlanTask, q: FloatArray) -> FloatArray:
                                 np.einsum("ki,ki->k", x, R0[:, :, 0])))
 
 
-def choose_branch(
-    model: ElastostaticModel, task: PlanTask, q_seed: FloatArray, opts: PlanOptions
-) -> tuple[BaselinePlan, str, tuple[BranchInfo, ...], float]:
-    """Taught paths on all branches (and tool rotations); the best continuous, non-singular one.
+def tool_is_coaxial(robot: Robot, tol: float = 1e-9) -> bool:
+    """True if the tool axis (TCP z) is the last joint's axis: then a rotation about the tool
+    axis turns the last joint only and cannot change the compliance, so the multi-start over
+    tool rotations is skipped."""
+    g = robot.geometry
+    a = np.asarray(g.axes[-1], dtype=float)
+    a = a / np.linalg.norm(a)
+    T = g.tcp
+    return bool(np.linalg.norm(np.cross(a, T[:3, 2])) < tol
+                and np.linalg.norm(np.cross(a, T[:3, 3])) < tol * max(1.0, float(
+                    np.linalg.norm(T[:3, 3]))) * 1e3)
 
-    With ``w_stiffness > 0`` every branch is also tried at ``rotation_starts`` tool rotations
-    about the tool axis, and candidates are ranked by the mean lateral compliance (the NLP's
-    stiffness term), so the local NLP starts in the stiffest basin. Otherwise they are ranked
-    by the largest worst-case deviation (smaller first), then by the smallest lateral stiffness
-    (larger first), at the problem's tool rotation.
+
+def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, NDArray[np.int_]]:
+    """The stationary waypoints and about ``max_weld`` evenly spread weld waypoints (first and
+    last included), and their indices; the task itself if it is that small."""
+    m, K = task.n_start, len(task)
+    if K - m <= max_weld:
+        return task, np.arange(K)
+    weld = np.unique(np.round(np.linspace(m, K - 1, max_weld)).astype(int))
+    idx = np.concatenate([np.arange(m), weld])
+    fr = task.frames
+    frames = type(fr)(*(getattr(fr, a)[idx] for a in ("s", "p", "t", "l", "n")))
+    sub = PlanTask(frames, task.target[idx], task.force_seam[idx], task.moment_base[idx],
+                   task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed)
+    return sub, idx
+
+
+def start_objective(model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
+                    opts: PlanOptions, cref: float) -> tuple[float, Any]:
+    """The NLP objective a taught path q (K, n) [rad] starts from (after the mirror offsets
+    centre the nominal error), in the NLP's priority order: the robust excess
+    max(r_k - (half width - margin), 0) (w_robust), the worst case r_k (w_worst) and the lateral
+    compliance (w_stiffness: mean and weakest weld waypoint, relative to ``cref`` [m/N]).
+
+    Returns the objective and the numeric prediction (weld waypoints ranked)."""
+    pred = predict(model, task, q, opts.force_uncertainty, opts.length_scale)
+    sl = task.weld
+    hw = window.half_width
+    r = pred.worst[sl]
+    cll = pred.lateral_compliance[sl]
+    share = opts.min_stiffness_share
+    f = (opts.w_robust * float(np.mean(np.maximum(r - (hw - opts.margin), 0.0))) / hw
+         + opts.w_worst * float(np.mean(r)) / hw
+         + opts.w_stiffness * ((1 - share) * float(np.mean(cll)) + share * float(np.max(cll)))
+         / cref)
+    return f, pred
+
+
+def choose_branch(
+    model: ElastostaticModel, task: PlanTask, q_seed: FloatArray, opts: PlanOptions,
+    window: WeldWindow | None = None,
+) -> tuple[BaselinePlan, str, tuple[BranchInfo, ...], float, FloatArray | None]:
+    """Taught paths on all branches and tool rotations; the best continuous, non-singular one.
+
+    Every branch is tried at ``rotation_starts`` tool rotations about the tool axis (unless the
+    tool is coaxial with the last joint, see :func:`tool_is_coaxial`), on a subsampled task.
+    Candidates are ranked by :func:`start_objective`, the NLP's own priorities (robust window
+    first, then worst case and stiffness), so the local NLP starts in the basin it would
+    choose; ties keep the problem's branch and tool rotation. The winner is re-taught on the
+    full task (the next candidate is taken if that path flips or passes a singularity).
 
     Raises:
         UnreachableError: No branch reaches every waypoint (the seed's error is re-raised).
+        InfeasibleError: Every reachable branch passes a singularity or a joint-step jump.
 
     Returns:
-        The best taught path, its branch name, every candidate's summary, and its tool
-        rotation [rad].
-        InfeasibleError: Every reachable branch passes a singularity or a joint-step jump.
+        The best taught path, its branch name, every candidate's summary, its tool rotation
+        [rad], and the configuration [rad] (n,) of the same branch at the problem's tool
+        rotation at the first waypoint (the seed of baselines 1 and 2), or None if unreachable.
     """
     robot = model.robot
+    window = window or WeldWindow()
+    taught_start: dict[str, FloatArray] = {}
     seeds = branch_seeds(robot, q_seed) if opts.branches else [("seed", q_seed)]
+    coarse, idx = subsample_task(task)
+    spread = max(float(np.max(np.diff(idx))) if len(idx) > 1 else 1.0, 1.0)
+    step_max = min(opts.joint_step * spread, np.deg2rad(90.0))
     infos: list[BranchInfo] = []
-    cands: list[tuple[float, float, str, BaselinePlan]] = []
+    cands: list[tuple[float, int, str, FloatArray, float]] = []
     first_err: Exception | None = None
     nan_q = np.full(robot.nq, np.nan)
-    by_stiffness = opts.w_stiffness > 0 and opts.rotation_starts > 1
-    n_rot = opts.rotation_starts if by_stiffness else 1
+    n_rot = 1 if tool_is_coaxial(robot) else opts.rotation_starts
     starts = [
         (f"{name}" if k == 0 else f"{name}@{np.rad2deg(2 * np.pi * k / n_rot):.0f}deg",
          seed, opts.tool_rotation + 2 * np.pi * k / n_rot)
         for name, seed in seeds for k in range(n_rot)
     ]
+    cref = np.nan
     for name, seed, rotation in starts:
         try:
-            taught = no_compensation(robot, task, seed, rotation)
+            taught = no_compensation(robot, coarse, seed, rotation)
         except UnreachableError as exc:
             first_err = first_err or exc
             infos.append(BranchInfo(name, False, nan_q, np.nan, np.nan, str(exc)))
             continue
-        if any(np.allclose(taught.q, c[3].q, atol=1e-4) for c in cands):
+        if rotation == opts.tool_rotation:
+            taught_start.setdefault(name, taught.q[0])
+        if any(np.allclose(taught.q, c[3], atol=1e-4) for c in cands):
             infos.append(BranchInfo(name, False, taught.q[0], np.nan, np.nan,
                                     "same branch as an earlier seed"))
             continue
-        pred = predict(model, task, taught.q, opts.force_uncertainty, opts.length_scale)
-        step = np.max(np.abs(np.diff(taught.q, axis=0))) if len(task) > 1 else 0.0
-        kmax = float(np.max(pred.kappa))
-        note = ""
-        if kmax > opts.kappa_max:
-            k = int(np.argmax(pred.kappa))
-            note = (f"path through a singularity at waypoint {k} (s = {task.s[k] * 1e3:.1f} mm): "
-                    f"kappa_f = {kmax:.3g} > {opts.kappa_max:g}")
-        elif step > opts.joint_step:
-            note = f"joint step {np.rad2deg(step):.1f} deg between waypoints (branch flip)"
-        kmin = float(np.min(pred.lateral_stiffness))
+        if not np.isfinite(cref):
+            cref = float(np.mean(predict(model, coarse, taught.q, 0.0)
+                                 .lateral_compliance[coarse.weld]))
+        f, pred = start_objective(model, coarse, taught.q, window, opts, cref)
+        note = _path_note(coarse, pred.kappa, taught.q, opts.kappa_max, step_max)
+        kmin = float(np.min(pred.lateral_stiffness[coarse.weld]))
         wmax = float(np.max(pred.worst))
         infos.append(BranchInfo(name, not note, taught.q[0], kmin, wmax, note))
         if not note:
-            primary = float(np.mean(pred.lateral_compliance)) if by_stiffness else wmax
-            cands.append((primary, -kmin, name, taught, rotation))
+            cands.append((f, len(cands), name, taught.q, rotation))
     if not cands:
         bad = [i for i in infos if i.note and "singularity" in i.note]
         if bad:
@@ -145,9 +199,36 @@ def choose_branch(
             raise first_err
         raise InfeasibleError("no continuous configuration branch: " + infos[0].note,
                               constraint="joint_step")
-    cands.sort(key=lambda c: (c[0], c[1]) if by_stiffness else (round(c[0], 6), round(c[1], 0)))
-    best = cands[0]
-    return best[3], best[2], tuple(infos), best[4]
+    cands.sort(key=lambda c: (round(c[0], 9), c[1]))
+    note = ""
+    for _, _, name, q_coarse, rotation in cands:
+        try:
+            taught = no_compensation(robot, task, q_coarse[0], rotation)
+        except UnreachableError as exc:
+            note = str(exc)
+            continue
+        if coarse is not task:
+            pred = predict(model, task, taught.q, 0.0, opts.length_scale)
+            note = _path_note(task, pred.kappa, taught.q, opts.kappa_max, opts.joint_step)
+            if note:
+                continue
+        return taught, name, tuple(infos), rotation, taught_start.get(name.split("@")[0])
+    raise InfeasibleError(f"no candidate branch holds on the full seam: {note}",
+                          constraint="singularity" if "singularity" in note else "joint_step")
+
+
+def _path_note(task: PlanTask, kappa: FloatArray, q: FloatArray, kappa_max: float,
+               step_max: float) -> str:
+    """Why a taught path is rejected (singularity or a branch flip), or empty."""
+    kmax = float(np.max(kappa))
+    if kmax > kappa_max:
+        k = int(np.argmax(kappa))
+        return (f"path through a singularity at waypoint {k} (s = {task.s[k] * 1e3:.1f} mm): "
+                f"kappa_f = {kmax:.3g} > {kappa_max:g}")
+    step = float(np.max(np.abs(np.diff(q, axis=0)))) if len(q) > 1 else 0.0
+    if step > step_max:
+        return f"joint step {np.rad2deg(step):.1f} deg between waypoints (branch flip)"
+    return ""
 
 
 def plan(
@@ -200,14 +281,16 @@ def plan_task(
     """The pipeline of :func:`plan` on an explicit task (see there)."""
     t_all = t_start if t_start is not None else time.perf_counter()
     robot = model.robot
-    start, branch, infos, rotation = choose_branch(model, task, np.asarray(q_seed, float), opts)
+    start, branch, infos, rotation, q_taught0 = choose_branch(
+        model, task, np.asarray(q_seed, float), opts, window)
     warm = mirror_compensation(model, task, start.q, rotation)
     # Baselines 1 and 2 are what an engineer gets at the taught tool rotation on this branch;
     # the NLP may start elsewhere when the stiffness multi-start found a stiffer rotation.
     taught, mirror = start, warm
     if rotation != opts.tool_rotation:
         try:
-            taught = no_compensation(robot, task, start.q[0], opts.tool_rotation)
+            taught = no_compensation(robot, task, start.q[0] if q_taught0 is None else q_taught0,
+                                     opts.tool_rotation)
             mirror = mirror_compensation(model, task, taught.q, opts.tool_rotation)
         except UnreachableError:
             log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
@@ -251,7 +334,9 @@ def plan_task(
         raise InfeasibleError(msg, ver.worst_waypoint, ver.binding, ver.binding_margin)
 
     t0 = time.perf_counter()
-    traj = time_parameterise(robot, task, sol.q, sol.offsets, timing)
+    vp = ver.prediction
+    pin_lag = np.einsum("ki,ki->k", task.frames.t, vp.T[:, :3, 3] + vp.dX[:, :3] - task.frames.p)
+    traj = time_parameterise(robot, task, sol.q, sol.offsets, timing, pin_lag=pin_lag)
     timing_time = time.perf_counter() - t0
 
     base = (metrics("none", model, task, taught.q, window, opts.force_uncertainty),
@@ -271,4 +356,5 @@ def plan_task(
     )
 
 
-__all__ = ["choose_branch", "options_from_problem", "plan", "plan_task"]
+__all__ = ["choose_branch", "options_from_problem", "plan", "plan_task", "start_objective",
+           "subsample_task", "tool_is_coaxial"]

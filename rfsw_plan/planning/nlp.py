@@ -19,18 +19,23 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
 * robust window: the box |delta f_i| <= u |f_i| moves e_k by at most
   r_k = sum_i u |f_ik| |l_k^T C_tt(q_k) b_ik| (b = t, l, n; deflection is linear in F), so
   e_k - r_k + sigma_k >= lower and e_k + r_k - sigma_k <= upper. |x| is the smooth
-  sqrt(x^2 + eps^2) - eps with eps = 1e-4 mm (under-estimates |x| by < 1e-4 mm; auxiliary
+  sqrt(x^2 + eps^2) with eps = ``ABS_EPS`` = 0.01 mm: conservative, over-estimating r by at
+  most 3 eps. (With eps = 1e-4 mm the kink where a cross compliance l^T C b changes sign
+  under a tool rotation made IPOPT hit its iteration cap on kr600_curved_seam; auxiliary
   variables with +-x <= a were exact too but their degenerate rows at zero force slowed
   IPOPT down several times);
 * sign_k det(J_n(q_k)) >= floor_k (J_n: J with its translational rows divided by a length
-  scale), a smooth stand-in for the kappa_f bound of seed 000 eq. 5.
+  scale), a smooth stand-in for the kappa_f bound of seed 000 eq. 5;
+* at weld waypoints l^T C_tt(q_k) l <= c_max: c_max is one global epigraph variable (the last
+  entry of x, one dense Jacobian column), the compliance of the weakest waypoint.
 
 Between neighbours: |q_{k+1} - q_k| <= joint step; |o_{k+1} - o_k| <= offset rate * travel
 (+ offset speed * time while stationary) + the step the load change itself demands (the mirror
 baseline's step; see ``load_steps``).
 
-Objective (weights in :mod:`rfsw_plan.planning.options`): mean over waypoints of
-w_stiffness l^T C_tt l / ref + w_worst r_k / hw + w_robust sigma_k / hw
+Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
+w_stiffness share c_max / ref plus the mean over waypoints of
+w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw + w_robust sigma_k / hw
 + w_centre ((e_k - centre) / hw)^2 + w_depth (normal error / 1 mm)^2
 + w_proximity |q_k - q_warm,k|^2 (keeps the null space, e.g. an unused tool rotation, at the
 warm start), plus mean over links of
@@ -72,20 +77,22 @@ log = logging.getLogger(__name__)
 #: Names of the per-waypoint constraint rows, in order.
 POINT_CONSTRAINTS = (
     "position_x", "position_y", "position_z", "axis_t", "axis_l", "axis_n",
-    "window", "robust_lower", "robust_upper", "singularity",
+    "window", "robust_lower", "robust_upper", "singularity", "stiffness_cap",
 )
 #: Names of the terms returned by the point function, in order.
 POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error")
 _NG = len(POINT_CONSTRAINTS)
 #: Global scalars passed to every waypoint: 5 weights, compliance reference, window centre and
-#: half width [mm], 1 / K, proximity weight.
-N_GLOB = 10
+#: half width [mm], 1 / K, proximity weight, share of the stiffness weight on the mean.
+N_GLOB = 11
+#: Smoothing of |x| in the worst case [mm]: sqrt(x^2 + eps^2) over-estimates |x| by at most eps.
+ABS_EPS = 1e-2
 
 
 def n_par(n: int) -> int:
     """Per-waypoint parameters: target(3) t(3) l(3) n(3) F(6) u|f|(3) corr(2) det sign,
-    floor, value (3), q at linearisation (n), d det / dq (n)."""
-    return 26 + 2 * n
+    floor, value (3), q at linearisation (n), d det / dq (n), weld flag (1)."""
+    return 27 + 2 * n
 
 
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
@@ -147,6 +154,7 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     F, uf, corr = par[12:18], par[18:21], par[21:23]
     det_sign, det_floor, det0 = par[23], par[24], par[25]
     q_lin, ddet = par[26:26 + n], par[26 + n:26 + 2 * n]
+    weld_flag = par[26 + 2 * n]
     ch = symbolic_chain(robot, q)
     C, skipped = symbolic_cartesian_compliance(model, ch)
     dX = C @ F
@@ -157,17 +165,18 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     dep = 1e3 * ca.dot(nn, pin_err) + corr[1]
     lC = C[:3, :3] @ l
     proj = ca.vertcat(*(1e3 * uf[i] * ca.dot(lC, b) for i, b in enumerate((t, l, nn))))
-    eps = 1e-4
-    r = ca.sum1(ca.sqrt(proj ** 2 + eps ** 2) - eps)
+    r = ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2))
+    cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
     g = ca.vertcat(
         pos, ca.dot(z, t), ca.dot(z, l), ca.dot(z, nn), e,
         e - r + sigma, e + r - sigma,
         det_sign * (det0 + ca.dot(ddet, q - q_lin)) - det_floor,
+        weld_flag * cll,  # - c_max (the global epigraph variable) is added in the NLP
     )
-    cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
     terms = ca.vertcat(cll, r, sigma, e, dep)
     wt, cref, centre, hw, inv_k = glob[:5], glob[5], glob[6], glob[7], glob[8]
-    phi = inv_k * (wt[0] * cll / cref + wt[1] * r / hw + wt[2] * sigma / hw
+    mean_share = glob[10]
+    phi = inv_k * (wt[0] * mean_share * cll / cref + wt[1] * r / hw + wt[2] * sigma / hw
                    + wt[3] * ((e - centre) / hw) ** 2 + wt[4] * dep ** 2
                    + glob[9] * ca.sumsqr(q - q_lin))
     lam_f = ca.SX.sym("lam_f")
@@ -248,9 +257,10 @@ class PlanNLP:
         task: The task it plans.
         options: The options it was built with.
         n_joints: n.
-        x0: Initial guess, shape (K (n + 3),).
+        x0: Initial guess, shape (K (n + 3) + 1,) (the last entry is c_max, the largest
+            lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (10 K + (n + 2)(K - 1),).
+        lbg, ubg: Constraint bounds, shape (11 K + (n + 2)(K - 1),).
         p: Parameter vector.
     """
 
@@ -299,30 +309,35 @@ class PlanNLP:
         return names
 
     def unpack(self, x: FloatArray) -> dict[str, FloatArray]:
-        """Split a variable vector: q (K, n) [rad], offsets (K, 2) [m], sigma (K,) [mm]."""
+        """Split a variable vector: q (K, n) [rad], offsets (K, 2) [m], sigma (K,) [mm],
+        c_max [mm/kN]."""
         n = self.n_joints
-        W = np.asarray(x, dtype=float).reshape(self.n_waypoints, self.n_w)
-        return {"q": W[:, :n], "offsets": W[:, n:n + 2] * 1e-3, "sigma": W[:, n + 2]}
+        x = np.asarray(x, dtype=float)
+        W = x[:-1].reshape(self.n_waypoints, self.n_w)
+        return {"q": W[:, :n], "offsets": W[:, n:n + 2] * 1e-3, "sigma": W[:, n + 2],
+                "c_max": x[-1:]}
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Per-waypoint (g (K, 16), terms (K, 5), dX (K, 6)) at x (the NLP's own model)."""
         K = self.n_waypoints
-        W = np.asarray(x, dtype=float).reshape(K, self.n_w)
+        W = np.asarray(x, dtype=float)[: K * self.n_w].reshape(K, self.n_w)
         g, t, dx = self.point.info.map(K)(W.T, self.par.T)
         return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
 
     def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
-        """A variable vector from q (K, n) [rad] and offsets (K, 2) [m]; sigma gets its
-        tightest feasible value."""
+        """A variable vector from q (K, n) [rad] and offsets (K, 2) [m]; sigma and c_max get
+        their tightest feasible values."""
         n = self.n_joints
         W = np.zeros((self.n_waypoints, self.n_w))
         W[:, :n] = q
         W[:, n:n + 2] = np.asarray(offsets) * 1e3
-        _, terms, _ = self.point_values(W.reshape(-1))
+        x = np.append(W.reshape(-1), 0.0)
+        _, terms, _ = self.point_values(x)
         e, r = terms[:, 3], terms[:, 1]
         lo, hi = self.p[-2], self.p[-1]  # window [mm]
         W[:, n + 2] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
-        return W.reshape(-1)
+        c_max = float(np.max(terms[:, 0] * self.par[:, -1]))
+        return np.append(W.reshape(-1), c_max)
 
     def evaluate(self, x: FloatArray) -> tuple[float, FloatArray]:
         """Objective and constraint values at x."""
@@ -341,8 +356,9 @@ class PlanNLP:
 def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
                   ) -> tuple[ca.Function, ca.Function]:
     nw, npar = n + 3, n_par(n)
-    X = ca.MX.sym("x", nw * K)
-    W = ca.reshape(X, nw, K)
+    X = ca.MX.sym("x", nw * K + 1)
+    W = ca.reshape(X[: nw * K], nw, K)
+    c_max = X[nw * K]  # epigraph of the weld waypoints' lateral compliance [mm/kN]
     P = ca.MX.sym("p", npar * K + (K - 1) + N_GLOB + 4)
     PAR = ca.reshape(P[: npar * K], npar, K)
     off = npar * K
@@ -355,8 +371,13 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
         return f.map(K, "thread", 2) if K >= 256 else f.map(K)
 
     phi, G = mapped(pf.fg_vm)(W, PAR, GLOB)
-    f = ca.sum2(phi)
-    g_parts = [ca.vec(G)]
+    # The weakest waypoint's share of the stiffness term: w_stiffness (1 - share) c_max / cref.
+    f = ca.sum2(phi) + glob[0] * (1 - glob[10]) * c_max / glob[5]
+    cap = np.zeros(_NG)
+    cap[_NG - 1] = 1.0
+    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_NG - 1, _NG * K, _NG)),
+                                        [0] * K), -1.0)
+    g_parts = [ca.vec(G) - ca.repmat(ca.DM(cap), K, 1) * c_max]
     fs = ca.MX(0)
     if K > 1:
         dW = W[:, 1:] - W[:, :-1]
@@ -369,9 +390,10 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
 
     # Exact derivatives, assembled from the per-waypoint blocks (block diagonal: the map's
     # horizontally stacked dense blocks have the same nonzero order as the block diagonal).
-    grad = ca.vec(mapped(pf.grad)(W, PAR, GLOB)) + ca.gradient(fs, X)
+    grad = ca.vertcat(ca.vec(mapped(pf.grad)(W, PAR, GLOB)),
+                      glob[0] * (1 - glob[10]) / glob[5]) + ca.gradient(fs, X)
     Jb = mapped(pf.jac)(W, PAR)
-    J_pts = ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool)))
+    J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool))), cap_col)
     if K > 1:
         J_link = ca.jacobian(g_parts[1], X)
         J = ca.vertcat(J_pts, J_link)
@@ -381,7 +403,8 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
     lam_g = ca.MX.sym("lam_g", g.shape[0])
     LG = ca.reshape(lam_g[: _NG * K], _NG, K)
     Hb = mapped(pf.hess)(W, PAR, GLOB, ca.repmat(lam_f, 1, K), LG)
-    H = ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool))))
+    H = ca.diagcat(ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool)))),
+                   ca.MX(1, 1))
     if K > 1:
         H = H + lam_f * ca.triu(ca.hessian(fs, X)[0])
     grad_f = ca.Function("grad_f", [X, P], [f, grad], ["x", "p"], ["f", "grad_f_x"])
@@ -483,7 +506,7 @@ def build_plan_nlp(
     corr = np.zeros((K, 2)) if correction is None else np.asarray(correction, dtype=float)
     PAR = np.column_stack([
         task.target, fr.t, fr.l, fr.n, F, opts.force_uncertainty * np.abs(task.force_seam),
-        corr * 1e3, np.zeros((K, 3 + 2 * n)),
+        corr * 1e3, np.zeros((K, 3 + 2 * n)), (task.phase == "weld").astype(float),
     ])
     _set_det(PAR, robot, q_init, opts)
     h = task.link_lengths()
@@ -492,7 +515,7 @@ def build_plan_nlp(
     w = opts.weights
     glob = [w["w_stiffness"], w["w_worst"], w["w_robust"], w["w_centre"], w["w_depth"],
             max(float(np.mean(cll0)), 1e-12), window.centre * 1e3, window.half_width * 1e3,
-            1.0 / K, w["w_proximity"]]
+            1.0 / K, w["w_proximity"], 1.0 - opts.min_stiffness_share]
     p = np.concatenate([PAR.reshape(-1), 1.0 / h, glob,
                         [w["w_smooth_q"], w["w_smooth_o"], window.lower * 1e3,
                          window.upper * 1e3]])
@@ -500,11 +523,11 @@ def build_plan_nlp(
     d = robot.description
     lbw = np.concatenate([d.lower, [-np.inf, -np.inf], [0]])
     ubw = np.concatenate([d.upper, [np.inf, np.inf], [0.0 if opts.robust_hard else np.inf]])
-    lbx, ubx = np.tile(lbw, K), np.tile(ubw, K)
+    lbx, ubx = np.append(np.tile(lbw, K), 0.0), np.append(np.tile(ubw, K), np.inf)
     lo, hi = window.lower * 1e3, window.upper * 1e3
     m = opts.margin * 1e3
-    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0])
-    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, np.inf])
+    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0, -np.inf])
+    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, np.inf, 0.0])
     lbg_parts, ubg_parts = [np.tile(lbp, K)], [np.tile(ubp, K)]
     if K > 1:
         ds = task.link_travel()
@@ -517,7 +540,7 @@ def build_plan_nlp(
                                    o_step + extra[:, 0], o_step + extra[:, 1]])
         lbg_parts.append(-link_hi.reshape(-1))
         ubg_parts.append(link_hi.reshape(-1))
-    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + 3) * K), lbx, ubx,
+    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + 3) * K + 1), lbx, ubx,
                   np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
 

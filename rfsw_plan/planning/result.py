@@ -147,6 +147,9 @@ class PlanResult:
             "min_margin_mm": float(np.min(v.margin)) * 1e3,
             "robust_window_held_fraction": float(np.mean(v.robust_margin >= -1e-9)),
             "weld_speed_mm_s": self.trajectory.weld_speed * 1e3,
+            "weld_speed_is_pin_speed": self.trajectory.pin_timed,
+            "pin_speed_during_weld_mm_s": _range(self.trajectory.pin_speed()[
+                self.trajectory.phase == "weld"][1:-1] * 1e3),
             "max_feasible_weld_speed_mm_s": self.trajectory.max_weld_speed * 1e3,
             "duration_s": float(self.trajectory.t[-1]),
             "waypoints": {
@@ -165,3 +168,8 @@ class PlanResult:
                 "kappa_f": v.prediction.kappa.tolist(),
             },
         }
+
+
+def _range(x: FloatArray) -> list[float]:
+    """[min, max] of x, or [] if empty."""
+    return [float(np.min(x)), float(np.max(x))] if len(x) else []

@@ -1,8 +1,16 @@
 """The timed trajectory of a plan: approach, plunge, dwell, weld at constant speed, retract.
 
-* Weld: the planned joint values are a cubic spline q(s) in arc length; the travel is
-  s(t) = v t at the weld speed v (a process parameter, constant), with jerk-limited Ruckig
-  ramps from rest to v (``accelerate``) and from v to rest (``decelerate``) at the two ends.
+* Weld: the planned joint values are a cubic spline q(s) in arc length. The weld speed v is
+  a process parameter: it is the speed of the *pin* along the seam that must be constant, and
+  the loaded pin lags the commanded TCP along the seam by the predicted along-track deflection
+  delta(s) (it grows while the traverse force ramps up at the weld start). So the pin's arc
+  length sigma = s + delta(s) is timed, sigma(t) = v t, with jerk-limited Ruckig ramps from
+  rest to v (``accelerate``) and from v to rest (``decelerate``), and the commanded arc length
+  is s(t) = sigma^-1(v t) (Newton on the cubic spline of delta). Where delta changes the
+  commanded TCP moves faster or slower than v; the predicted pin does not. If that would need
+  a commanded speed above ``TimingLimits.max_speed_ratio`` v (a soft robot whose pin all but
+  stops while the traverse force winds it up), the commanded TCP is timed at v instead and
+  ``TimedTrajectory.pin_timed`` is False (the pin speed is still reported).
   TOPPRA gives the highest limit-feasible path speed; a weld speed above it is reported.
 * Approach and retract: Ruckig on the distance along the tool axis, mapped to joints by IK on
   a grid (cubic spline in the distance).
@@ -17,7 +25,9 @@ Every sample is then checked against the joint velocity, acceleration and jerk l
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,6 +41,7 @@ from rfsw_plan.timing.ruckig_ import profile_1dof
 from rfsw_plan.timing.toppra_ import max_path_speed
 
 FloatArray = NDArray[np.float64]
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -44,6 +55,8 @@ class TimingLimits:
         approach_speed: Approach and retract speed [m/s].
         plunge_speed: Plunge speed [m/s].
         dt: Sample time [s].
+        max_speed_ratio: Largest commanded travel speed / weld speed the pin timing may ask
+            for (see the module docstring).
     """
 
     acceleration: float = 0.1
@@ -52,6 +65,7 @@ class TimingLimits:
     approach_speed: float = 20e-3
     plunge_speed: float = 2e-3
     dt: float = 0.01
+    max_speed_ratio: float = 8.0
 
 
 @dataclass(frozen=True)
@@ -69,6 +83,9 @@ class TimedTrajectory:
         wrench: Wrench on the tool used by the plan [N, N m], (N, 6).
         weld_speed: Travel speed during ``weld`` [m/s].
         max_weld_speed: Highest limit-feasible constant path speed from TOPPRA [m/s].
+        s_pin: Predicted (loaded) pin arc length along the seam, s + delta(s) [m], (N,)
+            (meaningful while travelling: ``accelerate``, ``weld``, ``decelerate``).
+        pin_timed: The weld speed is the predicted pin's (else the commanded TCP's).
     """
 
     t: FloatArray
@@ -82,6 +99,8 @@ class TimedTrajectory:
     wrench: FloatArray
     weld_speed: float
     max_weld_speed: float
+    s_pin: FloatArray
+    pin_timed: bool = True
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -90,6 +109,11 @@ class TimedTrajectory:
         """Commanded TCP speed |d FK_p / dt| [m/s], (N,)."""
         T = robot.batch_fk_jacobian(self.q)[0]
         return np.linalg.norm(np.gradient(T[:, :3, 3], self.t, axis=0), axis=1)
+
+    def pin_speed(self) -> FloatArray:
+        """Predicted pin speed along the seam d s_pin / dt [m/s], (N,): what the weld speed
+        means to the process (heat input per mm)."""
+        return np.asarray(np.gradient(self.s_pin, self.t))
 
     def limit_ratios(self, robot: Robot) -> dict[str, float]:
         """max |derivative| / limit over all samples and joints, per derivative order."""
@@ -133,7 +157,7 @@ def _rest_spline(tk: FloatArray, yk: FloatArray, t: FloatArray) -> FloatArray:
 
 def time_parameterise(
     robot: Robot, task: PlanTask, q: FloatArray, offsets: FloatArray,
-    limits: TimingLimits | None = None,
+    limits: TimingLimits | None = None, pin_lag: FloatArray | None = None,
 ) -> TimedTrajectory:
     """Time a planned path and check every limit at every sample.
 
@@ -143,6 +167,8 @@ def time_parameterise(
         q: Planned joint values [rad], (K, n).
         offsets: Planned offsets (lateral, normal) [m], (K, 2).
         limits: Cartesian limits of the Ruckig pieces and the sample time.
+        pin_lag: Predicted along-track pin error delta_k = t_k . (FK_p(q_k) + dX_p - p_k) at
+            the waypoints [m], (K,); None: 0 (the commanded TCP is timed at the weld speed).
 
     Raises:
         InfeasibleError: The weld speed exceeds what the joint limits allow (names the arc
@@ -218,21 +244,32 @@ def time_parameterise(
             pieces.append(("dwell", t, np.zeros_like(t), _rest_spline(tt, q[idx], t),
                            _rest_spline(tt, offsets[idx], t),
                            PchipInterpolator(tt, F[idx], axis=0)(t)))
-    # Weld: ramp up, constant speed, ramp down (Ruckig velocity interface on s).
-    t_a, s_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, lim.acceleration, lim.jerk, dt)
-    L = float(sw[-1] - sw[0])
-    if 2 * s_a[-1] >= L:
+    # Weld: ramp up, constant speed, ramp down (Ruckig velocity interface) on the pin's arc
+    # length sigma; the commanded arc length is s = sigma^-1.
+    lag = np.zeros(len(task)) if pin_lag is None else np.asarray(pin_lag, dtype=float)
+    pin_timed = True
+    try:
+        to_s = _pin_inverse(sw, lag[m:], 1.0 / lim.max_speed_ratio)
+    except InfeasibleError as exc:
+        log.warning("%s; the commanded TCP is timed at the weld speed instead", exc)
+        pin_timed = False
+        to_s = _pin_inverse(sw, np.zeros_like(sw), 0.5)
+    sig0, sig1 = (sw[0] + lag[m], sw[-1] + lag[-1]) if pin_timed else (sw[0], sw[-1])
+    t_a, x_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, lim.acceleration, lim.jerk, dt)
+    L = float(sig1 - sig0)
+    if 2 * x_a[-1] >= L:
         raise InfeasibleError("the seam is shorter than the acceleration to the weld speed",
                               constraint="weld_speed")
-    s_a = s_a + sw[0]
+    sig_a = sig0 + x_a
+    s_a = to_s(sig_a)
     pieces.append(("accelerate", t_a, s_a, spline(s_a), o_spline(s_a), f_spline(s_a)))
-    s_start, s_end = s_a[-1], sw[-1] - (s_a[-1] - sw[0])
-    T = (s_end - s_start) / v
+    sig_start, sig_end = sig_a[-1], sig1 - x_a[-1]
+    T = (sig_end - sig_start) / v
     n_w = max(int(np.ceil(T / dt)), 1)
     t = np.linspace(0.0, T, n_w + 1)
-    s = s_start + v * t
+    s = to_s(sig_start + v * t)
     pieces.append(("weld", t, s, spline(s), o_spline(s), f_spline(s)))
-    s_d = s_end + (s_a[-1] - s_a[::-1])  # mirror of the ramp up
+    s_d = to_s(sig_end + (x_a[-1] - x_a[::-1]))  # mirror of the ramp up
     pieces.append(("decelerate", t_a, s_d, spline(s_d), o_spline(s_d), f_spline(s_d)))
     # Retract: up along the tool axis by the depth plus the clearance.
     n_end = task.frames.n[-1]
@@ -260,10 +297,43 @@ def time_parameterise(
     qd = np.gradient(Q, t, axis=0)
     qdd = np.gradient(qd, t, axis=0)
     qddd = np.gradient(qdd, t, axis=0)
-    traj = TimedTrajectory(t, np.concatenate(ph), np.concatenate(ss), Q, qd, qdd, qddd,
-                           np.vstack(os_), np.vstack(fs), v, psl.max_speed)
+    s_all = np.concatenate(ss)
+    lag_spline = CubicSpline(sw, lag[m:]) if len(sw) > 1 else None
+    s_pin = s_all + (lag_spline(np.clip(s_all, sw[0], sw[-1])) if lag_spline is not None
+                     else 0.0)
+    traj = TimedTrajectory(t, np.concatenate(ph), s_all, Q, qd, qdd, qddd,
+                           np.vstack(os_), np.vstack(fs), v, psl.max_speed, s_pin, pin_timed)
     _check_limits(robot, traj)
     return traj
+
+
+def _pin_inverse(sw: FloatArray, lag: FloatArray, min_slope: float) -> Any:
+    """s(sigma) for sigma = s + delta(s), delta a cubic spline through (sw, lag) [m].
+
+    Raises:
+        InfeasibleError: d sigma / ds < min_slope somewhere (the commanded TCP would have to
+            run faster than the pin by more than 1 / min_slope).
+    """
+    d = CubicSpline(sw, lag)
+    grid = np.linspace(sw[0], sw[-1], max(20 * len(sw), 200))
+    slope = 1.0 + d(grid, 1)
+    if np.min(slope) < min_slope:
+        i = int(np.argmin(slope))
+        raise InfeasibleError(
+            f"the predicted pin lag changes by {-(slope[i] - 1):.2f} mm per mm at "
+            f"s = {grid[i] * 1e3:.1f} mm: "
+            + (f"keeping the pin at the weld speed needs {1 / slope[i]:.1f} x the weld speed "
+               "at the TCP" if slope[i] > 0 else "the predicted pin stops or moves back"),
+            constraint="weld_speed")
+    sig_grid = grid + d(grid)
+
+    def to_s(sig: FloatArray) -> FloatArray:
+        s = np.interp(sig, sig_grid, grid)
+        for _ in range(4):  # Newton on s + delta(s) = sig
+            s = s - (s + d(s) - sig) / (1.0 + d(s, 1))
+        return np.asarray(np.clip(s, sw[0], sw[-1]))
+
+    return to_s
 
 
 def _check_limits(robot: Robot, traj: TimedTrajectory) -> None:
