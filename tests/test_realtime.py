@@ -10,6 +10,7 @@ from rfsw_plan.realtime.base import ControllerInputs, NoCompensation
 from rfsw_plan.realtime.hybrid import HybridResidual
 from rfsw_plan.realtime.seed000 import ExponentialAverageCompensation, RealtimeSeed000
 from rfsw_plan.realtime.seed002 import RealtimeSeed002
+from rfsw_plan.realtime.simulator import WeldRun
 
 DT = 0.004
 
@@ -159,3 +160,26 @@ def test_no_compensation_is_zero() -> None:
     inp = make_inputs()
     assert np.all(NoCompensation().run(inp) == 0.0)
     assert np.all(NoCompensation().step(5, inp) == 0.0)
+
+
+def _straight_run(e: np.ndarray) -> WeldRun:
+    k = e.size
+    s = np.linspace(0.0, 0.1, k)
+    zeros = np.zeros((k, 3))
+    travel = np.tile([1.0, 0.0, 0.0], (k, 1))
+    return WeldRun(strategy="x", path="p", t=s / 3e-3, s=s, phase=np.full(k, "weld"),
+                   lateral_error=e, pin=zeros, seam=zeros, travel=travel, correction=zeros,
+                   sim_time_s=0.0)
+
+
+def test_settling_distance_and_never_settled() -> None:
+    from rfsw_plan.process.window import WeldWindow
+    from rfsw_plan.realtime.metrics import weld_metrics
+
+    e = np.where(np.linspace(0.0, 0.1, 101) < 0.02, 3e-3, 0.0)  # outside for the first 20 mm
+    m = weld_metrics(_straight_run(e), WeldWindow())
+    assert m.settled and m.settling == pytest.approx(0.02, abs=1.1e-3)
+    assert m.settling_text() == f"{m.settling * 1e3:.1f}"
+    never = weld_metrics(_straight_run(np.full(101, 3e-3)), WeldWindow())
+    assert not never.settled and never.settling_text() == "never"
+    assert never.to_dict()["settled"] is False

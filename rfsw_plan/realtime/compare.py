@@ -507,7 +507,7 @@ def format_table(result: CompareResult) -> str:
             lines.append(
                 f"  {name:<18}{m.inside_window_fraction * 100:>9.1f}"
                 f"{m.max_abs_lateral * 1e3:>11.2f}{m.rms_lateral * 1e3:>9.2f}"
-                f"{m.settling * 1e3:>11.1f}"
+                f"{m.settling_text():>11}"
             )
         dcs = {k: m.direction_change for k, m in sc.metrics.items() if m.direction_change}
         if dcs:
@@ -546,7 +546,7 @@ def format_markdown(result: CompareResult) -> str:
             out.append(
                 f"| {name} | {m.inside_window_fraction * 100:.1f} | "
                 f"{m.max_abs_lateral * 1e3:.2f} | {m.rms_lateral * 1e3:.2f} | "
-                f"{m.settling * 1e3:.1f} |"
+                f"{m.settling_text()} |"
             )
     if result.consistency is not None:
         c = result.consistency

@@ -54,7 +54,7 @@ class WeldMetrics:
         rms_lateral: Length-weighted RMS of the lateral error over the weld [m].
         mean_lateral: Length-weighted mean lateral error [m].
         settling: Length from the weld start until the pin stays inside the window [m]
-            (0 if it never leaves; the weld length if it never settles).
+            (0 if it never leaves; the weld length if it never settles, see ``settled``).
         start_error: Lateral error at the weld start [m].
         weld_length: Weld length [m].
         direction_change: Behaviour at the largest change of travel direction, if the seam
@@ -69,6 +69,11 @@ class WeldMetrics:
     start_error: float
     weld_length: float
     direction_change: DirectionChange | None = None
+    settled: bool = True
+
+    def settling_text(self) -> str:
+        """Settling distance for tables: mm, or ``never`` if the pin ends outside."""
+        return f"{self.settling * 1e3:.1f}" if self.settled else "never"
 
     def to_dict(self) -> dict[str, object]:
         """JSON-ready dictionary with mm units in the keys."""
@@ -77,6 +82,7 @@ class WeldMetrics:
             "max_abs_lateral_mm": self.max_abs_lateral * 1e3,
             "rms_lateral_mm": self.rms_lateral * 1e3,
             "settling_mm": self.settling * 1e3,
+            "settled": self.settled,
             "mean_lateral_mm": self.mean_lateral * 1e3,
             "start_error_mm": self.start_error * 1e3,
             "weld_length_mm": self.weld_length * 1e3,
@@ -146,6 +152,7 @@ def weld_metrics(
     rms = float(np.sqrt(np.sum(wt * e**2) / total)) if total > 0 else float(np.abs(e).max())
     mean = float(np.sum(wt * e) / total) if total > 0 else float(e.mean())
     out_idx = np.flatnonzero(~inside)
+    settled = not (out_idx.size and out_idx[-1] == len(e) - 1)
     if out_idx.size == 0:
         settling = 0.0
     elif out_idx[-1] == len(e) - 1:
@@ -166,7 +173,7 @@ def weld_metrics(
     return WeldMetrics(
         inside_window_fraction=frac, max_abs_lateral=float(np.abs(e).max()), rms_lateral=rms,
         mean_lateral=mean, settling=settling, start_error=float(e[0]), weld_length=L,
-        direction_change=dc,
+        direction_change=dc, settled=settled,
     )
 
 
