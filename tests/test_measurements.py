@@ -78,6 +78,7 @@ def test_radians_blank_axes_and_ignored_columns(tmp_path: Path) -> None:
     ("header", "pattern"),
     [
         (HEADER.replace("fz_N", "fz_n"), r"column 'fz_N'.*missing.*fz_n"),  # misnamed
+        (HEADER.replace("fz_N", "fz"), r"column .fz_N.: missing; found .fz.: rename it"),
         (HEADER.replace(",fy_N", ""), r"column 'fy_N'.*missing"),  # missing
         (HEADER.replace("q1_deg", "q1"), r"column 'q1_deg'.*missing"),
         ("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,fx_N,fy_N,fz_N", r"x_mm, y_mm, z_mm"),

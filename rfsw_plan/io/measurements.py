@@ -82,8 +82,17 @@ class MeasurementSet:
 
 
 def _missing(path: Path, name: str, header: list[str]) -> InputError:
-    close = get_close_matches(name, header, n=1)
-    hint = f"; did you mean to rename '{close[0]}'?" if close and close[0] != name else ""
+    """Error for a missing column, with a hint at the column the user probably meant.
+
+    A header that is the name without its unit (``fz`` for ``fz_N``) or with another unit
+    (``fz_kN``) is preferred over a merely similar spelling.
+    """
+    base = name.rsplit("_", 1)[0].lower()
+    same_quantity = [h for h in header if h.lower() == base or h.lower().startswith(base + "_")]
+    close = same_quantity or get_close_matches(name, header, n=1)
+    hint = ""
+    if close and close[0] != name:
+        hint = f"; found '{close[0]}': rename it to '{name}' (units in the column name)"
     return InputError(path, f"column '{name}'", f"missing{hint}", f"a column named '{name}'")
 
 
