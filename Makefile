@@ -25,8 +25,12 @@ lint: $(STAMP)
 	$(BIN)/ruff check rfsw_plan tests examples
 	$(BIN)/mypy
 
+# Benchmarks print figures; they are never part of the tests.
 bench: $(STAMP)
-	$(BIN)/python examples/benchmark.py
+	$(BIN)/python examples/benchmark_foundation.py
+	$(BIN)/python examples/benchmark_planner.py
+	$(BIN)/python examples/benchmark_validate.py
+	$(BIN)/python examples/benchmark_compare.py
 
 clean:
 	rm -rf $(VENV) out
