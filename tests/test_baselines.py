@@ -11,6 +11,7 @@ from rfsw_plan.exceptions import UnreachableError
 from rfsw_plan.planning.baselines import (
     branch_seeds,
     commanded_poses,
+    ik_path,
     metrics,
     mirror_compensation,
     no_compensation,
@@ -45,8 +46,13 @@ def test_mirror_fixed_point_cancels_the_predicted_error(setup):
     pred = predict(model, task, mir.q, 0.0)
     assert np.max(np.abs(pred.e_lat)) < 1e-6
     assert np.max(np.abs(pred.e_norm)) < 1e-6
-    # The offset mirrors the deflection: about -4.9 mm lateral (seed 001).
+    assert np.max(np.abs(pred.e_along)) < 1e-6  # the pin is on its seam point along the track
+    # The offset mirrors the deflection: about -4.9 mm lateral (seed 001), and the commanded
+    # TCP runs ahead of the pin by the traverse force's along-track lag.
     assert mir.offsets[0, 0] == pytest.approx(-4.9e-3, abs=0.2e-3)
+    assert mir.offsets.shape == (len(task), 3)
+    np.testing.assert_allclose(mir.offsets[:, 2], -predict(model, task, base.q, 0.0).e_along,
+                               rtol=0.05)
 
 
 def test_metrics_are_consistent(setup):
@@ -82,3 +88,18 @@ def test_unreachable_seam_names_waypoint_and_distance():
     pattern = r"seam waypoint 2 \(s = 56.8 mm\) .*misses it by \d"
     with pytest.raises(UnreachableError, match=pattern):
         no_compensation(model.robot, task, Q_SEED)
+
+
+def test_batched_newton_refinement_matches_the_ik_path(setup):
+    from rfsw_plan.planning.baselines import refine_path
+
+    model, task = setup
+    base = no_compensation(model.robot, task, Q_SEED)
+    rng = np.random.default_rng(3)
+    off = np.column_stack([rng.normal(0, 3e-3, (len(task), 3))])
+    poses = commanded_poses(task, off, 0.0)
+    q_new = refine_path(model.robot, poses, base.q)
+    q_ref = ik_path(model.robot, poses, base.q[0], q_warm=base.q)
+    np.testing.assert_allclose(q_new, q_ref, atol=1e-6)
+    for k in range(len(task)):
+        np.testing.assert_allclose(model.robot.fk(q_new[k]), poses[k], atol=1e-7)

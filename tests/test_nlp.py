@@ -53,7 +53,7 @@ def setup():
 def test_build_is_inspectable_without_solving(setup):
     _, task, _, mirror, nlp = setup
     K, n = len(task), 6
-    assert nlp.x0.shape == (K * (n + 3) + 1,)
+    assert nlp.x0.shape == (K * (n + 4) + 1,)
     assert len(nlp.constraint_names()) == nlp.lbg.shape[0] == nlp.ubg.shape[0]
     assert nlp.constraint_names()[6] == "window[0]"
     parts = nlp.unpack(nlp.x0)
@@ -65,11 +65,14 @@ def test_build_is_inspectable_without_solving(setup):
 
 def test_casadi_prediction_matches_numeric_model(setup):
     model, task, taught, _, nlp = setup
-    x = nlp.pack(taught.q, np.zeros((len(task), 2)))
+    x = nlp.pack(taught.q, np.zeros((len(task), 3)))
     ours = nlp_prediction(nlp, x)
     pred = predict(model, task, taught.q, 0.2)
     np.testing.assert_allclose(ours[:, 0], pred.e_lat, atol=1e-10)
     np.testing.assert_allclose(ours[:, 1], pred.e_norm, atol=1e-10)
+    np.testing.assert_allclose(ours[:, 2], pred.e_along, atol=1e-10)
+    # Untouched by offsets, the loaded pin lags the TCP along the track (traverse force).
+    assert np.all(pred.e_along < -1e-3)
     _, terms, _ = nlp.point_values(x)
     # worst case: the smooth |.| over-estimates the numeric r by at most 3 eps (3 components)
     over = terms[:, 1] * 1e-3 - pred.worst
@@ -83,7 +86,7 @@ def test_point_derivatives_match_finite_differences(robot_name):
     pf = point_functions(model, compile_c=False)
     rng = np.random.default_rng(4)
     n = model.robot.nq
-    w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 2), rng.uniform(0, 1, 1)])
+    w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 3), rng.uniform(0, 1, 1)])
     q = w[:n]
     R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     par = np.zeros(n_par(n))
@@ -91,11 +94,11 @@ def test_point_derivatives_match_finite_differences(robot_name):
     par[3:12] = R.T.ravel()  # t, l, n orthonormal
     par[12:18] = np.concatenate([rng.normal(0, 2e3, 3), rng.normal(0, 50, 3)])
     par[18:21] = 0.2 * np.abs(R.T @ par[12:15])
-    par[21:23] = rng.normal(0, 0.1, 2)
-    par[23:26] = [1.0, 0.01, 0.3]
-    par[26:26 + n] = q + 0.01
-    par[26 + n:26 + 2 * n] = rng.normal(0, 0.1, n)
-    par[26 + 2 * n] = 1.0  # weld waypoint: the stiffness-cap row is on
+    par[21:24] = rng.normal(0, 0.1, 3)
+    par[24:27] = [1.0, 0.01, 0.3]
+    par[27:27 + n] = q + 0.01
+    par[27 + n:27 + 2 * n] = rng.normal(0, 0.1, n)
+    par[27 + 2 * n] = 1.0  # weld waypoint: the stiffness-cap row is on
     glob = np.array([1, 1, 10, 0.1, 0.1, 3.0, -0.275, 0.975, 0.1, 1e-3, 0.5])
     lam = rng.normal(0, 1, len(POINT_CONSTRAINTS))
     J = np.asarray(pf.jac(w, par))
@@ -132,6 +135,14 @@ def test_solve_keeps_verified_error_in_window(setup):
     ver = verify_plan(model, task, w, sol.q, sol.offsets, 0.2, joint_step=0.35,
                       kappa_max=200)
     assert ver.feasible, ver.messages
+    # The predicted pin is on every seam point along the track; the along-track offset is
+    # the lag the traverse force winds up (about 4.7 mm on the ZK-500).
+    assert np.max(np.abs(ver.along_error)) < 1e-9
+    fr, o = task.frames, sol.offsets
+    t_dot = np.einsum("ki,ki->k", fr.t, ver.prediction.dX[:, :3] + o[:, :1] * fr.l
+                      + o[:, 1:2] * fr.n)
+    np.testing.assert_allclose(o[:, 2], -t_dot, atol=1e-9)  # o_along t cancels the lag
+    assert np.min(sol.offsets[:, 2]) > 3e-3
     e = ver.prediction.e_lat
     assert np.all(e >= w.lower + 1e-4 - 1e-9) and np.all(e <= w.upper - 1e-4 + 1e-9)
     # Uncompensated the same waypoints are ~4.9 mm off (seed 001).
@@ -179,3 +190,38 @@ def test_kr600_stiffness_weight_turns_the_tool_and_raises_min_lateral_stiffness(
     k0 = out[0.0].baselines[2].min_lateral_stiffness
     k1 = out[default].baselines[2].min_lateral_stiffness
     assert k1 > 1.02 * k0
+
+
+def test_seam_reference_taught_ignores_load_independent_and_sensor_only_effects():
+    """Issue 4 / seam reference: the planner pushes the modelled wrench through
+    process_deflection. With payload gravity (load independent) and a sensor misalignment
+    (sensor only) in the model, a taught seam plans exactly as the base model; an absolute seam
+    also sees the gravity sag, and the plan compensates it."""
+    from dataclasses import replace
+
+    from rfsw_plan.planning.api import plan
+    from rfsw_plan.process.problem import load_problem
+
+    pb = load_problem("zk500_table6_seam")
+    assert pb.seam_reference == "taught"
+    base = ElastostaticModel(load_robot("zk500"))
+    full = base.with_effect("payload_gravity").with_effect(
+        "sensor_misalignment", {"phi_x": 0.05, "phi_z": -0.03})
+    r0, r1 = plan(pb, model=base), plan(pb, model=full)
+    assert r1.task.reference == "taught"
+    np.testing.assert_allclose(r1.e_lat, r0.e_lat, atol=1e-9)
+    np.testing.assert_allclose(r1.q, r0.q, atol=1e-9)
+    assert r1.skipped_effects == ("payload_gravity",)  # sensor-only: dropped, not corrected
+    # The same joints on an absolute seam: e_lat moves by the lateral gravity sag.
+    K = len(r1.task)
+    sag = full.process_deflection(r1.q, np.zeros((K, 6)), "absolute")[:, :3]
+    assert np.min(np.linalg.norm(sag, axis=1)) > 0.5e-3
+    lat_sag = np.einsum("ki,ki->k", r1.task.frames.l, sag)
+    e_abs = predict(full, replace(r1.task, reference="absolute"), r1.q).e_lat
+    np.testing.assert_allclose(e_abs - r1.e_lat, lat_sag, atol=1e-12)
+    assert np.max(np.abs(lat_sag)) > 0.1e-3
+    # Planned on the absolute seam, the lateral offsets take the sag out.
+    r2 = plan(replace(pb, seam_reference="absolute"), model=full)
+    assert r2.task.reference == "absolute" and r2.verification.feasible
+    np.testing.assert_allclose(r2.offsets[:, 0] - r1.offsets[:, 0], -lat_sag,
+                               atol=0.05 * np.max(np.abs(lat_sag)))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from test_nlp import F_SEAM, Q_SEED, zk500_frames
@@ -11,7 +13,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.task import task_constant_force
-from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.planning.verify import ALONG_TOL, predict, verify_plan
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 
@@ -74,3 +76,37 @@ def test_singularity_and_joint_step_checks(setup):
     q = mir.q.copy()
     ver = verify_plan(model, task, WeldWindow(), q, mir.offsets, joint_step=1e-6)
     assert not ver.feasible and ver.binding.startswith("joint_step_q")
+
+
+def test_pin_off_its_seam_point_along_the_track_is_caught(setup):
+    model, task, _, mir = setup
+    # 2 % more traverse force than planned for: the pin lags ~0.1 mm more than the along-track
+    # offset takes up; the lateral error stays inside the window.
+    f = task.force_seam.copy()
+    f[:, 0] *= 1.02
+    more = dataclasses.replace(task, force_seam=f)
+    ver = verify_plan(model, more, WeldWindow(), mir.q, mir.offsets)
+    assert not ver.feasible and ver.binding == "along_track"
+    assert np.all(np.abs(ver.along_error) > ALONG_TOL) and np.all(ver.margin > 0)
+    with pytest.raises(InfeasibleError, match="along the track from its seam point"):
+        ver.raise_if_infeasible()
+    # The planned task itself: on the seam point to within the IK tolerance.
+    ok = verify_plan(model, task, WeldWindow(), mir.q, mir.offsets)
+    assert ok.feasible and np.max(np.abs(ok.along_error)) < 1e-7
+
+
+def test_vectorised_kappa_matches_the_scalar_index(setup):
+    from rfsw_plan.elastostatics.compliance import dexterity
+    from rfsw_plan.planning.verify import dexterity_batch
+
+    model, _, base, _ = setup
+    rng = np.random.default_rng(7)
+    Q = np.vstack([base.q, base.q[0] + rng.normal(0, 0.5, (6, 6))])
+    J = model.batch(Q).J
+    for scale in (1.0, 0.3):
+        np.testing.assert_allclose(dexterity_batch(J, scale),
+                                   [dexterity(j, scale) for j in J], rtol=1e-10)
+    Js = J[:2].copy()
+    Js[1][:, 5] = Js[1][:, 4]  # two equal columns: singular
+    assert dexterity_batch(Js)[0] == pytest.approx(dexterity(Js[0])) and np.isinf(
+        dexterity_batch(Js)[1])

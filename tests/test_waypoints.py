@@ -21,8 +21,8 @@ from rfsw_plan.robot.kinematics import load_robot
 
 REQUIRED = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "x_mm", "y_mm",
             "z_mm", "qw", "qx", "qy", "qz", "q1_deg", "q6_deg", "fx_N", "fy_N", "fz_N",
-            "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "dx_mm", "dy_mm", "dz_mm",
-            "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s"]
+            "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "off_along_mm", "dx_mm",
+            "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s"]
 
 
 def test_maker_euler_conventions():
@@ -69,6 +69,16 @@ def test_csv_columns_and_consistency(written):
     m = np.array([float(r["margin_mm"]) for r in weld])
     assert np.all(e > -1.25) and np.all(e < 0.7)
     np.testing.assert_allclose(m, np.minimum(e + 1.25, 0.7 - e), atol=2e-6)
+    # The commanded TCP is the seam point plus the offsets; the pin keeps the weld speed.
+    fr = res.task.frames
+    t, l, n = fr.t[-1], fr.l[-1], fr.n[-1]  # straight seam
+    for r in weld[:: max(len(weld) // 20, 1)]:
+        d = np.array([float(r[k]) - float(r["seam_" + k]) for k in ("x_mm", "y_mm", "z_mm")])
+        o = [float(r[k]) for k in ("off_lat_mm", "off_norm_mm", "off_along_mm")]
+        np.testing.assert_allclose(d, o[0] * l + o[1] * n + o[2] * t, atol=1e-4)
+    pin = np.array([float(r["pin_speed_mm_s"]) for r in weld])
+    np.testing.assert_allclose(pin, res.task.travel_speed * 1e3, rtol=0.01)
+    assert float(weld[-1]["off_along_mm"]) > 4.0  # the pin's lag behind the TCP
     # No margin outside the material.
     assert all(r["margin_mm"] == "" for r in rows if r["phase"] in ("approach", "retract"))
 
@@ -83,4 +93,7 @@ def test_plan_json_summary(written):
             "min_lateral_stiffness_N_mm"} <= set(d["baselines"][0])
     assert d["baselines"][0]["max_abs_lateral_mm"] > 4.0
     assert len(d["waypoints"]["e_lat_mm"]) == len(res.task)
+    assert len(d["waypoints"]["off_along_mm"]) == len(res.task)
+    assert d["seam_reference"] == "taught"
+    assert d["max_abs_along_track_error_mm"] < 1e-6
     assert (out / "lateral_error.png").stat().st_size > 10_000

@@ -16,17 +16,21 @@
     Planned joint values (controller joints of the robot file).
 ``fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm``
     The process wrench on the tool the plan assumes.
-``off_lat_mm, off_norm_mm``
-    Fake-target offset along l (toward the advancing side) and n (tool axis).
+``off_lat_mm, off_norm_mm, off_along_mm``
+    Fake-target offset along l (toward the advancing side), n (tool axis) and t (travel): the
+    commanded TCP is seam + offsets. The along-track offset is the predicted pin's lag behind
+    the TCP, so the loaded pin is on the row's seam point.
 ``dx_mm, dy_mm, dz_mm``
-    Predicted TCP deflection under the wrench.
+    Predicted TCP deflection under the wrench (the model's process deflection with the
+    problem's seam reference, ``taught`` or ``absolute``).
 ``e_lat_mm, margin_mm``
     Predicted lateral pin error and its margin to the nearest window bound (empty outside
     plunge, dwell and welding).
 ``tcp_speed_mm_s, pin_speed_mm_s``
-    Commanded TCP speed |d x / dt| and the predicted (loaded) pin's speed along the seam. The
-    weld speed is the pin's: constant during ``weld``; the commanded TCP runs ahead of it while
-    the traverse force (and with it the pin's lag) ramps up.
+    Commanded TCP speed |d x / dt| and the predicted (loaded) pin's speed along the seam (the
+    numeric model at every sample). The weld speed is the pin's: constant during ``weld``; the
+    commanded TCP runs ahead of it while the traverse force (and with it the pin's lag) ramps
+    up, and at the weld speed where the force is steady.
 """
 
 from __future__ import annotations
@@ -75,7 +79,7 @@ def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[s
     n = robot.nq
     batch = model.batch(tr.q)
     T = batch.T
-    dX = model.deflection_batch(batch, tr.wrench)
+    dX = model.process_deflection_batch(batch, tr.wrench, task.reference)
     m = task.n_start
     sw = task.s[m:]
     fr = task.frames
@@ -102,7 +106,7 @@ def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[s
     header += [f"q{j + 1}_deg" for j in range(n)]
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
-               "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s",
+               "off_along_mm", "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s",
                "pin_speed_mm_s"]
     cols += list(tr.wrench.T) + list((tr.offsets * 1e3).T) + list((dX[:, :3] * 1e3).T)
     cols += [np.where(contact, e_lat * 1e3, np.nan), np.where(contact, margin * 1e3, np.nan)]

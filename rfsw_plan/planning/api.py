@@ -1,21 +1,27 @@
 """``plan(problem)``: the whole planning pipeline.
 
 1. Waypoints: the seam frames at the problem's spacing plus stationary waypoints over the
-   plunge and dwell force ramp (:func:`~rfsw_plan.planning.task.task_from_schedule`).
+   plunge and dwell force ramp (:func:`~rfsw_plan.planning.task.task_from_schedule`), with the
+   problem's seam reference (``taught``/``absolute``: how the modelled process wrench deflects
+   the TCP, :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection`).
 2. Branches: the taught path (IK) from the problem's seed and from elbow/wrist/shoulder flips;
    the continuous ones are ranked by worst-case deviation and lateral stiffness, the best is
    planned (the others are reported).
-3. Baselines: no compensation and the mirror fixed point (numeric).
+3. Baselines: no compensation and the mirror fixed point (numeric; lateral, normal and
+   along-track offsets).
 4. NLP from the mirror baseline, with an outer correction loop for effects the symbolic model
    lacks and a re-linearisation of the singularity constraint.
 5. Independent numeric verification; an infeasible plan raises :class:`InfeasibleError`.
-6. Time parameterisation (TOPPRA speed check, Ruckig pieces, limit check at every sample).
+6. Time parameterisation (TOPPRA speed check, Ruckig pieces, limit check at every sample) on
+   the pin's arc length, and the pin's predicted travel along the seam at every sample
+   (:func:`~rfsw_plan.planning.verify.pin_track`).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -39,7 +45,7 @@ from rfsw_plan.planning.nlp import (
 from rfsw_plan.planning.options import PlanOptions, options_from_table
 from rfsw_plan.planning.result import BranchInfo, PlanResult
 from rfsw_plan.planning.task import FloatArray, PlanTask, task_from_schedule
-from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.planning.verify import pin_track, predict, verify_plan
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot, load_robot
@@ -103,7 +109,8 @@ def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, NDArra
     fr = task.frames
     frames = type(fr)(*(getattr(fr, a)[idx] for a in ("s", "p", "t", "l", "n")))
     sub = PlanTask(frames, task.target[idx], task.force_seam[idx], task.moment_base[idx],
-                   task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed)
+                   task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed,
+                   task.reference)
     return sub, idx
 
 
@@ -265,7 +272,7 @@ def plan(
     frames = problem.seam.frames(spacing or problem.spacing)
     process = problem.process
     sched = process.schedule(frames, 0.05, approach=False)
-    task = task_from_schedule(frames, sched, opts.max_start_waypoints)
+    task = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
     return plan_task(model, task, window, q_seed, opts, problem.name, compile_c,
                      TimingLimits(clearance=opts.clearance, approach_speed=opts.approach_speed,
@@ -299,7 +306,7 @@ def plan_task(
     nlp = build_plan_nlp(model, task, window, warm.q, warm.offsets, opts,
                          compile_c=compile_c, load_steps=np.diff(warm.offsets, axis=0))
     x = nlp.x0
-    corr = np.zeros((len(task), 2))
+    corr = np.zeros((len(task), 3))
     iters = 0
     sol = None
     outer = 0
@@ -308,7 +315,7 @@ def plan_task(
         iters += sol.iterations
         x = sol.x
         pred = predict(model, task, sol.q, opts.force_uncertainty, opts.length_scale)
-        full = np.column_stack([pred.e_lat, pred.e_norm])
+        full = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
         new_corr = full - nlp_prediction(nlp, x)
         change = float(np.max(np.abs(new_corr - corr)))
         kappa_ok = bool(np.all(pred.kappa <= opts.kappa_max))
@@ -334,9 +341,8 @@ def plan_task(
         raise InfeasibleError(msg, ver.worst_waypoint, ver.binding, ver.binding_margin)
 
     t0 = time.perf_counter()
-    vp = ver.prediction
-    pin_lag = np.einsum("ki,ki->k", task.frames.t, vp.T[:, :3, 3] + vp.dX[:, :3] - task.frames.p)
-    traj = time_parameterise(robot, task, sol.q, sol.offsets, timing, pin_lag=pin_lag)
+    traj = time_parameterise(robot, task, sol.q, sol.offsets, timing)
+    traj = replace(traj, s_pin=pin_track(model, task, traj))
     timing_time = time.perf_counter() - t0
 
     base = (metrics("none", model, task, taught.q, window, opts.force_uncertainty),

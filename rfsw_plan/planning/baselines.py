@@ -3,11 +3,13 @@
 1. ``none``: the robot is taught to the seam (IK along the waypoints at a fixed tool rotation)
    and nothing is compensated.
 2. ``mirror``: what an engineer does by hand. At every waypoint, shift the target by minus the
-   predicted deflection (lateral and normal), re-teach the point (IK on the same branch and
-   tool rotation) and repeat until the shift stops changing: the fixed point
-   o = -(l, n) . dX(q(p + o), F).
+   predicted pin error in all three seam directions (lateral, normal and along the track: the
+   pin then sits on the seam point whose force it feels), re-teach the point (IK on the same
+   branch and tool rotation) and repeat until the shift stops changing: the fixed point
+   o = -(e_lat, e_norm, e_along)(q(p + o_lat l + o_norm n + o_along t), F).
 
-Both only use the numeric model (:func:`rfsw_plan.planning.verify.predict`).
+Both only use the numeric model (:func:`rfsw_plan.planning.verify.predict`, the process
+deflection with the task's seam reference).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
-from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.planning.task import PlanTask, offsets3
 from rfsw_plan.planning.verify import predict
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.window import WeldWindow
@@ -30,12 +32,14 @@ FloatArray = NDArray[np.float64]
 
 
 def commanded_poses(task: PlanTask, offsets: FloatArray, rotation: float) -> FloatArray:
-    """Commanded TCP poses p + o_lat l + o_norm n with the TCP z axis -n, (K, 4, 4)."""
+    """Commanded TCP poses p + o_lat l + o_norm n + o_along t with the TCP z axis -n,
+    (K, 4, 4); offsets (lateral, normal[, along-track]) [m], (K, 3) or (K, 2)."""
     R = tcp_orientation(task.frames, rotation)
     T = np.tile(np.eye(4), (len(task), 1, 1))
     T[:, :3, :3] = R
-    o = np.asarray(offsets, dtype=float)
-    T[:, :3, 3] = task.target + o[:, :1] * task.frames.l + o[:, 1:2] * task.frames.n
+    o = offsets3(offsets)
+    fr = task.frames
+    T[:, :3, 3] = task.target + o[:, :1] * fr.l + o[:, 1:2] * fr.n + o[:, 2:3] * fr.t
     return T
 
 
@@ -71,6 +75,48 @@ def ik_path(
         q = res.q
         Q[k] = q
     return Q
+
+
+def _rotation_log(R: FloatArray) -> FloatArray:
+    """Rotation vectors of rotation matrices (m, 3, 3), shape (m, 3) [rad]."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_matrix(R).as_rotvec())
+
+
+def refine_path(
+    robot: Robot, poses: FloatArray, q_near: FloatArray, tol: float = 1e-7,
+    s: FloatArray | None = None, max_iter: int = 8,
+) -> FloatArray:
+    """Joint values at poses (K, 4, 4) near a nearby path q_near (K, n) [rad]: Newton steps
+    dq = J^-1 (dp, log(R_target R^T)) on all waypoints at once (6-joint arms; J the base-frame
+    TCP Jacobian), the same tolerance as :func:`ik_path`, which is the fallback (other arms,
+    a step that does not converge or leaves the joint limits).
+
+    Raises:
+        UnreachableError: As :func:`ik_path`.
+    """
+    Q = np.array(q_near, dtype=float)
+    lo, hi = robot.description.lower, robot.description.upper
+    if robot.nq == 6:
+        for _ in range(max_iter):
+            T, J = robot.batch_fk_jacobian(Q)[:2]
+            err = np.hstack([poses[:, :3, 3] - T[:, :3, 3],
+                             _rotation_log(poses[:, :3, :3] @ np.transpose(T[:, :3, :3],
+                                                                          (0, 2, 1)))])
+            if (np.max(np.linalg.norm(err[:, :3], axis=1)) < tol
+                    and np.max(np.linalg.norm(err[:, 3:], axis=1)) < tol):
+                if np.all((Q - lo >= 0) & (hi - Q >= 0)):
+                    return Q
+                break
+            try:
+                dq = np.linalg.solve(J, err[:, :, None])[:, :, 0]
+            except np.linalg.LinAlgError:
+                break
+            if not np.all(np.isfinite(dq)) or np.max(np.abs(dq)) > 0.1:
+                break  # not a small correction: leave it to the damped IK
+            Q = Q + dq
+    return ik_path(robot, poses, q_near[0], q_warm=q_near, tol=tol, s=s)
 
 
 def _s(poses: FloatArray, k: int) -> float:
@@ -163,7 +209,7 @@ class BaselinePlan:
     Attributes:
         name: ``none`` or ``mirror``.
         q: Joint values [rad], (K, n).
-        offsets: Offsets (lateral, normal) [m], (K, 2).
+        offsets: Offsets (lateral, normal, along-track) [m], (K, 3).
         iterations: Fixed-point iterations (mirror).
         converged: The fixed point converged (mirror).
     """
@@ -178,7 +224,7 @@ class BaselinePlan:
 def no_compensation(robot: Robot, task: PlanTask, q_seed: FloatArray,
                     rotation: float = 0.0) -> BaselinePlan:
     """Baseline 1: taught to the seam, no offsets."""
-    off = np.zeros((len(task), 2))
+    off = np.zeros((len(task), 3))
     q = ik_path(robot, commanded_poses(task, off, rotation), q_seed, s=task.s)
     return BaselinePlan("none", q, off)
 
@@ -189,21 +235,21 @@ def mirror_compensation(
 ) -> BaselinePlan:
     """Baseline 2: per-waypoint fixed-point 'mirror' fake targets at the taught configuration.
 
-    o^{j+1} = o^j - (e_lat, e_norm)(q^j), q^j = IK(p + o^j) on the taught branch and tool
-    rotation, until the change is below tol [m].
+    o^{j+1} = o^j - (e_lat, e_norm, e_along)(q^j), q^j = IK(p + o^j) on the taught branch and
+    tool rotation, until the change is below tol [m].
     """
     robot = model.robot
-    off = np.zeros((len(task), 2))
+    off = np.zeros((len(task), 3))
     q = np.asarray(q_taught, dtype=float)
     converged = False
     it = 0
     while it < max_iter:
         it += 1
         pred = predict(model, task, q, 0.0)
-        err = np.column_stack([pred.e_lat, pred.e_norm])
+        err = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
         step = -err
         off = off + step
-        q = ik_path(robot, commanded_poses(task, off, rotation), q[0], q_warm=q, s=task.s)
+        q = refine_path(robot, commanded_poses(task, off, rotation), q, s=task.s)
         if np.max(np.abs(step)) < tol:
             converged = True
             break

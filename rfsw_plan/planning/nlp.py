@@ -1,19 +1,25 @@
 """The planning NLP: joint values and fake-target offsets along the seam (CasADi + IPOPT).
 
-Decision variables per waypoint k (one column of W, shape (n + 3, K)):
+Decision variables per waypoint k (one column of W, shape (n + 4, K)):
 
 * ``q_k`` [rad] (n): the robot configuration. The TCP position is fixed by the constraints,
   and of the orientation only the tool axis: the rotation of the axisymmetric tool about its
   axis is free and the solver uses it.
-* ``o_k`` [mm] (2): the fake-target offset, lateral (along l) and normal (along n).
+* ``o_k`` [mm] (3): the fake-target offset, lateral (along l), normal (along n) and
+  along-track (along t).
 * ``sigma_k`` [mm]: how far the worst case leaves the window (exact L1 penalty; fixed to 0 with
   ``robust_hard``).
 
 Per waypoint, with p_k the nominal target, F_k the wrench (base frame) and C_X the Cartesian
 compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11, seed 002 eq. 2):
 
-* FK_p(q_k) = p_k + o_lat l_k + o_norm n_k and R(q_k) e_z . t_k = R(q_k) e_z . l_k = 0,
-  R(q_k) e_z . n_k <= -1/2 (the TCP z axis is -n_k);
+* FK_p(q_k) = p_k + o_lat l_k + o_norm n_k + o_along t_k and R(q_k) e_z . t_k =
+  R(q_k) e_z . l_k = 0, R(q_k) e_z . n_k <= -1/2 (the TCP z axis is -n_k);
+* along the track the predicted pin is on the seam point: t_k . (FK_p(q_k) + [C_X(q_k) F_k]_p
+  - p_k) + c_t,k = 0. The process model gives F_k for the pin at s_k (the traverse force ramps
+  up over the first millimetre of *pin* travel); with this row the pin is there, the lag of
+  the pin behind the TCP (several mm while the ramp winds it up) is in o_along, and the weld is
+  timed on s_k directly (:mod:`rfsw_plan.timing.trajectory`);
 * e_k = l_k . (FK_p(q_k) + [C_X(q_k) F_k]_p - p_k) + c_k (c_k: outer correction for effects
   the symbolic model lacks), lower + margin <= e_k <= upper - margin;
 * robust window: the box |delta f_i| <= u |f_i| moves e_k by at most
@@ -31,7 +37,8 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
 
 Between neighbours: |q_{k+1} - q_k| <= joint step; |o_{k+1} - o_k| <= offset rate * travel
 (+ offset speed * time while stationary) + the step the load change itself demands (the mirror
-baseline's step; see ``load_steps``).
+baseline's step; see ``load_steps``), per offset component (the along-track component follows
+the traverse-force ramp, which the load step allows).
 
 Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
 w_stiffness share c_max / ref plus the mean over waypoints of
@@ -39,7 +46,8 @@ w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw + w_robust sigma_k /
 + w_centre ((e_k - centre) / hw)^2 + w_depth (normal error / 1 mm)^2
 + w_proximity |q_k - q_warm,k|^2 (keeps the null space, e.g. an unused tool rotation, at the
 warm start), plus mean over links of
-w_smooth_q |dq / h|^2 + w_smooth_o |do / h|^2.
+w_smooth_q |dq / h|^2 + w_smooth_o |do_lat,norm / h|^2 (the along-track offset is fixed by the
+pin's along-track row, so it is not smoothed).
 
 The NLP is one ``nlpsol`` over the stacked vector; the per-waypoint part is one SX function
 ``map``-ped over the waypoints, so the KKT matrix is banded and the build cost does not grow
@@ -67,7 +75,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
-from rfsw_plan.planning.task import PlanTask
+from rfsw_plan.planning.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot
 
@@ -77,10 +85,13 @@ log = logging.getLogger(__name__)
 #: Names of the per-waypoint constraint rows, in order.
 POINT_CONSTRAINTS = (
     "position_x", "position_y", "position_z", "axis_t", "axis_l", "axis_n",
-    "window", "robust_lower", "robust_upper", "singularity", "stiffness_cap",
+    "window", "robust_lower", "robust_upper", "along_track", "singularity", "stiffness_cap",
 )
 #: Names of the terms returned by the point function, in order.
-POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error")
+POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error",
+               "along_error")
+#: Offset components per waypoint (lateral, normal, along-track).
+N_OFF = 3
 _NG = len(POINT_CONSTRAINTS)
 #: Global scalars passed to every waypoint: 5 weights, compliance reference, window centre and
 #: half width [mm], 1 / K, proximity weight, share of the stiffness weight on the mean.
@@ -90,9 +101,9 @@ ABS_EPS = 1e-2
 
 
 def n_par(n: int) -> int:
-    """Per-waypoint parameters: target(3) t(3) l(3) n(3) F(6) u|f|(3) corr(2) det sign,
+    """Per-waypoint parameters: target(3) t(3) l(3) n(3) F(6) u|f|(3) corr(3) det sign,
     floor, value (3), q at linearisation (n), d det / dq (n), weld flag (1)."""
-    return 27 + 2 * n
+    return 28 + 2 * n
 
 
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
@@ -107,12 +118,12 @@ class PointFunctions:
     """Per-waypoint CasADi functions (SX, optionally compiled to C).
 
     Attributes:
-        info: ``(w, par) -> (g (10,), terms (5,), dX (6,))``.
+        info: ``(w, par) -> (g (12,), terms (6,), dX (6,))``.
         fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
-        grad: ``(w, par, glob) -> grad phi (n + 3,)``.
-        jac: ``(w, par) -> dg/dw`` dense (10, n + 3).
+        grad: ``(w, par, glob) -> grad phi (n + 4,)``.
+        jac: ``(w, par) -> dg/dw`` dense (12, n + 4).
         hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
-            dense upper triangle (n + 3, n + 3).
+            dense upper triangle (n + 4, n + 4).
         skipped: Effects the symbolic model lacks.
         compiled: True if the functions run as compiled C.
         fg_vm: ``fg`` in the CasADi virtual machine (differentiable by CasADi; the NLP
@@ -146,34 +157,35 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
         return _POINT_CACHE[key]
     robot = model.robot
     n = robot.nq
-    w = ca.SX.sym("w", n + 3)
+    w = ca.SX.sym("w", n + N_OFF + 1)
     par = ca.SX.sym("par", n_par(n))
     glob = ca.SX.sym("glob", N_GLOB)
-    q, o, sigma = w[:n], w[n:n + 2], w[n + 2]
+    q, o, sigma = w[:n], w[n:n + N_OFF], w[n + N_OFF]
     target, t, l, nn = par[0:3], par[3:6], par[6:9], par[9:12]
-    F, uf, corr = par[12:18], par[18:21], par[21:23]
-    det_sign, det_floor, det0 = par[23], par[24], par[25]
-    q_lin, ddet = par[26:26 + n], par[26 + n:26 + 2 * n]
-    weld_flag = par[26 + 2 * n]
+    F, uf, corr = par[12:18], par[18:21], par[21:24]
+    det_sign, det_floor, det0 = par[24], par[25], par[26]
+    q_lin, ddet = par[27:27 + n], par[27 + n:27 + 2 * n]
+    weld_flag = par[27 + 2 * n]
     ch = symbolic_chain(robot, q)
     C, skipped = symbolic_cartesian_compliance(model, ch)
     dX = C @ F
     z = ch.R[:, 2]
-    pos = 1e3 * (ch.p - target) - o[0] * l - o[1] * nn
+    pos = 1e3 * (ch.p - target) - o[0] * l - o[1] * nn - o[2] * t
     pin_err = ch.p + dX[:3] - target
     e = 1e3 * ca.dot(l, pin_err) + corr[0]
     dep = 1e3 * ca.dot(nn, pin_err) + corr[1]
+    along = 1e3 * ca.dot(t, pin_err) + corr[2]
     lC = C[:3, :3] @ l
     proj = ca.vertcat(*(1e3 * uf[i] * ca.dot(lC, b) for i, b in enumerate((t, l, nn))))
     r = ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2))
     cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
     g = ca.vertcat(
         pos, ca.dot(z, t), ca.dot(z, l), ca.dot(z, nn), e,
-        e - r + sigma, e + r - sigma,
+        e - r + sigma, e + r - sigma, along,
         det_sign * (det0 + ca.dot(ddet, q - q_lin)) - det_floor,
         weld_flag * cll,  # - c_max (the global epigraph variable) is added in the NLP
     )
-    terms = ca.vertcat(cll, r, sigma, e, dep)
+    terms = ca.vertcat(cll, r, sigma, e, dep, along)
     wt, cref, centre, hw, inv_k = glob[:5], glob[5], glob[6], glob[7], glob[8]
     mean_share = glob[10]
     phi = inv_k * (wt[0] * mean_share * cll / cref + wt[1] * r / hw + wt[2] * sigma / hw
@@ -257,10 +269,10 @@ class PlanNLP:
         task: The task it plans.
         options: The options it was built with.
         n_joints: n.
-        x0: Initial guess, shape (K (n + 3) + 1,) (the last entry is c_max, the largest
+        x0: Initial guess, shape (K (n + 4) + 1,) (the last entry is c_max, the largest
             lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (11 K + (n + 2)(K - 1),).
+        lbg, ubg: Constraint bounds, shape (12 K + (n + 3)(K - 1),).
         p: Parameter vector.
     """
 
@@ -290,8 +302,8 @@ class PlanNLP:
 
     @property
     def n_w(self) -> int:
-        """Variables per waypoint, n + 3."""
-        return self.n_joints + 3
+        """Variables per waypoint, n + 4."""
+        return self.n_joints + N_OFF + 1
 
     @property
     def par(self) -> FloatArray:
@@ -303,39 +315,39 @@ class PlanNLP:
         """Name of every constraint row, e.g. ``window[12]`` or ``joint_step_q3[4]``."""
         K, n = self.n_waypoints, self.n_joints
         names = [f"{c}[{k}]" for k in range(K) for c in POINT_CONSTRAINTS]
-        link = [f"joint_step_q{j + 1}" for j in range(n)] + ["offset_rate_lat",
-                                                            "offset_rate_norm"]
+        link = [f"joint_step_q{j + 1}" for j in range(n)] + [
+            "offset_rate_lat", "offset_rate_norm", "offset_rate_along"]
         names += [f"{c}[{k}]" for k in range(K - 1) for c in link]
         return names
 
     def unpack(self, x: FloatArray) -> dict[str, FloatArray]:
-        """Split a variable vector: q (K, n) [rad], offsets (K, 2) [m], sigma (K,) [mm],
-        c_max [mm/kN]."""
+        """Split a variable vector: q (K, n) [rad], offsets (lateral, normal, along) (K, 3)
+        [m], sigma (K,) [mm], c_max [mm/kN]."""
         n = self.n_joints
         x = np.asarray(x, dtype=float)
         W = x[:-1].reshape(self.n_waypoints, self.n_w)
-        return {"q": W[:, :n], "offsets": W[:, n:n + 2] * 1e-3, "sigma": W[:, n + 2],
+        return {"q": W[:, :n], "offsets": W[:, n:n + N_OFF] * 1e-3, "sigma": W[:, n + N_OFF],
                 "c_max": x[-1:]}
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-waypoint (g (K, 16), terms (K, 5), dX (K, 6)) at x (the NLP's own model)."""
+        """Per-waypoint (g (K, 12), terms (K, 6), dX (K, 6)) at x (the NLP's own model)."""
         K = self.n_waypoints
         W = np.asarray(x, dtype=float)[: K * self.n_w].reshape(K, self.n_w)
         g, t, dx = self.point.info.map(K)(W.T, self.par.T)
         return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
 
     def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
-        """A variable vector from q (K, n) [rad] and offsets (K, 2) [m]; sigma and c_max get
-        their tightest feasible values."""
+        """A variable vector from q (K, n) [rad] and offsets (K, 3) or (K, 2) [m]; sigma and
+        c_max get their tightest feasible values."""
         n = self.n_joints
         W = np.zeros((self.n_waypoints, self.n_w))
         W[:, :n] = q
-        W[:, n:n + 2] = np.asarray(offsets) * 1e3
+        W[:, n:n + N_OFF] = offsets3(offsets) * 1e3
         x = np.append(W.reshape(-1), 0.0)
         _, terms, _ = self.point_values(x)
         e, r = terms[:, 3], terms[:, 1]
         lo, hi = self.p[-2], self.p[-1]  # window [mm]
-        W[:, n + 2] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
+        W[:, n + N_OFF] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
         c_max = float(np.max(terms[:, 0] * self.par[:, -1]))
         return np.append(W.reshape(-1), c_max)
 
@@ -355,7 +367,7 @@ class PlanNLP:
 
 def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
                   ) -> tuple[ca.Function, ca.Function]:
-    nw, npar = n + 3, n_par(n)
+    nw, npar = n + N_OFF + 1, n_par(n)
     X = ca.MX.sym("x", nw * K + 1)
     W = ca.reshape(X[: nw * K], nw, K)
     c_max = X[nw * K]  # epigraph of the weld waypoints' lateral compliance [mm/kN]
@@ -381,9 +393,9 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
     fs = ca.MX(0)
     if K > 1:
         dW = W[:, 1:] - W[:, :-1]
-        dq, do = dW[:n, :], dW[n:n + 2, :]
+        dq, do = dW[:n, :], dW[n:n + N_OFF, :]
         fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
-              + wo * ca.sumsqr(1e-3 * do * ca.repmat(hinv, 2, 1))) / (K - 1)
+              + wo * ca.sumsqr(1e-3 * do[:2, :] * ca.repmat(hinv, 2, 1))) / (K - 1)
         g_parts.append(ca.vec(ca.vertcat(dq, do)))
     f = f + fs
     g = ca.vertcat(*g_parts)
@@ -416,7 +428,10 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
         "ipopt.tol": opts.tol, "ipopt.constr_viol_tol": 1e-7, "ipopt.max_iter": opts.max_iter,
         "ipopt.linear_solver": "mumps", "ipopt.hessian_approximation": "exact",
         "ipopt.mu_strategy": "adaptive", "ipopt.warm_start_init_point": "yes",
-        "ipopt.warm_start_bound_push": 1e-9, "ipopt.warm_start_mult_bound_push": 1e-9,
+        # Push the warm start 1e-6 off its bounds: at 1e-9 (the warm start's sigma, slack and
+        # c_max rows sit exactly on their bounds) the first steps were ~1e-8 long and IPOPT
+        # needed about twice the iterations (34 instead of 18 at 1000 waypoints).
+        "ipopt.warm_start_bound_push": 1e-6, "ipopt.warm_start_mult_bound_push": 1e-6,
         "ipopt.mu_init": 1e-4,
         "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess, "calc_lam_p": False,
     }
@@ -473,19 +488,22 @@ def build_plan_nlp(
         window: Weld window [m].
         q_init: Warm start [rad], shape (K, n) (taught path or mirror baseline); also where
             the singularity constraint is linearised.
-        offsets_init: Warm-start offsets (lateral, normal) [m], shape (K, 2).
+        offsets_init: Warm-start offsets (lateral, normal, along-track) [m], shape (K, 3) (or
+            (K, 2)).
         options: Planner options.
-        correction: Outer-loop correction of the lateral and normal error [m], shape (K, 2).
+        correction: Outer-loop correction of the lateral, normal and along-track error [m],
+            shape (K, 3).
         compile_c: Compile the point functions to C; None: when K >= 200 or already cached.
-        load_steps: Offset change the load itself demands on each link (lateral, normal) [m],
-            shape (K - 1, 2), e.g. the mirror baseline's steps; added to the offset-rate bound
-            so the bound limits only the *extra* offset change (the force ramps at the weld
-            start need offsets that follow them). None: zero.
+        load_steps: Offset change the load itself demands on each link (lateral, normal,
+            along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
+            offset-rate bound so the bound limits only the *extra* offset change (the force
+            ramps at the weld start need offsets that follow them). None: zero.
 
     Returns:
         The inspectable :class:`PlanNLP`.
     """
     opts = options or PlanOptions()
+    model = model.physical()  # the wrench is modelled: sensor-only effects do not apply
     robot = model.robot
     n, K = robot.nq, len(task)
     if compile_c is None:
@@ -503,7 +521,7 @@ def build_plan_nlp(
     q_init = np.asarray(q_init, dtype=float)
     fr = task.frames
     F = task.wrench_base
-    corr = np.zeros((K, 2)) if correction is None else np.asarray(correction, dtype=float)
+    corr = np.zeros((K, N_OFF)) if correction is None else np.asarray(correction, dtype=float)
     PAR = np.column_stack([
         task.target, fr.t, fr.l, fr.n, F, opts.force_uncertainty * np.abs(task.force_seam),
         corr * 1e3, np.zeros((K, 3 + 2 * n)), (task.phase == "weld").astype(float),
@@ -521,13 +539,14 @@ def build_plan_nlp(
                          window.upper * 1e3]])
 
     d = robot.description
-    lbw = np.concatenate([d.lower, [-np.inf, -np.inf], [0]])
-    ubw = np.concatenate([d.upper, [np.inf, np.inf], [0.0 if opts.robust_hard else np.inf]])
+    lbw = np.concatenate([d.lower, np.full(N_OFF, -np.inf), [0]])
+    ubw = np.concatenate([d.upper, np.full(N_OFF, np.inf),
+                          [0.0 if opts.robust_hard else np.inf]])
     lbx, ubx = np.append(np.tile(lbw, K), 0.0), np.append(np.tile(ubw, K), np.inf)
     lo, hi = window.lower * 1e3, window.upper * 1e3
     m = opts.margin * 1e3
-    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0, -np.inf])
-    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, np.inf, 0.0])
+    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0, 0.0, -np.inf])
+    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, 0.0, np.inf, 0.0])
     lbg_parts, ubg_parts = [np.tile(lbp, K)], [np.tile(ubp, K)]
     if K > 1:
         ds = task.link_travel()
@@ -535,12 +554,14 @@ def build_plan_nlp(
         stationary = ds <= 1e-12
         o_step = (opts.offset_rate * ds + np.where(stationary, opts.offset_speed_stationary
                                                    * dt, 0.0)) * 1e3 + 1e-6
-        extra = np.zeros((K - 1, 2)) if load_steps is None else np.abs(load_steps) * 1e3
+        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None
+                 else np.abs(offsets3(load_steps)) * 1e3)
         link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
-                                   o_step + extra[:, 0], o_step + extra[:, 1]])
+                                   o_step[:, None] + extra])
         lbg_parts.append(-link_hi.reshape(-1))
         ubg_parts.append(link_hi.reshape(-1))
-    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + 3) * K + 1), lbx, ubx,
+    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + N_OFF + 1) * K + 1),
+                  lbx, ubx,
                   np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
 
@@ -548,26 +569,26 @@ def build_plan_nlp(
 def _set_det(PAR: FloatArray, robot: Robot, Q: FloatArray, opts: PlanOptions) -> None:
     n = robot.nq
     d0, dd = _det_linearisation(robot, Q, opts.length_scale)
-    PAR[:, 23] = np.where(d0 >= 0, 1.0, -1.0)
-    PAR[:, 24] = opts.det_fraction * np.abs(d0)
-    PAR[:, 25] = d0
-    PAR[:, 26:26 + n] = Q
-    PAR[:, 26 + n:26 + 2 * n] = dd
+    PAR[:, 24] = np.where(d0 >= 0, 1.0, -1.0)
+    PAR[:, 25] = opts.det_fraction * np.abs(d0)
+    PAR[:, 26] = d0
+    PAR[:, 27:27 + n] = Q
+    PAR[:, 27 + n:27 + 2 * n] = dd
 
 
 def update_parameters(nlp: PlanNLP, correction: FloatArray | None = None,
                       q_lin: FloatArray | None = None) -> PlanNLP:
-    """The same NLP with a new outer correction (lateral, normal) [m] (K, 2) and/or the
-    singularity constraint re-linearised at q_lin (K, n) [rad]."""
+    """The same NLP with a new outer correction (lateral, normal, along-track) [m] (K, 3)
+    and/or the singularity constraint re-linearised at q_lin (K, n) [rad]."""
     K = nlp.n_waypoints
     p = nlp.p.copy()
     PAR = nlp.par.copy()
     if correction is not None:
-        PAR[:, 21:23] = np.asarray(correction) * 1e3
+        PAR[:, 21:24] = np.asarray(correction) * 1e3
     if q_lin is not None:
-        floor = PAR[:, 24].copy()  # the floor stays where the warm start put it
+        floor = PAR[:, 25].copy()  # the floor stays where the warm start put it
         _set_det(PAR, nlp.robot, np.asarray(q_lin), nlp.options)
-        PAR[:, 24] = floor
+        PAR[:, 25] = floor
     p[: K * PAR.shape[1]] = PAR.reshape(-1)
     return replace(nlp, p=p)
 
@@ -579,7 +600,7 @@ class NLPSolution:
     Attributes:
         x: Solution vector.
         q: Joint values [rad], (K, n).
-        offsets: Offsets (lateral, normal) [m], (K, 2).
+        offsets: Offsets (lateral, normal, along-track) [m], (K, 3).
         sigma: Worst-case excess over the window [m], (K,).
         success: IPOPT reported success.
         status: IPOPT return status.
@@ -617,7 +638,7 @@ def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
 
 
 def nlp_prediction(nlp: PlanNLP, x: FloatArray) -> FloatArray:
-    """The NLP's own predicted (lateral, normal) pin error [m] at x, without the outer
-    correction, shape (K, 2)."""
+    """The NLP's own predicted (lateral, normal, along-track) pin error [m] at x, without the
+    outer correction, shape (K, 3)."""
     _, terms, _ = nlp.point_values(x)
-    return (terms[:, [3, 4]] - nlp.par[:, 21:23]) * 1e-3
+    return (terms[:, [3, 4, 5]] - nlp.par[:, 21:24]) * 1e-3

@@ -53,7 +53,7 @@ class PlanResult:
         window: The weld window.
         options: The options used.
         q: Planned joint values [rad], (K, n).
-        offsets: Planned offsets (lateral, normal) [m], (K, 2).
+        offsets: Planned offsets (lateral, normal, along-track) [m], (K, 3).
         tool_rotation: Tool rotation about its axis relative to tcp_orientation at rotation 0
             [rad], (K,).
         verification: The independent numeric verification.
@@ -134,6 +134,7 @@ class PlanResult:
             "n_waypoints": len(self.task),
             "n_start_waypoints": self.task.n_start,
             "window_mm": [self.window.lower * 1e3, self.window.upper * 1e3],
+            "seam_reference": self.task.reference,
             "force_uncertainty": self.options.force_uncertainty,
             "weights": self.options.weights,
             "baselines": [b.to_dict() for b in self.baselines],
@@ -147,9 +148,9 @@ class PlanResult:
             "min_margin_mm": float(np.min(v.margin)) * 1e3,
             "robust_window_held_fraction": float(np.mean(v.robust_margin >= -1e-9)),
             "weld_speed_mm_s": self.trajectory.weld_speed * 1e3,
-            "weld_speed_is_pin_speed": self.trajectory.pin_timed,
             "pin_speed_during_weld_mm_s": _range(self.trajectory.pin_speed()[
                 self.trajectory.phase == "weld"][1:-1] * 1e3),
+            "max_abs_along_track_error_mm": float(np.max(np.abs(v.along_error))) * 1e3,
             "max_feasible_weld_speed_mm_s": self.trajectory.max_weld_speed * 1e3,
             "duration_s": float(self.trajectory.t[-1]),
             "waypoints": {
@@ -158,8 +159,10 @@ class PlanResult:
                 "q_deg": np.rad2deg(self.q).tolist(),
                 "off_lat_mm": (self.offsets[:, 0] * 1e3).tolist(),
                 "off_norm_mm": (self.offsets[:, 1] * 1e3).tolist(),
+                "off_along_mm": (self.offsets[:, 2] * 1e3).tolist(),
                 "tool_rotation_deg": np.rad2deg(self.tool_rotation).tolist(),
                 "e_lat_mm": (v.prediction.e_lat * 1e3).tolist(),
+                "e_along_mm": (v.along_error * 1e3).tolist(),
                 "e_lat_none_mm": (self.e_none * 1e3).tolist(),
                 "e_lat_mirror_mm": (self.e_mirror * 1e3).tolist(),
                 "worst_case_mm": (v.prediction.worst * 1e3).tolist(),

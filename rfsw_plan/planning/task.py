@@ -5,6 +5,10 @@ A task has ``K = m + k`` waypoints: first ``m`` stationary *time waypoints* at t
 weld waypoints along the seam. Every waypoint has a seam frame, a nominal TCP target (the seam
 point; during the plunge raised along the tool axis by the depth still to go), the wrench on the
 tool and the time it is reached (stationary ones) or the travel from the previous one.
+
+Fake-target offsets are stored as (K, 3) arrays (lateral, normal, along-track) [m]: the commanded
+TCP position is p_k + o_lat l_k + o_norm n_k + o_along t_k (:func:`offsets3` pads a (K, 2)
+array of lateral and normal offsets with a zero along-track column).
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 
@@ -34,6 +39,9 @@ class PlanTask:
         depth: Commanded plunge depth below the surface [m], (K,).
         n_start: Number of stationary waypoints m at the start.
         travel_speed: Weld travel speed [m/s].
+        reference: How the seam points relate to the robot (``taught`` or ``absolute``); the
+            modelled process wrench deflects the TCP by
+            :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection` with it.
     """
 
     frames: SeamFrames
@@ -45,6 +53,7 @@ class PlanTask:
     depth: FloatArray
     n_start: int
     travel_speed: float
+    reference: SeamReference = "taught"
 
     def __len__(self) -> int:
         return int(self.target.shape[0])
@@ -79,13 +88,25 @@ class PlanTask:
                           1e-6)
 
 
+def offsets3(offsets: FloatArray) -> FloatArray:
+    """Offsets (lateral, normal, along-track) [m], shape (K, 3), from a (K, 2) or (K, 3) array
+    (a (K, 2) array has no along-track part)."""
+    o = np.atleast_2d(np.asarray(offsets, dtype=float))
+    if o.shape[1] == 2:
+        o = np.column_stack([o, np.zeros(len(o))])
+    if o.shape[1] != 3:
+        raise InputError("plan", "offsets", f"shape {o.shape}", "(K, 2) or (K, 3)")
+    return o
+
+
 def _stack(a: SeamFrames, b: SeamFrames) -> SeamFrames:
     return SeamFrames(*(np.concatenate([getattr(a, f), getattr(b, f)])
                         for f in ("s", "p", "t", "l", "n")))
 
 
 def task_constant_force(
-    frames: SeamFrames, force_seam: FloatArray, travel_speed: float
+    frames: SeamFrames, force_seam: FloatArray, travel_speed: float,
+    reference: SeamReference = "taught",
 ) -> PlanTask:
     """A task of weld waypoints only, with one seam-frame force everywhere (tests, baselines).
 
@@ -93,15 +114,18 @@ def task_constant_force(
         frames: Weld waypoints (k rows).
         force_seam: Force (f_t, f_l, f_n) [N], shape (3,) or (k, 3).
         travel_speed: Weld speed [m/s].
+        reference: Seam reference (see :class:`PlanTask`).
     """
     k = len(frames)
     f = np.broadcast_to(np.asarray(force_seam, dtype=float), (k, 3)).copy()
     return PlanTask(frames, frames.p.copy(), f, np.zeros((k, 3)), np.full(k, "weld"),
-                    (frames.s - frames.s[0]) / travel_speed, np.zeros(k), 0, float(travel_speed))
+                    (frames.s - frames.s[0]) / travel_speed, np.zeros(k), 0, float(travel_speed),
+                    reference)
 
 
 def task_from_schedule(
-    frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12
+    frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12,
+    reference: SeamReference = "taught",
 ) -> PlanTask:
     """The task of a seam and its load schedule.
 
@@ -114,6 +138,7 @@ def task_from_schedule(
         frames: Weld waypoints along the seam (k rows).
         schedule: The process over time (plunge and dwell at s = 0, then weld).
         max_start: Most stationary waypoints.
+        reference: Seam reference (see :class:`PlanTask`).
     """
     weld = schedule.mask("weld")
     if not np.any(weld):
@@ -153,6 +178,7 @@ def task_from_schedule(
         depth=np.concatenate([depth_s, np.full(k, depth_full)]),
         n_start=m,
         travel_speed=v,
+        reference=reference,
     )
 
 
