@@ -166,6 +166,9 @@ class BaselineMetrics:
             (|e - centre| + r + |centre|, i.e. the farthest point of e +- r from 0) [m].
         min_lateral_stiffness: min over waypoints of 1 / (l^T C_tt l) [N/m].
         inside_fraction: Fraction of weld waypoints with e_lat inside the window.
+        robust_margin: min over waypoints of the distance of the worst case e +- r to the
+            nearest window bound [m] (negative: the worst case leaves the window by that much).
+            Unlike ``worst_case`` it accounts for the asymmetric window.
     """
 
     name: str
@@ -174,6 +177,7 @@ class BaselineMetrics:
     worst_case: float
     min_lateral_stiffness: float
     inside_fraction: float
+    robust_margin: float = float("nan")
 
     def to_dict(self) -> dict[str, float | str]:
         """File units: mm and N/mm."""
@@ -184,6 +188,7 @@ class BaselineMetrics:
             "worst_case_lateral_mm": self.worst_case * 1e3,
             "min_lateral_stiffness_N_mm": self.min_lateral_stiffness * 1e-3,
             "inside_window_fraction": self.inside_fraction,
+            "worst_case_window_margin_mm": self.robust_margin * 1e3,
         }
 
 
@@ -197,9 +202,10 @@ def metrics(
     e, r = pred.e_lat[sl], pred.worst[sl]
     worst = np.maximum(np.abs(e + r), np.abs(e - r))
     inside = (e >= window.lower) & (e <= window.upper)
+    robust = np.minimum(e - r - window.lower, window.upper - (e + r))
     return BaselineMetrics(name, float(np.max(np.abs(e))), float(np.sqrt(np.mean(e ** 2))),
                            float(np.max(worst)), float(np.min(pred.lateral_stiffness[sl])),
-                           float(np.mean(inside)))
+                           float(np.mean(inside)), float(np.min(robust)))
 
 
 @dataclass(frozen=True)

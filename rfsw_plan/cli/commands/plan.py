@@ -93,11 +93,16 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
           f"{result.iterations} IPOPT iterations, branch {result.branch})")
-    print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} {'k_lat N/mm':>11}")
+    u = result.options.force_uncertainty
+    print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
+          f"{'worst margin mm':>16} {'k_lat N/mm':>11}")
     for b in result.baselines:
         d = b.to_dict()
         print(f"{b.name:<8} {d['max_abs_lateral_mm']:>10.3f} {d['rms_lateral_mm']:>8.3f} "
-              f"{d['worst_case_lateral_mm']:>9.3f} {d['min_lateral_stiffness_N_mm']:>11.1f}")
+              f"{d['worst_case_lateral_mm']:>9.3f} {d['worst_case_window_margin_mm']:>16.3f} "
+              f"{d['min_lateral_stiffness_N_mm']:>11.1f}")
+    print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
+          "case to the window, negative = outside)")
     ww = summary["worst_waypoint"]
     print(f"worst waypoint {ww['index']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm): "
           f"e = {ww['e_lat_mm']:+.3f} mm, margin {ww['margin_mm']:.3f} mm")
