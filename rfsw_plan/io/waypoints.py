@@ -154,7 +154,8 @@ def _json_default(o: Any) -> Any:
 
 def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     """``lateral_error.png``: predicted lateral error along the seam, before and after, with
-    the window band (weld waypoints; the stationary start waypoints at s = 0 as markers)."""
+    the window band and the plan's worst case under the force uncertainty (weld waypoints;
+    the stationary start waypoints at s = 0 as markers)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -167,6 +168,16 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     fig, ax = plt.subplots(figsize=(8, 4.5))
     ax.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
                label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:g}] mm")
+    # Worst case of the plan under the force uncertainty box: e +- r (verified numerically).
+    r = result.verification.prediction.worst
+    u = result.options.force_uncertainty
+    if u > 0:
+        e = result.e_lat
+        ax.fill_between(s[m:], (e[m:] - r[m:]) * 1e3, (e[m:] + r[m:]) * 1e3, color="tab:blue",
+                        alpha=0.15, lw=0, label=f"planned, worst case under +-{u * 100:g} % force")
+        if m:
+            ax.errorbar(np.zeros(m), e[:m] * 1e3, yerr=r[:m] * 1e3, fmt="none",
+                        ecolor="tab:blue", alpha=0.3)
     for e, lab, c in ((result.e_none, "no compensation", "tab:red"),
                       (result.e_mirror, "mirror fake targets", "tab:orange"),
                       (result.e_lat, "planned (NLP)", "tab:blue")):
