@@ -18,11 +18,13 @@ from rfsw_plan.realtime.base import NoCompensation, Strategy
 from rfsw_plan.realtime.metrics import weld_metrics
 from rfsw_plan.realtime.seed000 import RealtimeSeed000
 from rfsw_plan.realtime.simulator import (
+    NominalPath,
     ProcessVariation,
     SensorModel,
     SimConfig,
     VirtualWeld,
     WeldRun,
+    sensor_reading,
     truth_model,
 )
 from rfsw_plan.robot.kinematics import load_robot
@@ -111,6 +113,55 @@ def test_sensor_noise_has_the_requested_spread() -> None:
     r = vw.wrench_measured - vw.wrench_true
     assert 45.0 < np.std(r[:, :3]) < 55.0
     assert 4.5 < np.std(r[:, 3:]) < 5.5
+
+
+def _path_weld(
+    truth: ElastostaticModel | None, config: SimConfig
+) -> tuple[VirtualWeld, NominalPath]:
+    _, model, frames, Q, schedule = zk500()
+    vw = VirtualWeld(schedule, model, truth, config)
+    return vw, vw.path_from_waypoints(frames.s - frames.s[0], Q)
+
+
+def test_truth_sensor_bias_shifts_the_reading_by_the_bias_in_the_base_frame() -> None:
+    """Sensor samples at the cycles, no delay: the reading at cycle k is the true wrench plus
+    blockdiag(R_tool, R_tool) b at the path's pose of cycle k (seed-independent noise)."""
+    _, model, *_ = zk500()
+    sensor = SensorModel(rate_hz=250.0, delay_s=0.0, noise_force_N=20.0, noise_moment_Nm=2.0)
+    cfg = SimConfig(sensor=sensor)
+    b = np.array([40.0, -25.0, 120.0, 3.0, -2.0, 1.5])  # tool frame [N, N m]
+    truth = truth_model(model, 1.0, [("force_sensor_bias", dict(zip(
+        ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz"), b, strict=True)))])
+    vw, path = _path_weld(truth, cfg)
+    R = model.robot.batch_fk_jacobian(path.q)[0][:, :3, :3]
+    shift = np.hstack([R @ b[:3], R @ b[3:]])
+    measured = vw.measured_wrench(path)
+    np.testing.assert_allclose(measured - vw.wrench_measured, shift, rtol=0, atol=1e-9)
+    # The physics is unchanged, the controller reads the biased wrench.
+    assert np.array_equal(vw.wrench_true, _path_weld(None, cfg)[0].wrench_true)
+    np.testing.assert_array_equal(vw.controller_inputs(path).force_measured, measured)
+    # Truth = model: the reading along the path is the undistorted sensor signal.
+    plain, plain_path = _path_weld(None, cfg)
+    np.testing.assert_array_equal(plain.measured_wrench(plain_path), vw.wrench_measured)
+    np.testing.assert_array_equal(plain.controller_inputs(plain_path).force_measured,
+                                  vw.wrench_measured)
+
+
+def test_sensor_reading_inverts_a_misalignment_and_rejects_a_huge_one() -> None:
+    """The misaligned sensor logs M^T F (F_true = M F_logged, M a rotation), to 1e-9."""
+    _, model, _, Q, _ = zk500()
+    truth = truth_model(model, 1.0, [("sensor_misalignment",
+                                      {"phi_x": 0.03, "phi_y": -0.02, "phi_z": 0.05})])
+    batch = truth.batch(Q[:5])
+    rng = np.random.default_rng(3)
+    F = rng.normal(size=(5, 6)) * np.array([1e3, 1e3, 5e3, 50.0, 50.0, 50.0])
+    logged = sensor_reading(truth, batch, F)
+    np.testing.assert_allclose(truth.true_wrench(batch, logged), F, rtol=0, atol=1e-9)
+    assert np.max(np.abs(logged - F)) > 100.0  # really distorted
+    assert sensor_reading(model, batch, F) is F
+    huge = truth_model(model, 1.0, [("sensor_misalignment", {"phi_z": 2.5})])
+    with pytest.raises(InputError, match="does not converge"):
+        sensor_reading(huge, batch, F)
 
 
 def test_force_drift_is_bounded_and_only_in_the_weld() -> None:

@@ -11,6 +11,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.elastostatics.springs import (
     JointSprings,
     SpringChain,
+    chain_spring_deflection,
     spring_compliance,
     spring_deflection,
     spring_twists,
@@ -55,6 +56,51 @@ def test_grouped_springs_match_the_per_effect_sum(name: str) -> None:
     # One pose takes the single-Jacobian path.
     single = np.stack([model.deflection(Q[i], F[i]) for i in range(len(Q))])
     np.testing.assert_allclose(single, want, rtol=0, atol=tol)
+
+
+def test_batch_path_matches_the_effect_by_effect_sum_on_random_kuka_poses() -> None:
+    model = load_model("kuka_kr600_r2830")  # joint compliance + six tilting effects (file)
+    assert model.is_spring_model() and len(model.effects) == 7
+    Q, F = _poses(model, 50, seed=6)
+    batch = PoseBatch.from_q(model.robot, Q)
+    want = sum(e.deflection(batch, F, e.params) for e in model.effects)
+    tol = 1e-12 * np.max(np.abs(want))
+    np.testing.assert_allclose(model.deflection(Q, F), want, rtol=0, atol=tol)
+    # Chunk boundaries: the same with tiny chunks, and one wrench broadcast to every pose.
+    robot = model.robot
+    springs, _ = model._springs()
+    c = model.joint_compliance.params
+    robot.BATCH_CHUNK = 7  # instance attribute shadows the class constant
+    try:
+        np.testing.assert_allclose(chain_spring_deflection(robot, Q, F, c, springs), want,
+                                   rtol=0, atol=tol)
+        one = sum(e.deflection(batch, np.tile(F[0], (len(Q), 1)), e.params)
+                  for e in model.effects)
+        np.testing.assert_allclose(chain_spring_deflection(robot, Q, F[0], c, springs), one,
+                                   rtol=0, atol=tol)
+    finally:
+        del robot.BATCH_CHUNK
+    # No springs: the joint compliance alone.
+    joint = model.effects[0].deflection(batch, F, c)
+    np.testing.assert_allclose(chain_spring_deflection(robot, Q, F, c, []), joint, rtol=0,
+                               atol=1e-12 * np.max(np.abs(joint)))
+
+
+@pytest.mark.parametrize("name", ["kuka_kr600_r2830", "fanuc_s900ib_400"])
+def test_batch_path_handles_springs_about_any_axis(name: str) -> None:
+    model = load_model(name)
+    rng = np.random.default_rng(7)
+    axes = rng.normal(size=(3, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    springs = [JointSprings(1, axes, np.array([1e-7, 2e-7, 3e-7])),
+               JointSprings(4, axes[:1], np.array([5e-7])),
+               JointSprings(1, np.eye(3)[1:], np.array([4e-7, 6e-7]))]
+    Q, F = _poses(model, 9, seed=8)
+    batch = PoseBatch.from_q(model.robot, Q)
+    c = model.joint_compliance.params
+    want = spring_deflection(batch, springs, F) + model.effects[0].deflection(batch, F, c)
+    np.testing.assert_allclose(chain_spring_deflection(model.robot, Q, F, c, springs), want,
+                               rtol=0, atol=1e-12 * np.max(np.abs(want)))
 
 
 def test_spring_functions_match_tilting_compliance() -> None:

@@ -19,6 +19,7 @@ from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.springs import (
     JointSprings,
     SpringChain,
+    chain_spring_deflection,
     spring_compliance,
     spring_deflection,
 )
@@ -164,8 +165,12 @@ class ElastostaticModel:
         single = np.ndim(q) == 1
         if self.is_linear_joint_model():
             return self._joint_deflection_fast(q, wrench, single)
-        if single and self.is_spring_model():
-            return self._spring_deflection_single(q, wrench)
+        if self.is_spring_model():
+            if single:
+                return self._spring_deflection_single(q, wrench)
+            springs, _ = self._springs()
+            return chain_spring_deflection(self.robot, q, wrench, self.joint_compliance.params,
+                                           springs)
         batch = self.batch(q)
         dX = self.deflection_batch(batch, np.atleast_2d(wrench))
         return dX[0] if single else dX

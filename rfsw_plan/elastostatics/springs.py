@@ -19,6 +19,11 @@ C = sum_s c_s j_s j_s^T is one batched product over the stacked twists
 For one pose, :class:`SpringChain` adds one virtual revolute joint (at zero angle) per spring
 to a copy of the Pinocchio chain: a single frame-Jacobian call then returns the TCP Jacobian
 and every spring twist j_s, and dX = J_c C J_c^T F as for the joint compliance.
+
+For many poses given as joint values, :func:`chain_spring_deflection` does the same on the
+vectorised kinematics: the spring axes u_s are turned into the base frame inside the joint loop
+of :meth:`Robot.chain_chunk` and joint and spring turns are summed in its internal layout,
+without joint frames or Jacobians per pose.
 """
 
 from __future__ import annotations
@@ -94,6 +99,73 @@ def spring_deflection(
     dX[:, :3] = _cross(w, r).sum(axis=1)
     dX[:, 3:] = w.sum(axis=1)
     return dX
+
+
+def chain_spring_deflection(
+    robot: Robot, q: FloatArray, wrench: FloatArray, joint_compliance: FloatArray,
+    springs: Sequence[JointSprings],
+) -> FloatArray:
+    """TCP deflection of joint compliance plus spring effects from joint values [m, rad],
+    base frame, shape (m, 6).
+
+    The same sum as :class:`~rfsw_plan.elastostatics.effects.JointCompliance` plus
+    :func:`spring_deflection` (seed 000 eq. 11, seed 002 eq. 2), evaluated on the vectorised
+    kinematics in their internal layout (:meth:`Robot.chain_chunk`, pose index last, the
+    spring axes turned into the base frame inside its joint loop) without building a
+    :class:`PoseBatch`. Every spring is a virtual revolute joint at rest (axis u_s at the
+    origin o_s of its joint); with the moment of the wrench about chain joint i's origin
+    M_i = (p - o_i) x f + mu, joint i turns by dq = G diag(c) G^T tau, tau_i = z_i . M_i,
+    spring s by c_s u_s . M_s, and
+
+        dX = sum over joints and springs of [w x (p - o); w],   w = turn * axis.
+
+    Args:
+        robot: The robot.
+        q: Controller joint values [rad], shape (m, n).
+        wrench: True wrench at the TCP [N, N m], base frame, shape (m, 6) or (6,).
+        joint_compliance: Controller joint compliances c [rad/(N m)], shape (n,).
+        springs: The spring effects (any joints, any number of axes each).
+    """
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    m, n = Q.shape
+    W = np.broadcast_to(np.asarray(wrench, dtype=float), (m, 6))
+    G = robot.coupling
+    c = np.asarray(joint_compliance, dtype=float)
+    identity = bool(np.array_equal(G, np.eye(n)))
+    C_chain = G @ (c[:, None] * G.T)  # chain joint compliance [rad/(N m)], (n, n)
+    layout = [(s.joint, s.axes) for s in springs]
+    js = [s.joint for s in springs for _ in range(len(s.axes))]  # chain joint of each spring
+    cs = (np.concatenate([s.compliance for s in springs]) if springs else np.zeros(0))[:, None]
+    out = np.empty((m, 6))
+    for lo in range(0, m, robot.BATCH_CHUNK):
+        hi = min(lo + robot.BATCH_CHUNK, m)
+        ch = robot.chain_chunk(Q[lo:hi], axes=layout)
+        Ft = W[lo:hi].T  # (6, mc)
+        r = ch.p[None] - ch.o  # TCP minus joint origins [m], (n, 3, mc)
+        M = _cross_soa(r, Ft[None, :3])
+        M += Ft[None, 3:]  # moments about the joint origins [N m], (n, 3, mc)
+        z = ch.z
+        tau = z[:, 0] * M[:, 0] + z[:, 1] * M[:, 1] + z[:, 2] * M[:, 2]  # (n, mc) [N m]
+        dq = c[:, None] * tau if identity else C_chain @ tau  # chain joint turns [rad]
+        w = z * dq[:, None]  # rotation vector of each joint frame [rad], (n, 3, mc)
+        if js:
+            u, Ms = ch.u, M[js]
+            turn = cs * (u[:, 0] * Ms[:, 0] + u[:, 1] * Ms[:, 1] + u[:, 2] * Ms[:, 2])
+            ws = u * turn[:, None]  # (s, 3, mc) [rad]
+            for k, j in enumerate(js):
+                w[j] += ws[k]
+        out[lo:hi, :3] = _cross_soa(w, r).sum(axis=0).T
+        out[lo:hi, 3:] = w.sum(axis=0).T
+    return out
+
+
+def _cross_soa(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b over axis -2 (vectors stored structure-of-arrays, pose index last)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0, :] = a[..., 1, :] * b[..., 2, :] - a[..., 2, :] * b[..., 1, :]
+    out[..., 1, :] = a[..., 2, :] * b[..., 0, :] - a[..., 0, :] * b[..., 2, :]
+    out[..., 2, :] = a[..., 0, :] * b[..., 1, :] - a[..., 1, :] * b[..., 0, :]
+    return out
 
 
 def spring_twists(batch: PoseBatch, springs: Sequence[JointSprings]) -> FloatArray:

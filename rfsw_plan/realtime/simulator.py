@@ -8,7 +8,8 @@ Ingredients:
 * **Process**: the :class:`~rfsw_plan.process.frames.LoadSchedule` (plunge, dwell, weld,
   retract) resampled at the controller cycle, with a slow force drift along the seam
   (:class:`ProcessVariation`, default +-10 %) that only the sensor sees, not the plan.
-* **Sensor** (:class:`SensorModel`): samples the true wrench at its own rate, adds white
+* **Sensor** (:class:`SensorModel`): samples the true wrench at its own rate, distorts it by
+  the truth's sensor-only effects (misalignment, bias; :func:`sensor_reading`), adds white
   noise, and delivers each sample after a delay.
 * **Controller**: one :class:`~rfsw_plan.realtime.base.Strategy` step per cycle (default 4 ms,
   KUKA RSI); its correction offset is applied ``actuation_delay_cycles`` later.
@@ -33,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule
@@ -209,6 +211,53 @@ def truth_model(
     return truth
 
 
+def sensor_reading(
+    truth: ElastostaticModel, batch: PoseBatch, wrench: FloatArray, tol: float = 1e-12,
+    max_iter: int = 100,
+) -> FloatArray:
+    """What a sensor with the truth's sensor-only effects logs for a true wrench.
+
+    A sensor-only effect e (sensor misalignment, force sensor bias) maps the logged wrench L
+    to the true one, F = L + sum_e dF_e(L) (:meth:`ElastostaticModel.true_wrench`); the
+    sensor does the inverse, solved by the fixed point L <- F - sum_e dF_e(L) from L = F
+    (one step for a bias, which is constant; for a misalignment by phi the error shrinks by
+    about |phi| per step).
+
+    Args:
+        truth: The robot as it really is; only its sensor-only wrench effects are used.
+        batch: Poses at the sample times (the tool rotation turns sensor-frame quantities).
+        wrench: True wrench at the TCP [N, N m], base frame, shape (m, 6).
+        tol: Convergence tolerance relative to the largest wrench component [-].
+        max_iter: Maximum fixed-point steps.
+
+    Returns:
+        Logged wrench [N, N m], base frame, shape (m, 6); ``wrench`` itself (same array)
+        when the truth has no sensor-only effect.
+
+    Raises:
+        InputError: The fixed point does not converge (a sensor effect too large to invert,
+            e.g. a misalignment near 1 rad or more).
+    """
+    sensor: list[Effect] = [e for e in truth.effects if e.sensor_only and e.kind == "wrench"]
+    F = np.asarray(wrench, dtype=float)
+    if not sensor:
+        return F
+    scale = tol * max(float(np.max(np.abs(F), initial=0.0)), 1.0)
+    L = F.copy()
+    for _ in range(max_iter):
+        L_new = F - sum((e.delta_wrench(batch, L, e.params) for e in sensor),
+                        np.zeros_like(F))
+        done = float(np.max(np.abs(L_new - L), initial=0.0)) <= scale
+        L = L_new
+        if done:
+            return L
+    raise InputError(
+        "truth", ", ".join(e.label for e in sensor),
+        f"the sensor reading does not converge in {max_iter} fixed-point steps",
+        "sensor effects small enough to invert (misalignment well below 1 rad)",
+    )
+
+
 def _interp_rows(t_new: FloatArray, t: FloatArray, y: FloatArray) -> FloatArray:
     """Linear interpolation of each column of y (N, d) at t_new, shape (K, d)."""
     return np.stack([np.interp(t_new, t, y[:, j]) for j in range(y.shape[1])], axis=1)
@@ -239,7 +288,8 @@ class VirtualWeld:
         reference: How the seam was obtained (``taught`` or ``absolute``): the truth's
             deflection under the true process wrench is taken relative to zero process load
             for a taught seam (:meth:`ElastostaticModel.process_deflection`). The truth's
-            sensor-only effects do not move the pin.
+            sensor-only effects do not move the pin; they distort what the simulated force
+            sensor logs (:meth:`measured_wrench`).
     """
 
     def __init__(
@@ -277,7 +327,11 @@ class VirtualWeld:
         self.weld_length = float(sw.max() - sw.min())
         self.wrench_nominal = self._wrench_at(self.t)
         self.wrench_true = self.wrench_nominal * self._drift(self.t)[:, None]
-        self.wrench_measured = self._sensor()
+        self._sensor_samples()
+        #: Wrench read by the controller at each cycle [N, N m], base frame, shape (K, 6),
+        #: from a sensor without the truth's sensor-only effects; the reading along a path,
+        #: with them, is :meth:`measured_wrench`.
+        self.wrench_measured = self._read(self._true_read)
 
     # -- process and sensor ------------------------------------------------------------------
     def _wrench_at(self, times: FloatArray) -> FloatArray:
@@ -301,8 +355,9 @@ class VirtualWeld:
         s0 = float(np.min(self.s[self.weld_mask]))
         return self.config.variation.factor(s - s0, weld, self.weld_length)
 
-    def _sensor(self) -> FloatArray:
-        """Wrench the controller reads at each cycle: latest sample older than the delay."""
+    def _sensor_samples(self) -> None:
+        """The sensor sample the controller reads at each cycle (the latest one older than
+        the delay): its time, true wrench and noise, and whether any sample has arrived."""
         sen = self.config.sensor
         t0 = self.t[0]
         n_samples = int(np.floor((self.t[-1] - t0) * sen.rate_hz + 1e-9)) + 1
@@ -314,9 +369,32 @@ class VirtualWeld:
         noise = rng.standard_normal((n_samples, 6))
         noise[:, :3] *= sen.noise_force_N
         noise[:, 3:] *= sen.noise_moment_Nm
-        w = self._wrench_at(t_read) * self._drift(t_read)[:, None] + noise[j]
-        w[~valid] = 0.0  # nothing has arrived yet
+        self._t_read = t_read
+        self._true_read = self._wrench_at(t_read) * self._drift(t_read)[:, None]
+        self._noise_read = noise[j]
+        self._valid_read = valid
+
+    def _read(self, logged: FloatArray) -> FloatArray:
+        """Noise and delay on the sensor's (possibly distorted) samples, shape (K, 6)."""
+        w = logged + self._noise_read
+        w[~self._valid_read] = 0.0  # nothing has arrived yet
         return w
+
+    def measured_wrench(self, path: NominalPath) -> FloatArray:
+        """Wrench the controller reads at each cycle along a path [N, N m], base frame,
+        shape (K, 6).
+
+        Each sample is what the truth's sensor logs (:func:`sensor_reading`) for the true
+        wrench at the tool orientation of the nominal path at the sample time, then noise and
+        delay as in :attr:`wrench_measured` (which it equals when the truth has no
+        sensor-only effect). The real-time correction moves the tool, not its orientation
+        (:meth:`run`), and the deflection's rotation (mrad) is neglected.
+        """
+        if not any(e.sensor_only for e in self.truth.effects):
+            return self.wrench_measured
+        q_read = _interp_rows(self._t_read, self.t, path.q)
+        logged = sensor_reading(self.truth, self.truth.batch(q_read), self._true_read)
+        return self._read(logged)
 
     # -- nominal paths -----------------------------------------------------------------------
     def path_from_waypoints(
@@ -357,7 +435,8 @@ class VirtualWeld:
         if path.q.shape[0] != len(self.t):
             raise InputError(path.name, "q", f"{path.q.shape[0]} rows", f"{len(self.t)} cycles")
         batch = self.model.batch(path.q)
-        dX_meas = self.model.deflection_batch(batch, self.wrench_measured)
+        measured = self.measured_wrench(path)
+        dX_meas = self.model.deflection_batch(batch, measured)
         F_plan = self.wrench_nominal if path.planned_for_load else np.zeros_like(
             self.wrench_nominal
         )
@@ -367,7 +446,7 @@ class VirtualWeld:
         )
         return ControllerInputs(
             t=self.t, dt=self.config.cycle_s, phase=self.phase, active=self.active, s=self.s,
-            lateral=self.lateral, q=path.q, jacobian=batch.J, force_measured=self.wrench_measured,
+            lateral=self.lateral, q=path.q, jacobian=batch.J, force_measured=measured,
             force_planned=F_plan, model_deflection=dX_meas, model_deflection_planned=dX_plan,
         )
 

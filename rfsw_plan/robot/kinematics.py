@@ -14,6 +14,7 @@ Conventions:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -47,6 +48,29 @@ class ChainGeometry:
     placements: FloatArray
     axes: FloatArray
     tcp: FloatArray
+
+
+@dataclass(frozen=True)
+class ChainChunk:
+    """Forward kinematics of a chunk of m poses, structure-of-arrays (pose index last).
+
+    Attributes:
+        R: TCP rotation in the base frame, R[a, b, k] for pose k, shape (3, 3, m).
+        p: TCP position in the base frame [m], shape (3, m).
+        z: Chain joint axes in the base frame (unit), shape (n, 3, m).
+        o: Chain joint frame origins in the base frame [m], shape (n, 3, m).
+        frames: Chain joint frame rotations in the base frame, shape (n, 3, 3, m), or None
+            when not requested.
+        u: Requested extra axes (fixed in joint frames) in the base frame, unit, shape
+            (s, 3, m).
+    """
+
+    R: FloatArray
+    p: FloatArray
+    z: FloatArray
+    o: FloatArray
+    frames: FloatArray | None
+    u: FloatArray
 
 
 def _mdh_placement(alpha: float, a: float, theta0: float, d: float) -> pin.SE3:
@@ -284,12 +308,33 @@ class Robot:
                               None if frames is None else frames[lo:hi])
         return T, J
 
-    def _batch_chunk(
-        self, Q: FloatArray, T_out: FloatArray, J_out: FloatArray, F_out: FloatArray | None
-    ) -> None:
-        """Fill ``T_out`` (m, 4, 4), ``J_out`` (m, 6, n) and ``F_out`` for one chunk."""
+    def chain_chunk(
+        self, Q: FloatArray, frames: bool = False,
+        axes: Sequence[tuple[int, FloatArray]] = (),
+    ) -> ChainChunk:
+        """Forward kinematics of up to :attr:`BATCH_CHUNK` poses in the internal layout.
+
+        The loop over the joints that :meth:`batch_fk_jacobian` runs, returning its state
+        structure-of-arrays (pose index last) so that callers can build further per-joint
+        quantities (e.g. spring twists, :mod:`rfsw_plan.elastostatics.springs`) without
+        copying frames out per pose.
+
+        Args:
+            Q: Controller joint values [rad], shape (m, n).
+            frames: Also keep the rotation of every chain joint frame.
+            axes: (chain joint i, unit axes (k, 3) fixed in joint i's frame): the axes are
+                returned in the base frame, stacked in this order (:attr:`ChainChunk.u`).
+        """
         rot, trans, A, aligned, identity = self._z_aligned_chain
         m, n = Q.shape
+        # Extra axes in the z-aligned frame R A_i (joint frame = R A_i^T): b = A_i^T a.
+        extra: dict[int, list[tuple[int, FloatArray]]] = {}
+        n_extra = 0
+        for joint, local in axes:
+            for a in np.atleast_2d(np.asarray(local, dtype=float)):
+                extra.setdefault(joint, []).append((n_extra, a @ A[joint]))
+                n_extra += 1
+        u = np.empty((n_extra, 3, m))
         qc = Q.T if identity else self.coupling @ Q.T  # chain angles, shape (n, m)
         cq = np.cos(qc)
         sq = np.sin(qc)
@@ -300,7 +345,7 @@ class Robot:
         z = np.empty((n, 3, m))
         o = np.empty((n, 3, m))
         tmp = np.empty((3, m))
-        Fs = np.empty((n, 3, 4, m)) if F_out is not None else None  # joint frames [:3, :]
+        Rf = np.empty((n, 3, 3, m)) if frames else None  # joint frame rotations
         for i in range(n):
             if i > 0:
                 p += np.matmul(trans[i], R)  # p += R t_i
@@ -314,24 +359,41 @@ class Robot:
             x += y * sq[i]
             y *= cq[i]
             y -= tmp
-            if Fs is not None:
-                Fs[i, :, :3] = R if aligned[i] else np.matmul(A[i], R)
-                Fs[i, :, 3] = p
+            if Rf is not None:
+                Rf[i] = R if aligned[i] else np.matmul(A[i], R)
+            for k, b in extra.get(i, ()):
+                unit = np.flatnonzero(b)
+                if len(unit) == 1 and b[unit[0]] == 1.0:  # a frame axis: copy the column
+                    u[k] = R[:, unit[0]]
+                else:
+                    np.multiply(R[:, 0], b[0], out=u[k])
+                    u[k] += R[:, 1] * b[1]
+                    u[k] += R[:, 2] * b[2]
         p = p + np.matmul(trans[n], R)
         R = np.matmul(rot[n].T, R)
-        T_out[:, :3, :3] = R.transpose(2, 0, 1)
-        T_out[:, :3, 3] = p.T
-        r = p[None] - o  # (n, 3, m) TCP minus joint origin [m]
-        Jd = np.empty((6, n, m))
+        return ChainChunk(R, p, z, o, Rf, u)
+
+    def _batch_chunk(
+        self, Q: FloatArray, T_out: FloatArray, J_out: FloatArray, F_out: FloatArray | None
+    ) -> None:
+        """Fill ``T_out`` (m, 4, 4), ``J_out`` (m, 6, n) and ``F_out`` for one chunk."""
+        c = self.chain_chunk(Q, frames=F_out is not None)
+        n = Q.shape[1]
+        z = c.z
+        T_out[:, :3, :3] = c.R.transpose(2, 0, 1)
+        T_out[:, :3, 3] = c.p.T
+        r = c.p[None] - c.o  # (n, 3, m) TCP minus joint origin [m]
+        Jd = np.empty((6, n, Q.shape[0]))
         Jd[0] = z[:, 1] * r[:, 2] - z[:, 2] * r[:, 1]
         Jd[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
         Jd[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
         Jd[3:] = z.transpose(1, 0, 2)
-        if not identity:
+        if not self._z_aligned_chain[4]:
             Jd = np.matmul(self.coupling.T, Jd)  # J_ctrl = J_chain G, per row
         J_out[:] = Jd.transpose(2, 0, 1)
-        if F_out is not None and Fs is not None:
-            F_out[:, :, :3, :] = Fs.transpose(3, 0, 1, 2)
+        if F_out is not None and c.frames is not None:
+            F_out[:, :, :3, :3] = c.frames.transpose(3, 0, 1, 2)
+            F_out[:, :, :3, 3] = c.o.transpose(2, 0, 1)
 
     def jacobian_derivatives(self, q: FloatArray) -> FloatArray:
         """Partial derivatives of the TCP Jacobian, dJ/dq_k, shape (n, 6, n).
