@@ -225,3 +225,30 @@ def test_seam_reference_taught_ignores_load_independent_and_sensor_only_effects(
     assert r2.task.reference == "absolute" and r2.verification.feasible
     np.testing.assert_allclose(r2.offsets[:, 0] - r1.offsets[:, 0], -lat_sag,
                                atol=0.05 * np.max(np.abs(lat_sag)))
+
+
+def test_assembled_constraint_jacobian_matches_the_nlp_definition(setup):
+    """IPOPT's Jacobian (per-waypoint blocks + the constant link rows) is the derivative of
+    the NLP's own constraint function (CasADi's AD through the virtual machine)."""
+    import casadi as ca
+
+    nlp = setup[4]
+    X = ca.MX.sym("x", nlp.x0.size)
+    _, g = nlp.nlp_function(X, nlp.p)
+    x = nlp.x0 + np.random.default_rng(7).normal(0, 1e-2, nlp.x0.size)
+    J_ref = np.array(ca.densify(ca.Function("j", [X], [ca.jacobian(g, X)])(x)))
+    J = np.array(ca.densify(nlp.solver.get_function("nlp_jac_g")(x, nlp.p)[1]))
+    assert J.shape == J_ref.shape
+    np.testing.assert_allclose(J, J_ref, rtol=1e-9, atol=1e-9)
+
+
+def test_single_thread_blas_is_scoped():
+    from rfsw_plan.planning.nlp import _casadi_blas, single_thread_blas
+
+    lib = _casadi_blas()
+    if lib is None:
+        pytest.skip("CasADi without its bundled OpenBLAS")
+    lib.openblas_set_num_threads(2)
+    with single_thread_blas():
+        assert lib.openblas_get_num_threads() == 1
+    assert lib.openblas_get_num_threads() == 2

@@ -56,6 +56,7 @@ with K. Built solvers are cached by (model, K).
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import logging
 import os
@@ -64,6 +65,8 @@ import subprocess
 import tempfile
 import time
 from collections import OrderedDict
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -126,8 +129,11 @@ class PointFunctions:
             dense upper triangle (n + 4, n + 4).
         skipped: Effects the symbolic model lacks.
         compiled: True if the functions run as compiled C.
-        fg_vm: ``fg`` in the CasADi virtual machine (differentiable by CasADi; the NLP
-            definition uses it, IPOPT's derivatives come from the functions above).
+        fg_vm: ``fg`` in the CasADi virtual machine (differentiable by CasADi).
+        fg_nlp: ``fg`` for the NLP definition: ``fg_vm``, or, compiled, ``fg`` with finite
+            differences enabled (``nlpsol`` asks for derivative functions of its definition
+            when it is built; IPOPT's derivatives all come from ``grad``, ``jac`` and
+            ``hess``, so the finite differences are never evaluated in a solve).
     """
 
     info: ca.Function
@@ -138,6 +144,7 @@ class PointFunctions:
     skipped: tuple[str, ...]
     compiled: bool
     fg_vm: ca.Function
+    fg_nlp: ca.Function
 
 
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
@@ -202,13 +209,14 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
         ca.Function("rfsw_pt_hess", [w, par, glob, lam_f, lam_g], [ca.triu(ca.densify(H))]),
     ]
     compiled = False
-    fg_vm = fns[1]
+    fg_vm = fg_nlp = fns[1]
     if compile_c:
         loaded = _compile(fns)
         if loaded is not None:
-            fns, compiled = loaded, True
+            fns, compiled = loaded[:-1], True
+            fg_nlp = loaded[-1]
     info, fg, grad, jac, hess = fns
-    pf = PointFunctions(info, fg, grad, jac, hess, tuple(skipped), compiled, fg_vm)
+    pf = PointFunctions(info, fg, grad, jac, hess, tuple(skipped), compiled, fg_vm, fg_nlp)
     _POINT_CACHE[key] = pf
     while len(_POINT_CACHE) > 8:
         _POINT_CACHE.popitem(last=False)
@@ -223,8 +231,9 @@ def _cache_dir() -> Path:
 
 def _compile(fns: list[ca.Function]) -> list[ca.Function] | None:
     """Compile functions to a shared library with the system C compiler, cached on disk by a
-    hash of their serialisation. Returns the loaded functions, or None (then the caller keeps
-    the CasADi virtual machine) if no compiler is available or compilation fails."""
+    hash of their serialisation. Returns the loaded functions and, last, ``fns[1]`` again with
+    finite-difference derivatives enabled, or None (then the caller keeps the CasADi virtual
+    machine) if no compiler is available or compilation fails."""
     cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
     if cc is None:
         log.info("no C compiler; the NLP runs in the CasADi virtual machine")
@@ -251,7 +260,8 @@ def _compile(fns: list[ca.Function]) -> list[ca.Function] | None:
                 os.replace(out, so)
             log.info("compiled the NLP point functions in %.1f s (%s)", time.perf_counter() - t0,
                      so)
-        return [ca.external(f.name(), str(so)) for f in fns]
+        return ([ca.external(f.name(), str(so)) for f in fns]
+                + [ca.external(fns[1].name(), str(so), {"enable_fd": True})])
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
         log.warning("compiling the NLP functions failed (%s); using the virtual machine", exc)
         return None
@@ -382,7 +392,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
     def mapped(f: ca.Function) -> ca.Function:
         return f.map(K, "thread", 2) if K >= 256 else f.map(K)
 
-    phi, G = mapped(pf.fg_vm)(W, PAR, GLOB)
+    phi, G = mapped(pf.fg_nlp)(W, PAR, GLOB)
     # The weakest waypoint's share of the stiffness term: w_stiffness (1 - share) c_max / cref.
     f = ca.sum2(phi) + glob[0] * (1 - glob[10]) * c_max / glob[5]
     cap = np.zeros(_NG)
@@ -407,7 +417,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
     Jb = mapped(pf.jac)(W, PAR)
     J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool))), cap_col)
     if K > 1:
-        J_link = ca.jacobian(g_parts[1], X)
+        J_link = _link_jacobian(K, n, nw)
         J = ca.vertcat(J_pts, J_link)
     else:
         J = J_pts
@@ -440,13 +450,25 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
     return solver, ca.Function("plan_eval", [X, P], [f, g])
 
 
+def _link_jacobian(K: int, n: int, nw: int) -> ca.DM:
+    """The constant Jacobian of the link rows (w_{k+1} - w_k)[:n + 3] with respect to x."""
+    m = n + N_OFF
+    rows = np.arange(m * (K - 1))
+    cols = (rows // m) * nw + rows % m
+    r = np.concatenate([rows, rows]).tolist()
+    c = np.concatenate([cols, cols + nw]).tolist()
+    v = np.concatenate([-np.ones(rows.size), np.ones(rows.size)])
+    return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), nw * K + 1)
+
+
 def _blockdiag(K: int, block: NDArray[np.bool_]) -> ca.Sparsity:
     """Block-diagonal sparsity of K copies of a block pattern."""
-    r, c = np.nonzero(block)
     br, bc = block.shape
+    r = np.nonzero(block.T)[1]  # rows in the column-major order of the nonzeros
     rows = (r[None, :] + br * np.arange(K)[:, None]).ravel()
-    cols = (c[None, :] + bc * np.arange(K)[:, None]).ravel()
-    return ca.Sparsity.triplet(br * K, bc * K, rows.tolist(), cols.tolist())
+    counts = np.tile(np.count_nonzero(block, axis=0), K)
+    colind = np.concatenate([[0], np.cumsum(counts)])
+    return ca.Sparsity(br * K, bc * K, colind.tolist(), rows.tolist())
 
 
 def _det_linearisation(robot: Robot, Q: FloatArray, length_scale: float
@@ -620,11 +642,51 @@ class NLPSolution:
     objective: float
 
 
+_BLAS: list[Any] = []
+
+
+def _casadi_blas() -> Any:
+    """CasADi's own OpenBLAS (MUMPS' BLAS inside IPOPT; not numpy's), or None."""
+    if not _BLAS:
+        lib = None
+        path = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
+        if path.exists():
+            try:
+                lib = ctypes.CDLL(str(path))
+                lib.openblas_get_num_threads.restype = ctypes.c_int
+                lib.openblas_set_num_threads.argtypes = [ctypes.c_int]
+            except (OSError, AttributeError):
+                lib = None
+        _BLAS.append(lib)
+    return _BLAS[0]
+
+
+@contextmanager
+def single_thread_blas() -> Iterator[None]:
+    """Run IPOPT's MUMPS with single-threaded BLAS; the previous thread count is restored.
+
+    MUMPS' fronts on the banded KKT matrix are small: a second OpenBLAS thread only spins
+    (sched_yield) and takes the CPU from the callbacks (about 5-10 % of the solve time on two
+    cores). Only CasADi's bundled OpenBLAS is touched, numpy's BLAS is a separate library.
+    """
+    lib = _casadi_blas()
+    if lib is None:
+        yield
+        return
+    before = int(lib.openblas_get_num_threads())
+    lib.openblas_set_num_threads(1)
+    try:
+        yield
+    finally:
+        lib.openblas_set_num_threads(before)
+
+
 def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
     """Solve a built NLP with IPOPT, warm-started from ``x0`` (default ``nlp.x0``)."""
     t0 = time.perf_counter()
-    res = nlp.solver(x0=nlp.x0 if x0 is None else x0, p=nlp.p, lbx=nlp.lbx, ubx=nlp.ubx,
-                     lbg=nlp.lbg, ubg=nlp.ubg)
+    with single_thread_blas():
+        res = nlp.solver(x0=nlp.x0 if x0 is None else x0, p=nlp.p, lbx=nlp.lbx, ubx=nlp.ubx,
+                         lbg=nlp.lbg, ubg=nlp.ubg)
     dt = time.perf_counter() - t0
     stats = nlp.solver.stats()
     x = np.asarray(res["x"]).ravel()
