@@ -59,6 +59,7 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError, UnknownNameError
+from rfsw_plan.io.bundled import bundled_names, resolve_bundled
 from rfsw_plan.process.cosim import PenetrationLaw
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 from rfsw_plan.process.frames import FloatArray, SeamFrames
@@ -168,7 +169,7 @@ class Problem:
 
 def bundled_problem_names() -> list[str]:
     """Stems of the problems shipped in ``problems/``."""
-    return sorted(p.stem for p in BUNDLED_PROBLEMS_DIR.glob("*.toml"))
+    return bundled_names(BUNDLED_PROBLEMS_DIR)
 
 
 def resolve_problem_path(name_or_path: str | Path) -> Path:
@@ -177,13 +178,7 @@ def resolve_problem_path(name_or_path: str | Path) -> Path:
     Raises:
         UnknownNameError: Neither an existing file nor a bundled stem; lists the bundled ones.
     """
-    p = Path(name_or_path)
-    if p.is_file():
-        return p
-    bundled = BUNDLED_PROBLEMS_DIR / f"{Path(str(name_or_path)).stem}.toml"
-    if p.suffix in ("", ".toml") and p.parent == Path(".") and bundled.is_file():
-        return bundled
-    raise UnknownNameError("problem", str(name_or_path), bundled_problem_names())
+    return resolve_bundled("problem", BUNDLED_PROBLEMS_DIR, name_or_path)
 
 
 class _Table:

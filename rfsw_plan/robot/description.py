@@ -26,7 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.exceptions import InputError, UnknownNameError
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.bundled import bundled_names, resolve_bundled
 
 FloatArray = NDArray[np.float64]
 
@@ -129,10 +130,6 @@ class RobotDescription:
         sources["stiffness"] = source
         return replace(self, stiffness=np.asarray(stiffness, dtype=float), sources=sources)
 
-    def with_effects(self, effects: tuple[EffectSpec, ...]) -> RobotDescription:
-        """Return a copy with a new list of elastostatic effects."""
-        return replace(self, effects=tuple(effects))
-
 
 # --------------------------------------------------------------------------------------------
 # Reading
@@ -140,7 +137,7 @@ class RobotDescription:
 
 def bundled_robot_names() -> list[str]:
     """Names of the robots shipped in ``robots/``."""
-    return sorted(p.stem for p in BUNDLED_ROBOTS_DIR.glob("*.toml"))
+    return bundled_names(BUNDLED_ROBOTS_DIR)
 
 
 def resolve_robot_path(name_or_path: str | Path) -> Path:
@@ -149,15 +146,7 @@ def resolve_robot_path(name_or_path: str | Path) -> Path:
     Raises:
         UnknownNameError: Neither a bundled name nor an existing file; lists the bundled robots.
     """
-    p = Path(name_or_path)
-    if p.suffix in (".toml", ".urdf") and p.is_file():
-        return p
-    bundled = BUNDLED_ROBOTS_DIR / f"{name_or_path}.toml"
-    if bundled.is_file():
-        return bundled
-    if p.is_file():
-        return p
-    raise UnknownNameError("robot", str(name_or_path), bundled_robot_names())
+    return resolve_bundled("robot", BUNDLED_ROBOTS_DIR, name_or_path)
 
 
 def load_robot_description(name_or_path: str | Path) -> RobotDescription:

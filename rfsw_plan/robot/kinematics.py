@@ -188,11 +188,6 @@ class Robot:
             raise InputError(source, "", "joint values contain NaN or infinity", "finite values")
         return arr
 
-    def within_limits(self, q: FloatArray, tol: float = 0.0) -> bool:
-        """True if every joint is within [lower - tol, upper + tol] [rad]."""
-        d = self.description
-        return bool(np.all(q >= d.lower - tol) and np.all(q <= d.upper + tol))
-
     # -- Pinocchio single-pose ---------------------------------------------------------------
     def fk(self, q: FloatArray) -> FloatArray:
         """TCP pose in the base frame, 4x4 [m]."""
