@@ -64,6 +64,20 @@ class NotWithinLimitsError(RfswError):
         )
 
 
+class OutputPathError(RfswError):
+    """An output path that cannot take the files (a file, under a file, read-only, locked).
+
+    Attributes:
+        option: The option that named the path (``-o``, ``--save-robot``...).
+        path: The offending path.
+    """
+
+    def __init__(self, option: str, path: str | Path, problem: str) -> None:
+        self.option = option
+        self.path = str(path)
+        super().__init__(f"{option} {self.path}: {problem}")
+
+
 class IdentificationError(RfswError):
     """The data cannot identify what was asked (too few samples, no measured axis...)."""
 

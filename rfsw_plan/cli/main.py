@@ -50,6 +50,8 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
         "own elasticity.",
     )
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress bars (they are shown only on a terminal anyway)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     commands: dict[str, ModuleType] = {}
@@ -71,6 +73,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    from rfsw_plan import progress
+
+    progress.set_enabled(not args.quiet)
     try:
         return int(commands[args.command].run(args) or 0)
     except RfswError as exc:

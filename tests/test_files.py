@@ -1,0 +1,62 @@
+"""Atomic writes, strict JSON, checked and locked output folders (rfsw_plan.io.files)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rfsw_plan.exceptions import OutputPathError
+from rfsw_plan.io.files import (
+    OutputLock,
+    atomic_path,
+    prepare_output_dir,
+    strict_json,
+    write_json,
+    write_text,
+)
+
+
+def _reject(c: str) -> float:
+    raise ValueError(f"non-strict JSON constant {c}")
+
+
+def test_strict_json_turns_nan_and_inf_into_null() -> None:
+    obj = {"a": math.nan, "b": [np.inf, -np.inf, np.float64(1.5)], "c": np.arange(2),
+           "d": np.bool_(True), "e": (1, 2.0)}
+    text = strict_json(obj)
+    back = json.loads(text, parse_constant=_reject)
+    assert back == {"a": None, "b": [None, None, 1.5], "c": [0, 1], "d": True, "e": [1, 2.0]}
+
+
+def test_atomic_write_leaves_old_file_on_failure(tmp_path) -> None:
+    target = tmp_path / "x.txt"
+    write_text(target, "old\n")
+    with pytest.raises(RuntimeError), atomic_path(target) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("killed")
+    assert target.read_text() == "old\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["x.txt"]  # no temporary left behind
+    write_json(target, {"v": 1})
+    assert json.loads(target.read_text()) == {"v": 1}
+
+
+def test_output_dir_checks(tmp_path) -> None:
+    f = tmp_path / "file"
+    f.write_text("")
+    with pytest.raises(OutputPathError, match="existing file"):
+        prepare_output_dir(f)
+    with pytest.raises(OutputPathError, match="under the file"):
+        prepare_output_dir(f / "sub")
+    with pytest.raises(OutputPathError, match="pseudo file system"):
+        prepare_output_dir("/proc/self")
+    assert prepare_output_dir(tmp_path / "new" / "dir").is_dir()
+
+
+def test_second_writer_is_refused(tmp_path) -> None:
+    with OutputLock(tmp_path), pytest.raises(OutputPathError, match="another rfsw-plan"):
+        OutputLock(tmp_path).__enter__()
+    with OutputLock(tmp_path):  # released after the first one ends
+        pass
