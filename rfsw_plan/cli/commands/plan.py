@@ -27,6 +27,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
+    from rfsw_plan.cli import plan_forces as force_log_cli
+
+    force_log_cli.register(parser)
 
 
 def _overrides(items: list[str]) -> dict[str, Any]:
@@ -52,6 +55,7 @@ def _overrides(items: list[str]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.io.waypoints import plot_lateral_error, write_plan_json, write_waypoints_csv
     from rfsw_plan.planning.api import options_from_problem, plan
@@ -59,6 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.robot.kinematics import load_robot
 
     problem = load_problem(args.problem)
+    problem, flog = force_log_cli.prepare(problem, args)
     over = _overrides(args.set)
     if args.force_uncertainty is not None:
         if args.force_uncertainty < 0:
@@ -70,8 +75,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output) if args.output else Path("out") / problem.name
     out.mkdir(parents=True, exist_ok=True)
     try:
-        result = plan(problem, opts, spacing=None if args.spacing_mm is None
-                      else args.spacing_mm * 1e-3)
+        result, check = force_log_cli.plan(problem, flog, opts, None if args.spacing_mm is None
+                                           else args.spacing_mm * 1e-3, plan)
     except InfeasibleError as exc:
         for name in _OUTPUTS:  # nothing left behind that claims success
             (out / name).unlink(missing_ok=True)
@@ -85,8 +90,10 @@ def run(args: argparse.Namespace) -> int:
     summary = result.summary()
     write_waypoints_csv(out / "waypoints.csv", result, model)
     plot_lateral_error(out / "lateral_error.png", result)
+    summary.update(force_log_cli.plan_json(problem, args, flog, check))
     summary["files"] = [str(out / n) for n in _OUTPUTS]
     write_plan_json(out / "plan.json", summary)
+    force_log_cli.print_text(flog, check, result, quiet=args.json)
     if args.json:
         brief = {k: v for k, v in summary.items() if k != "waypoints"}
         print(json.dumps(brief, indent=2))
