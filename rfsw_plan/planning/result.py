@@ -10,8 +10,8 @@ from numpy.typing import NDArray
 
 from rfsw_plan.planning.baselines import BaselineMetrics
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.task import PlanTask
 from rfsw_plan.planning.verify import Verification
+from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
 
