@@ -359,6 +359,7 @@ def plan_task(
         solver_status=sol.status, iterations=iters, outer_iterations=outer,
         skipped_effects=nlp.skipped, solve_time=solve_time, verify_time=verify_time,
         timing_time=timing_time, total_time=time.perf_counter() - t_all, trajectory=traj,
+        model=model,
     )
 
 
