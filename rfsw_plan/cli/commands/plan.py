@@ -56,11 +56,9 @@ def _overrides(items: list[str]) -> dict[str, Any]:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.io.waypoints import plot_lateral_error, write_plan_json, write_waypoints_csv
     from rfsw_plan.planning.api import options_from_problem, plan
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.robot.kinematics import load_robot
 
     problem = load_problem(args.problem)
     problem, flog = force_log_cli.prepare(problem, args)
@@ -86,9 +84,8 @@ def run(args: argparse.Namespace) -> int:
             "margin_mm": None if exc.margin is None else exc.margin * 1e3,
         })
         raise
-    model = ElastostaticModel(load_robot(problem.robot))
     summary = result.summary()
-    write_waypoints_csv(out / "waypoints.csv", result, model)
+    write_waypoints_csv(out / "waypoints.csv", result)
     plot_lateral_error(out / "lateral_error.png", result)
     summary.update(force_log_cli.plan_json(problem, args, flog, check))
     summary["files"] = [str(out / n) for n in _OUTPUTS]
