@@ -9,10 +9,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
-
-from dataclasses import replace
 
 from rfsw_plan.cli import measurement_args
 from rfsw_plan.elastostatics.identification import IdentificationResult, identify
