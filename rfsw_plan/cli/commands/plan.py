@@ -51,7 +51,6 @@ def _overrides(items: list[str]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
         mark_outputs_stale,
@@ -61,7 +60,6 @@ def run(args: argparse.Namespace) -> int:
     )
     from rfsw_plan.planning.api import options_from_problem, plan
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.robot.kinematics import load_robot
 
     problem = load_problem(args.problem)
     over = _overrides(args.set)
@@ -87,9 +85,8 @@ def run(args: argparse.Namespace) -> int:
                 "margin_mm": None if exc.margin is None else exc.margin * 1e3,
             })
             raise
-        model = ElastostaticModel(load_robot(problem.robot))
         summary = result.summary()
-        written = [write_waypoints_csv(out / "waypoints.csv", result, model),
+        written = [write_waypoints_csv(out / "waypoints.csv", result),
                    plot_lateral_error(out / "lateral_error.png", result)]
         summary["files"] = [str(p) for p in written]
         write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
