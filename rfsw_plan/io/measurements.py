@@ -38,6 +38,7 @@ from rfsw_plan.elastostatics.measurement_set import (
     MeasurementSet,
 )
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.files import atomic_path
 from rfsw_plan.io.table import ColumnMap, Quantity, Table, read_column_map, read_table
 
 __all__ = [
@@ -353,8 +354,6 @@ def write_measurements(
         data: The samples.
         prismatic: Per joint, True for a prismatic joint (written in mm); default all revolute.
     """
-    from rfsw_plan.io.files import atomic_path
-
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     n = data.n_joints
@@ -367,7 +366,7 @@ def write_measurements(
     header += [] if data.sigma is None else ["sigma_mm"]
     header += [] if data.frame == "base" else ["frame"]
     header += list(data.extra)
-    with atomic_path(p) as tmp, Path(tmp).open("w", newline="") as fh:
+    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i in range(len(data)):

@@ -7,7 +7,6 @@ Least squares on measured TCP positions (seed 000 eq. 13-15, seed 001 eq. 8-11);
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -79,8 +78,11 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.io.files import prepare_output_file, strict_json
     from rfsw_plan.validation.sanity import check_data, check_registered
 
+    if args.output:
+        prepare_output_file(args.output, "-o")
     robot = load_robot(args.robot)
     model = ElastostaticModel(robot)
     data = measurement_args.load(args, model)
@@ -114,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
         output = save_robot_description(desc, args.output)
     rep = _report(res, robot.name, output)
     if args.json:
-        print(json.dumps(rep))
+        print(strict_json(rep, indent=None), end="")
         return 0
     print(f"robot {robot.name}: {res.n_samples} samples, {res.n_observations} measured values, "
           f"method {res.method}")
