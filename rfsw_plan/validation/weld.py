@@ -39,7 +39,6 @@ are listed), ``unexplained`` (no candidate does).
 
 from __future__ import annotations
 
-import json
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -83,7 +82,7 @@ MAX_POINTS = 600
 #: Default number of blocks of s.
 DEFAULT_BLOCKS = 5
 #: Plan statuses that are not a verified plan.
-UNVERIFIED = ("infeasible", "failed", "unverified", "error", "not_verified")
+UNVERIFIED = ("infeasible", "incomplete", "failed", "unverified", "error", "not_verified")
 
 Verdict = Literal["adequate", "missing", "unexplained"]
 
@@ -129,10 +128,12 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
     if not path.is_file():
         raise InputError(folder, "plan.json", "missing: no plan in this folder",
                          "the output folder of a successful rfsw-plan plan")
+    from rfsw_plan.io.waypoints import check_plan_folder
+
     try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(path, "", f"not readable JSON ({exc})") from None
+        data = check_plan_folder(folder)  # status, and the files plan.json vouches for
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(path, "", f"not readable strict JSON ({exc})") from None
     if not isinstance(data, dict):
         raise InputError(path, "", "not a JSON object", "plan.json of rfsw-plan plan")
     status = str(data.get("status", ""))
