@@ -22,6 +22,7 @@ from rfsw_plan.elastostatics.effects.base import (
     WrenchEffect,
 )
 from rfsw_plan.elastostatics.effects.complementary_stiffness import ComplementaryStiffness
+from rfsw_plan.elastostatics.effects.device_registration import DeviceRegistration, MarkerOffset
 from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
 from rfsw_plan.elastostatics.effects.joint_backlash import JointBacklash
 from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
@@ -39,7 +40,8 @@ for _module in pkgutil.iter_modules(__path__):
 #: The library's order (the base model first, then compliance, wrench and geometric effects)
 #: for listings; effects of other files follow in the order they registered.
 _LIBRARY = (JointCompliance, ComplementaryStiffness, TiltingCompliance, TorqueDependentStiffness,
-            JointBacklash, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets)
+            JointBacklash, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
+            DeviceRegistration, MarkerOffset)
 _others = {k: v for k, v in EFFECTS.items() if v not in _LIBRARY}
 EFFECTS.clear()
 EFFECTS.update({cls.name: cls for cls in _LIBRARY} | _others)
@@ -81,6 +83,7 @@ __all__ = [
     "EFFECTS",
     "ComplementaryStiffness",
     "ComplianceEffect",
+    "DeviceRegistration",
     "Effect",
     "EffectGroups",
     "ForceSensorBias",
@@ -88,6 +91,7 @@ __all__ = [
     "JointBacklash",
     "JointCompliance",
     "KinematicOffsets",
+    "MarkerOffset",
     "PayloadGravity",
     "PoseBatch",
     "SensorMisalignment",

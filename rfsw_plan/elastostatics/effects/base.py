@@ -113,6 +113,10 @@ class Effect(abc.ABC):
     #: misalignment, sensor bias): it applies to logged wrenches only, never to a wrench that
     #: comes from the process model (planning, deviation, the truth of a virtual weld).
     sensor_only: ClassVar[bool] = False
+    #: True if the effect belongs to the measurement set-up (device registration, marker
+    #: offset), not to the robot: never a diagnosis candidate, never dropped for collinearity
+    #: in favour of a robot parameter, and not written into a robot's ``[[effects]]``.
+    setup: ClassVar[bool] = False
     #: True if the effect moves the TCP at zero logged wrench (set by the three bases).
     load_independent: ClassVar[bool]
 
