@@ -221,7 +221,7 @@ class WeldSamples:
         batch = model.batch(self.q)
         W = self.wrench
         if self.logged:
-            sensor = [e for e in model.effects if e.sensor_only and e.kind == "wrench"]
+            sensor = [e for e in model.groups.wrench if e.sensor_only]
             if sensor:
                 W = W + sum((e.delta_wrench(batch, W, e.params) for e in sensor),
                             np.zeros_like(W))
