@@ -44,7 +44,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.planning.result import PlanResult
 
@@ -70,9 +69,10 @@ def maker_euler(R: FloatArray, convention: str) -> FloatArray:
     raise InputError("robot", "euler", f"got '{convention}'", "kuka_abc or fanuc_wpr")
 
 
-def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[str],
-                                                                          NDArray[Any]]:
-    """Header and rows (object array) of ``waypoints.csv``."""
+def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
+    """Header and rows (object array) of ``waypoints.csv``, predicted with the plan's own
+    model (:attr:`PlanResult.model`)."""
+    model = result.model
     tr = result.trajectory
     task = result.task
     robot = model.robot
@@ -118,9 +118,10 @@ def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[s
     return header, rows
 
 
-def write_waypoints_csv(path: str | Path, result: PlanResult, model: ElastostaticModel) -> Path:
-    """Write ``waypoints.csv`` (see the module docstring for the columns)."""
-    header, rows = waypoint_table(result, model)
+def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
+    """Write ``waypoints.csv`` (see the module docstring for the columns), with the deflections
+    and errors of the model the plan was made with."""
+    header, rows = waypoint_table(result)
     p = Path(path)
     with p.open("w", newline="") as fh:
         wr = csv.writer(fh)

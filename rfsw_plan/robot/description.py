@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.bundled import bundled_names, resolve_bundled
+from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 
 FloatArray = NDArray[np.float64]
 

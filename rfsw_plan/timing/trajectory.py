@@ -43,7 +43,7 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline, PchipInterpolator
 
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.planning.task import PlanTask, offsets3
+from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot
 from rfsw_plan.timing.ruckig_ import profile_1dof

@@ -52,11 +52,9 @@ def _overrides(items: list[str]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.io.waypoints import plot_lateral_error, write_plan_json, write_waypoints_csv
     from rfsw_plan.planning.api import options_from_problem, plan
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.robot.kinematics import load_robot
 
     problem = load_problem(args.problem)
     over = _overrides(args.set)
@@ -81,9 +79,8 @@ def run(args: argparse.Namespace) -> int:
             "margin_mm": None if exc.margin is None else exc.margin * 1e3,
         })
         raise
-    model = ElastostaticModel(load_robot(problem.robot))
     summary = result.summary()
-    write_waypoints_csv(out / "waypoints.csv", result, model)
+    write_waypoints_csv(out / "waypoints.csv", result)
     plot_lateral_error(out / "lateral_error.png", result)
     summary["files"] = [str(out / n) for n in _OUTPUTS]
     write_plan_json(out / "plan.json", summary)
