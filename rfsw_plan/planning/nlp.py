@@ -409,7 +409,7 @@ class PlanNLP:
         """Per-waypoint (g (K, 12), terms (K, 6), dX (K, 6)) at x (the NLP's own model)."""
         K = self.n_waypoints
         W = np.asarray(x, dtype=float)[: K * self.n_w].reshape(K, self.n_w)
-        g, t, dx = self.point.info.map(K)(W.T, self.par.T)
+        g, t, dx = _info_map(self.point, K)(W.T, self.par.T)
         return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
 
     def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
@@ -439,6 +439,19 @@ class PlanNLP:
         v = np.maximum(self.lbg - g, g - self.ubg)
         names = self.constraint_names()
         return [(names[i], float(v[i])) for i in np.flatnonzero(v > tol)]
+
+
+_INFO_MAPS: OrderedDict[tuple[int, int], ca.Function] = OrderedDict()
+
+
+def _info_map(pf: PointFunctions, K: int) -> ca.Function:
+    """``pf.info`` mapped over K waypoints (cached: building a map costs a few ms)."""
+    key = (id(pf), K)
+    if key not in _INFO_MAPS:
+        _INFO_MAPS[key] = pf.info.map(K)
+        while len(_INFO_MAPS) > 16:
+            _INFO_MAPS.popitem(last=False)
+    return _INFO_MAPS[key]
 
 
 @dataclass(frozen=True)
@@ -606,6 +619,7 @@ def build_plan_nlp(
     correction: FloatArray | None = None,
     compile_c: bool | None = None,
     load_steps: FloatArray | None = None,
+    offset_reference: FloatArray | None = None,
 ) -> PlanNLP:
     """Build the planning NLP (no solve).
 
@@ -625,6 +639,11 @@ def build_plan_nlp(
             along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
             offset-rate bound so the bound limits only the *extra* offset change (the force
             ramps at the weld start need offsets that follow them). None: zero.
+        offset_reference: Instead of ``load_steps``: offsets (K, 3) [m] (the mirror
+            baseline's) whose change the offset-rate rows follow, |delta (o - o_ref)| <=
+            offset rate * travel. Tighter than ``load_steps`` (|delta o| <= rate * travel +
+            |delta o_ref|); the coarse NLP uses it so that its solution, interpolated as a
+            departure from the mirror offsets, meets the fine NLP's offset-rate rows.
 
     Returns:
         The inspectable :class:`PlanNLP`.
@@ -693,12 +712,14 @@ def build_plan_nlp(
         stationary = ds <= 1e-12
         o_step = (opts.offset_rate * ds + np.where(stationary, opts.offset_speed_stationary
                                                    * dt, 0.0)) * 1e3 + 1e-6
-        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None
+        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None or offset_reference is not None
                  else np.abs(offsets3(load_steps)) * 1e3)
+        centre = (np.zeros((K - 1, n + N_OFF)) if offset_reference is None else np.column_stack(
+            [np.zeros((K - 1, n)), np.diff(offsets3(offset_reference), axis=0) * 1e3]))
         link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
                                    o_step[:, None] + extra])
-        lbg_parts.append(-link_hi.reshape(-1))
-        ubg_parts.append(link_hi.reshape(-1))
+        lbg_parts.append((centre - link_hi).reshape(-1))
+        ubg_parts.append((centre + link_hi).reshape(-1))
     nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros((n + N_OFF + 1) * K + 1),
                   lbx, ubx,
                   np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)

@@ -75,6 +75,11 @@ class PlanOptions:
         outer_tol: Convergence of the outer correction [m].
         tol: IPOPT tolerance.
         max_iter: IPOPT iteration cap.
+        solver: ``coarse`` (default): the NLP on ``coarse_waypoints`` evenly spread weld
+            waypoints, then every waypoint projected exactly onto the fine NLP's equality rows
+            and checked against all its rows (the full NLP if any row fails); ``full``: the
+            NLP on every waypoint.
+        coarse_waypoints: Weld waypoints of the coarse NLP (``solver = "coarse"``).
         min_stiffness_share: Share of ``w_stiffness`` on the weakest weld waypoint (0..1).
         w_stiffness, w_worst, w_robust, w_centre, w_depth, w_smooth_q, w_smooth_o, w_proximity:
             Objective
@@ -102,6 +107,8 @@ class PlanOptions:
     outer_tol: float = 1e-6
     tol: float = 1e-8
     max_iter: int = 300
+    solver: str = "coarse"
+    coarse_waypoints: int = 60
     min_stiffness_share: float = 0.5
     w_stiffness: float = 1.0
     w_worst: float = 0.1
@@ -136,6 +143,11 @@ class PlanOptions:
             raise InputError("planning", "kappa_max", f"got {self.kappa_max}", "> 1")
         if self.rotation_starts < 1:
             raise InputError("planning", "rotation_starts", f"got {self.rotation_starts}", ">= 1")
+        if self.solver not in SOLVERS:
+            raise InputError("planning", "solver", f"got {self.solver!r}", " or ".join(SOLVERS))
+        if self.coarse_waypoints < 2:
+            raise InputError("planning", "coarse_waypoints", f"got {self.coarse_waypoints}",
+                             ">= 2")
         if self.max_start_waypoints < 0 or self.max_outer < 1 or self.max_iter < 1:
             raise InputError("planning", "max_start_waypoints/max_outer/max_iter",
                              "out of range", "max_start_waypoints >= 0, the others >= 1")
@@ -145,6 +157,10 @@ class PlanOptions:
         """The objective weights by name."""
         return {f.name: float(getattr(self, f.name)) for f in fields(self)
                 if f.name.startswith("w_")}
+
+
+#: Values of ``solver``: the coarse-to-fine solve or the NLP on every waypoint.
+SOLVERS = ("coarse", "full")
 
 
 # Keys of the problem file's [planning] table that are given in file units, with the factor to SI.
@@ -187,6 +203,10 @@ def options_from_table(table: Mapping[str, Any], source: str = "planning") -> Pl
             if isinstance(default, bool):
                 if not isinstance(value, bool):
                     raise InputError(source, key, f"got {value!r}", "true or false")
+                kw[key] = value
+            elif isinstance(default, str):
+                if not isinstance(value, str):
+                    raise InputError(source, key, f"got {value!r}", "a name")
                 kw[key] = value
             elif isinstance(default, int):
                 kw[key] = int(_number(source, key, value))

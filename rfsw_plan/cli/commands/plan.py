@@ -44,7 +44,7 @@ def _overrides(items: list[str]) -> dict[str, Any]:
             try:
                 v = float(val)
             except ValueError:
-                raise InputError("--set", key, f"got '{val}'", "a number or true/false") from None
+                v = val.strip()  # a name (solver=full); numeric keys reject it with one line
         table[key.strip()] = v
     parsed = options_from_table(table, "--set")
     return {_FILE_KEYS.get(k, (k, 1.0))[0]: getattr(parsed, _FILE_KEYS.get(k, (k, 1.0))[0])
