@@ -297,7 +297,7 @@ def plan_task(
             log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
 
     t0 = time.perf_counter()
-    sol = _solve(model, task, window, warm, opts, compile_c)
+    sol = solve_plan(model, task, window, warm, opts, compile_c)
     solve_time = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -349,6 +349,8 @@ class Solved:
         objective: The objective of the NLP on the whole task at the solution.
         method: ``full``, ``coarse`` (coarse NLP and exact fine projection) or
             ``coarse+full`` (the projection failed a row; the full NLP was solved).
+        nlp: The NLP on the whole task (with its final outer correction).
+        x: Its variable vector at the solution.
     """
 
     q: FloatArray
@@ -360,6 +362,8 @@ class Solved:
     skipped: tuple[str, ...]
     objective: float
     method: str
+    nlp: PlanNLP
+    x: FloatArray
 
 
 def _solve_outer(model: ElastostaticModel, nlp: PlanNLP, opts: PlanOptions,
@@ -392,8 +396,8 @@ def _solve_outer(model: ElastostaticModel, nlp: PlanNLP, opts: PlanOptions,
     return sol, nlp, corr, iters, outer
 
 
-def _solve(model: ElastostaticModel, task: PlanTask, window: WeldWindow, warm: BaselinePlan,
-           opts: PlanOptions, compile_c: bool | None) -> Solved:
+def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+               warm: BaselinePlan, opts: PlanOptions, compile_c: bool | None = None) -> Solved:
     """The NLP on the whole task: coarse-to-fine (:mod:`rfsw_plan.planning.coarse`) or the
     full NLP (``solver = "full"``, small tasks, or when the fine projection fails a row)."""
     if compile_c is None:
@@ -411,8 +415,10 @@ def _solve(model: ElastostaticModel, task: PlanTask, window: WeldWindow, warm: B
         proj = project_fine(model, fine, idx, csol.q, csol.offsets, warm.q, warm.offsets,
                             ccorr)
         if proj.feasible and csol.success:
-            return Solved(proj.q, proj.offsets, True, csol.status, iters, outer, fine.skipped,
-                          proj.objective, "coarse")
+            return Solved(proj.q, proj.offsets, True,
+                          f"{csol.status} (coarse NLP on {len(sub)} waypoints, exact fine "
+                          f"projection on {len(task)})", iters, outer, fine.skipped,
+                          proj.objective, "coarse", proj.nlp, proj.x)
         log.info("coarse-to-fine: %s; solving the full NLP",
                  "coarse NLP " + csol.status if not csol.success else
                  f"fine row {proj.violations[0][0]} violated by {proj.violations[0][1]:.3g}")
@@ -422,8 +428,8 @@ def _solve(model: ElastostaticModel, task: PlanTask, window: WeldWindow, warm: B
     sol, fine, _, it, outer = _solve_outer(model, fine, opts, x0)
     method = "full" if x0 is None and iters == 0 else "coarse+full"
     return Solved(sol.q, sol.offsets, sol.success, sol.status, iters + it, outer, fine.skipped,
-                  sol.objective, method)
+                  sol.objective, method, fine, sol.x)
 
 
-__all__ = ["choose_branch", "options_from_problem", "plan", "plan_task", "start_objective",
-           "subsample_task", "tool_is_coaxial"]
+__all__ = ["Solved", "choose_branch", "options_from_problem", "plan", "plan_task", "solve_plan",
+           "start_objective", "subsample_task", "tool_is_coaxial"]
