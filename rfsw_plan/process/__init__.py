@@ -14,7 +14,6 @@ from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orien
 from rfsw_plan.process.presets import PROCESS_PRESETS, process_preset
 from rfsw_plan.process.problem import (
     Coupling,
-    PlanningOptions,
     Problem,
     bundled_problem_names,
     load_problem,
@@ -33,7 +32,6 @@ __all__ = [
     "ForceFit",
     "LoadSchedule",
     "PenetrationLaw",
-    "PlanningOptions",
     "Problem",
     "ProcessForces",
     "ProcessModel",

@@ -18,7 +18,7 @@ joint-space compliance seen by the chain is ``G K^-1 G^T``.
 from __future__ import annotations
 
 import math
-import tomllib
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.bundled import bundled_names, resolve_bundled
+from rfsw_plan.tomlreader import Table, read_toml
 
 FloatArray = NDArray[np.float64]
 
@@ -157,188 +158,180 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
     Raises:
         UnknownNameError: Unknown robot name.
-        InputError: Malformed file; the message names the file and key.
+        InputError: Malformed file, unknown key or impossible value; the message names the
+            file and key.
     """
     path = resolve_robot_path(name_or_path)
     if path.suffix == ".urdf":
         raise InputError(
             path, "", "a URDF needs a stiffness file", "a .toml with [kinematics] urdf = '...'"
         )
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(path, "", f"not valid TOML: {exc}") from None
-    return parse_robot_description(data, path)
+    return parse_robot_description(read_toml(path), path)
 
 
-class _Reader:
-    """Typed access to a TOML table with errors that name the file and key."""
+# Keys of every table of a robot file. A new key is declared here and read below.
+TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "joints", "stiffness", "effects")
+DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
+URDF_KEYS = ("urdf", "tip_link", "source")
+KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
+TOOL_KEYS = ("xyz_mm", "rpy_deg", "source")
+JOINT_KEYS = ("lower_deg", "upper_deg", "velocity_deg_s", "acceleration_deg_s2", "jerk_deg_s3",
+              "coupling", "source")
+STIFFNESS_KEYS = ("k_Nm_per_rad", "source")
+EFFECT_KEYS = ("name", "params", "source")
 
-    def __init__(self, path: Path | str, data: dict[str, Any], prefix: str = "") -> None:
-        self.path = path
-        self.data = data
-        self.prefix = prefix
+#: Valid ranges of robot-file numbers, in file units (mm, deg, N m/rad). Wider than any real
+#: arm; they catch typos and values that would overflow the model (1e300 mm, 1e-320 N m/rad).
+MAX_LENGTH_MM = 1e5          # a link or DH offset of at most 100 m
+MAX_TOOL_MM = 1e4            # flange to TCP at most 10 m
+MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
+MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
+MAX_VELOCITY_DEG_S = 1e4
+MAX_ACCELERATION_DEG_S2 = 1e6
+MAX_JERK_DEG_S3 = 1e8
+STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)
+MAX_COUPLING = 100.0         # |G_ij|: gear and parallelogram ratios are O(1)
+MAX_COUPLING_CONDITION = 1e8
+MAX_EFFECT_PARAM = 1e9       # |theta| of any effect parameter [SI]; each effect narrows it
 
-    def key(self, k: str) -> str:
-        return f"{self.prefix}{k}"
-
-    def table(self, k: str, required: bool = True) -> _Reader | None:
-        v = self.data.get(k)
-        if v is None:
-            if required:
-                raise InputError(self.path, f"[{self.key(k)}]", "missing section")
-            return None
-        if not isinstance(v, dict):
-            raise InputError(self.path, self.key(k), "is not a table")
-        return _Reader(self.path, v, f"{self.key(k)}.")
-
-    def str_(self, k: str, default: str | None = None) -> str:
-        v = self.data.get(k, default)
-        if v is None:
-            raise InputError(self.path, self.key(k), "missing key", "a string")
-        if not isinstance(v, str):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a string")
-        return v
-
-    def vec(self, k: str, n: int | None, default: list[float] | None = None) -> FloatArray:
-        v = self.data.get(k, default)
-        if v is None:
-            raise InputError(self.path, self.key(k), "missing key", "a list of numbers")
-        if not isinstance(v, list) or not all(
-            isinstance(x, int | float) and not isinstance(x, bool) for x in v
-        ):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a list of numbers")
-        arr = np.asarray(v, dtype=float)
-        if n is not None and arr.shape != (n,):
-            raise InputError(self.path, self.key(k), f"has {arr.size} values", f"{n} values")
-        if not np.all(np.isfinite(arr)):
-            raise InputError(self.path, self.key(k), "contains NaN or infinity", "finite numbers")
-        return arr
-
-    def matrix(self, k: str, n: int) -> FloatArray | None:
-        v = self.data.get(k)
-        if v is None:
-            return None
-        try:
-            arr = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(self.path, self.key(k), f"got {v!r}", f"{n}x{n} numbers") from None
-        if arr.shape != (n, n):
-            raise InputError(self.path, self.key(k), f"has shape {arr.shape}", f"({n}, {n})")
-        return arr
+_EFFECT_LABEL = re.compile(r"^([a-z_]+)(?::j([0-9]+))?$")
 
 
 def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDescription:
-    """Build a :class:`RobotDescription` from parsed TOML data (see module docstring)."""
-    r = _Reader(path, data)
+    """Build a :class:`RobotDescription` from parsed TOML data (see module docstring).
+
+    Every table rejects unknown keys (with a "did you mean"), every number must be finite and
+    inside the ranges above, and the joint limits must hold lower < upper.
+
+    Raises:
+        InputError: The first problem found, naming the file and the dotted key.
+    """
+    r = Table(path, data, TOP_KEYS)
     name = r.str_("name")
+    if not name.strip():
+        raise r.error("name", "is empty", "a robot name")
     title = r.str_("title", name)
-    euler = r.str_("euler", "none")
-    if euler not in EULER_CONVENTIONS:
-        raise InputError(path, "euler", f"got '{euler}'", " or ".join(EULER_CONVENTIONS))
+    euler = r.str_("euler", "none", choices=EULER_CONVENTIONS)
     sources: dict[str, str] = {}
 
-    kin = r.table("kinematics")
-    assert kin is not None  # required=True raises otherwise
-    chain: ModifiedDH | UrdfChain
-    if "urdf" in kin.data:
-        urdf = Path(kin.str_("urdf"))
-        if not urdf.is_absolute():
-            urdf = Path(path).parent / urdf
-        if not urdf.is_file():
-            raise InputError(path, kin.key("urdf"), f"file {urdf} does not exist")
-        chain = UrdfChain(urdf, kin.str_("tip_link"))
-        n = _urdf_dof(urdf, chain.tip_link, path)
-    else:
-        convention = kin.str_("convention", "modified_dh")
-        if convention != "modified_dh":
-            raise InputError(path, kin.key("convention"), f"got '{convention}'", "modified_dh")
-        a = kin.vec("a_mm", None)
-        n = a.size
-        chain = ModifiedDH(
-            a=a / 1000.0,
-            d=kin.vec("d_mm", n) / 1000.0,
-            alpha=np.radians(kin.vec("alpha_deg", n)),
-            theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n)),
-        )
+    kin = r.table("kinematics", KINEMATICS_KEYS, required=True)
+    assert kin is not None
+    chain, n = _chain(kin, path)
     sources["kinematics"] = kin.str_("source", "not stated")
 
-    tool_t = r.table("tool", required=False)
     tool = np.eye(4)
+    tool_t = r.table("tool", TOOL_KEYS)
     if tool_t is not None:
-        tool[:3, 3] = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0]) / 1000.0
-        tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec("rpy_deg", 3, [0.0, 0.0, 0.0])))
+        tool[:3, 3] = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0],
+                                 ge=-MAX_TOOL_MM, le=MAX_TOOL_MM) / 1000.0
+        tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec(
+            "rpy_deg", 3, [0.0, 0.0, 0.0], ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
         sources["tool"] = tool_t.str_("source", "not stated")
 
-    joints = r.table("joints")
+    joints = r.table("joints", JOINT_KEYS, required=True)
     assert joints is not None
-    lower = np.radians(joints.vec("lower_deg", n))
-    upper = np.radians(joints.vec("upper_deg", n))
-    bad = np.nonzero(lower >= upper)[0]
-    if bad.size:
-        raise InputError(
-            path, joints.key("lower_deg"), f"joint {bad[0] + 1} lower >= upper", "lower < upper"
-        )
-    velocity = np.radians(joints.vec("velocity_deg_s", n))
-    acceleration = np.radians(joints.vec("acceleration_deg_s2", n))
-    jerk = np.radians(joints.vec("jerk_deg_s3", n, list(np.degrees(acceleration * 10.0))))
-    for key, arr in (
-        ("velocity_deg_s", velocity),
-        ("acceleration_deg_s2", acceleration),
-        ("jerk_deg_s3", jerk),
-    ):
-        if np.any(arr <= 0):
-            j = int(np.nonzero(arr <= 0)[0][0])
-            raise InputError(path, joints.key(key), f"joint {j + 1} is {arr[j]:g}", "> 0")
-    coupling = joints.matrix("coupling", n)
-    if coupling is None:
-        coupling = np.eye(n)
-    elif abs(np.linalg.det(coupling)) < 1e-9:
-        raise InputError(path, joints.key("coupling"), "is singular", "an invertible matrix")
+    limits = _joint_limits(joints, n)
     sources["joints"] = joints.str_("source", "not stated")
 
-    stiff = r.table("stiffness")
+    stiff = r.table("stiffness", STIFFNESS_KEYS, required=True)
     assert stiff is not None
-    k = stiff.vec("k_Nm_per_rad", n)
-    check_stiffness(k, path, stiff.key("k_Nm_per_rad"))
+    lo_k, hi_k = STIFFNESS_RANGE_NM_PER_RAD
+    k = stiff.vec("k_Nm_per_rad", n, ge=lo_k, le=hi_k, item="joint")
     sources["stiffness"] = stiff.str_("source", "not stated")
 
     effects: list[EffectSpec] = []
-    raw_effects = data.get("effects", [])
-    if not isinstance(raw_effects, list):
-        raise InputError(path, "effects", "is not an array of tables", "[[effects]] entries")
-    for i, e in enumerate(raw_effects):
-        if not isinstance(e, dict) or not isinstance(e.get("name"), str):
-            raise InputError(path, f"effects[{i}]", "missing 'name'", "name = 'effect[:jN]'")
-        params = e.get("params", {})
-        if not isinstance(params, dict) or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in params.values()
-        ):
-            raise InputError(path, f"effects[{i}].params", "must map names to finite numbers")
-        effects.append(EffectSpec(e["name"], {str(kk): float(v) for kk, v in params.items()}))
-        if "source" in e:
-            sources[f"effects.{e['name']}"] = str(e["source"])
+    for e in r.tables("effects", EFFECT_KEYS):
+        label = _effect_label(e, n)
+        if any(x.name == label for x in effects):
+            raise e.error("name", f"'{label}' appears twice", "each effect once")
+        params = e.mapping("params", ge=-MAX_EFFECT_PARAM, le=MAX_EFFECT_PARAM)
+        effects.append(EffectSpec(label, params))
+        if e.has("source"):
+            sources[f"effects.{label}"] = e.str_("source")
 
     return RobotDescription(
         name=name,
         title=title,
         chain=chain,
         tool=tool,
-        coupling=coupling,
+        coupling=limits["coupling"],
         stiffness=k,
-        lower=lower,
-        upper=upper,
-        velocity=velocity,
-        acceleration=acceleration,
-        jerk=jerk,
+        lower=limits["lower"],
+        upper=limits["upper"],
+        velocity=limits["velocity"],
+        acceleration=limits["acceleration"],
+        jerk=limits["jerk"],
         euler=euler,
         effects=tuple(effects),
         sources=sources,
         path=Path(path),
     )
+
+
+def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, int]:
+    """The kinematic chain of ``[kinematics]`` and its number of joints."""
+    if kin.has("urdf"):
+        extra = [k for k in DH_KEYS if k != "source" and kin.has(k)]
+        if extra:
+            raise kin.error(extra[0], "given together with urdf", "a URDF or a DH table")
+        urdf = Path(kin.str_("urdf"))
+        if not urdf.is_absolute():
+            urdf = Path(path).parent / urdf
+        if not urdf.is_file():
+            raise kin.error("urdf", f"file {urdf} does not exist")
+        urdf_chain = UrdfChain(urdf, kin.str_("tip_link"))
+        return urdf_chain, _urdf_dof(urdf, urdf_chain.tip_link, path)
+    if kin.has("tip_link"):
+        raise kin.error("tip_link", "given without urdf", "urdf = 'file.urdf' with it")
+    kin.str_("convention", "modified_dh", choices=("modified_dh",))
+    a = kin.vec("a_mm", None, ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)
+    n = a.size
+    dh = ModifiedDH(
+        a=a / 1000.0,
+        d=kin.vec("d_mm", n, ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM) / 1000.0,
+        alpha=np.radians(kin.vec("alpha_deg", n, ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
+        theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n,
+                                  ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
+    )
+    return dh, n
+
+
+def _joint_limits(joints: Table, n: int) -> dict[str, FloatArray]:
+    """Limits [rad, rad/s, rad/s^2, rad/s^3] and the coupling matrix of ``[joints]``."""
+    lim = {"ge": -MAX_JOINT_DEG, "le": MAX_JOINT_DEG, "item": "joint"}
+    lower = joints.vec("lower_deg", n, **lim)  # type: ignore[arg-type]
+    upper = joints.vec("upper_deg", n, **lim)  # type: ignore[arg-type]
+    bad = np.flatnonzero(lower >= upper)
+    if bad.size:
+        j = int(bad[0])
+        raise joints.error("lower_deg", f"joint {j + 1}: lower {lower[j]:g} >= upper "
+                           f"{upper[j]:g}", "lower < upper")
+    velocity = joints.vec("velocity_deg_s", n, gt=0.0, le=MAX_VELOCITY_DEG_S, item="joint")
+    acceleration = joints.vec("acceleration_deg_s2", n, gt=0.0, le=MAX_ACCELERATION_DEG_S2,
+                              item="joint")
+    jerk = joints.vec("jerk_deg_s3", n, list(np.minimum(acceleration * 10.0, MAX_JERK_DEG_S3)),
+                      gt=0.0, le=MAX_JERK_DEG_S3, item="joint")
+    coupling = np.eye(n)
+    if joints.has("coupling"):
+        coupling = joints.matrix("coupling", n, n, ge=-MAX_COUPLING, le=MAX_COUPLING)
+        cond = np.linalg.cond(coupling)
+        if not np.isfinite(cond) or cond > MAX_COUPLING_CONDITION:
+            raise joints.error("coupling", "is singular", "an invertible matrix")
+    return {"lower": np.radians(lower), "upper": np.radians(upper),
+            "velocity": np.radians(velocity), "acceleration": np.radians(acceleration),
+            "jerk": np.radians(jerk), "coupling": coupling}
+
+
+def _effect_label(e: Table, n: int) -> str:
+    """The effect label ``name[:jN]`` of an ``[[effects]]`` entry, with N in 1..n."""
+    label = e.str_("name")
+    m = _EFFECT_LABEL.match(label)
+    if m is None:
+        raise e.error("name", f"got '{label}'", "'effect_name' or 'effect_name:jN'")
+    if m.group(2) is not None and not 1 <= int(m.group(2)) <= n:
+        raise e.error("name", f"joint {m.group(2)} in '{label}' does not exist",
+                      f"a joint 1..{n}")
+    return label
 
 
 def check_stiffness(k: FloatArray, source: str | Path, where: str) -> None:
