@@ -9,10 +9,20 @@ Kinematics are either a modified Denavit-Hartenberg table (Craig convention,
 plus the names of its base and tip links.
 
 Joint values ``q`` everywhere in rfsw_plan are the *controller* joint values (what the robot's
-encoders report and its programs use). The kinematic chain uses ``q_chain = G q`` where ``G`` is
-the motor<->joint coupling matrix (identity for a plain serial arm; FANUC's parallelogram couples
-joint 3 to joint 2, seed 000 eq. 2 and 4). Joint stiffness is on the controller/motor side, so the
-joint-space compliance seen by the chain is ``G K^-1 G^T``.
+teach pendant shows and its programs use: KUKA A1..A6, FANUC J1..J6). The description's optional
+``[controller]`` table says how they relate to the kinematic chain's joint angles ``theta``
+(the MDH variable ``theta_i`` before ``theta0_i``, or the URDF joint value), in one place:
+
+    theta = diag(sign) C q + offset
+
+with ``C`` the ``[joints] coupling`` matrix (identity for a plain serial arm; FANUC's
+parallelogram makes the chain's elbow angle depend on J2 + J3, seed 000 eq. 2 and 4) and
+``sign``/``offset_deg`` per joint. :class:`ControllerConvention` holds it; the signed coupling
+``G = diag(sign) C`` is :attr:`RobotDescription.coupling` and the offsets are folded into the
+kinematic model (:func:`rfsw_plan.robot.kinematics.build_pinocchio_model`). A file without
+``[controller]`` uses the chain's own joint values (``q`` = ``theta``) and says so
+(:attr:`ControllerConvention.kind` ``"chain"``). Joint stiffness is on the controller/motor
+side, so the joint-space compliance seen by the chain is ``G K^-1 G^T``.
 """
 
 from __future__ import annotations
@@ -28,6 +38,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.bundled import bundled_names, resolve_bundled
+from rfsw_plan.robot.urdf import UrdfSerialChain, check_not_xacro, load_urdf_chain
 
 FloatArray = NDArray[np.float64]
 
@@ -69,6 +80,46 @@ class UrdfChain:
 
 
 @dataclass(frozen=True)
+class ControllerConvention:
+    """How the controller's joint values relate to the chain and its frames.
+
+    ``theta = sign * (C q) + offset`` (see the module docstring), plus the controller's own
+    base and flange frames, used by the program writers (:mod:`rfsw_plan.export`).
+
+    Attributes:
+        kind: ``"controller"`` (the file states the controller convention) or ``"chain"``
+            (joint values are the chain's own, e.g. a user's DH file).
+        axes: Controller axis names (``A1``.. for KUKA, ``J1``.. for FANUC), length n.
+        sign: Per-joint sign, shape (n,), entries +1 or -1.
+        offset: Per-joint offset [rad], shape (n,).
+        base: Controller base (KUKA ROBROOT, FANUC world, ABB base) frame in the description's
+            base frame, shape (4, 4) [m].
+        flange: Controller flange frame (KUKA FLANGE, FANUC faceplate, ABB tool0) in the
+            chain's flange frame (before the tool), shape (4, 4) [m].
+        source: Where the convention comes from.
+    """
+
+    kind: str
+    axes: tuple[str, ...]
+    sign: FloatArray
+    offset: FloatArray
+    base: FloatArray
+    flange: FloatArray
+    source: str = "not stated"
+
+    @staticmethod
+    def chain(n: int) -> ControllerConvention:
+        """The identity convention: ``q`` are the chain's own joint values ``q1..qn``."""
+        return ControllerConvention("chain", tuple(f"q{i + 1}" for i in range(n)), np.ones(n),
+                                    np.zeros(n), np.eye(4), np.eye(4),
+                                    "no [controller] table: chain joint values")
+
+    def column_names(self, unit: str = "deg") -> list[str]:
+        """Joint column names for files, e.g. ``A1_deg`` (KUKA) or ``q1_deg`` (chain)."""
+        return [f"{a}_{unit}" for a in self.axes]
+
+
+@dataclass(frozen=True)
 class EffectSpec:
     """An elastostatic effect stored in a robot description.
 
@@ -90,7 +141,8 @@ class RobotDescription:
         title: Human-readable description.
         chain: Kinematic chain, MDH table or URDF.
         tool: Flange-to-TCP transform [m], shape (4, 4).
-        coupling: Matrix G with ``q_chain = G q`` (controller to chain joints), shape (n, n).
+        coupling: Signed coupling ``G = diag(sign) C`` with ``theta = G q + offset``
+            (controller to chain joints), shape (n, n).
         stiffness: Joint stiffness on the controller/motor side [N m/rad], shape (n,).
         lower: Lower joint limits [rad], shape (n,).
         upper: Upper joint limits [rad], shape (n,).
@@ -101,6 +153,7 @@ class RobotDescription:
         effects: Extra elastostatic effects beyond joint compliance.
         sources: Where each group of numbers comes from, keyed by section name.
         path: File the description was read from, if any.
+        controller: Controller joint convention and frames (:class:`ControllerConvention`).
     """
 
     name: str
@@ -118,6 +171,12 @@ class RobotDescription:
     effects: tuple[EffectSpec, ...] = ()
     sources: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
+    controller: ControllerConvention | None = None
+
+    @property
+    def convention(self) -> ControllerConvention:
+        """The controller convention (the chain's own values when the file gives none)."""
+        return self.controller or ControllerConvention.chain(self.n_joints)
 
     @property
     def n_joints(self) -> int:
@@ -160,6 +219,7 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
         InputError: Malformed file; the message names the file and key.
     """
     path = resolve_robot_path(name_or_path)
+    check_not_xacro(path, path)
     if path.suffix == ".urdf":
         raise InputError(
             path, "", "a URDF needs a stiffness file", "a .toml with [kinematics] urdf = '...'"
@@ -243,14 +303,17 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
     kin = r.table("kinematics")
     assert kin is not None  # required=True raises otherwise
     chain: ModifiedDH | UrdfChain
+    urdf_chain: UrdfSerialChain | None = None
     if "urdf" in kin.data:
         urdf = Path(kin.str_("urdf"))
         if not urdf.is_absolute():
             urdf = Path(path).parent / urdf
+        check_not_xacro(urdf, path, kin.key("urdf"))
         if not urdf.is_file():
             raise InputError(path, kin.key("urdf"), f"file {urdf} does not exist")
         chain = UrdfChain(urdf, kin.str_("tip_link"))
-        n = _urdf_dof(urdf, chain.tip_link, path)
+        urdf_chain = load_urdf_chain(urdf, chain.tip_link, path)
+        n = urdf_chain.n_joints
     else:
         convention = kin.str_("convention", "modified_dh")
         if convention != "modified_dh":
@@ -272,16 +335,34 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec("rpy_deg", 3, [0.0, 0.0, 0.0])))
         sources["tool"] = tool_t.str_("source", "not stated")
 
+    controller = _controller(r, n)
+    sources["controller"] = controller.source
     joints = r.table("joints")
     assert joints is not None
-    lower = np.radians(joints.vec("lower_deg", n))
-    upper = np.radians(joints.vec("upper_deg", n))
+    coupling = joints.matrix("coupling", n)
+    if coupling is None:
+        coupling = np.eye(n)
+    elif abs(np.linalg.det(coupling)) < 1e-9:
+        raise InputError(path, joints.key("coupling"), "is singular", "an invertible matrix")
+    G = controller.sign[:, None] * coupling
+    urdf_lo = urdf_hi = None
+    if urdf_chain is not None:
+        urdf_lo, urdf_hi = controller_box(G, controller.offset, urdf_chain.lower,
+                                          urdf_chain.upper)
+    lower = np.radians(joints.vec("lower_deg", n, _deg_or_none(urdf_lo)))
+    upper = np.radians(joints.vec("upper_deg", n, _deg_or_none(urdf_hi)))
     bad = np.nonzero(lower >= upper)[0]
     if bad.size:
         raise InputError(
             path, joints.key("lower_deg"), f"joint {bad[0] + 1} lower >= upper", "lower < upper"
         )
-    velocity = np.radians(joints.vec("velocity_deg_s", n))
+    if urdf_lo is not None and urdf_hi is not None:
+        _check_inside_urdf(path, joints, lower, upper, urdf_lo, urdf_hi)
+    urdf_v = None
+    if urdf_chain is not None and np.all(np.isfinite(urdf_chain.velocity)) \
+            and _is_signed_permutation(G):
+        urdf_v = np.abs(np.linalg.inv(G)) @ urdf_chain.velocity
+    velocity = np.radians(joints.vec("velocity_deg_s", n, _deg_or_none(urdf_v)))
     acceleration = np.radians(joints.vec("acceleration_deg_s2", n))
     jerk = np.radians(joints.vec("jerk_deg_s3", n, list(np.degrees(acceleration * 10.0))))
     for key, arr in (
@@ -292,11 +373,6 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         if np.any(arr <= 0):
             j = int(np.nonzero(arr <= 0)[0][0])
             raise InputError(path, joints.key(key), f"joint {j + 1} is {arr[j]:g}", "> 0")
-    coupling = joints.matrix("coupling", n)
-    if coupling is None:
-        coupling = np.eye(n)
-    elif abs(np.linalg.det(coupling)) < 1e-9:
-        raise InputError(path, joints.key("coupling"), "is singular", "an invertible matrix")
     sources["joints"] = joints.str_("source", "not stated")
 
     stiff = r.table("stiffness")
@@ -327,7 +403,7 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         title=title,
         chain=chain,
         tool=tool,
-        coupling=coupling,
+        coupling=G,
         stiffness=k,
         lower=lower,
         upper=upper,
@@ -338,7 +414,89 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         effects=tuple(effects),
         sources=sources,
         path=Path(path),
+        controller=controller,
     )
+
+
+_CONTROLLER_KEYS = {"axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg",
+                    "flange_xyz_mm", "flange_rpy_deg", "source"}
+
+
+def _controller(r: _Reader, n: int) -> ControllerConvention:
+    """Parse the optional ``[controller]`` table (see :class:`ControllerConvention`)."""
+    t = r.table("controller", required=False)
+    if t is None:
+        return ControllerConvention.chain(n)
+    unknown = sorted(set(t.data) - _CONTROLLER_KEYS)
+    if unknown:
+        raise InputError(r.path, t.key(unknown[0]), "unknown key",
+                         ", ".join(sorted(_CONTROLLER_KEYS)))
+    axes = t.data.get("axes", [f"J{i + 1}" for i in range(n)])
+    if (not isinstance(axes, list) or len(axes) != n
+            or not all(isinstance(a, str) and a.isidentifier() for a in axes)
+            or len(set(axes)) != n):
+        raise InputError(r.path, t.key("axes"), f"got {axes!r}", f"{n} distinct names like 'A1'")
+    sign = t.vec("sign", n, [1.0] * n)
+    if not np.all(np.abs(sign) == 1.0):
+        raise InputError(r.path, t.key("sign"), f"got {sign.tolist()}", "each +1 or -1")
+    offset = np.radians(t.vec("offset_deg", n, [0.0] * n))
+
+    def frame(prefix: str) -> FloatArray:
+        T = np.eye(4)
+        T[:3, 3] = t.vec(f"{prefix}_xyz_mm", 3, [0.0, 0.0, 0.0]) / 1000.0
+        T[:3, :3] = _rpy_to_matrix(np.radians(t.vec(f"{prefix}_rpy_deg", 3, [0.0, 0.0, 0.0])))
+        return T
+
+    return ControllerConvention("controller", tuple(axes), sign, offset, frame("base"),
+                                frame("flange"), t.str_("source", "not stated"))
+
+
+def _deg_or_none(x: FloatArray | None) -> list[float] | None:
+    return None if x is None or not np.all(np.isfinite(x)) else list(np.degrees(x))
+
+
+def _is_signed_permutation(G: FloatArray) -> bool:
+    return bool(np.all(np.isin(G, (-1.0, 0.0, 1.0))) and np.all(np.abs(G).sum(axis=1) == 1)
+                and np.all(np.abs(G).sum(axis=0) == 1))
+
+
+def controller_box(
+    G: FloatArray, offset: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Controller-value box [rad] equivalent to a chain box ``lo <= G q + offset <= hi``.
+
+    Exact for a signed permutation ``G``; for a coupled joint (a row of G with more than one
+    entry, e.g. FANUC's J2/J3 interaction) the chain limit is not a box in controller values
+    and that joint's bounds are returned as -inf/+inf (not checked).
+    """
+    n = G.shape[0]
+    qlo = np.full(n, -np.inf)
+    qhi = np.full(n, np.inf)
+    for i in range(n):
+        cols = np.flatnonzero(G[i])
+        if cols.size != 1:
+            continue
+        j = int(cols[0])
+        a, b = (lo[i] - offset[i]) / G[i, j], (hi[i] - offset[i]) / G[i, j]
+        qlo[j], qhi[j] = min(a, b), max(a, b)
+    return qlo, qhi
+
+
+def _check_inside_urdf(path: Path | str, joints: _Reader, lower: FloatArray, upper: FloatArray,
+                       urdf_lo: FloatArray, urdf_hi: FloatArray) -> None:
+    """A TOML joint limit outside the URDF's is an error naming joint and both values.
+
+    Vendor URDFs round radians to 4 decimals (3.1415 for 180 deg), hence the 1e-4 rad slack.
+    """
+    tol = 1e-4
+    for key, arr, ref, outside in (("lower_deg", lower, urdf_lo, lower < urdf_lo - tol),
+                                   ("upper_deg", upper, urdf_hi, upper > urdf_hi + tol)):
+        if np.any(outside):
+            j = int(np.flatnonzero(outside)[0])
+            raise InputError(path, joints.key(key),
+                             f"joint {j + 1} is {np.degrees(arr[j]):g} deg, outside the URDF's "
+                             f"limit {np.degrees(ref[j]):g} deg",
+                             "a limit within the URDF's")
 
 
 def check_stiffness(k: FloatArray, source: str | Path, where: str) -> None:
@@ -347,21 +505,6 @@ def check_stiffness(k: FloatArray, source: str | Path, where: str) -> None:
     if bad.size:
         j = int(bad[0])
         raise InputError(source, where, f"joint {j + 1} stiffness is {k[j]:g}", "> 0 N m/rad")
-
-
-def _urdf_dof(urdf: Path, tip_link: str, path: Path | str) -> int:
-    import pinocchio as pin
-
-    try:
-        model = pin.buildModelFromUrdf(str(urdf))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(urdf, "", f"cannot parse URDF: {exc}") from None
-    if not model.existFrame(tip_link):
-        raise InputError(
-            path, "kinematics.tip_link", f"no link '{tip_link}' in {urdf.name}",
-            ", ".join(f.name for f in model.frames),
-        )
-    return int(model.nq)
 
 
 def _rpy_to_matrix(rpy: FloatArray) -> FloatArray:
@@ -420,9 +563,21 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         "velocity_deg_s": _r(np.degrees(desc.velocity)),
         "acceleration_deg_s2": _r(np.degrees(desc.acceleration)),
         "jerk_deg_s3": _r(np.degrees(desc.jerk)),
-        "coupling": [_r(row) for row in desc.coupling],
+        "coupling": [_r(row) for row in desc.convention.sign[:, None] * desc.coupling],
         "source": desc.sources.get("joints", "not stated"),
     }
+    conv = desc.convention
+    if conv.kind == "controller":
+        out["controller"] = {
+            "axes": list(conv.axes),
+            "sign": _r(conv.sign),
+            "offset_deg": _r(np.degrees(conv.offset)),
+            "base_xyz_mm": _r(conv.base[:3, 3] * 1000.0),
+            "base_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.base[:3, :3]))),
+            "flange_xyz_mm": _r(conv.flange[:3, 3] * 1000.0),
+            "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
+            "source": conv.source,
+        }
     out["stiffness"] = {
         "k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness],
         "source": desc.sources.get("stiffness", "not stated"),

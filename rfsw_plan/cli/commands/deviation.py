@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     data = {"problem": problem.name, "robot": problem.robot.name, **res.to_dict()}
     if fit_json is not None:
         data["force_fit"] = fit_json
-    _write_csv(out / "deviation.csv", res)
+    _write_csv(out / "deviation.csv", res, problem.robot.convention.column_names())
     _write_time_csv(out / "deviation_time.csv", res)
     (out / "deviation.json").write_text(json.dumps(data, indent=1))
     files = ["deviation.csv", "deviation_time.csv", "deviation.json"]
@@ -109,13 +109,13 @@ def _summary(problem: Problem, res: DeviationResult) -> str:
     return "\n".join(lines)
 
 
-def _write_csv(path: Path, res: DeviationResult) -> None:
+def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> None:
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         nq = res.q.shape[1]
         w.writerow(["s_mm", "x_mm", "y_mm", "z_mm", "f_t_N", "f_l_N", "f_n_N", "lateral_mm",
                     "axial_mm", "along_mm", "inside_window",
-                    *[f"q{j + 1}_deg" for j in range(nq)]])
+                    *joint_columns[:nq]])
         for k in range(len(res.frames)):
             w.writerow([
                 f"{res.frames.s[k] * 1e3:.3f}", *(f"{v * 1e3:.3f}" for v in res.frames.p[k]),
