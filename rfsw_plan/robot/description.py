@@ -9,10 +9,20 @@ Kinematics are either a modified Denavit-Hartenberg table (Craig convention,
 plus the names of its base and tip links.
 
 Joint values ``q`` everywhere in rfsw_plan are the *controller* joint values (what the robot's
-encoders report and its programs use). The kinematic chain uses ``q_chain = G q`` where ``G`` is
-the motor<->joint coupling matrix (identity for a plain serial arm; FANUC's parallelogram couples
-joint 3 to joint 2, seed 000 eq. 2 and 4). Joint stiffness is on the controller/motor side, so the
-joint-space compliance seen by the chain is ``G K^-1 G^T``.
+teach pendant shows and its programs use: KUKA A1..A6, FANUC J1..J6). The description's optional
+``[controller]`` table says how they relate to the kinematic chain's joint angles ``theta``
+(the MDH variable ``theta_i`` before ``theta0_i``, or the URDF joint value), in one place:
+
+    theta = diag(sign) C q + offset
+
+with ``C`` the ``[joints] coupling`` matrix (identity for a plain serial arm; FANUC's
+parallelogram makes the chain's elbow angle depend on J2 + J3, seed 000 eq. 2 and 4) and
+``sign``/``offset_deg`` per joint. :class:`ControllerConvention` holds it; the signed coupling
+``G = diag(sign) C`` is :attr:`RobotDescription.coupling` and the offsets are folded into the
+kinematic model (:func:`rfsw_plan.robot.kinematics.build_pinocchio_model`). A file without
+``[controller]`` uses the chain's own joint values (``q`` = ``theta``) and says so
+(:attr:`ControllerConvention.kind` ``"chain"``). Joint stiffness is on the controller/motor
+side, so the joint-space compliance seen by the chain is ``G K^-1 G^T``.
 """
 
 from __future__ import annotations
@@ -27,7 +37,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.bundled import bundled_names, resolve_bundled
+from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
+from rfsw_plan.robot.urdf import UrdfSerialChain, check_not_xacro, load_urdf_chain
 from rfsw_plan.tomlreader import Table, read_toml
 
 FloatArray = NDArray[np.float64]
@@ -70,6 +81,46 @@ class UrdfChain:
 
 
 @dataclass(frozen=True)
+class ControllerConvention:
+    """How the controller's joint values relate to the chain and its frames.
+
+    ``theta = sign * (C q) + offset`` (see the module docstring), plus the controller's own
+    base and flange frames, used by the program writers (:mod:`rfsw_plan.export`).
+
+    Attributes:
+        kind: ``"controller"`` (the file states the controller convention) or ``"chain"``
+            (joint values are the chain's own, e.g. a user's DH file).
+        axes: Controller axis names (``A1``.. for KUKA, ``J1``.. for FANUC), length n.
+        sign: Per-joint sign, shape (n,), entries +1 or -1.
+        offset: Per-joint offset [rad], shape (n,).
+        base: Controller base (KUKA ROBROOT, FANUC world, ABB base) frame in the description's
+            base frame, shape (4, 4) [m].
+        flange: Controller flange frame (KUKA FLANGE, FANUC faceplate, ABB tool0) in the
+            chain's flange frame (before the tool), shape (4, 4) [m].
+        source: Where the convention comes from.
+    """
+
+    kind: str
+    axes: tuple[str, ...]
+    sign: FloatArray
+    offset: FloatArray
+    base: FloatArray
+    flange: FloatArray
+    source: str = "not stated"
+
+    @staticmethod
+    def chain(n: int) -> ControllerConvention:
+        """The identity convention: ``q`` are the chain's own joint values ``q1..qn``."""
+        return ControllerConvention("chain", tuple(f"q{i + 1}" for i in range(n)), np.ones(n),
+                                    np.zeros(n), np.eye(4), np.eye(4),
+                                    "no [controller] table: chain joint values")
+
+    def column_names(self, unit: str = "deg") -> list[str]:
+        """Joint column names for files, e.g. ``A1_deg`` (KUKA) or ``q1_deg`` (chain)."""
+        return [f"{a}_{unit}" for a in self.axes]
+
+
+@dataclass(frozen=True)
 class EffectSpec:
     """An elastostatic effect stored in a robot description.
 
@@ -91,7 +142,8 @@ class RobotDescription:
         title: Human-readable description.
         chain: Kinematic chain, MDH table or URDF.
         tool: Flange-to-TCP transform [m], shape (4, 4).
-        coupling: Matrix G with ``q_chain = G q`` (controller to chain joints), shape (n, n).
+        coupling: Signed coupling ``G = diag(sign) C`` with ``theta = G q + offset``
+            (controller to chain joints), shape (n, n).
         stiffness: Joint stiffness on the controller/motor side [N m/rad], shape (n,).
         lower: Lower joint limits [rad], shape (n,).
         upper: Upper joint limits [rad], shape (n,).
@@ -102,6 +154,7 @@ class RobotDescription:
         effects: Extra elastostatic effects beyond joint compliance.
         sources: Where each group of numbers comes from, keyed by section name.
         path: File the description was read from, if any.
+        controller: Controller joint convention and frames (:class:`ControllerConvention`).
     """
 
     name: str
@@ -119,6 +172,12 @@ class RobotDescription:
     effects: tuple[EffectSpec, ...] = ()
     sources: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
+    controller: ControllerConvention | None = None
+
+    @property
+    def convention(self) -> ControllerConvention:
+        """The controller convention (the chain's own values when the file gives none)."""
+        return self.controller or ControllerConvention.chain(self.n_joints)
 
     @property
     def n_joints(self) -> int:
@@ -162,6 +221,7 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
             file and key.
     """
     path = resolve_robot_path(name_or_path)
+    check_not_xacro(path, path)
     if path.suffix == ".urdf":
         raise InputError(
             path, "", "a URDF needs a stiffness file", "a .toml with [kinematics] urdf = '...'"
@@ -170,7 +230,8 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
 
 # Keys of every table of a robot file. A new key is declared here and read below.
-TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "joints", "stiffness", "effects")
+TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
+            "effects")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
 URDF_KEYS = ("urdf", "tip_link", "source")
 KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
@@ -179,6 +240,8 @@ JOINT_KEYS = ("lower_deg", "upper_deg", "velocity_deg_s", "acceleration_deg_s2",
               "coupling", "source")
 STIFFNESS_KEYS = ("k_Nm_per_rad", "source")
 EFFECT_KEYS = ("name", "params", "source")
+CONTROLLER_KEYS = ("axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg", "flange_xyz_mm",
+                   "flange_rpy_deg", "source")
 
 #: Valid ranges of robot-file numbers, in file units (mm, deg, N m/rad). Wider than any real
 #: arm; they catch typos and values that would overflow the model (1e300 mm, 1e-320 N m/rad).
@@ -216,7 +279,8 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
 
     kin = r.table("kinematics", KINEMATICS_KEYS, required=True)
     assert kin is not None
-    chain, n = _chain(kin, path)
+    chain, urdf_chain = _chain(kin, path)
+    n = urdf_chain.n_joints if urdf_chain is not None else len(chain.a)  # type: ignore[union-attr]
     sources["kinematics"] = kin.str_("source", "not stated")
 
     tool = np.eye(4)
@@ -228,9 +292,11 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
             "rpy_deg", 3, [0.0, 0.0, 0.0], ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
         sources["tool"] = tool_t.str_("source", "not stated")
 
+    controller = _controller(r, n)
+    sources["controller"] = controller.source
     joints = r.table("joints", JOINT_KEYS, required=True)
     assert joints is not None
-    limits = _joint_limits(joints, n)
+    limits = _joint_limits(path, joints, n, controller, urdf_chain)
     sources["joints"] = joints.str_("source", "not stated")
 
     stiff = r.table("stiffness", STIFFNESS_KEYS, required=True)
@@ -265,11 +331,12 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         effects=tuple(effects),
         sources=sources,
         path=Path(path),
+        controller=controller,
     )
 
 
-def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, int]:
-    """The kinematic chain of ``[kinematics]`` and its number of joints."""
+def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, UrdfSerialChain | None]:
+    """The kinematic chain of ``[kinematics]`` (and the reduced URDF chain for a URDF)."""
     if kin.has("urdf"):
         extra = [k for k in DH_KEYS if k != "source" and kin.has(k)]
         if extra:
@@ -277,10 +344,11 @@ def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, int]:
         urdf = Path(kin.str_("urdf"))
         if not urdf.is_absolute():
             urdf = Path(path).parent / urdf
+        check_not_xacro(urdf, path, kin.key("urdf"))
         if not urdf.is_file():
             raise kin.error("urdf", f"file {urdf} does not exist")
-        urdf_chain = UrdfChain(urdf, kin.str_("tip_link"))
-        return urdf_chain, _urdf_dof(urdf, urdf_chain.tip_link, path)
+        chain = UrdfChain(urdf, kin.str_("tip_link"))
+        return chain, load_urdf_chain(urdf, chain.tip_link, path)
     if kin.has("tip_link"):
         raise kin.error("tip_link", "given without urdf", "urdf = 'file.urdf' with it")
     kin.str_("convention", "modified_dh", choices=("modified_dh",))
@@ -293,33 +361,50 @@ def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, int]:
         theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n,
                                   ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
     )
-    return dh, n
+    return dh, None
 
 
-def _joint_limits(joints: Table, n: int) -> dict[str, FloatArray]:
-    """Limits [rad, rad/s, rad/s^2, rad/s^3] and the coupling matrix of ``[joints]``."""
-    lim = {"ge": -MAX_JOINT_DEG, "le": MAX_JOINT_DEG, "item": "joint"}
-    lower = joints.vec("lower_deg", n, **lim)  # type: ignore[arg-type]
-    upper = joints.vec("upper_deg", n, **lim)  # type: ignore[arg-type]
-    bad = np.flatnonzero(lower >= upper)
-    if bad.size:
-        j = int(bad[0])
-        raise joints.error("lower_deg", f"joint {j + 1}: lower {lower[j]:g} >= upper "
-                           f"{upper[j]:g}", "lower < upper")
-    velocity = joints.vec("velocity_deg_s", n, gt=0.0, le=MAX_VELOCITY_DEG_S, item="joint")
-    acceleration = joints.vec("acceleration_deg_s2", n, gt=0.0, le=MAX_ACCELERATION_DEG_S2,
-                              item="joint")
-    jerk = joints.vec("jerk_deg_s3", n, list(np.minimum(acceleration * 10.0, MAX_JERK_DEG_S3)),
-                      gt=0.0, le=MAX_JERK_DEG_S3, item="joint")
+def _joint_limits(path: Path | str, joints: Table, n: int, controller: ControllerConvention,
+                  urdf_chain: UrdfSerialChain | None) -> dict[str, FloatArray]:
+    """Limits [rad, rad/s, rad/s^2, rad/s^3] and the signed coupling ``G`` of ``[joints]``.
+
+    With a URDF chain, absent limits default to the URDF's (mapped to controller values), and
+    given ones must lie inside them.
+    """
     coupling = np.eye(n)
     if joints.has("coupling"):
         coupling = joints.matrix("coupling", n, n, ge=-MAX_COUPLING, le=MAX_COUPLING)
         cond = np.linalg.cond(coupling)
         if not np.isfinite(cond) or cond > MAX_COUPLING_CONDITION:
             raise joints.error("coupling", "is singular", "an invertible matrix")
-    return {"lower": np.radians(lower), "upper": np.radians(upper),
-            "velocity": np.radians(velocity), "acceleration": np.radians(acceleration),
-            "jerk": np.radians(jerk), "coupling": coupling}
+    G = controller.sign[:, None] * coupling
+    urdf_lo = urdf_hi = None
+    if urdf_chain is not None:
+        urdf_lo, urdf_hi = controller_box(G, controller.offset, urdf_chain.lower,
+                                          urdf_chain.upper)
+    lim = {"ge": -MAX_JOINT_DEG, "le": MAX_JOINT_DEG, "item": "joint"}
+    lower = joints.vec("lower_deg", n, _deg_or_none(urdf_lo), **lim)  # type: ignore[arg-type]
+    upper = joints.vec("upper_deg", n, _deg_or_none(urdf_hi), **lim)  # type: ignore[arg-type]
+    bad = np.flatnonzero(lower >= upper)
+    if bad.size:
+        j = int(bad[0])
+        raise joints.error("lower_deg", f"joint {j + 1}: lower {lower[j]:g} >= upper "
+                           f"{upper[j]:g}", "lower < upper")
+    lower, upper = np.radians(lower), np.radians(upper)
+    if urdf_lo is not None and urdf_hi is not None:
+        _check_inside_urdf(path, joints, lower, upper, urdf_lo, urdf_hi)
+    urdf_v = None
+    if urdf_chain is not None and np.all(np.isfinite(urdf_chain.velocity)) \
+            and _is_signed_permutation(G):
+        urdf_v = np.abs(np.linalg.inv(G)) @ urdf_chain.velocity
+    velocity = joints.vec("velocity_deg_s", n, _deg_or_none(urdf_v), gt=0.0,
+                          le=MAX_VELOCITY_DEG_S, item="joint")
+    acceleration = joints.vec("acceleration_deg_s2", n, gt=0.0, le=MAX_ACCELERATION_DEG_S2,
+                              item="joint")
+    jerk = joints.vec("jerk_deg_s3", n, list(np.minimum(acceleration * 10.0, MAX_JERK_DEG_S3)),
+                      gt=0.0, le=MAX_JERK_DEG_S3, item="joint")
+    return {"lower": lower, "upper": upper, "velocity": np.radians(velocity),
+            "acceleration": np.radians(acceleration), "jerk": np.radians(jerk), "coupling": G}
 
 
 def _effect_label(e: Table, n: int) -> str:
@@ -334,27 +419,88 @@ def _effect_label(e: Table, n: int) -> str:
     return label
 
 
+def _controller(r: Table, n: int) -> ControllerConvention:
+    """Parse the optional ``[controller]`` table (see :class:`ControllerConvention`)."""
+    t = r.table("controller", CONTROLLER_KEYS)
+    if t is None:
+        return ControllerConvention.chain(n)
+    axes = t.data.get("axes", [f"J{i + 1}" for i in range(n)])
+    if (not isinstance(axes, list) or len(axes) != n
+            or not all(isinstance(a, str) and a.isidentifier() for a in axes)
+            or len(set(axes)) != n):
+        raise t.error("axes", f"got {axes!r}"[:80], f"{n} distinct names like 'A1'")
+    sign = t.vec("sign", n, [1.0] * n, ge=-1.0, le=1.0, item="joint")
+    if not np.all(np.abs(sign) == 1.0):
+        raise t.error("sign", f"got {sign.tolist()}", "each +1 or -1")
+    offset = np.radians(t.vec("offset_deg", n, [0.0] * n, ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG,
+                              item="joint"))
+
+    def frame(prefix: str) -> FloatArray:
+        T = np.eye(4)
+        T[:3, 3] = t.vec(f"{prefix}_xyz_mm", 3, [0.0, 0.0, 0.0],
+                         ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM) / 1000.0
+        T[:3, :3] = _rpy_to_matrix(np.radians(t.vec(f"{prefix}_rpy_deg", 3, [0.0, 0.0, 0.0],
+                                                    ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
+        return T
+
+    return ControllerConvention("controller", tuple(axes), sign, offset, frame("base"),
+                                frame("flange"), t.str_("source", "not stated"))
+
+
+def _deg_or_none(x: FloatArray | None) -> list[float] | None:
+    return None if x is None or not np.all(np.isfinite(x)) else list(np.degrees(x))
+
+
+def _is_signed_permutation(G: FloatArray) -> bool:
+    return bool(np.all(np.isin(G, (-1.0, 0.0, 1.0))) and np.all(np.abs(G).sum(axis=1) == 1)
+                and np.all(np.abs(G).sum(axis=0) == 1))
+
+
+def controller_box(
+    G: FloatArray, offset: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Controller-value box [rad] equivalent to a chain box ``lo <= G q + offset <= hi``.
+
+    Exact for a signed permutation ``G``; for a coupled joint (a row of G with more than one
+    entry, e.g. FANUC's J2/J3 interaction) the chain limit is not a box in controller values
+    and that joint's bounds are returned as -inf/+inf (not checked).
+    """
+    n = G.shape[0]
+    qlo = np.full(n, -np.inf)
+    qhi = np.full(n, np.inf)
+    for i in range(n):
+        cols = np.flatnonzero(G[i])
+        if cols.size != 1:
+            continue
+        j = int(cols[0])
+        a, b = (lo[i] - offset[i]) / G[i, j], (hi[i] - offset[i]) / G[i, j]
+        qlo[j], qhi[j] = min(a, b), max(a, b)
+    return qlo, qhi
+
+
+def _check_inside_urdf(path: Path | str, joints: Table, lower: FloatArray, upper: FloatArray,
+                       urdf_lo: FloatArray, urdf_hi: FloatArray) -> None:
+    """A TOML joint limit outside the URDF's is an error naming joint and both values.
+
+    Vendor URDFs round radians to 4 decimals (3.1415 for 180 deg), hence the 1e-4 rad slack.
+    """
+    tol = 1e-4
+    for key, arr, ref, outside in (("lower_deg", lower, urdf_lo, lower < urdf_lo - tol),
+                                   ("upper_deg", upper, urdf_hi, upper > urdf_hi + tol)):
+        if np.any(outside):
+            j = int(np.flatnonzero(outside)[0])
+            raise InputError(path, joints.key(key),
+                             f"joint {j + 1} is {np.degrees(arr[j]):g} deg, outside the URDF's "
+                             f"limit {np.degrees(ref[j]):g} deg",
+                             "a limit within the URDF's")
+
+
 def check_stiffness(k: FloatArray, source: str | Path, where: str) -> None:
     """Raise :class:`InputError` unless every joint stiffness is finite and > 0 [N m/rad]."""
     bad = np.nonzero(~np.isfinite(k) | (k <= 0))[0]
     if bad.size:
         j = int(bad[0])
         raise InputError(source, where, f"joint {j + 1} stiffness is {k[j]:g}", "> 0 N m/rad")
-
-
-def _urdf_dof(urdf: Path, tip_link: str, path: Path | str) -> int:
-    import pinocchio as pin
-
-    try:
-        model = pin.buildModelFromUrdf(str(urdf))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        raise InputError(urdf, "", f"cannot parse URDF: {exc}") from None
-    if not model.existFrame(tip_link):
-        raise InputError(
-            path, "kinematics.tip_link", f"no link '{tip_link}' in {urdf.name}",
-            ", ".join(f.name for f in model.frames),
-        )
-    return int(model.nq)
 
 
 def _rpy_to_matrix(rpy: FloatArray) -> FloatArray:
@@ -413,9 +559,21 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         "velocity_deg_s": _r(np.degrees(desc.velocity)),
         "acceleration_deg_s2": _r(np.degrees(desc.acceleration)),
         "jerk_deg_s3": _r(np.degrees(desc.jerk)),
-        "coupling": [_r(row) for row in desc.coupling],
+        "coupling": [_r(row) for row in desc.convention.sign[:, None] * desc.coupling],
         "source": desc.sources.get("joints", "not stated"),
     }
+    conv = desc.convention
+    if conv.kind == "controller":
+        out["controller"] = {
+            "axes": list(conv.axes),
+            "sign": _r(conv.sign),
+            "offset_deg": _r(np.degrees(conv.offset)),
+            "base_xyz_mm": _r(conv.base[:3, 3] * 1000.0),
+            "base_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.base[:3, :3]))),
+            "flange_xyz_mm": _r(conv.flange[:3, 3] * 1000.0),
+            "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
+            "source": conv.source,
+        }
     out["stiffness"] = {
         "k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness],
         "source": desc.sources.get("stiffness", "not stated"),
@@ -435,10 +593,11 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     """Write a description as TOML; returns the path written."""
     import tomli_w
 
+    from rfsw_plan.io.files import write_text
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(tomli_w.dumps(robot_description_to_toml_dict(desc)))
-    return p
+    return write_text(p, tomli_w.dumps(robot_description_to_toml_dict(desc)))
 
 
 def _r(arr: FloatArray) -> list[float]:
