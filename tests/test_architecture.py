@@ -36,8 +36,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 #: shrinks: a new backward import fails the test, and so does an entry here that is gone (then
 #: delete the entry). Pairs of (importing module, imported module).
 KNOWN_BACKWARD: frozenset[tuple[str, str]] = frozenset({
-    # MeasurementSet is a data type elastostatics and validation use; it moves out of io/.
-    ("rfsw_plan.elastostatics.identification", "rfsw_plan.io.measurements"),
     # The plan writer reads a PlanResult; it belongs above planning (with the exporters).
     ("rfsw_plan.io.waypoints", "rfsw_plan.planning.result"),
 })

@@ -307,15 +307,17 @@ class ElastostaticModel:
         return batch.T[:, :3, 3] + self.deflection_batch(batch, np.atleast_2d(wrench))[:, :3]
 
     def is_linear_joint_model(self) -> bool:
-        """True if the model is joint compliance only (the fast path applies)."""
-        return len(self.effects) == 1
+        """True if the model is joint compliance only and the links carry no mass (the fast
+        path applies)."""
+        return len(self.effects) == 1 and not self.robot.has_link_masses
 
     def is_spring_model(self) -> bool:
         """True if every effect after the joint compliance is a spring effect
         (:meth:`Effect.joint_springs`, e.g. tilting compliance): linear in the wrench, and a
         single pose is one Pinocchio Jacobian call."""
-        return all(e.kind == "compliance" and e.joint is not None
-                   and e.joint_springs() is not None for e in self.effects[1:])
+        return not self.robot.has_link_masses and all(
+            e.kind == "compliance" and e.joint is not None and e.joint_springs() is not None
+            for e in self.effects[1:])
 
     # -- storage -----------------------------------------------------------------------------
     def to_description(self, source_note: str | None = None) -> RobotDescription:
@@ -324,7 +326,8 @@ class ElastostaticModel:
         k = self.stiffness
         check_stiffness(k, "model", "joint_compliance")
         out = desc.with_stiffness(k, source_note or desc.sources.get("stiffness", ""))
-        specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:])
+        specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:]
+                      if not e.setup)
         return replace(out, effects=specs)
 
 

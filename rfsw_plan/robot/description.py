@@ -134,6 +134,36 @@ class EffectSpec:
 
 
 @dataclass(frozen=True)
+class DeviceFrame:
+    """Where a measuring device sees the robot: its frame in the base frame, and the marker.
+
+    A laser tracker or motion-capture system measures a marker (SMR, rigid body) at an offset
+    from the TCP, in its own frame: ``p_device = R (FK(q) + R_tcp marker) + t`` with the
+    device-to-base transform inverted, i.e. the base frame seen from the device.
+
+    Attributes:
+        rotation: Rotation of the base frame in the device frame, shape (3, 3).
+        translation: Base origin in the device frame [m], shape (3,).
+        marker: Tracked point in the tool (TCP) frame [m], shape (3,).
+        std: 1-sigma standard errors, keyed by parameter (``rx_mrad``, ``x_mm``...), as
+            identified; empty if given, not identified.
+    """
+
+    rotation: FloatArray
+    translation: FloatArray
+    marker: FloatArray
+    std: dict[str, float] = field(default_factory=dict)
+
+    def to_device(self, p_base: FloatArray) -> FloatArray:
+        """Base-frame points (m, 3) [m] in the device frame."""
+        return np.asarray(p_base, dtype=float) @ self.rotation.T + self.translation
+
+    def to_base(self, p_device: FloatArray) -> FloatArray:
+        """Device-frame points (m, 3) [m] in the base frame."""
+        return (np.asarray(p_device, dtype=float) - self.translation) @ self.rotation
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """Everything rfsw_plan knows about one robot.
 
@@ -155,6 +185,10 @@ class RobotDescription:
         sources: Where each group of numbers comes from, keyed by section name.
         path: File the description was read from, if any.
         controller: Controller joint convention and frames (:class:`ControllerConvention`).
+        prismatic: Per joint, True for a prismatic joint (its q, limits and stiffness are in
+            m, m/s, ..., N/m), shape (n,); None = all revolute.
+        device_frame: Registration of a measuring device (laser tracker, motion capture) and
+            the tracked marker's offset, identified by ``validate --frame device``, or None.
     """
 
     name: str
@@ -173,6 +207,8 @@ class RobotDescription:
     sources: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
     controller: ControllerConvention | None = None
+    prismatic: NDArray[np.bool_] | None = None
+    device_frame: DeviceFrame | None = None
 
     @property
     def convention(self) -> ControllerConvention:
@@ -231,14 +267,17 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
 # Keys of every table of a robot file. A new key is declared here and read below.
 TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
-            "effects")
+            "effects", "device_frame")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
 URDF_KEYS = ("urdf", "tip_link", "source")
 KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
 TOOL_KEYS = ("xyz_mm", "rpy_deg", "source")
 JOINT_KEYS = ("lower_deg", "upper_deg", "velocity_deg_s", "acceleration_deg_s2", "jerk_deg_s3",
+              "lower_mm", "upper_mm", "velocity_mm_s", "acceleration_mm_s2", "jerk_mm_s3",
               "coupling", "source")
-STIFFNESS_KEYS = ("k_Nm_per_rad", "source")
+STIFFNESS_KEYS = ("k_Nm_per_rad", "k_N_per_m", "source")
+DEVICE_FRAME_KEYS = ("base_in_device_xyz_mm", "base_in_device_rpy_deg", "marker_xyz_mm", "std",
+                     "source")
 EFFECT_KEYS = ("name", "params", "source")
 CONTROLLER_KEYS = ("axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg", "flange_xyz_mm",
                    "flange_rpy_deg", "source")
@@ -249,10 +288,11 @@ MAX_LENGTH_MM = 1e5          # a link or DH offset of at most 100 m
 MAX_TOOL_MM = 1e4            # flange to TCP at most 10 m
 MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
 MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
+MAX_TRAVEL_MM = 1e5          # prismatic joint limits: at most 100 m
 MAX_VELOCITY_DEG_S = 1e4
 MAX_ACCELERATION_DEG_S2 = 1e6
 MAX_JERK_DEG_S3 = 1e8
-STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)
+STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)  # prismatic joints: the same range in N/m
 MAX_COUPLING = 100.0         # |G_ij|: gear and parallelogram ratios are O(1)
 MAX_COUPLING_CONDITION = 1e8
 MAX_EFFECT_PARAM = 1e9       # |theta| of any effect parameter [SI]; each effect narrows it
@@ -281,6 +321,8 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
     assert kin is not None
     chain, urdf_chain = _chain(kin, path)
     n = urdf_chain.n_joints if urdf_chain is not None else len(chain.a)  # type: ignore[union-attr]
+    prismatic = (urdf_chain.prismatic if urdf_chain is not None
+                 else np.zeros(n, dtype=bool))
     sources["kinematics"] = kin.str_("source", "not stated")
 
     tool = np.eye(4)
@@ -296,13 +338,14 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
     sources["controller"] = controller.source
     joints = r.table("joints", JOINT_KEYS, required=True)
     assert joints is not None
-    limits = _joint_limits(path, joints, n, controller, urdf_chain)
+    limits = _joint_limits(path, joints, prismatic, controller, urdf_chain)
     sources["joints"] = joints.str_("source", "not stated")
 
     stiff = r.table("stiffness", STIFFNESS_KEYS, required=True)
     assert stiff is not None
     lo_k, hi_k = STIFFNESS_RANGE_NM_PER_RAD
-    k = stiff.vec("k_Nm_per_rad", n, ge=lo_k, le=hi_k, item="joint")
+    k = _per_joint(stiff, prismatic, ("k_Nm_per_rad", 1.0, lo_k, hi_k),
+                   ("k_N_per_m", 1.0, lo_k, hi_k), ge_inclusive=True)
     sources["stiffness"] = stiff.str_("source", "not stated")
 
     effects: list[EffectSpec] = []
@@ -332,6 +375,8 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         sources=sources,
         path=Path(path),
         controller=controller,
+        prismatic=prismatic if prismatic.any() else None,
+        device_frame=_device_frame(r, sources),
     )
 
 
@@ -364,13 +409,16 @@ def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, UrdfSe
     return dh, None
 
 
-def _joint_limits(path: Path | str, joints: Table, n: int, controller: ControllerConvention,
+def _joint_limits(path: Path | str, joints: Table, prismatic: NDArray[np.bool_],
+                  controller: ControllerConvention,
                   urdf_chain: UrdfSerialChain | None) -> dict[str, FloatArray]:
-    """Limits [rad, rad/s, rad/s^2, rad/s^3] and the signed coupling ``G`` of ``[joints]``.
+    """Limits [rad or m, /s, /s^2, /s^3] and the signed coupling ``G`` of ``[joints]``.
 
-    With a URDF chain, absent limits default to the URDF's (mapped to controller values), and
-    given ones must lie inside them.
+    Revolute joints are listed under ``*_deg*`` keys, prismatic ones under ``*_mm*`` keys
+    (each in joint order). With a URDF chain, absent limits default to the URDF's (mapped to
+    controller values), and given ones must lie inside them.
     """
+    n = prismatic.size
     coupling = np.eye(n)
     if joints.has("coupling"):
         coupling = joints.matrix("coupling", n, n, ge=-MAX_COUPLING, le=MAX_COUPLING)
@@ -382,29 +430,101 @@ def _joint_limits(path: Path | str, joints: Table, n: int, controller: Controlle
     if urdf_chain is not None:
         urdf_lo, urdf_hi = controller_box(G, controller.offset, urdf_chain.lower,
                                           urdf_chain.upper)
-    lim = {"ge": -MAX_JOINT_DEG, "le": MAX_JOINT_DEG, "item": "joint"}
-    lower = joints.vec("lower_deg", n, _deg_or_none(urdf_lo), **lim)  # type: ignore[arg-type]
-    upper = joints.vec("upper_deg", n, _deg_or_none(urdf_hi), **lim)  # type: ignore[arg-type]
+    deg, mm = math.pi / 180.0, 1e-3
+
+    def per_joint(key: str, hi_deg: float, hi_mm: float, default: FloatArray | None = None,
+                  positive: bool = True) -> FloatArray:
+        rev, pri = key.replace("*", "deg"), key.replace("*", "mm")
+        lo_d, lo_m = (0.0, 0.0) if positive else (-hi_deg, -hi_mm)
+        return _per_joint(joints, prismatic, (rev, deg, lo_d, hi_deg), (pri, mm, lo_m, hi_mm),
+                          default=default, ge_inclusive=not positive)
+
+    lower = per_joint("lower_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_lo), False)
+    upper = per_joint("upper_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_hi), False)
     bad = np.flatnonzero(lower >= upper)
     if bad.size:
         j = int(bad[0])
-        raise joints.error("lower_deg", f"joint {j + 1}: lower {lower[j]:g} >= upper "
-                           f"{upper[j]:g}", "lower < upper")
-    lower, upper = np.radians(lower), np.radians(upper)
+        unit, f = ("mm", 1e3) if prismatic[j] else ("deg", 180.0 / math.pi)
+        raise joints.error(f"lower_{unit}", f"joint {j + 1}: lower {lower[j] * f:g} >= upper "
+                           f"{upper[j] * f:g}", "lower < upper")
     if urdf_lo is not None and urdf_hi is not None:
         _check_inside_urdf(path, joints, lower, upper, urdf_lo, urdf_hi)
     urdf_v = None
     if urdf_chain is not None and np.all(np.isfinite(urdf_chain.velocity)) \
             and _is_signed_permutation(G):
         urdf_v = np.abs(np.linalg.inv(G)) @ urdf_chain.velocity
-    velocity = joints.vec("velocity_deg_s", n, _deg_or_none(urdf_v), gt=0.0,
-                          le=MAX_VELOCITY_DEG_S, item="joint")
-    acceleration = joints.vec("acceleration_deg_s2", n, gt=0.0, le=MAX_ACCELERATION_DEG_S2,
-                              item="joint")
-    jerk = joints.vec("jerk_deg_s3", n, list(np.minimum(acceleration * 10.0, MAX_JERK_DEG_S3)),
-                      gt=0.0, le=MAX_JERK_DEG_S3, item="joint")
-    return {"lower": lower, "upper": upper, "velocity": np.radians(velocity),
-            "acceleration": np.radians(acceleration), "jerk": np.radians(jerk), "coupling": G}
+    velocity = per_joint("velocity_*_s", MAX_VELOCITY_DEG_S, 10 * MAX_VELOCITY_DEG_S, urdf_v)
+    acceleration = per_joint("acceleration_*_s2", MAX_ACCELERATION_DEG_S2,
+                             10 * MAX_ACCELERATION_DEG_S2)
+    jerk = per_joint("jerk_*_s3", MAX_JERK_DEG_S3, 10 * MAX_JERK_DEG_S3,
+                     np.minimum(acceleration * 10.0, np.where(prismatic, 10 * mm, deg)
+                                * MAX_JERK_DEG_S3))
+    return {"lower": lower, "upper": upper, "velocity": velocity,
+            "acceleration": acceleration, "jerk": jerk, "coupling": G}
+
+
+def _finite_or_none(x: FloatArray | None) -> FloatArray | None:
+    return None if x is None or not np.all(np.isfinite(x)) else x
+
+
+def _per_joint(t: Table, prismatic: NDArray[np.bool_], rev: tuple[str, float, float, float],
+               pri: tuple[str, float, float, float], default: FloatArray | None = None,
+               ge_inclusive: bool = False) -> FloatArray:
+    """Join a revolute-joint list and a prismatic-joint list (joint order each) in SI.
+
+    ``rev`` and ``pri`` are (key, file-to-SI factor, lower bound, upper bound) with the bounds
+    in file units; the lower bound is exclusive unless ``ge_inclusive``. ``default`` is SI.
+    """
+    n = prismatic.size
+    n_pri = int(prismatic.sum())
+    out = np.empty(n)
+    if n_pri and isinstance(t.data.get(rev[0]), list) and len(t.data[rev[0]]) == n:
+        raise t.error(rev[0], f"has {n} values but {n_pri} joint(s) are prismatic",
+                      f"{n - n_pri} revolute values, and {pri[0]}")
+    for mask, (key, scale, lo, hi) in ((~prismatic, rev), (prismatic, pri)):
+        count = int(mask.sum())
+        if count == 0:
+            if t.has(key):
+                raise t.error(key, "the robot has no such joint",
+                              f"{rev[0]} for revolute, {pri[0]} for prismatic joints")
+            continue
+        dflt = None if default is None else list(default[mask] / scale)
+        vals = t.vec(key, count, dflt, ge=lo if ge_inclusive else None,
+                     gt=None if ge_inclusive else lo, le=hi,
+                     item="joint" if n_pri == 0 else "value")
+        out[mask] = vals * scale
+    return out
+
+
+def read_device_frame(path: Path) -> DeviceFrame:
+    """The ``[device_frame]`` table of a TOML file (a robot file or one with only that table).
+
+    Raises:
+        InputError: Unreadable file, unknown key, bad value, or no ``[device_frame]`` table.
+    """
+    frame = _device_frame(Table.load(path, TOP_KEYS), {})
+    if frame is None:
+        raise InputError(path, "device_frame", "missing table",
+                         "base_in_device_xyz_mm, base_in_device_rpy_deg[, marker_xyz_mm]")
+    return frame
+
+
+def _device_frame(r: Table, sources: dict[str, str]) -> DeviceFrame | None:
+    """The optional ``[device_frame]`` table (see :class:`DeviceFrame`)."""
+    t = r.table("device_frame", DEVICE_FRAME_KEYS)
+    if t is None:
+        return None
+    std = t.mapping("std", ge=0.0, le=1e9)
+    sources["device_frame"] = t.str_("source", "not stated")
+    return DeviceFrame(
+        rotation=_rpy_to_matrix(np.radians(t.vec("base_in_device_rpy_deg", 3,
+                                                 ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG))),
+        translation=t.vec("base_in_device_xyz_mm", 3, ge=-MAX_LENGTH_MM,
+                          le=MAX_LENGTH_MM) / 1000.0,
+        marker=t.vec("marker_xyz_mm", 3, [0.0, 0.0, 0.0], ge=-MAX_TOOL_MM,
+                     le=MAX_TOOL_MM) / 1000.0,
+        std=std,
+    )
 
 
 def _effect_label(e: Table, n: int) -> str:
@@ -445,10 +565,6 @@ def _controller(r: Table, n: int) -> ControllerConvention:
 
     return ControllerConvention("controller", tuple(axes), sign, offset, frame("base"),
                                 frame("flange"), t.str_("source", "not stated"))
-
-
-def _deg_or_none(x: FloatArray | None) -> list[float] | None:
-    return None if x is None or not np.all(np.isfinite(x)) else list(np.degrees(x))
 
 
 def _is_signed_permutation(G: FloatArray) -> bool:
@@ -553,12 +669,23 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         "rpy_deg": _r(np.degrees(_matrix_to_rpy(desc.tool[:3, :3]))),
         "source": desc.sources.get("tool", "not stated"),
     }
+    pri = np.zeros(desc.n_joints, dtype=bool) if desc.prismatic is None else desc.prismatic
+    rev = ~pri
+
+    def split(arr: FloatArray, rev_key: str, pri_key: str, scale_r: float,
+              scale_p: float) -> dict[str, list[float]]:
+        out_: dict[str, list[float]] = {rev_key: _r(arr[rev] / scale_r)}
+        if pri.any():
+            out_[pri_key] = _r(arr[pri] / scale_p)
+        return out_
+
+    deg, mm = math.pi / 180.0, 1e-3
     out["joints"] = {
-        "lower_deg": _r(np.degrees(desc.lower)),
-        "upper_deg": _r(np.degrees(desc.upper)),
-        "velocity_deg_s": _r(np.degrees(desc.velocity)),
-        "acceleration_deg_s2": _r(np.degrees(desc.acceleration)),
-        "jerk_deg_s3": _r(np.degrees(desc.jerk)),
+        **split(desc.lower, "lower_deg", "lower_mm", deg, mm),
+        **split(desc.upper, "upper_deg", "upper_mm", deg, mm),
+        **split(desc.velocity, "velocity_deg_s", "velocity_mm_s", deg, mm),
+        **split(desc.acceleration, "acceleration_deg_s2", "acceleration_mm_s2", deg, mm),
+        **split(desc.jerk, "jerk_deg_s3", "jerk_mm_s3", deg, mm),
         "coupling": [_r(row) for row in desc.convention.sign[:, None] * desc.coupling],
         "source": desc.sources.get("joints", "not stated"),
     }
@@ -574,10 +701,20 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
             "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
             "source": conv.source,
         }
-    out["stiffness"] = {
-        "k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness],
-        "source": desc.sources.get("stiffness", "not stated"),
-    }
+    stiff: dict[str, Any] = {"k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness[rev]]}
+    if pri.any():
+        stiff["k_N_per_m"] = [float(f"{k:.6g}") for k in desc.stiffness[pri]]
+    stiff["source"] = desc.sources.get("stiffness", "not stated")
+    out["stiffness"] = stiff
+    if desc.device_frame is not None:
+        dfr = desc.device_frame
+        out["device_frame"] = {
+            "base_in_device_xyz_mm": _r(dfr.translation * 1000.0),
+            "base_in_device_rpy_deg": _r(np.degrees(_matrix_to_rpy(dfr.rotation))),
+            "marker_xyz_mm": _r(dfr.marker * 1000.0),
+            "std": {k: float(f"{v:.6g}") for k, v in dfr.std.items()},
+            "source": desc.sources.get("device_frame", "not stated"),
+        }
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:

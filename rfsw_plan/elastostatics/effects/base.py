@@ -111,6 +111,10 @@ class Effect(abc.ABC):
     #: misalignment, sensor bias): it applies to logged wrenches only, never to a wrench that
     #: comes from the process model (planning, deviation, the truth of a virtual weld).
     sensor_only: ClassVar[bool] = False
+    #: True if the effect belongs to the measurement set-up (device registration, marker
+    #: offset), not to the robot: never a diagnosis candidate, never dropped for collinearity
+    #: in favour of a robot parameter, and not written into a robot's ``[[effects]]``.
+    setup: ClassVar[bool] = False
 
     def __init__(
         self, robot: Robot, joint: int | None = None, params: Mapping[str, float] | None = None
