@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import (
+    ComplianceEffect,
+    EffectGroups,
+    FloatArray,
+    PoseBatch,
+)
 
 
-class JointCompliance(Effect):
+class JointCompliance(ComplianceEffect):
     """dX = J diag(c) J^T F with c_k = 1/k_k the joint compliances [rad/(N m)].
 
     When the robot description gives link masses (a URDF with inertials), the links' own
@@ -23,7 +28,11 @@ class JointCompliance(Effect):
         "Each joint is a linear torsional spring about its own axis: the joint torque "
         "J^T F turns it by tau/k, which moves the TCP by J dq."
     )
-    kind = "compliance"
+
+    def join(self, groups: EffectGroups) -> None:
+        """The base of the model: its joint stiffness (and a compliance effect like others)."""
+        groups.joint = self
+        super().join(groups)
 
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"c{j + 1}" for j in range(self.robot.nq))
