@@ -205,9 +205,12 @@ class Effect(abc.ABC):
     def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
         """Why this data cannot identify the effect, or None if it can (checked before fitting).
 
-        The default says nothing; effects with an obvious data requirement (backlash needs
-        both torque signs) override it.
+        The default says nothing, except for a sensor-only effect on data that logs no wrench
+        at all (no force sensor: a motion-capture session without load); effects with an
+        obvious data requirement (backlash needs both torque signs) override it.
         """
+        if self.sensor_only and not np.any(np.asarray(wrench, dtype=float)):
+            return "the data logs no wrench (no force sensor), so a sensor error has no effect"
         return None
 
     # -- what the model and identification ask of every effect (implemented by the bases) ----
