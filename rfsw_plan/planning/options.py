@@ -201,3 +201,31 @@ def _number(source: str, key: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise InputError(source, key, f"got {value!r}", "a number")
     return float(value)
+
+
+def check_well_posed(options: PlanOptions, window: Any, source: str = "planning") -> None:
+    """Reject option combinations that make the planning NLP ill-posed, before any solver runs.
+
+    The nominal lateral error must lie in [lower + margin, upper - margin], which is empty
+    unless 2 margin < upper - lower (IPOPT then fails with "Ill-posed problem detected:
+    LBG <= UBG" deep inside CasADi).
+
+    Args:
+        options: The planner options.
+        window: The weld window (``lower``, ``upper`` [m]).
+        source: Where the options came from, for the message.
+
+    Raises:
+        InputError: one line naming the options and the valid range (exit 2).
+    """
+    lo, hi = float(window.lower), float(window.upper)
+    if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
+        raise InputError(source, "window", f"lower {lo * 1e3:g} mm, upper {hi * 1e3:g} mm",
+                         "finite bounds with lower < upper")
+    half = 0.5 * (hi - lo)
+    if not options.margin < half:
+        raise InputError(
+            source, "margin_mm",
+            f"margin {options.margin * 1e3:g} mm leaves no room in the window "
+            f"[{lo * 1e3:g}, {hi * 1e3:+g}] mm (width {2 * half * 1e3:g} mm)",
+            f"0 <= margin_mm < {half * 1e3:g} (half the window width), or a wider window")
