@@ -36,8 +36,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 #: shrinks: a new backward import fails the test, and so does an entry here that is gone (then
 #: delete the entry). Pairs of (importing module, imported module).
 KNOWN_BACKWARD: frozenset[tuple[str, str]] = frozenset({
-    # MeasurementSet is a data type elastostatics and validation use; it moves out of io/.
-    ("rfsw_plan.elastostatics.identification", "rfsw_plan.io.measurements"),
     # The plan writer reads a PlanResult; it belongs above planning (with the exporters).
     ("rfsw_plan.io.waypoints", "rfsw_plan.planning.result"),
 })
@@ -164,4 +162,26 @@ def test_the_library_never_configures_logging():
             if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
                     and node.func.attr in calls):
                 found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.func.attr}")
+    assert not found, found
+
+
+def test_no_dispatch_on_effect_types_outside_the_effect_classes():
+    """Effects are dispatched by their own methods (``Effect.join``, ``pose_regressor``...):
+    no ``isinstance`` on an effect class outside ``elastostatics/effects/`` (effects have no
+    ``kind`` attribute any more, so mypy catches a dispatch on it)."""
+    from rfsw_plan.elastostatics import effects
+
+    names = {c.__name__ for c in effects.EFFECTS.values()} | {
+        "Effect", "ComplianceEffect", "WrenchEffect", "GeometricEffect"}
+    found = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.parent == PACKAGE / "elastostatics" / "effects":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id in ("isinstance", "issubclass") and len(node.args) == 2):
+                classes = node.args[1].elts if isinstance(node.args[1], ast.Tuple) else [
+                    node.args[1]]
+                if any(isinstance(c, ast.Name) and c.id in names for c in classes):
+                    found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} isinstance")
     assert not found, found

@@ -82,6 +82,36 @@ class EffectSpec:
 
 
 @dataclass(frozen=True)
+class DeviceFrame:
+    """Where a measuring device sees the robot: its frame in the base frame, and the marker.
+
+    A laser tracker or motion-capture system measures a marker (SMR, rigid body) at an offset
+    from the TCP, in its own frame: ``p_device = R (FK(q) + R_tcp marker) + t`` with the
+    device-to-base transform inverted, i.e. the base frame seen from the device.
+
+    Attributes:
+        rotation: Rotation of the base frame in the device frame, shape (3, 3).
+        translation: Base origin in the device frame [m], shape (3,).
+        marker: Tracked point in the tool (TCP) frame [m], shape (3,).
+        std: 1-sigma standard errors, keyed by parameter (``rx_mrad``, ``x_mm``...), as
+            identified; empty if given, not identified.
+    """
+
+    rotation: FloatArray
+    translation: FloatArray
+    marker: FloatArray
+    std: dict[str, float] = field(default_factory=dict)
+
+    def to_device(self, p_base: FloatArray) -> FloatArray:
+        """Base-frame points (m, 3) [m] in the device frame."""
+        return np.asarray(p_base, dtype=float) @ self.rotation.T + self.translation
+
+    def to_base(self, p_device: FloatArray) -> FloatArray:
+        """Device-frame points (m, 3) [m] in the base frame."""
+        return (np.asarray(p_device, dtype=float) - self.translation) @ self.rotation
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """Everything rfsw_plan knows about one robot.
 
@@ -101,6 +131,10 @@ class RobotDescription:
         effects: Extra elastostatic effects beyond joint compliance.
         sources: Where each group of numbers comes from, keyed by section name.
         path: File the description was read from, if any.
+        prismatic: Per joint, True for a prismatic joint (its q, limits and stiffness are in
+            m, m/s, ..., N/m), shape (n,); None = all revolute.
+        device_frame: Registration of a measuring device (laser tracker, motion capture) and
+            the tracked marker's offset, identified by ``validate --frame device``, or None.
     """
 
     name: str
@@ -118,6 +152,8 @@ class RobotDescription:
     effects: tuple[EffectSpec, ...] = ()
     sources: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
+    prismatic: NDArray[np.bool_] | None = None
+    device_frame: DeviceFrame | None = None
 
     @property
     def n_joints(self) -> int:
@@ -250,7 +286,8 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         if not urdf.is_file():
             raise InputError(path, kin.key("urdf"), f"file {urdf} does not exist")
         chain = UrdfChain(urdf, kin.str_("tip_link"))
-        n = _urdf_dof(urdf, chain.tip_link, path)
+        prismatic = _urdf_joint_types(urdf, chain.tip_link, path)
+        n = prismatic.size
     else:
         convention = kin.str_("convention", "modified_dh")
         if convention != "modified_dh":
@@ -263,6 +300,7 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
             alpha=np.radians(kin.vec("alpha_deg", n)),
             theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n)),
         )
+        prismatic = np.zeros(n, dtype=bool)
     sources["kinematics"] = kin.str_("source", "not stated")
 
     tool_t = r.table("tool", required=False)
@@ -274,16 +312,24 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
 
     joints = r.table("joints")
     assert joints is not None
-    lower = np.radians(joints.vec("lower_deg", n))
-    upper = np.radians(joints.vec("upper_deg", n))
+
+    def per_joint(rev_key: str, pri_key: str, rev_scale: float, pri_scale: float,
+                  default: FloatArray | None = None) -> FloatArray:
+        """A per-joint list: revolute joints under ``rev_key``, prismatic ones under
+        ``pri_key`` (each list in joint order, its own unit), in SI."""
+        return _per_joint(joints, prismatic, rev_key, pri_key, rev_scale, pri_scale, default)
+
+    deg, mm = math.pi / 180.0, 1e-3
+    lower = per_joint("lower_deg", "lower_mm", deg, mm)
+    upper = per_joint("upper_deg", "upper_mm", deg, mm)
     bad = np.nonzero(lower >= upper)[0]
     if bad.size:
         raise InputError(
             path, joints.key("lower_deg"), f"joint {bad[0] + 1} lower >= upper", "lower < upper"
         )
-    velocity = np.radians(joints.vec("velocity_deg_s", n))
-    acceleration = np.radians(joints.vec("acceleration_deg_s2", n))
-    jerk = np.radians(joints.vec("jerk_deg_s3", n, list(np.degrees(acceleration * 10.0))))
+    velocity = per_joint("velocity_deg_s", "velocity_mm_s", deg, mm)
+    acceleration = per_joint("acceleration_deg_s2", "acceleration_mm_s2", deg, mm)
+    jerk = per_joint("jerk_deg_s3", "jerk_mm_s3", deg, mm, acceleration * 10.0)
     for key, arr in (
         ("velocity_deg_s", velocity),
         ("acceleration_deg_s2", acceleration),
@@ -301,7 +347,7 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
 
     stiff = r.table("stiffness")
     assert stiff is not None
-    k = stiff.vec("k_Nm_per_rad", n)
+    k = _per_joint(stiff, prismatic, "k_Nm_per_rad", "k_N_per_m", 1.0, 1.0)
     check_stiffness(k, path, stiff.key("k_Nm_per_rad"))
     sources["stiffness"] = stiff.str_("source", "not stated")
 
@@ -338,6 +384,56 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         effects=tuple(effects),
         sources=sources,
         path=Path(path),
+        prismatic=prismatic if prismatic.any() else None,
+        device_frame=_device_frame(r, sources),
+    )
+
+
+def _per_joint(
+    t: _Reader, prismatic: NDArray[np.bool_], rev_key: str, pri_key: str, rev_scale: float,
+    pri_scale: float, default: FloatArray | None = None,
+) -> FloatArray:
+    """Join a revolute-joint list and a prismatic-joint list (joint order each) in SI."""
+    n = prismatic.size
+    n_pri = int(prismatic.sum())
+    out = np.empty(n)
+    if n_pri and isinstance(t.data.get(rev_key), list) and len(t.data[rev_key]) == n:
+        raise InputError(t.path, t.key(rev_key), f"has {n} values but {n_pri} joint(s) are "
+                         "prismatic", f"{n - n_pri} revolute values, and {pri_key}")
+    for mask, key, scale in ((~prismatic, rev_key, rev_scale), (prismatic, pri_key, pri_scale)):
+        count = int(mask.sum())
+        if count == 0:
+            if key in t.data:
+                raise InputError(t.path, t.key(key), "the robot has no such joint",
+                                 f"{rev_key} for revolute, {pri_key} for prismatic joints")
+            continue
+        dflt = None if default is None else list(default[mask] / scale)
+        vals = t.vec(key, count, dflt)
+        out[mask] = vals * scale
+    return out
+
+
+def _device_frame(r: _Reader, sources: dict[str, str]) -> DeviceFrame | None:
+    """The optional ``[device_frame]`` table (see :class:`DeviceFrame`)."""
+    t = r.table("device_frame", required=False)
+    if t is None:
+        return None
+    known = {"base_in_device_xyz_mm", "base_in_device_rpy_deg", "marker_xyz_mm", "std",
+             "source"}
+    unknown = sorted(set(t.data) - known)
+    if unknown:
+        raise InputError(t.path, t.key(unknown[0]), "unknown key", ", ".join(sorted(known)))
+    std = t.data.get("std", {})
+    if not isinstance(std, dict) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+            for v in std.values()):
+        raise InputError(t.path, t.key("std"), "must map names to finite numbers")
+    sources["device_frame"] = t.str_("source", "not stated")
+    return DeviceFrame(
+        rotation=_rpy_to_matrix(np.radians(t.vec("base_in_device_rpy_deg", 3))),
+        translation=t.vec("base_in_device_xyz_mm", 3) / 1000.0,
+        marker=t.vec("marker_xyz_mm", 3, [0.0, 0.0, 0.0]) / 1000.0,
+        std={str(k): float(v) for k, v in std.items()},
     )
 
 
@@ -349,7 +445,8 @@ def check_stiffness(k: FloatArray, source: str | Path, where: str) -> None:
         raise InputError(source, where, f"joint {j + 1} stiffness is {k[j]:g}", "> 0 N m/rad")
 
 
-def _urdf_dof(urdf: Path, tip_link: str, path: Path | str) -> int:
+def _urdf_joint_types(urdf: Path, tip_link: str, path: Path | str) -> NDArray[np.bool_]:
+    """Per actuated joint of the URDF, True if prismatic."""
     import pinocchio as pin
 
     try:
@@ -361,7 +458,8 @@ def _urdf_dof(urdf: Path, tip_link: str, path: Path | str) -> int:
             path, "kinematics.tip_link", f"no link '{tip_link}' in {urdf.name}",
             ", ".join(f.name for f in model.frames),
         )
-    return int(model.nq)
+    return np.array([model.joints[j].shortname().startswith("JointModelP")
+                     for j in range(1, model.njoints)], dtype=bool)
 
 
 def _rpy_to_matrix(rpy: FloatArray) -> FloatArray:
@@ -414,19 +512,40 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         "rpy_deg": _r(np.degrees(_matrix_to_rpy(desc.tool[:3, :3]))),
         "source": desc.sources.get("tool", "not stated"),
     }
+    pri = np.zeros(desc.n_joints, dtype=bool) if desc.prismatic is None else desc.prismatic
+    rev = ~pri
+
+    def split(arr: FloatArray, rev_key: str, pri_key: str, scale_r: float,
+              scale_p: float) -> dict[str, list[float]]:
+        out_: dict[str, list[float]] = {rev_key: _r(arr[rev] / scale_r)}
+        if pri.any():
+            out_[pri_key] = _r(arr[pri] / scale_p)
+        return out_
+
+    deg, mm = math.pi / 180.0, 1e-3
     out["joints"] = {
-        "lower_deg": _r(np.degrees(desc.lower)),
-        "upper_deg": _r(np.degrees(desc.upper)),
-        "velocity_deg_s": _r(np.degrees(desc.velocity)),
-        "acceleration_deg_s2": _r(np.degrees(desc.acceleration)),
-        "jerk_deg_s3": _r(np.degrees(desc.jerk)),
+        **split(desc.lower, "lower_deg", "lower_mm", deg, mm),
+        **split(desc.upper, "upper_deg", "upper_mm", deg, mm),
+        **split(desc.velocity, "velocity_deg_s", "velocity_mm_s", deg, mm),
+        **split(desc.acceleration, "acceleration_deg_s2", "acceleration_mm_s2", deg, mm),
+        **split(desc.jerk, "jerk_deg_s3", "jerk_mm_s3", deg, mm),
         "coupling": [_r(row) for row in desc.coupling],
         "source": desc.sources.get("joints", "not stated"),
     }
-    out["stiffness"] = {
-        "k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness],
-        "source": desc.sources.get("stiffness", "not stated"),
-    }
+    stiff: dict[str, Any] = {"k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness[rev]]}
+    if pri.any():
+        stiff["k_N_per_m"] = [float(f"{k:.6g}") for k in desc.stiffness[pri]]
+    stiff["source"] = desc.sources.get("stiffness", "not stated")
+    out["stiffness"] = stiff
+    if desc.device_frame is not None:
+        dfr = desc.device_frame
+        out["device_frame"] = {
+            "base_in_device_xyz_mm": _r(dfr.translation * 1000.0),
+            "base_in_device_rpy_deg": _r(np.degrees(_matrix_to_rpy(dfr.rotation))),
+            "marker_xyz_mm": _r(dfr.marker * 1000.0),
+            "std": {k: float(f"{v:.6g}") for k, v in dfr.std.items()},
+            "source": desc.sources.get("device_frame", "not stated"),
+        }
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 #: Largest basis (floats) kept in :attr:`PoseBatch.cache`: 2e7 floats = 160 MB, i.e.
 #: ~9e4 poses of a six-axis robot; larger batches recompute it per call.
@@ -82,7 +82,7 @@ def batch_complementary_stiffness(batch: PoseBatch, wrench: FloatArray) -> Float
     return np.matmul(G.T, np.matmul(Kc_chain, G))
 
 
-class ComplementaryStiffness(Effect):
+class ComplementaryStiffness(ComplianceEffect):
     """Extra deflection from the load-induced geometry change, scaled by a gain g.
 
     Seed 000 eq. 6: K_X = J^-T (Kq - Kc) J^-1 with Kc = [dJ^T/dq_1 F ... dJ^T/dq_n F], so the
@@ -102,7 +102,6 @@ class ComplementaryStiffness(Effect):
         "The loaded arm changes its geometry as the joints deflect, which changes the lever "
         "arms of the load (the complementary stiffness Kc of seed 000 eq. 6)."
     )
-    kind = "compliance"
 
     def param_names(self) -> tuple[str, ...]:
         return ("gain",)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch
 
 
-class KinematicOffsets(Effect):
+class KinematicOffsets(GeometricEffect):
     """First-order pose error of wrong joint zeros dq0 and a wrong tool centre point dt.
 
         dX = J dq0 + [R_tool dt; 0]   (base frame [m, rad]),
@@ -23,7 +23,6 @@ class KinematicOffsets(Effect):
         "The joint zeros and the tool length are slightly wrong, which shifts the TCP by a "
         "pose-dependent amount whether or not the robot is loaded."
     )
-    kind = "geometric"
 
     def param_names(self) -> tuple[str, ...]:
         return (*(f"dq{j + 1}" for j in range(self.robot.nq)), "dt_x", "dt_y", "dt_z")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, WrenchEffect
 
 #: Standard gravity [m/s^2], acting along -Z of the robot base frame (floor-mounted robot).
 GRAVITY = 9.80665
@@ -15,7 +15,7 @@ PRIOR_MASS_KG = 150.0
 PRIOR_COM_M = (0.0, 0.0, -0.25)
 
 
-class PayloadGravity(Effect):
+class PayloadGravity(WrenchEffect):
     """Gravity wrench of the spindle and tool, added to the logged wrench.
 
     Assumption: the force sensor sits between flange and spindle and is tared (or load-
@@ -36,7 +36,6 @@ class PayloadGravity(Effect):
         "The spindle and tool weigh as much as a person or more: their weight and its lever "
         "arm load every joint in every pose, also when there is no process force."
     )
-    kind = "wrench"
 
     def param_names(self) -> tuple[str, ...]:
         return ("m", "m_rx", "m_ry", "m_rz")

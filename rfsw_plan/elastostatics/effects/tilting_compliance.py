@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 
 def _normal_axes(axis: FloatArray) -> FloatArray:
@@ -19,7 +19,7 @@ def _normal_axes(axis: FloatArray) -> FloatArray:
     return np.stack([t1, np.cross(a, t1)])
 
 
-class TiltingCompliance(Effect):
+class TiltingCompliance(ComplianceEffect):
     """Joint N tilts about its frame's t1 and t2 axes under the moment it carries.
 
     Each tilting direction is a rotational spring through the joint origin o_N about the base-
@@ -32,7 +32,6 @@ class TiltingCompliance(Effect):
         "The joint's bearing is not rigid against bending: the moment normal to the joint axis "
         "tilts the joint about its two normal axes and swings the TCP."
     )
-    kind = "compliance"
     per_joint = True
 
     def param_names(self) -> tuple[str, ...]:
