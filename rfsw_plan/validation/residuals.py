@@ -386,6 +386,7 @@ def estimate_noise_floor(
         raise InputError("--noise-mm", "", f"{noise_m * 1e3:g} mm", "a positive noise level")
     if force_noise_n is not None and not (np.isfinite(force_noise_n) and force_noise_n >= 0):
         raise InputError("--force-noise-N", "", f"{force_noise_n:g} N", "a noise >= 0 N")
+    fn: float | None
     if force_noise_n is not None:
         fn, fsrc = float(force_noise_n), "given"
     elif not np.any(data.wrench[:, :3]):
