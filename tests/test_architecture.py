@@ -18,7 +18,7 @@ PACKAGE = Path(rfsw_plan.__file__).parent
 #: of ``rfsw_plan``, or a dotted module that sits on a different floor than its folder
 #: (``io.files``: the atomic-write primitives every writer uses).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "io.files"),
+    ("exceptions", "progress", "io.files", "tomlreader"),
     ("robot",),
     ("elastostatics",),
     ("io",),

@@ -122,7 +122,7 @@ def test_predict_non_positive_stiffness_file(capsys: pytest.CaptureFixture[str],
     p.write_text(tomli_w.dumps(raw))
     assert_one_line_error(
         *run(capsys, "predict", "--robot", str(p), "--q-deg", Q_DEG, "--wrench", WRENCH),
-        str(p), "joint 4 stiffness is -1",
+        str(p), "joint 4 is -1",
     )
 
 

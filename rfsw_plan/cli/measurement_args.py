@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +18,8 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_setup
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.measurements import WRENCH_FRAMES, read_measurements
-from rfsw_plan.robot.description import DeviceFrame, _device_frame, _Reader, _rpy_to_matrix
+from rfsw_plan.robot.description import DeviceFrame, _rpy_to_matrix
+from rfsw_plan.robot.description import read_device_frame as read_robot_device_frame
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -67,18 +67,7 @@ def sensor_pose(text: str | None) -> np.ndarray | None:
 
 def read_device_frame(path: str) -> DeviceFrame:
     """A ``--device-to-base`` file: a TOML with a ``[device_frame]`` table (or a robot file)."""
-    p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(p, "", f"cannot read file: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(p, "", f"not valid TOML: {exc}") from None
-    frame = _device_frame(_Reader(p, data), {})
-    if frame is None:
-        raise InputError(p, "[device_frame]", "missing section",
-                         "base_in_device_xyz_mm, base_in_device_rpy_deg[, marker_xyz_mm]")
-    return frame
+    return read_robot_device_frame(Path(path))
 
 
 def load(args: argparse.Namespace, model: ElastostaticModel) -> MeasurementSet:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from difflib import get_close_matches
 from typing import Literal
 
 import numpy as np
@@ -30,7 +31,7 @@ from rfsw_plan.elastostatics.springs import (
     spring_compliance,
     spring_deflection,
 )
-from rfsw_plan.exceptions import InputError
+from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
 from rfsw_plan.robot.kinematics import Robot
 
@@ -38,6 +39,34 @@ from rfsw_plan.robot.kinematics import Robot
 #: (CAD or measured) in the calibrated base frame. See
 #: :meth:`ElastostaticModel.process_deflection`.
 SeamReference = Literal["taught", "absolute"]
+
+
+def _description_effects(robot: Robot) -> list[Effect]:
+    """The effects stored in the robot description, with errors that name the file and entry.
+
+    Raises:
+        InputError: Unknown effect or parameter (with a "did you mean"), or a parameter outside
+            its physical range (``effects[2].params.c_t1``).
+    """
+    desc = robot.description
+    out: list[Effect] = []
+    for i, spec in enumerate(desc.effects, start=1):
+        try:
+            effect = make_effect(robot, spec.name, spec.params)
+            effect.check_params()
+            out.append(effect)
+        except UnknownNameError as exc:
+            close = get_close_matches(spec.name.split(":")[0], exc.known, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise InputError(desc.path or desc.name, f"effects[{i}].name",
+                             f"unknown effect '{spec.name}'{hint}",
+                             "" if hint else ", ".join(exc.known)) from None
+        except InputError as exc:
+            param = exc.where.rsplit(".", 1)[1] if "." in exc.where else ""
+            where = f"effects[{i}].params.{param}" if param else f"effects[{i}].name"
+            raise InputError(desc.path or desc.name, where, f"{exc.problem} ({spec.name})",
+                             exc.expected) from None
+    return out
 
 
 class ElastostaticModel:
@@ -52,7 +81,7 @@ class ElastostaticModel:
     def __init__(self, robot: Robot, effects: Sequence[Effect] | None = None) -> None:
         self.robot = robot
         if effects is None:
-            effects = [make_effect(robot, e.name, e.params) for e in robot.description.effects]
+            effects = _description_effects(robot)
         base = EffectGroups.of(effects).joint or JointCompliance(robot)
         self._joint_compliance = base
         self.effects: list[Effect] = [base, *(e for e in effects if e is not base)]

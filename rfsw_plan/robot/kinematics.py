@@ -29,6 +29,7 @@ from rfsw_plan.robot.description import (
     UrdfChain,
     load_robot_description,
 )
+from rfsw_plan.robot.urdf import axis_of, load_urdf_chain
 
 FloatArray = NDArray[np.float64]
 
@@ -90,29 +91,40 @@ def build_pinocchio_model(desc: RobotDescription) -> pin.Model:
     """Build the Pinocchio model of a description, with a ``tcp`` operational frame.
 
     For an MDH table, joint i is a revolute-Z joint placed at Rx(alpha_{i-1}) Tx(a_{i-1})
-    Rz(theta0_i) Tz(d_i) in joint i-1 (Rz(q) commutes with Tz(d)), seed 001 eq. 1.
+    Rz(theta0_i) Tz(d_i) in joint i-1 (Rz(q) commutes with Tz(d)), seed 001 eq. 1. For a URDF,
+    the chain from its root to the tip link (:func:`rfsw_plan.robot.urdf.load_urdf_chain`).
+
+    This is the one place where the controller offsets enter: the model's joint variable is
+    ``G q`` (signed coupling times controller values) and each joint placement is turned by the
+    joint's offset about its own axis, so the chain angle is ``theta = G q + offset``
+    (:class:`rfsw_plan.robot.description.ControllerConvention`).
     """
+    offset = desc.convention.offset
     if isinstance(desc.chain, ModifiedDH):
         model = pin.Model()
         model.name = desc.name
         parent = 0
         c = desc.chain
         for i in range(desc.n_joints):
-            placement = _mdh_placement(c.alpha[i], c.a[i], c.theta0[i], c.d[i])
+            placement = _mdh_placement(c.alpha[i], c.a[i], c.theta0[i] + offset[i], c.d[i])
             parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
             model.appendBodyToJoint(parent, pin.Inertia.Zero(), pin.SE3.Identity())
         last = parent
         tip_placement = pin.SE3.Identity()
     else:
         assert isinstance(desc.chain, UrdfChain)
-        model = pin.buildModelFromUrdf(str(desc.chain.path))
-        frame = model.frames[model.getFrameId(desc.chain.tip_link)]
+        chain = load_urdf_chain(desc.chain.path, desc.chain.tip_link, desc.path or "")
+        model = chain.model
+        for jid in range(1, model.njoints):
+            turn = pin.SE3(pin.exp3(axis_of(model, jid) * offset[jid - 1]), np.zeros(3))
+            model.jointPlacements[jid] = model.jointPlacements[jid] * turn
+        frame = model.frames[chain.tip_frame]
         last = frame.parentJoint
         tip_placement = frame.placement
-        if model.nq != desc.n_joints or last != model.njoints - 1:
-            raise InputError(
-                desc.chain.path, desc.chain.tip_link, "the URDF is not a serial chain to its tip"
-            )
+        if model.nq != desc.n_joints:
+            raise InputError(desc.chain.path, desc.chain.tip_link,
+                             f"the chain to the tip has {model.nq} joints",
+                             f"{desc.n_joints} as in the description")
     tool = pin.SE3(desc.tool[:3, :3], desc.tool[:3, 3])
     model.addFrame(pin.Frame(TCP_FRAME, last, tip_placement * tool, pin.FrameType.OP_FRAME))
     return model

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, WrenchEffect
@@ -25,6 +28,10 @@ class ForceSensorBias(WrenchEffect):
         "fixed in the sensor frame, so the robot is loaded differently from what is logged."
     )
     sensor_only = True
+
+    #: Offsets [N, N m]: at most 100 kN / 100 kN m (beyond any FSW force sensor).
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {k: (-1e5, 1e5) for k in ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")})
 
     def param_names(self) -> tuple[str, ...]:
         return ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")

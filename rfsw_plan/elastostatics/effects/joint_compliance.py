@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import (
@@ -33,6 +36,9 @@ class JointCompliance(ComplianceEffect):
         """The base of the model: its joint stiffness (and a compliance effect like others)."""
         groups.joint = self
         super().join(groups)
+
+    #: Compliance 1/k [rad/(N m)]: >= 0 (0 = rigid), at most that of a 1 N m/rad joint.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c": (0.0, 1.0)}
 
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"c{j + 1}" for j in range(self.robot.nq))
