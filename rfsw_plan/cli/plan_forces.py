@@ -82,6 +82,16 @@ def plan_json(problem: Problem, args: argparse.Namespace, log: Any, check: Any
     }
     if log is not None:
         out["force_log"] = force_log_json(log, check)
+        if log.usable and check is not None:
+            unc = log.uncertainty
+            # Beside tolerated_force_uncertainty: what the trial weld says the force does.
+            out["measured_force_uncertainty"] = {
+                "coverage_sigma": unc.coverage, "frame": "seam (t, l, n)",
+                "weld_bound_N": [float(x) for x in unc.bound.get("weld", [])],
+                "weld_relative": [float(x) for x in unc.weld_relative],
+                "equivalent_relative": check.u_equivalent,
+                "plan_holds": check.holds,
+            }
     return out
 
 
@@ -100,3 +110,7 @@ def print_text(log: Any, check: Any, result: Any, quiet: bool = False) -> None:
         print(log.summary())
     if check is not None:
         print(check_text(check, result.window))
+        tol = float(getattr(result, "tolerated_force_uncertainty", float("nan")))
+        if tol == tol:
+            print(f"measured force uncertainty, as a relative box at the plan's poses: "
+                  f"+-{100 * check.u_equivalent:.1f} %; the plan tolerates +-{100 * tol:.1f} %")
