@@ -10,6 +10,7 @@ import os
 import pkgutil
 import re
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -106,13 +107,20 @@ def _command_word(argv: Sequence[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible)."""
+    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible).
+
+    The parsed namespace also carries ``argv`` (the words given, for reports that print the
+    next command) and ``started`` (``time.perf_counter()`` at the start, for wall times).
+    """
+    started = time.perf_counter()
     words = list(sys.argv[1:] if argv is None else argv)
     parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
         args = parser.parse_args(words)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
+    args.argv = words
+    args.started = started
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
