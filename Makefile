@@ -10,10 +10,12 @@ OUT ?= out/demo
 .PHONY: demo test lint bench clean
 
 $(STAMP): pyproject.toml
+	@echo "Setting up $(VENV) (first run only, about 3 minutes: numpy, scipy, casadi, pinocchio...)"
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[dev]'
+	$(BIN)/pip install --progress-bar on --upgrade pip
+	$(BIN)/pip install --progress-bar on -e '.[dev]'
 	touch $(STAMP)
+	@echo "Installed. Run the tool as $(BIN)/rfsw-plan, or 'source $(BIN)/activate' first."
 
 demo: $(STAMP)
 	$(BIN)/rfsw-plan plan $(PROBLEM) -o $(OUT)

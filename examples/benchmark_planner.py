@@ -26,9 +26,9 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.api import options_from_problem, plan
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
-from rfsw_plan.planning.task import task_from_schedule
 from rfsw_plan.planning.verify import verify_plan
 from rfsw_plan.process.problem import load_problem
+from rfsw_plan.process.task import task_from_schedule
 from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
 

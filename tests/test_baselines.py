@@ -16,9 +16,9 @@ from rfsw_plan.planning.baselines import (
     mirror_compensation,
     no_compensation,
 )
-from rfsw_plan.planning.task import task_constant_force
 from rfsw_plan.planning.verify import predict
 from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 

@@ -17,9 +17,9 @@ from rfsw_plan.planning.nlp import (
     solve_plan_nlp,
 )
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.task import task_constant_force
 from rfsw_plan.planning.verify import predict, verify_plan
 from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 

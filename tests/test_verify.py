@@ -12,8 +12,8 @@ from rfsw_plan.elastostatics.compliance import deflection
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
-from rfsw_plan.planning.task import task_constant_force
 from rfsw_plan.planning.verify import ALONG_TOL, predict, verify_plan
+from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 

@@ -33,6 +33,7 @@ __all__ = [
     "OutputLock",
     "atomic_path",
     "prepare_output_dir",
+    "prepare_output_file",
     "sha256_file",
     "strict_json",
     "to_jsonable",
@@ -94,7 +95,10 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     temporary file is removed and ``target`` is untouched.
     """
     target = Path(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    # The temporary keeps the target's suffix, so writers that infer the format from the name
+    # (matplotlib's savefig) write the right format.
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}",
+                               dir=target.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -144,9 +148,7 @@ def prepare_output_dir(path: str | Path, option: str = "-o") -> Path:
             or pseudo file system (``/proc``, ``/sys``), or cannot be written. One line, exit 2.
     """
     p = Path(path)
-    resolved = p.resolve()
-    if resolved.parts[:2] in (("/", "proc"), ("/", "sys")):
-        raise OutputPathError(option, p, "is on a pseudo file system; choose a normal folder")
+    resolved = _check_not_pseudo(p, option)
     if p.exists() and not p.is_dir():
         raise OutputPathError(option, p, "is an existing file, not a folder")
     for parent in resolved.parents:
@@ -164,6 +166,39 @@ def prepare_output_dir(path: str | Path, option: str = "-o") -> Path:
         os.unlink(probe)
     except OSError as exc:
         raise OutputPathError(option, p, f"is not writable ({exc.strerror or exc})") from None
+    return p
+
+
+def _check_not_pseudo(p: Path, option: str) -> Path:
+    resolved = p.resolve()
+    if resolved.parts[:2] in (("/", "proc"), ("/", "sys"), ("/", "dev")):
+        raise OutputPathError(option, p, "is on a pseudo file system; choose a normal folder")
+    return resolved
+
+
+def prepare_output_file(path: str | Path, option: str = "-o") -> Path:
+    """Check (and create the folder of) an output *file* before any work is done.
+
+    An existing file is fine (it is replaced atomically when written); a folder, a path under
+    a file, a pseudo file system or a folder that cannot be written is refused.
+
+    Raises:
+        OutputPathError: one line naming the option and the path, exit 2.
+    """
+    p = Path(path)
+    _check_not_pseudo(p, option)
+    if p.is_dir():
+        raise OutputPathError(option, p, "is a folder; give a file name")
+    if str(path).endswith(("/", os.sep)):
+        raise OutputPathError(option, p, "ends with a path separator; give a file name")
+    parent = p.parent if str(p.parent) else Path(".")
+    try:
+        prepare_output_dir(parent, option)
+    except OutputPathError as exc:
+        raise OutputPathError(option, p, str(exc).split(": ", 1)[-1].replace(
+            "is an existing file, not a folder", f"lies under the file {parent}")) from None
+    if p.exists() and not os.access(p, os.W_OK):
+        raise OutputPathError(option, p, "exists and is read-only")
     return p
 
 

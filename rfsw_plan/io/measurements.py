@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.files import atomic_path
 
 FloatArray = NDArray[np.float64]
 
@@ -207,7 +208,7 @@ def write_measurements(path: str | Path, data: MeasurementSet) -> Path:
     header += list(FORCE_COLUMNS + MOMENT_COLUMNS + POSITION_COLUMNS)
     header += [] if data.sigma is None else ["sigma_mm"]
     header += list(data.extra)
-    with p.open("w", newline="") as fh:
+    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i in range(len(data)):

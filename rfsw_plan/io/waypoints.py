@@ -36,7 +36,6 @@
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 from typing import Any
 
@@ -44,8 +43,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.files import atomic_path, sha256_file, write_json
 from rfsw_plan.planning.result import PlanResult
 
 FloatArray = NDArray[np.float64]
@@ -70,9 +69,10 @@ def maker_euler(R: FloatArray, convention: str) -> FloatArray:
     raise InputError("robot", "euler", f"got '{convention}'", "kuka_abc or fanuc_wpr")
 
 
-def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[str],
-                                                                          NDArray[Any]]:
-    """Header and rows (object array) of ``waypoints.csv``."""
+def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
+    """Header and rows (object array) of ``waypoints.csv``, predicted with the plan's own
+    model (:attr:`PlanResult.model`)."""
+    model = result.model
     tr = result.trajectory
     task = result.task
     robot = model.robot
@@ -118,11 +118,12 @@ def waypoint_table(result: PlanResult, model: ElastostaticModel) -> tuple[list[s
     return header, rows
 
 
-def write_waypoints_csv(path: str | Path, result: PlanResult, model: ElastostaticModel) -> Path:
-    """Write ``waypoints.csv`` (see the module docstring for the columns)."""
-    header, rows = waypoint_table(result, model)
+def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
+    """Write ``waypoints.csv`` atomically (see the module docstring for the columns), with the
+    deflections and errors of the model the plan was made with."""
+    header, rows = waypoint_table(result)
     p = Path(path)
-    with p.open("w", newline="") as fh:
+    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(header)
         for r in rows:
@@ -137,19 +138,63 @@ def _fmt(v: Any) -> str:
     return "" if not np.isfinite(x) else f"{x:.6f}"
 
 
-def write_plan_json(path: str | Path, summary: dict[str, Any]) -> Path:
-    """Write ``plan.json`` (the :meth:`PlanResult.summary` plus anything the caller adds)."""
-    p = Path(path)
-    p.write_text(json.dumps(summary, indent=2, default=_json_default))
-    return p
+def write_plan_json(path: str | Path, summary: dict[str, Any],
+                    vouches_for: list[Path] | tuple[Path, ...] = ()) -> Path:
+    """Write ``plan.json`` atomically as strict JSON (NaN and inf become null).
+
+    ``plan.json`` is the commit record of a plan folder: it is written last, and
+    ``sha256`` maps the name of every file it vouches for (written before it) to the SHA-256
+    of its bytes, so a reader can tell that the files beside it are this plan's and whole
+    (:func:`check_plan_folder`).
+    """
+    record = dict(summary)
+    if vouches_for:
+        record["sha256"] = {Path(f).name: sha256_file(f) for f in vouches_for}
+    return write_json(path, record)
 
 
-def _json_default(o: Any) -> Any:
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, np.floating | np.integer):
-        return o.item()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:
+    """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
+    so an earlier success record never sits beside removed or new data), then the other
+    outputs of an earlier run are removed. If this run is killed, the folder says so."""
+    folder = Path(folder)
+    write_json(folder / "plan.json", {
+        "status": "incomplete", "problem": problem,
+        "message": "a plan was started into this folder and has not finished; the files "
+                   "beside this record are not a verified plan"})
+    for name in outputs:
+        if name != "plan.json":
+            (folder / name).unlink(missing_ok=True)
+
+
+def check_plan_folder(folder: str | Path) -> dict[str, Any]:
+    """Read a plan folder's ``plan.json`` and check the files it vouches for.
+
+    Returns the record. Raises :class:`InputError` if the record is missing, not a
+    successful plan, or a vouched file is missing or changed (one line).
+    """
+    import json
+
+    folder = Path(folder)
+    path = folder / "plan.json"
+    if not path.is_file():
+        raise InputError(path, "", "missing", "a plan.json written by rfsw-plan plan")
+    rec = json.loads(path.read_text(), parse_constant=_reject_constant)
+    if rec.get("status") in ("infeasible", "incomplete"):
+        raise InputError(path, "status", f"'{rec.get('status')}': {rec.get('message', '')}",
+                         "a verified plan")
+    for name, digest in (rec.get("sha256") or {}).items():
+        f = folder / name
+        if not f.is_file():
+            raise InputError(f, "", "missing beside plan.json", "the file plan.json vouches for")
+        if sha256_file(f) != digest:
+            raise InputError(f, "", "changed since plan.json was written",
+                             "the bytes plan.json vouches for (sha256)")
+    return dict(rec)
+
+
+def _reject_constant(c: str) -> float:
+    raise ValueError(f"non-strict JSON constant {c}")
 
 
 def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
@@ -191,6 +236,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
     p = Path(path)
-    fig.savefig(p, dpi=120)
+    with atomic_path(p) as tmp:
+        fig.savefig(tmp, dpi=120)
     plt.close(fig)
     return p

@@ -1,29 +1,21 @@
 """The planner: CasADi NLP for poses and fake-target offsets, baselines, verification.
 
-Public names are loaded lazily (the timing package imports ``planning.task``; an eager import
-of the pipeline here would be circular).
+The planner takes a :class:`~rfsw_plan.process.task.PlanTask` (built in ``process/``), places
+the robot with the NLP, verifies the result and times it (``timing/``).
 """
 
-from __future__ import annotations
+from rfsw_plan.planning.api import plan, plan_task
+from rfsw_plan.planning.nlp import build_plan_nlp, solve_plan_nlp
+from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.result import PlanResult
+from rfsw_plan.planning.verify import verify_plan
 
-import importlib
-from typing import Any
-
-_EXPORTS = {
-    "plan": "rfsw_plan.planning.api",
-    "plan_task": "rfsw_plan.planning.api",
-    "PlanResult": "rfsw_plan.planning.result",
-    "PlanOptions": "rfsw_plan.planning.options",
-    "PlanTask": "rfsw_plan.planning.task",
-    "build_plan_nlp": "rfsw_plan.planning.nlp",
-    "solve_plan_nlp": "rfsw_plan.planning.nlp",
-    "verify_plan": "rfsw_plan.planning.verify",
-}
-
-__all__ = sorted(_EXPORTS)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'rfsw_plan.planning' has no attribute '{name}'")
+__all__ = [
+    "PlanOptions",
+    "PlanResult",
+    "build_plan_nlp",
+    "plan",
+    "plan_task",
+    "solve_plan_nlp",
+    "verify_plan",
+]

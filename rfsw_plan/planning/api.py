@@ -1,7 +1,7 @@
 """``plan(problem)``: the whole planning pipeline.
 
 1. Waypoints: the seam frames at the problem's spacing plus stationary waypoints over the
-   plunge and dwell force ramp (:func:`~rfsw_plan.planning.task.task_from_schedule`), with the
+   plunge and dwell force ramp (:func:`~rfsw_plan.process.task.task_from_schedule`), with the
    problem's seam reference (``taught``/``absolute``: how the modelled process wrench deflects
    the TCP, :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection`).
 2. Branches: the taught path (IK) from the problem's seed and from elbow/wrist/shoulder flips;
@@ -44,9 +44,9 @@ from rfsw_plan.planning.nlp import (
 )
 from rfsw_plan.planning.options import PlanOptions, options_from_table
 from rfsw_plan.planning.result import BranchInfo, PlanResult
-from rfsw_plan.planning.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.planning.verify import pin_track, predict, verify_plan
 from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
@@ -359,6 +359,7 @@ def plan_task(
         solver_status=sol.status, iterations=iters, outer_iterations=outer,
         skipped_effects=nlp.skipped, solve_time=solve_time, verify_time=verify_time,
         timing_time=timing_time, total_time=time.perf_counter() - t_all, trajectory=traj,
+        model=model,
     )
 
 

@@ -21,9 +21,9 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
-from rfsw_plan.planning.task import PlanTask, offsets3
 from rfsw_plan.planning.verify import predict
 from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot

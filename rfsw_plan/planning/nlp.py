@@ -78,7 +78,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
-from rfsw_plan.planning.task import PlanTask, offsets3
+from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot
 

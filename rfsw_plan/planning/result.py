@@ -8,10 +8,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import BaselineMetrics
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.task import PlanTask
 from rfsw_plan.planning.verify import Verification
+from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
 
@@ -71,6 +72,9 @@ class PlanResult:
         timing_time: Time parameterisation wall time [s].
         total_time: Wall time of :func:`plan` [s].
         trajectory: The timed trajectory.
+        model: The elastostatic model the plan was made and verified with; the writers
+            predict deflections and errors with it (never with a model rebuilt from the
+            robot file, which may differ from a ``plan(model=...)``).
     """
 
     status: str
@@ -98,6 +102,7 @@ class PlanResult:
     timing_time: float
     total_time: float
     trajectory: TimedTrajectory
+    model: ElastostaticModel
 
     @property
     def e_lat(self) -> FloatArray:

@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.compliance import dexterity
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.planning.task import PlanTask, offsets3
+from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
 

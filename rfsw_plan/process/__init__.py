@@ -3,7 +3,9 @@
 Data flow: a :class:`Problem` holds the robot, the :class:`Seam` (its :meth:`Seam.frames`
 give :class:`SeamFrames`), the :class:`ProcessModel` (its :meth:`ProcessModel.schedule` gives
 a :class:`LoadSchedule`) and the :class:`WeldWindow`. :func:`taught_path` turns the frames
-into joint values; :func:`predict_deviation` says how far the loaded robot misses the seam.
+into joint values; :func:`predict_deviation` says how far the loaded robot misses the seam;
+:func:`task_from_schedule` joins frames and schedule into the :class:`PlanTask` the planner
+places the robot along.
 """
 
 from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
@@ -21,6 +23,7 @@ from rfsw_plan.process.problem import (
     resolve_problem_path,
 )
 from rfsw_plan.process.seam import Seam, interpolate_frames
+from rfsw_plan.process.task import PlanTask, offsets3, task_constant_force, task_from_schedule
 from rfsw_plan.process.taught import joints_at, taught_path, taught_poses
 from rfsw_plan.process.window import WeldWindow
 
@@ -33,6 +36,7 @@ __all__ = [
     "ForceFit",
     "LoadSchedule",
     "PenetrationLaw",
+    "PlanTask",
     "PlanningOptions",
     "Problem",
     "ProcessForces",
@@ -46,10 +50,13 @@ __all__ = [
     "interpolate_frames",
     "joints_at",
     "load_problem",
+    "offsets3",
     "predict_deviation",
     "problem_deviation",
     "process_preset",
     "resolve_problem_path",
+    "task_constant_force",
+    "task_from_schedule",
     "taught_path",
     "taught_poses",
     "tcp_orientation",

@@ -59,13 +59,13 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError, UnknownNameError
-from rfsw_plan.io.bundled import bundled_names, resolve_bundled
 from rfsw_plan.process.cosim import PenetrationLaw
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 from rfsw_plan.process.frames import FloatArray, SeamFrames
 from rfsw_plan.process.presets import process_preset
 from rfsw_plan.process.seam import Seam
 from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 from rfsw_plan.robot.description import (
     RobotDescription,
     load_robot_description,

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.bundled import bundled_names, resolve_bundled
+from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 
 FloatArray = NDArray[np.float64]
 
@@ -442,10 +442,11 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     """Write a description as TOML; returns the path written."""
     import tomli_w
 
+    from rfsw_plan.io.files import write_text
+
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(tomli_w.dumps(robot_description_to_toml_dict(desc)))
-    return p
+    return write_text(p, tomli_w.dumps(robot_description_to_toml_dict(desc)))
 
 
 def _r(arr: FloatArray) -> list[float]:

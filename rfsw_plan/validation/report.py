@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from rfsw_plan.io.files import atomic_path, write_text
 from rfsw_plan.validation.workbench import ValidationResult
 
 #: At most this many points are drawn per scatter plot (a seeded random subset).
@@ -102,7 +103,8 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     def save(fig: Any, name: str) -> None:
         path = out_dir / f"{name}.png"
         fig.tight_layout()
-        fig.savefig(path, dpi=90)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=90)
         plt.close(fig)
         plots[name] = path
 
@@ -397,7 +399,7 @@ def write_report(result: ValidationResult, out_dir: str | Path) -> ReportFiles:
     out.mkdir(parents=True, exist_ok=True)
     plots = make_plots(result, out)
     json_path = out / "validate.json"
-    json_path.write_text(result_json(result) + "\n")
+    write_text(json_path, result_json(result) + "\n")
     html_path = out / "report.html"
-    html_path.write_text(render_html(result, plots), encoding="utf-8")
+    write_text(html_path, render_html(result, plots))
     return ReportFiles(html=html_path, json=json_path, plots=plots)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 from pathlib import Path
 
@@ -91,20 +90,30 @@ def run(args: argparse.Namespace) -> int:
         seed000_update_s=args.seed000_update_ms * 1e-3 if args.seed000_update_ms > 0 else None,
         seed002_maf_samples=args.maf_samples,
     )
+    from rfsw_plan.io.files import (
+        OutputLock,
+        atomic_path,
+        prepare_output_dir,
+        strict_json,
+        write_json,
+        write_text,
+    )
+
     problem = load_problem(args.problem)
+    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
     result = compare(problem, options)
-    out = Path(args.output) if args.output else Path("out") / problem.name
-    out.mkdir(parents=True, exist_ok=True)
     data = result.to_dict()
-    (out / "compare.json").write_text(json.dumps(data, indent=1))
-    (out / "compare.md").write_text(format_markdown(result))
     files = ["compare.json", "compare.md"]
-    if not args.no_plot:
-        plot_lateral(result, str(out / "compare_lateral.png"))
-        files.append("compare_lateral.png")
+    with OutputLock(out):
+        write_json(out / "compare.json", data)
+        write_text(out / "compare.md", format_markdown(result))
+        if not args.no_plot:
+            with atomic_path(out / "compare_lateral.png") as tmp:
+                plot_lateral(result, str(tmp))
+            files.append("compare_lateral.png")
     data["files"] = [str(out / f) for f in files]
     if args.json:
-        print(json.dumps(data))
+        print(strict_json(data, indent=None), end="")
         return 0
     print(format_table(result))
     print(f"wrote {', '.join(files)} to {out}")

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import logging
 from pathlib import Path
 
@@ -43,27 +42,38 @@ def run(args: argparse.Namespace) -> int:
 
     if not (np.isfinite(args.dt) and args.dt > 0):
         raise InputError("--dt", "", f"got {args.dt:g}", "> 0")
+    from rfsw_plan.io.files import (
+        OutputLock,
+        atomic_path,
+        prepare_output_dir,
+        strict_json,
+        write_json,
+    )
+
     problem = load_problem(args.problem)
+    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
     fit_text = ""
     fit_json = None
     if args.forces is not None:
         problem, fit_text, fit_json = _fit(problem, args.forces, args.forces_frame)
     res = problem_deviation(problem, dt=args.dt, cosim=args.cosim)
-    out = Path(args.output) if args.output else Path("out") / problem.name
-    out.mkdir(parents=True, exist_ok=True)
     data = {"problem": problem.name, "robot": problem.robot.name, **res.to_dict()}
     if fit_json is not None:
         data["force_fit"] = fit_json
-    _write_csv(out / "deviation.csv", res)
-    _write_time_csv(out / "deviation_time.csv", res)
-    (out / "deviation.json").write_text(json.dumps(data, indent=1))
     files = ["deviation.csv", "deviation_time.csv", "deviation.json"]
-    if not args.no_plot:
-        plot_deviation(res, out / "deviation.png", title=problem.title or problem.name)
-        files.append("deviation.png")
+    with OutputLock(out):
+        with atomic_path(out / "deviation.csv") as tmp:
+            _write_csv(tmp, res)
+        with atomic_path(out / "deviation_time.csv") as tmp:
+            _write_time_csv(tmp, res)
+        write_json(out / "deviation.json", data)
+        if not args.no_plot:
+            with atomic_path(out / "deviation.png") as tmp:
+                plot_deviation(res, tmp, title=problem.title or problem.name)
+            files.append("deviation.png")
     data["files"] = [str(out / f) for f in files]
     if args.json:
-        print(json.dumps(data))
+        print(strict_json(data, indent=None), end="")
         return 0
     print(_summary(problem, res))
     if fit_text:

@@ -7,7 +7,6 @@ Least squares on measured TCP positions (seed 000 eq. 13-15, seed 001 eq. 8-11);
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 from typing import Any
@@ -77,6 +76,10 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.io.files import prepare_output_file, strict_json
+
+    if args.output:
+        prepare_output_file(args.output, "-o")
     robot = load_robot(args.robot)
     data = read_measurements(args.data, n_joints=robot.nq)
     model = ElastostaticModel(robot)
@@ -93,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         output = save_robot_description(res.model.to_description(note), args.output)
     rep = _report(res, robot.name, output)
     if args.json:
-        print(json.dumps(rep))
+        print(strict_json(rep, indent=None), end="")
         return 0
     print(f"robot {robot.name}: {res.n_samples} samples, {res.n_observations} measured values, "
           f"method {res.method}")

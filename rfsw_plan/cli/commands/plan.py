@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -52,44 +51,48 @@ def _overrides(items: list[str]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.io.waypoints import plot_lateral_error, write_plan_json, write_waypoints_csv
+    from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.io.waypoints import (
+        mark_outputs_stale,
+        plot_lateral_error,
+        write_plan_json,
+        write_waypoints_csv,
+    )
     from rfsw_plan.planning.api import options_from_problem, plan
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.robot.kinematics import load_robot
 
     problem = load_problem(args.problem)
     over = _overrides(args.set)
     if args.force_uncertainty is not None:
-        if args.force_uncertainty < 0:
+        if not args.force_uncertainty >= 0:
             raise InputError("--force-uncertainty", "", f"got {args.force_uncertainty}", ">= 0")
         over["force_uncertainty"] = args.force_uncertainty
     if args.spacing_mm is not None and not args.spacing_mm > 0:
         raise InputError("--spacing-mm", "", f"got {args.spacing_mm}", "> 0")
     opts = options_from_problem(problem, over)
-    out = Path(args.output) if args.output else Path("out") / problem.name
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        result = plan(problem, opts, spacing=None if args.spacing_mm is None
-                      else args.spacing_mm * 1e-3)
-    except InfeasibleError as exc:
-        for name in _OUTPUTS:  # nothing left behind that claims success
-            (out / name).unlink(missing_ok=True)
-        write_plan_json(out / "plan.json", {
-            "status": "infeasible", "problem": problem.name, "message": str(exc),
-            "waypoint": exc.waypoint, "constraint": exc.constraint,
-            "margin_mm": None if exc.margin is None else exc.margin * 1e3,
-        })
-        raise
-    model = ElastostaticModel(load_robot(problem.robot))
-    summary = result.summary()
-    write_waypoints_csv(out / "waypoints.csv", result, model)
-    plot_lateral_error(out / "lateral_error.png", result)
-    summary["files"] = [str(out / n) for n in _OUTPUTS]
-    write_plan_json(out / "plan.json", summary)
+    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
+    with OutputLock(out):
+        # An earlier run's files must never sit beside this run's as if they were its own:
+        # plan.json (the commit record) first becomes "incomplete", the other outputs go.
+        mark_outputs_stale(out, problem.name, _OUTPUTS)
+        try:
+            result = plan(problem, opts, spacing=None if args.spacing_mm is None
+                          else args.spacing_mm * 1e-3)
+        except InfeasibleError as exc:
+            write_plan_json(out / "plan.json", {
+                "status": "infeasible", "problem": problem.name, "message": str(exc),
+                "waypoint": exc.waypoint, "constraint": exc.constraint,
+                "margin_mm": None if exc.margin is None else exc.margin * 1e3,
+            })
+            raise
+        summary = result.summary()
+        written = [write_waypoints_csv(out / "waypoints.csv", result),
+                   plot_lateral_error(out / "lateral_error.png", result)]
+        summary["files"] = [str(p) for p in written]
+        write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
     if args.json:
         brief = {k: v for k, v in summary.items() if k != "waypoints"}
-        print(json.dumps(brief, indent=2))
+        print(strict_json(brief), end="")
         return 0
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
           f"{result.iterations} IPOPT iterations, branch {result.branch})")

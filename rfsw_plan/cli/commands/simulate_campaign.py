@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.robot.description import save_robot_description
@@ -44,8 +43,12 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.io.files import prepare_output_file, strict_json
     from rfsw_plan.io.measurements import write_measurements
 
+    prepare_output_file(args.output, "-o")
+    if args.save_truth:
+        prepare_output_file(args.save_truth, "--save-truth")
     robot = load_robot(args.robot)
     hidden = [parse_hidden(h, robot.nq) for h in args.hidden]
     result = run_campaign(robot, hidden, args.poses, args.loads_per_pose, args.noise_mm,
@@ -68,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         "truth_file": None if truth_path is None else str(truth_path),
     }
     if args.json:
-        print(json.dumps(summary, indent=2))
+        print(strict_json(summary), end="")
         return 0
     print(f"wrote {path}: {len(result.data)} samples, {args.poses} poses, robot {robot.name}, "
           f"noise {args.noise_mm:g} mm")

@@ -59,6 +59,14 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--noise-mm", "", f"{args.noise_mm:g}", "a positive noise in mm")
     if args.folds < 2:
         raise InputError("--folds", "", f"{args.folds}", "at least 2")
+    from rfsw_plan.io.files import OutputLock, prepare_output_dir, prepare_output_file
+
+    out = None
+    if not args.no_report:
+        out = prepare_output_dir(args.output if args.output
+                                 else Path(f"validate_{Path(args.data).stem}"))
+    if args.save_robot:
+        prepare_output_file(args.save_robot, "--save-robot")
     robot = load_robot(args.robot)
     model = ElastostaticModel(robot)
     data = read_measurements(args.data, robot.nq)
@@ -68,9 +76,9 @@ def run(args: argparse.Namespace) -> int:
         add=args.add, folds=args.folds, seed=args.seed,
     )
     files = None
-    if not args.no_report:
-        out = Path(args.output) if args.output else Path(f"validate_{Path(args.data).stem}")
-        files = write_report(result, out)
+    if out is not None:
+        with OutputLock(out):
+            files = write_report(result, out)
     saved = save_extended_robot(result, args.save_robot) if args.save_robot else None
     if args.json:
         print(result_json(result))

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
+from rfsw_plan.process.seam import interpolate_frames
 
 FloatArray = NDArray[np.float64]
 
@@ -187,8 +188,6 @@ def _refine_ramp(frames: SeamFrames, sw: FloatArray, fw: FloatArray,
     """Extra weld waypoints where the weld force still ramps (travel start): the waypoint
     spacing divided by ``divisions`` up to one spacing past the end of the ramp, so the joint
     spline resolves the offsets that follow the force."""
-    from rfsw_plan.process.seam import interpolate_frames
-
     if len(frames) < 2:
         return frames
     steady = fw[-1]
