@@ -59,7 +59,7 @@ def map_summary(m: PlacementMap, requested: float, top: int = 5) -> dict[str, An
     best_um = float(np.max(m.tolerated_mirror[feas])) if np.any(feas) else float("nan")
     return {
         "problem": m.name,
-        "placements": int(len(m.placements)),
+        "placements": len(m.placements),
         "grid": {"x_mm": (g.x * 1e3).tolist(), "y_mm": (g.y * 1e3).tolist(),
                  "yaw_deg": np.rad2deg(g.yaw).tolist(), "z_mm": (g.z * 1e3).tolist(),
                  "shape": list(g.shape)},

@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.planning.task import PlanTask
 from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.task import PlanTask
 
 FloatArray = NDArray[np.float64]
 

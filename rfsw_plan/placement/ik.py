@@ -7,7 +7,8 @@ the batch forward kinematics and Jacobian of
     e = (p* - p(q), log(R* R(q)^T)),  dq = J^T (J J^T + lambda^2 I)^-1 clip(e)
 
 where ``clip`` shortens the task-space step to at most ``step_pos`` [m] and ``step_rot`` [rad]
-(a continuation toward a far target, so the iteration stays on the seed's configuration branch).
+(a continuation toward a far target, so the iteration stays on the seed's configuration branch),
+and the joint step to ``step_joint`` [rad].
 Only the poses that have not converged are iterated; a pose whose error stops falling is given
 up (unreachable). Joint limits are not enforced here: the caller checks them, so a pose that is
 only reachable outside the limits is reported as a limit violation, not as unreachable.
@@ -68,7 +69,7 @@ def rotation_error(R_target: FloatArray, R: FloatArray) -> FloatArray:
 def solve_poses(
     robot: Robot, R_target: FloatArray, p_target: FloatArray, q_seed: FloatArray,
     tol: float = 1e-7, max_iter: int = 40, step_pos: float = 0.15, step_rot: float = 0.4,
-    damping: float = 1e-3,
+    damping: float = 1e-3, step_joint: float = 0.3,
 ) -> BatchIK:
     """TCP poses (R_target, p_target) reached from seeds q_seed, all at once.
 
@@ -82,6 +83,8 @@ def solve_poses(
         step_pos: Largest task-space position step per iteration [m].
         step_rot: Largest task-space rotation step per iteration [rad].
         damping: Levenberg-Marquardt damping lambda (SI mix of m and rad).
+        step_joint: Largest joint step per iteration [rad] (near a singularity the
+            least-squares step would otherwise leave the branch).
     """
     Q = np.array(q_seed, dtype=float)
     N = Q.shape[0]
@@ -90,11 +93,12 @@ def solve_poses(
     done = np.zeros(N, dtype=bool)
     active = np.arange(N)
     history: list[FloatArray] = []  # error of every pose per iteration, for stagnation
-    it = 0
+    n_iter = 0
     eye = np.eye(6) * damping ** 2
     T_all = np.zeros((N, 4, 4))
     J_all = np.zeros((N, 6, Q.shape[1]))
     for it in range(1, max_iter + 1):
+        n_iter = it
         T, J = robot.batch_fk_jacobian(Q[active])
         T_all[active] = T
         J_all[active] = J
@@ -125,5 +129,8 @@ def solve_poses(
         e = np.hstack([ep * fp[:, None], er * fr[:, None]])
         A = np.matmul(J, np.transpose(J, (0, 2, 1))) + eye
         y = np.linalg.solve(A, e[:, :, None])
-        Q[active] += np.matmul(np.transpose(J, (0, 2, 1)), y)[:, :, 0]
-    return BatchIK(Q, done, pos_err, rot_err, it, T_all, J_all)
+        dq = np.matmul(np.transpose(J, (0, 2, 1)), y)[:, :, 0]
+        big = np.max(np.abs(dq), axis=1)
+        dq *= np.minimum(1.0, step_joint / np.maximum(big, 1e-300))[:, None]
+        Q[active] += dq
+    return BatchIK(Q, done, pos_err, rot_err, n_iter, T_all, J_all)

@@ -29,12 +29,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import RfswError
+from rfsw_plan.exceptions import InputError, RfswError
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap, compliance_shares
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.task import PlanTask
 from rfsw_plan.planning.verify import predict
+from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 
 FloatArray = NDArray[np.float64]
@@ -264,11 +264,22 @@ def place(problem: Any, m: PlacementMap, options: PlanOptions, n_candidates: int
         m: Its map (the screening).
         options: Planner options (the requested uncertainty is ``options.force_uncertainty``).
         n_candidates: Screened candidates to plan (besides the given placement).
-        executor: Where the plans run (None: in this process, one after the other).
+        executor: Where the plans run (None: in this process, one after the other): a process
+            pool or Dask's executor; thread pools are refused (the NLP solver is not
+            thread-safe).
+
+    Raises:
+        InputError: A thread pool executor.
         on_result: Called with each result as it arrives (progress).
     """
+    from concurrent.futures import ThreadPoolExecutor
+
     from rfsw_plan.progress import Bar
 
+    if isinstance(executor, ThreadPoolExecutor):
+        raise InputError("executor", type(executor).__name__,
+                         "thread pools are not supported (IPOPT/MUMPS in CasADi is not "
+                         "thread-safe)", "a process pool or a Dask executor")
     u_req = options.force_uncertainty
     given = Candidate("given", Placement(float(m.anchor[0]), float(m.anchor[1]),
                                          float(m.anchor[2]), 0.0), -1, dict(m.given), None)

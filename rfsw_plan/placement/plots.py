@@ -99,8 +99,7 @@ def plot_map(path: str | Path, m: PlacementMap,
     handles: list[Any] = []
     for ax, (key, ttl, unit, scale, best, cmap) in zip(axes.ravel(), _PANELS, strict=True):
         Z = _reduce(m, key, best) * scale
-        cm = plt.get_cmap(cmap).copy()
-        cm.set_bad("#d9d9d9")
+        cm = plt.get_cmap(cmap).with_extremes(bad="#d9d9d9")
         im = ax.imshow(np.ma.masked_invalid(Z.T), origin="lower", extent=ext, cmap=cm,
                        aspect="equal", interpolation="nearest")
         cb = fig.colorbar(im, ax=ax, shrink=0.85)
@@ -108,8 +107,8 @@ def plot_map(path: str | Path, m: PlacementMap,
         ax.set_title(ttl, fontsize=10)
         ax.set_xlabel("anchor x [mm] (robot base frame)")
         ax.set_ylabel("anchor y [mm]")
-        g = m.given
-        h1 = ax.plot(g["x_mm"], g["y_mm"], marker="*", ms=16, mfc="red", mec="white", ls="none",
+        gv = m.given
+        h1 = ax.plot(gv["x_mm"], gv["y_mm"], marker="*", ms=16, mfc="red", mec="white", ls="none",
                      label="given placement")[0]
         hs = [h1]
         for i, (lab, x, y) in enumerate(candidates):
@@ -156,8 +155,7 @@ def plot_yaw(path: str | Path, m: PlacementMap) -> Path:
     finite = V[np.isfinite(V)]
     vmax = float(np.max(finite)) if finite.size else 1.0
     ext = _extent(m)
-    cm = plt.get_cmap("viridis").copy()
-    cm.set_bad("#d9d9d9")
+    cm = plt.get_cmap("viridis").with_extremes(bad="#d9d9d9")
     im = None
     for ax, j in zip(axes.ravel(), sel, strict=False):
         with np.errstate(all="ignore"):

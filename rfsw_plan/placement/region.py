@@ -63,8 +63,9 @@ class ReachExtent:
         if self.empty:
             return f"the seam is feasible at no anchor radius at height(s) z = {z} mm"
         c, s = np.cos(self.theta), np.sin(self.theta)
-        return (f"the seam is feasible with its anchor {self.r_min * 1e3:.0f}..{self.r_max * 1e3:.0f}"
-                f" mm from the robot's base axis at z = {z} mm (toward the given placement: x "
+        return (f"the seam is feasible with its anchor {self.r_min * 1e3:.0f}.."
+                f"{self.r_max * 1e3:.0f} mm from the robot's base axis at z = {z} mm (toward "
+                f"the given placement: x "
                 f"{self.r_min * c * 1e3:.0f}..{self.r_max * c * 1e3:.0f} mm, y "
                 f"{self.r_min * s * 1e3:.0f}..{self.r_max * s * 1e3:.0f} mm)")
 
@@ -104,10 +105,10 @@ def default_region(mi: MapInput, yaws: FloatArray, heights: FloatArray
 
 
 def yaw_values(yaw_range_deg: tuple[float, float] | None, n: int) -> FloatArray:
-    """Yaw grid [rad]: n values over a range [deg] (ends included), or by default n values over
-    the full turn starting at -180 deg (0 included when n is even)."""
+    """Yaw grid [rad]: n values over a range [deg] (ends included), or by default n values
+    evenly over the full turn, 0 (the given orientation) included, sorted in [-180, 180)."""
     if yaw_range_deg is None:
-        return np.deg2rad(np.linspace(-180.0, 180.0, n, endpoint=False))
+        return np.deg2rad(np.sort((np.arange(n) * 360.0 / n + 180.0) % 360.0 - 180.0))
     a0, a1 = yaw_range_deg
     if a1 < a0:
         raise InputError("--yaw-range", "", f"empty range {a0:g}..{a1:g} deg", "a0 <= a1")

@@ -59,8 +59,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"best placement:  tolerated uncertainty "
           f"{_pct(summary['best_tolerated_uncertainty_mirror'])} (mirror), "
           f"{_pct(summary['best_tolerated_uncertainty_centred'])} (centred); requested "
-          f"+-{u * 100:g} % {'reached' if summary['requested_reached_somewhere'] else 'NOT reached'}"
-          " in this region")
+          f"+-{u * 100:g} % "
+          f"{'reached' if summary['requested_reached_somewhere'] else 'NOT reached'} in this "
+          "region (centred estimate)")
     print(f"{'rank':>4} {'x mm':>8} {'y mm':>8} {'z mm':>7} {'yaw deg':>8} {'u mirror':>9} "
           f"{'u centred':>9} {'k_lat N/mm':>10} {'max|e| mm':>9}")
     for i, r in enumerate(summary["top"], 1):
