@@ -20,7 +20,7 @@ from rfsw_plan.planning.api import plan
 from rfsw_plan.robot.kinematics import load_robot
 
 REQUIRED = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "x_mm", "y_mm",
-            "z_mm", "qw", "qx", "qy", "qz", "q1_deg", "q6_deg", "fx_N", "fy_N", "fz_N",
+            "z_mm", "qw", "qx", "qy", "qz", "J1_deg", "J6_deg", "fx_N", "fy_N", "fz_N",
             "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "off_along_mm", "dx_mm",
             "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s"]
 
@@ -57,7 +57,7 @@ def test_csv_columns_and_consistency(written):
     assert len(rows) == len(res.trajectory)
     # The commanded pose is FK of the joints; the quaternion is unit.
     for r in rows[:: max(len(rows) // 20, 1)]:
-        q = np.deg2rad([float(r[f"q{j}_deg"]) for j in range(1, 7)])
+        q = np.deg2rad([float(r[f"J{j}_deg"]) for j in range(1, 7)])
         T = model.robot.fk(q)
         np.testing.assert_allclose([float(r[k]) for k in ("x_mm", "y_mm", "z_mm")],
                                    T[:3, 3] * 1e3, atol=1e-5)

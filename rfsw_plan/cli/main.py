@@ -73,6 +73,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
+    logging.getLogger("toppra").setLevel(logging.WARNING)  # its INFO is per grid point
     from rfsw_plan import progress
 
     progress.set_enabled(not args.quiet)

@@ -12,8 +12,9 @@
 ``A_deg, B_deg, C_deg`` (KUKA, ``euler = "kuka_abc"``) or ``W_deg, P_deg, R_deg`` (FANUC,
 ``"fanuc_wpr"``)
     The same orientation in the maker's convention: R = Rz(A) Ry(B) Rx(C) = Rz(R) Ry(P) Rx(W).
-``q1_deg ... qn_deg``
-    Planned joint values (controller joints of the robot file).
+``A1_deg ... A6_deg`` (KUKA), ``J1_deg ... J6_deg`` (FANUC, ZK-500), ``q1_deg ...`` (a robot file
+without ``[controller]``)
+    Planned joint values: the controller's axis values (see the README, "Joint values q").
 ``fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm``
     The process wrench on the tool the plan assumes.
 ``off_lat_mm, off_norm_mm, off_along_mm``
@@ -76,7 +77,6 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     tr = result.trajectory
     task = result.task
     robot = model.robot
-    n = robot.nq
     batch = model.batch(tr.q)
     T = batch.T
     dX = model.process_deflection_batch(batch, tr.wrench, task.reference)
@@ -103,7 +103,7 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     if result.euler in EULER_COLUMNS:
         header += list(EULER_COLUMNS[result.euler])
         cols += list(np.rad2deg(maker_euler(T[:, :3, :3], result.euler)).T)
-    header += [f"q{j + 1}_deg" for j in range(n)]
+    header += robot.description.convention.column_names()
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
                "off_along_mm", "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s",

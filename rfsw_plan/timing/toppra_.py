@@ -4,6 +4,9 @@ The only module that imports ``toppra``. TOPPRA (Pham & Pham, time-optimal path
 parameterisation by reachability analysis) computes, at each grid point of the path, the set of
 path velocities sdot that joint velocity and acceleration limits allow; the smallest upper bound
 along the path is the highest speed the path can be driven at.
+
+Like the rest of the library this module never configures logging (no handlers, no levels):
+the application does (the CLI quietens the ``toppra`` logger in ``rfsw_plan.cli.main``).
 """
 
 from __future__ import annotations
@@ -49,7 +52,6 @@ def max_path_speed(
     import toppra.algorithm as algo
     import toppra.constraint as constraint
 
-    ta.setup_logging("WARNING")
     path = ta.SplineInterpolator(np.asarray(s, float), np.asarray(q, float))
     pc_vel = constraint.JointVelocityConstraint(np.column_stack([-vel, vel]))
     pc_acc = constraint.JointAccelerationConstraint(np.column_stack([-acc, acc]))

@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     files = ["deviation.csv", "deviation_time.csv", "deviation.json"]
     with OutputLock(out):
         with atomic_path(out / "deviation.csv") as tmp:
-            _write_csv(tmp, res)
+            _write_csv(tmp, res, problem.robot.convention.column_names())
         with atomic_path(out / "deviation_time.csv") as tmp:
             _write_time_csv(tmp, res)
         write_json(out / "deviation.json", data)
@@ -119,13 +119,13 @@ def _summary(problem: Problem, res: DeviationResult) -> str:
     return "\n".join(lines)
 
 
-def _write_csv(path: Path, res: DeviationResult) -> None:
+def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> None:
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
         nq = res.q.shape[1]
         w.writerow(["s_mm", "x_mm", "y_mm", "z_mm", "f_t_N", "f_l_N", "f_n_N", "lateral_mm",
                     "axial_mm", "along_mm", "inside_window",
-                    *[f"q{j + 1}_deg" for j in range(nq)]])
+                    *joint_columns[:nq]])
         for k in range(len(res.frames)):
             w.writerow([
                 f"{res.frames.s[k] * 1e3:.3f}", *(f"{v * 1e3:.3f}" for v in res.frames.p[k]),
