@@ -12,6 +12,8 @@
    ``concurrent.futures.Executor`` (local processes, Dask's executor, or in this process when
    none is given); each evaluation is a pure function of its inputs, so the result does not
    depend on the executor.
+   A plan counts only if the predicted pin stays in the window at every in-material sample of
+   its timed trajectory (:func:`sample_errors`), not only at the waypoints.
 3. Choose: the largest tolerated uncertainty of the verified plan
    (:func:`tolerated_uncertainty`), capped at the requested one; once that is reached, the
    largest smallest lateral stiffness along the seam; then the screening order.
@@ -116,6 +118,9 @@ class CandidateResult:
         worst_waypoint: Waypoint that decides the tolerated uncertainty.
         joint_shares: Which joint's compliance makes the worst-case spread there.
         q_start: First planned configuration [rad], (n,).
+        sample_margin: Smallest distance of the predicted pin to the window over every
+            in-material sample of the timed trajectory [m] (negative: outside; the candidate is
+            then ``infeasible``).
     """
 
     label: str
@@ -129,6 +134,7 @@ class CandidateResult:
     worst_waypoint: int = -1
     joint_shares: dict[str, float] = field(default_factory=dict)
     q_start: FloatArray | None = None
+    sample_margin: float = float("nan")
 
     @property
     def planned(self) -> bool:
@@ -151,6 +157,7 @@ class CandidateResult:
             "max_abs_lateral_mm": self.max_abs_lateral * 1e3,
             "min_lateral_stiffness_N_per_mm": self.min_lateral_stiffness * 1e-3,
             "plan_time_s": self.plan_time,
+            "sample_window_margin_mm": self.sample_margin * 1e3,
             "worst_waypoint": self.worst_waypoint,
             "dominant_compliance": self.dominant(),
             "compliance_shares": self.joint_shares,
@@ -162,7 +169,6 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
     """Plan one (already moved) problem and measure its robustness. A pure function of its
     arguments (it runs in worker processes or on a Dask cluster)."""
     from rfsw_plan.planning.api import plan
-    from rfsw_plan.robot.kinematics import load_robot
 
     t0 = time.perf_counter()
     try:
@@ -172,14 +178,28 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
         return CandidateResult(label, placement, kind, str(exc).splitlines()[0],
                                plan_time=time.perf_counter() - t0)
     dt = time.perf_counter() - t0
-    model = ElastostaticModel(load_robot(problem.robot))
+    model = res.model
     u, k = tolerated_uncertainty(model, res.task, res.q, res.window)
     sl = res.task.weld
     pred = res.verification.prediction
     shares = compliance_shares(model, res.task, res.q, k)
+    e, inside = sample_errors(model, res.task, res.trajectory)
+    margin = np.minimum(e - res.window.lower, res.window.upper - e)[inside]
+    sample_margin = float(np.min(margin)) if margin.size else float("nan")
+    status, msg = res.status, ""
+    if sample_margin < -1e-6:
+        tr = res.trajectory
+        bad = np.flatnonzero(inside)[margin < -1e-6]
+        i = bad[np.argmin(margin[margin < -1e-6])]
+        status = "infeasible"
+        msg = (f"the timed trajectory leaves the window at {len(bad)} of {int(inside.sum())} "
+               f"in-material samples ({', '.join(sorted(set(map(str, tr.phase[bad]))))}; worst "
+               f"e_lat = {e[i] * 1e3:+.3f} mm at t = {tr.t[i]:.2f} s) although every waypoint "
+               f"is inside")
     return CandidateResult(
-        label, placement, res.status, "", u, float(np.max(np.abs(pred.e_lat[sl]))),
-        float(np.min(pred.lateral_stiffness[sl])), dt, k, shares, res.q[0].copy())
+        label, placement, status, msg, u, float(np.max(np.abs(pred.e_lat[sl]))),
+        float(np.min(pred.lateral_stiffness[sl])), dt, k, shares, res.q[0].copy(),
+        sample_margin)
 
 
 def _run(args: tuple[Any, PlanOptions, str, Placement]) -> CandidateResult:

@@ -17,7 +17,8 @@ HELP = ("find the part placement (table-plane position, yaw, height) whose plan 
 
 _CSV = ("rank", "label", "chosen", "x_mm", "y_mm", "z_mm", "yaw_deg", "dx_mm", "dy_mm",
         "robot_base_height_mm", "status", "tolerated_uncertainty", "max_abs_lateral_mm",
-        "min_lateral_stiffness_N_per_mm", "plan_time_s", "dominant_compliance",
+        "min_lateral_stiffness_N_per_mm", "sample_window_margin_mm", "plan_time_s",
+        "dominant_compliance",
         "screen_tolerated_uncertainty_centred", "message")
 
 
