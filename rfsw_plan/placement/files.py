@@ -88,7 +88,8 @@ def write_map_json(path: str | Path, m: PlacementMap, requested: float,
 
 
 def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
-                        q_seed: np.ndarray | None, note: str, name: str | None = None) -> str:
+                        q_seed: np.ndarray | None, note: str, name: str | None = None,
+                        force_uncertainty: float | None = None) -> str:
     """TOML text of the problem with its seam moved to ``placement``.
 
     Args:
@@ -98,6 +99,8 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
         q_seed: Planner seed at the new placement [rad], (n,), or None to drop the seed.
         note: Comment lines on how the placement was found.
         name: Name of the new problem (default ``<name>_placed``).
+        force_uncertainty: The force uncertainty the placement was planned for (written to
+            ``[planning]`` so that ``plan`` reproduces the plan), or None to keep the file's.
     """
     src = Path(problem.path)
     data = tomllib.loads(src.read_text())
@@ -127,6 +130,8 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
         pl["q_seed_deg"] = [round(float(v), 4) for v in np.rad2deg(q_seed)]
     else:
         pl.pop("q_seed_deg", None)
+    if force_uncertainty is not None:
+        pl["force_uncertainty"] = float(force_uncertainty)
     data["planning"] = pl
     header = "".join(f"# {line}\n" for line in note.splitlines())
     return header + tomli_w.dumps(data)
@@ -134,12 +139,14 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
 
 def write_placed_problem(path: str | Path, problem: Any, placement: Placement,
                          anchor: np.ndarray, q_seed: np.ndarray | None, note: str,
-                         name: str | None = None) -> Path:
+                         name: str | None = None, force_uncertainty: float | None = None
+                         ) -> Path:
     """Write :func:`placed_problem_toml` atomically; the problem reader must accept the
     temporary file (and give the moved seam) before it replaces ``path``."""
     from rfsw_plan.process.problem import load_problem
 
-    text = placed_problem_toml(problem, placement, anchor, q_seed, note, name)
+    text = placed_problem_toml(problem, placement, anchor, q_seed, note, name,
+                               force_uncertainty)
     with atomic_path(path) as tmp:
         tmp.write_text(text)
         loaded = load_problem(tmp)

@@ -128,7 +128,8 @@ def run(args: argparse.Namespace) -> int:
                         f"uncertainty {chosen.tolerated_uncertainty * 100:.1f} % (given placement:"
                         f" {summary['given']['tolerated_uncertainty'] * 100:.1f} %).")
                 q_seed = chosen.q_start
-                write_placed_problem(toml, problem, chosen.placement, m.anchor, q_seed, note)
+                write_placed_problem(toml, problem, chosen.placement, m.anchor, q_seed, note,
+                                     force_uncertainty=opts.force_uncertainty)
                 files.insert(0, toml)
             summary["files"] = [str(f) for f in files]
             write_json(out / "place.json", summary)
