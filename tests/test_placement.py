@@ -118,7 +118,7 @@ def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
     d = json.loads(capsys.readouterr().out)
     chosen, given = d["chosen"], d["given"]
     assert chosen["tolerated_uncertainty"] >= given["tolerated_uncertainty"] - 1e-9
-    assert given["status"] in ("optimal", "verified")
+    assert given["status"].startswith(("optimal", "verified"))
     if not d["requested_reached"]:
         assert chosen["dominant_compliance"].startswith(("q", "other"))
         assert chosen["dominant_compliance"] in d["verdict"]
@@ -132,8 +132,10 @@ def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
     assert inside.sum() > 10
     assert np.all(e[inside] >= res.window.lower - 1e-6)
     assert np.all(e[inside] <= res.window.upper + 1e-6)
-    u, _ = tolerated_uncertainty(model, res.task, res.q, res.window)
-    assert u == pytest.approx(chosen["tolerated_uncertainty"], rel=1e-3, abs=1e-4)
+    u, _ = tolerated_uncertainty(model, res.task, res.q, res.window)  # waypoints only
+    assert res.tolerated_force_uncertainty <= u + 1e-9  # the planner's adds the samples
+    assert res.tolerated_force_uncertainty == pytest.approx(chosen["tolerated_uncertainty"],
+                                                            rel=1e-3, abs=1e-4)
     json.loads((out / "map.json").read_text(),
                parse_constant=lambda c: (_ for _ in ()).throw(ValueError(c)))
 

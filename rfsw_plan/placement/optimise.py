@@ -108,10 +108,11 @@ class CandidateResult:
     Attributes:
         label: The candidate's label.
         placement: The placement.
-        status: The planner's status (``optimal``/``verified``), or ``infeasible``/
-            ``unreachable``/``error``.
+        status: The planner's status (``optimal``/``verified``, ``_nominal`` when the
+            requested uncertainty is not held), or ``infeasible``/``unreachable``/``error``.
         message: Why it failed (empty when planned).
-        tolerated_uncertainty: Of the verified plan (relative), NaN if not planned.
+        tolerated_uncertainty: Of the verified plan (relative; the planner's own figure over
+            waypoints and written samples), NaN if not planned.
         max_abs_lateral: Largest |e_lat| of the plan [m].
         min_lateral_stiffness: Smallest lateral stiffness along the weld [N/m].
         plan_time: Wall time of the planner [s] (machine-dependent; not part of the choice).
@@ -139,7 +140,7 @@ class CandidateResult:
     @property
     def planned(self) -> bool:
         """The planner produced a verified plan."""
-        return self.status in ("optimal", "verified")
+        return self.status.startswith(("optimal", "verified"))
 
     def dominant(self) -> str:
         """The joint (or effect) with the largest share, e.g. ``q5 (61 %)``."""
@@ -180,6 +181,9 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
     dt = time.perf_counter() - t0
     model = res.model
     u, k = tolerated_uncertainty(model, res.task, res.q, res.window)
+    u_plan = float(getattr(res, "tolerated_force_uncertainty", np.nan))
+    if np.isfinite(u_plan):  # the planner's figure also covers the written samples
+        u = min(u, u_plan)
     sl = res.task.weld
     pred = res.verification.prediction
     shares = compliance_shares(model, res.task, res.q, k)
