@@ -1,6 +1,6 @@
 """Benchmark of the placement map and of ``place`` on the bundled problems.
 
-Run: ``.venv/bin/python examples/benchmark_placement.py [--grid 50,50,8] [--workers 2]``
+Run: ``.venv/bin/python benchmarks/benchmark_placement.py [--grid 50,50,8] [--workers 2]``
 
 Printed:
 
