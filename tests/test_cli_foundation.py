@@ -122,7 +122,7 @@ def test_predict_non_positive_stiffness_file(capsys: pytest.CaptureFixture[str],
     p.write_text(tomli_w.dumps(raw))
     assert_one_line_error(
         *run(capsys, "predict", "--robot", str(p), "--q-deg", Q_DEG, "--wrench", WRENCH),
-        str(p), "joint 4 stiffness is -1",
+        str(p), "joint 4 is -1",
     )
 
 
@@ -238,7 +238,16 @@ def test_identify_too_few_samples_and_bad_method(capsys: pytest.CaptureFixture[s
     )
 
 
-def test_identify_free_option(capsys: pytest.CaptureFixture[str], data_file: Path) -> None:
+def test_identify_free_option(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    kuka = load_model("kuka_kr600_r2830")
+    rng = np.random.default_rng(3)
+    d = kuka.robot.description
+    mid, half = (d.lower + d.upper) / 2, (d.upper - d.lower) / 2
+    Q = rng.uniform(mid - 0.5 * half, mid + 0.5 * half, size=(30, 6))
+    F = np.zeros((30, 6))
+    F[:, :3] = rng.normal(size=(30, 3)) * 3000.0
+    data_file = write_measurements(tmp_path / "kuka.csv",
+                                   MeasurementSet(Q, F, kuka.predict_position(Q, F)))
     assert_one_line_error(
         *run(capsys, "identify", "--robot", "kuka_kr600_r2830", "--data", str(data_file),
              "--free", "joint_compliance,tilt"),

@@ -42,5 +42,5 @@ def test_bad_files(fixture: str, match: str) -> None:
 def test_bad_cell(tmp_path: Path) -> None:
     p = tmp_path / "f.csv"
     p.write_text("t_s,fx_N,fy_N,fz_N\n0,1,2,3\n0.1,1,x,3\n")
-    with pytest.raises(InputError, match="row 3, column fy_N"):
+    with pytest.raises(InputError, match=r"row 3, column .fy_N."):
         read_force_series(p, frame="base")

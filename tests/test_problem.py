@@ -26,7 +26,8 @@ upper_mm = 0.7
 [planning]
 q_seed_deg = [-96.24, 3.91, 25.45, -2.10, 57.17, 2.90]
 tool_rotation_deg = 180
-weights_lateral = 3.0
+w_stiffness = 3.0
+margin_mm = 0.2
 """
 
 
@@ -55,13 +56,17 @@ def test_bundled_problems_load() -> None:
     assert zk.coupling is not None and zk.coupling.commanded_depth == pytest.approx(8e-3)
 
 
-def test_units_and_unknown_planning_keys_kept(tmp_path: Path) -> None:
+def test_units_and_planning_options(tmp_path: Path) -> None:
     p = load_problem(_write(tmp_path, GOOD))
     assert p.spacing == pytest.approx(0.01)
     assert p.seam.tilt == pytest.approx(np.deg2rad(2.0))
     assert p.process.travel_speed == pytest.approx(3e-3)
     assert p.planning.tool_rotation == pytest.approx(np.pi)
-    assert p.planning.extra == {"weights_lateral": 3.0}
+    assert p.planning.w_stiffness == 3.0  # [planning] is parsed once, into PlanOptions
+    assert p.planning.margin == pytest.approx(0.2e-3)
+    with pytest.raises(InputError, match=r"planning\.w_stifness: unknown key; did you mean "
+                       r"'w_stiffness'\?"):
+        load_problem(_write(tmp_path, GOOD.replace("w_stiffness", "w_stifness"), "q.toml"))
     assert p.window.lower == pytest.approx(-1.25e-3)
 
 
@@ -89,13 +94,13 @@ def test_typo_key_is_an_error(tmp_path: Path) -> None:
 
 BAD = [
     ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
-     "points_mm = [[269.52, -2070.91, 663.15]]", "at least 2 points"),
+     "points_mm = [[269.52, -2070.91, 663.15]]", "at least 2 rows"),
     ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
      "points_mm = [[0, 0, 0], [100, 0, 0], [100, 0, 0]]", "duplicate consecutive"),
     ("points_mm = [[269.52, -2070.91, 663.15], [278.10, -1957.60, 664.05]]",
      "points_mm = [[5, 5, 5], [5, 5, 5]]", "zero-length"),
-    ("tilt_deg = 2.0", "tilt_deg = 20.0", "tilt 20 deg is out of range"),
-    ('rotation = "cw"', 'rotation = "clockwise"', "unknown rotation sense"),
+    ("tilt_deg = 2.0", "tilt_deg = 20.0", "tilt_deg: got 20 (expected a number in [-15, 15])"),
+    ('rotation = "cw"', 'rotation = "clockwise"', "rotation: got 'clockwise'"),
     ("upper_mm = 0.7", "upper_mm = -1.5", "not below upper"),
     ('robot = "zk500"', 'robot = "abb_irb_99"', "unknown robot"),
     ("q_seed_deg = [-96.24, 3.91, 25.45, -2.10, 57.17, 2.90]", "q_seed_deg = [0, 0]",

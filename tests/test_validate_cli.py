@@ -152,8 +152,9 @@ def test_bad_input_gives_one_line_errors(
     code, _, err = _run([*base, "--data", str(blank)], capsys)
     _one_line_error(code, err, "blank.csv", "blank")
 
+    tcp = load_robot("zk500").fk(np.radians(np.array(row[:6], dtype=float)))[:3, 3] * 1e3
     few = _write(tmp_path / "few.csv", ["pose_id", *q, *forces, "x_mm", "y_mm", "z_mm"],
-                 [[f"P{i}", *row, 1000 + i, 0, 2000] for i in range(3)])
+                 [[f"P{i}", *row, tcp[0] + i, tcp[1], tcp[2]] for i in range(3)])
     code, _, err = _run([*base, "--data", str(few)], capsys)
     _one_line_error(code, err, "few.csv", "need at least")
 

@@ -26,9 +26,9 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError
-from rfsw_plan.io.measurements import MeasurementSet
 
 log = logging.getLogger(__name__)
 
@@ -196,6 +196,293 @@ def _set_theta(effects: Sequence[Effect], theta: FloatArray) -> None:
         i += p
 
 
+@dataclass
+class IdentificationProblem:
+    """A built least-squares problem: what :func:`solve_identification` iterates on.
+
+    Attributes:
+        model: Working copy of the model; its free effects' parameters are updated in place.
+        effects: The free effects, in regressor order.
+        names: (effect label, parameter name) of every parameter, shape (P,).
+        prior: Parameter values before identification, shape (P,).
+        data: The samples.
+        batch: Kinematics of ``data.q``.
+        mask: Measured position axes, shape (m, 3).
+        y: Measured positions with unmeasured axes zeroed [m], shape (m, 3).
+        free: Parameters the data can identify (the others keep their prior), shape (P,).
+        notes: Why a parameter is not free (empty if free), shape (P,).
+        scale: Parameter scales for the step tolerance [SI], shape (P,).
+        linear: True if the positions are linear in the free parameters (one step solves).
+        method: ``ols`` or ``wls``.
+        rms_before: RMS residual of the prior model [m].
+    """
+
+    model: ElastostaticModel
+    effects: list[Effect]
+    names: list[tuple[str, str]]
+    prior: FloatArray
+    data: MeasurementSet
+    batch: PoseBatch
+    mask: np.ndarray
+    y: FloatArray
+    free: np.ndarray
+    notes: list[str]
+    scale: FloatArray
+    linear: bool
+    method: str
+    rms_before: float
+
+    @property
+    def n_obs(self) -> int:
+        """Number of measured scalar values."""
+        return int(self.mask.sum())
+
+    def positions(self) -> FloatArray:
+        """Predicted positions with the current parameters [m], shape (m, 3)."""
+        return self.batch.T[:, :3, 3] + self.model.deflection_batch(
+            self.batch, self.data.wrench)[:, :3]
+
+    def residual(self) -> FloatArray:
+        """Measured minus predicted, measured axes only [m], shape (n_obs,)."""
+        return (self.y - self.positions())[self.mask]
+
+    def jacobian(self) -> FloatArray:
+        """d(position)/d(theta) of the measured axes, all parameters, shape (n_obs, P)."""
+        return position_jacobian(self.model, self.batch, self.data.wrench,
+                                 self.effects)[self.mask]
+
+    def theta(self) -> FloatArray:
+        """Current parameter vector, shape (P,)."""
+        return np.concatenate([e.params for e in self.effects])
+
+
+def _mark_invisible(prob: IdentificationProblem, A0: FloatArray) -> None:
+    """Parameters whose 100 % change does not move the measured point keep their prior."""
+    sens = np.sqrt(np.mean((A0 * prob.scale) ** 2, axis=0))
+    for k in np.flatnonzero(sens < SENSITIVITY_FLOOR_M):
+        prob.free[k] = False
+        prob.notes[k] = (
+            f"does not move the measured TCP (a 100 % change moves it {sens[k] * 1e9:.2g} nm "
+            "RMS); e.g. a joint whose axis passes through the TCP is invisible to "
+            "position-only data; prior kept"
+        )
+
+
+def _mark_collinear(prob: IdentificationProblem, A0: FloatArray) -> None:
+    """Drop parameters, one at a time, until the free columns are not collinear.
+
+    A measurement set-up parameter (:attr:`Effect.setup`: device registration, marker offset)
+    is never the one dropped: a joint offset that a free registration absorbs is named as
+    unidentifiable instead.
+    """
+    setup = np.array([any(e.label == lab and e.setup for e in prob.effects)
+                      for lab, _ in prob.names], dtype=bool)
+    while True:
+        idx = np.flatnonzero(prob.free)
+        if idx.size == 0:
+            return
+        An = A0[:, idx] / np.linalg.norm(A0[:, idx], axis=0)
+        _, sv, Vt = np.linalg.svd(An, full_matrices=False)
+        if sv[-1] / sv[0] >= COLLINEARITY_TOL:
+            return
+        weight = np.abs(Vt[-1]) * np.where(setup[idx], 0.0, 1.0)
+        if not weight.any():
+            weight = np.abs(Vt[-1])
+        worst = idx[int(np.argmax(weight))]
+        order = [j for j in np.argsort(-np.abs(Vt[-1])) if idx[j] != worst][:2]
+        partners = [f"{prob.names[idx[j]][0]}.{prob.names[idx[j]][1]}" for j in order]
+        prob.free[worst] = False
+        why = ("a free device registration absorbs it" if any(setup[idx[j]] for j in order)
+               else "cannot be told apart in this data")
+        prob.notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
+
+
+def build_identification(
+    model: ElastostaticModel,
+    data: MeasurementSet,
+    method: Literal["ols", "wls"] = "ols",
+    free: Sequence[str] | None = None,
+) -> IdentificationProblem:
+    """Set up the least-squares problem and decide which parameters the data can identify.
+
+    Args:
+        model: Starting model; its parameters are the priors. Not modified.
+        data: Samples with joint values, logged wrench and measured positions (base frame).
+        method: ``ols`` or ``wls`` (see :func:`identify`).
+        free: Labels of the effects to identify; None frees all.
+
+    Raises:
+        IdentificationError: Joint count mismatch, unknown effect, no measured axis, fewer
+            observations than parameters, unknown method.
+    """
+    if data.n_joints != model.robot.nq:
+        raise IdentificationError(
+            f"{data.source}: data has {data.n_joints} joints, robot {model.robot.name} has "
+            f"{model.robot.nq}"
+        )
+    if method not in ("ols", "wls"):
+        raise IdentificationError(f"unknown method '{method}'; known: ols, wls")
+    work = model.copy()
+    labels = work.labels if free is None else list(free)
+    unknown = [x for x in labels if not work.has(x)]
+    if unknown:
+        raise IdentificationError(f"effects not in the model: {', '.join(unknown)}")
+    effects = [e for e in work.effects if e.label in labels]
+    names = [(e.label, n) for e in effects for n in e.param_names()]
+    prior = np.concatenate([e.params for e in effects])
+    mask = data.measured
+    n_obs = int(mask.sum())
+    if n_obs == 0:
+        raise IdentificationError(f"{data.source}: no measured TCP axis in any sample")
+    if n_obs < prior.size:
+        raise IdentificationError(
+            f"{data.source}: {n_obs} measured values cannot identify {prior.size} parameters "
+            f"({', '.join(labels)}); need at least {prior.size} (better {3 * prior.size})"
+        )
+    batch = work.batch(data.q)
+    # Positions are linear in theta when every free effect is a linear compliance or
+    # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
+    linear = all(e.linear_in_params and e.kind in ("compliance", "geometric") for e in effects)
+    prob = IdentificationProblem(
+        model=work, effects=effects, names=names, prior=prior, data=data, batch=batch,
+        mask=mask, y=np.where(mask, data.position, 0.0), free=np.ones(prior.size, dtype=bool),
+        notes=[""] * prior.size, scale=np.where(np.abs(prior) > 0, np.abs(prior), 1.0),
+        linear=linear, method=method, rms_before=float("nan"),
+    )
+    prob.rms_before = rms(np.where(mask, data.position - prob.positions(), np.nan))
+    A0 = prob.jacobian()
+    if not np.all(np.isfinite(A0)):
+        raise IdentificationError(f"{data.source}: the regressor is not finite (values out "
+                                  "of range in the data?)")
+    _mark_invisible(prob, A0)
+    _mark_collinear(prob, A0)
+    return prob
+
+
+def _gauss_newton(
+    prob: IdentificationProblem, weights: FloatArray, max_iter: int, tol: float
+) -> tuple[int, bool]:
+    """Iterate weighted Gauss-Newton on the free parameters; returns (iterations, converged)."""
+    theta = prob.theta()
+    idx = np.flatnonzero(prob.free)
+    sw = np.sqrt(weights)
+    it, conv = 0, False
+    for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
+        A = prob.jacobian()[:, idx] * sw[:, None]
+        colscale = np.linalg.norm(A, axis=0)
+        colscale[colscale == 0] = 1.0
+        try:
+            step, *_ = np.linalg.lstsq(A / colscale, prob.residual() * sw, rcond=None)
+        except np.linalg.LinAlgError as exc:
+            raise IdentificationError(f"{prob.data.source}: least squares failed ({exc})") from None
+        step /= colscale
+        theta[idx] += step
+        _set_theta(prob.effects, theta)
+        if prob.linear or np.all(
+            np.abs(step) <= tol * np.maximum(np.abs(theta[idx]), prob.scale[idx])
+        ):
+            conv = True  # a model linear in theta is solved exactly by one step
+            break
+    return it, conv
+
+
+def solve_identification(
+    prob: IdentificationProblem, max_iter: int = 30, tol: float = 1e-10
+) -> IdentificationResult:
+    """Solve a built problem (:func:`build_identification`) and estimate the uncertainties.
+
+    Raises:
+        IdentificationError: The solve produced non-finite numbers.
+    """
+    data, mask = prob.data, prob.mask
+    n_obs = prob.n_obs
+    w = np.ones(n_obs)
+    if prob.method == "wls" and data.sigma is not None:
+        w = (1.0 / data.sigma[:, None] ** 2 * np.ones((1, 3)))[mask]
+    iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+    if prob.method == "wls" and data.sigma is None:
+        var_axis = axis_variances(np.where(mask, data.position - prob.positions(), np.nan))
+        w = (np.ones((len(data), 1)) / var_axis[None, :])[mask]
+        iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+
+    # -- physical plausibility: compliances must stay positive --------------------------------
+    jc = prob.model.joint_compliance
+    theta = prob.theta()
+    if jc in prob.effects:
+        off = sum(e.params.size for e in prob.effects[: prob.effects.index(jc)])
+        # Fixing one joint changes the others' estimates: repeat until all are positive.
+        while True:
+            neg = [off + j for j in range(jc.params.size)
+                   if prob.free[off + j] and theta[off + j] <= 0]
+            if not neg:
+                break
+            for k in neg:
+                prob.free[k] = False
+                prob.notes[k] = f"estimate {theta[k]:.3g} rad/(N m) is not positive; prior kept"
+                theta[k] = prob.prior[k]
+            _set_theta(prob.effects, theta)
+            iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+            theta = prob.theta()
+    if not np.all(np.isfinite(theta)):
+        raise IdentificationError(f"{data.source}: the fit did not give finite parameters "
+                                  "(values out of range in the data?)")
+
+    # -- uncertainty --------------------------------------------------------------------------
+    res = prob.residual()
+    idx = np.flatnonzero(prob.free)
+    dof = max(n_obs - idx.size, 1)
+    sw = np.sqrt(w)
+    s2 = float(np.sum(w * res**2) / dof)
+    Aw = prob.jacobian()[:, idx] * sw[:, None]
+    P = prob.prior.size
+    std = np.full(P, np.nan)
+    cond = float("nan")
+    if idx.size:
+        colscale = np.linalg.norm(Aw, axis=0)
+        colscale[colscale == 0] = 1.0
+        An = Aw / colscale
+        cond = float(np.linalg.cond(An))
+        cov_n = np.linalg.pinv(An.T @ An)
+        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * s2) / colscale
+    sigma = float(np.sqrt(np.mean(res**2) * n_obs / dof))
+    setup = {e.label for e in prob.effects if e.setup}  # corrections about 0: no such note
+    estimates = tuple(
+        ParameterEstimate(
+            effect=prob.names[k][0], name=prob.names[k][1], value=float(theta[k]),
+            prior=float(prob.prior[k]), std_error=float(std[k]), identified=bool(prob.free[k]),
+            note=prob.notes[k] or (
+                "poorly determined: standard error exceeds the value"
+                if prob.free[k] and std[k] > abs(theta[k]) and prob.names[k][0] not in setup
+                else ""
+            ),
+        )
+        for k in range(P)
+    )
+    c = jc.params
+    k_std = np.full(c.size, np.nan)
+    identified_j = np.zeros(c.size, dtype=bool)
+    if jc in prob.effects:
+        off = sum(e.params.size for e in prob.effects[: prob.effects.index(jc)])
+        identified_j = prob.free[off: off + c.size].copy()
+        k_std = std[off: off + c.size] / c**2
+    return IdentificationResult(
+        model=prob.model,
+        estimates=estimates,
+        stiffness=1.0 / c,
+        stiffness_std=k_std,
+        joint_identified=identified_j,
+        condition_number=cond,
+        rms_before=prob.rms_before,
+        rms_after=rms(np.where(mask, data.position - prob.positions(), np.nan)),
+        sigma=sigma,
+        n_samples=len(data),
+        n_observations=n_obs,
+        iterations=iterations,
+        converged=converged,
+        method=prob.method,
+    )
+
+
 def identify(
     model: ElastostaticModel,
     data: MeasurementSet,
@@ -205,6 +492,9 @@ def identify(
     tol: float = 1e-10,
 ) -> IdentificationResult:
     """Identify the parameters of ``free`` effects (all by default) from measured positions.
+
+    Build (:func:`build_identification`: regressors, identifiability) then solve
+    (:func:`solve_identification`: Gauss-Newton, positivity, standard errors).
 
     Args:
         model: Starting model; its parameters are the priors. Not modified.
@@ -219,176 +509,4 @@ def identify(
     Raises:
         IdentificationError: No measured axis, or fewer observations than free parameters.
     """
-    if data.n_joints != model.robot.nq:
-        raise IdentificationError(
-            f"{data.source}: data has {data.n_joints} joints, robot {model.robot.name} has "
-            f"{model.robot.nq}"
-        )
-    work = model.copy()
-    labels = work.labels if free is None else list(free)
-    unknown = [x for x in labels if not work.has(x)]
-    if unknown:
-        raise IdentificationError(f"effects not in the model: {', '.join(unknown)}")
-    effects = [e for e in work.effects if e.label in labels]
-    names = [(e.label, n) for e in effects for n in e.param_names()]
-    prior = np.concatenate([e.params for e in effects])
-    P = prior.size
-
-    batch = work.batch(data.q)
-    mask = data.measured  # (m, 3)
-    n_obs = int(mask.sum())
-    if n_obs == 0:
-        raise IdentificationError(f"{data.source}: no measured TCP axis in any sample")
-    if n_obs < P:
-        raise IdentificationError(
-            f"{data.source}: {n_obs} measured values cannot identify {P} parameters "
-            f"({', '.join(labels)}); need at least {P} (better {3 * P})"
-        )
-    y = np.where(mask, data.position, 0.0)
-
-    def model_pos() -> FloatArray:
-        return batch.T[:, :3, 3] + work.deflection_batch(batch, data.wrench)[:, :3]
-
-    rms_before = rms(np.where(mask, data.position - model_pos(), np.nan))
-
-    # -- identifiability at the prior ---------------------------------------------------------
-    A0 = position_jacobian(work, batch, data.wrench, effects)[mask]  # (n_obs, P)
-    scale = np.where(np.abs(prior) > 0, np.abs(prior), 1.0)
-    sens = np.sqrt(np.mean((A0 * scale) ** 2, axis=0))
-    free_mask = np.ones(P, dtype=bool)
-    notes = [""] * P
-    for k in range(P):
-        if sens[k] < SENSITIVITY_FLOOR_M:
-            free_mask[k] = False
-            notes[k] = (
-                f"does not move the measured TCP (a 100 % change moves it {sens[k] * 1e9:.2g} nm "
-                "RMS); e.g. a joint whose axis passes through the TCP is invisible to "
-                "position-only data; prior kept"
-            )
-    while True:
-        idx = np.nonzero(free_mask)[0]
-        if idx.size == 0:
-            break
-        An = A0[:, idx] / np.linalg.norm(A0[:, idx], axis=0)
-        _, sv, Vt = np.linalg.svd(An, full_matrices=False)
-        if sv[-1] / sv[0] >= COLLINEARITY_TOL:
-            break
-        worst = idx[int(np.argmax(np.abs(Vt[-1])))]
-        order = np.argsort(-np.abs(Vt[-1]))[1:3]
-        partners = [f"{names[idx[j]][0]}.{names[idx[j]][1]}" for j in order]
-        free_mask[worst] = False
-        notes[worst] = (
-            f"collinear with {', '.join(partners)} in this data (cannot be told apart); prior kept"
-        )
-
-    # -- weights ------------------------------------------------------------------------------
-    w = np.ones(n_obs)
-    if method == "wls" and data.sigma is not None:
-        w = (1.0 / data.sigma[:, None] ** 2 * np.ones((1, 3)))[mask]
-    elif method not in ("ols", "wls"):
-        raise IdentificationError(f"unknown method '{method}'; known: ols, wls")
-
-    # Positions are linear in theta when every free effect is a linear compliance or
-    # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
-    linear = all(e.linear_in_params and e.kind in ("compliance", "geometric") for e in effects)
-
-    def solve(weights: FloatArray) -> tuple[FloatArray, int, bool]:
-        theta = np.concatenate([e.params for e in effects])
-        idx = np.nonzero(free_mask)[0]
-        it, conv = 0, False
-        for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
-            r = (y - model_pos())[mask]
-            A = position_jacobian(work, batch, data.wrench, effects)[mask][:, idx]
-            sw = np.sqrt(weights)
-            colscale = np.linalg.norm(A * sw[:, None], axis=0)
-            colscale[colscale == 0] = 1.0
-            step, *_ = np.linalg.lstsq((A * sw[:, None]) / colscale, r * sw, rcond=None)
-            step /= colscale
-            theta[idx] += step
-            _set_theta(effects, theta)
-            if linear or np.all(
-                np.abs(step) <= tol * np.maximum(np.abs(theta[idx]), scale[idx])
-            ):
-                conv = True  # a model linear in theta is solved exactly by one step
-                break
-        return theta, it, conv
-
-    theta, iterations, converged = solve(w)
-    if method == "wls" and data.sigma is None:
-        var_axis = axis_variances(np.where(mask, data.position - model_pos(), np.nan))
-        w = (np.ones((len(data), 1)) / var_axis[None, :])[mask]
-        theta, iterations, converged = solve(w)
-
-    # -- physical plausibility: compliances must stay positive --------------------------------
-    jc = work.joint_compliance
-    if jc in effects:
-        off = sum(e.params.size for e in effects[: effects.index(jc)])
-        # Fixing one joint changes the others' estimates: repeat until all are positive.
-        while True:
-            neg = [off + j for j in range(jc.params.size)
-                   if free_mask[off + j] and theta[off + j] <= 0]
-            if not neg:
-                break
-            for k in neg:
-                free_mask[k] = False
-                notes[k] = f"estimate {theta[k]:.3g} rad/(N m) is not positive; prior kept"
-                theta[k] = prior[k]
-            _set_theta(effects, theta)
-            theta, iterations, converged = solve(w)
-
-    # -- uncertainty --------------------------------------------------------------------------
-    res = (y - model_pos())[mask]
-    idx = np.nonzero(free_mask)[0]
-    dof = max(n_obs - idx.size, 1)
-    sw = np.sqrt(w)
-    s2 = float(np.sum(w * res**2) / dof)
-    A = position_jacobian(work, batch, data.wrench, effects)[mask][:, idx]
-    Aw = A * sw[:, None]
-    std = np.full(P, np.nan)
-    cond = float("nan")
-    if idx.size:
-        colscale = np.linalg.norm(Aw, axis=0)
-        colscale[colscale == 0] = 1.0
-        An = Aw / colscale
-        cond = float(np.linalg.cond(An))
-        cov_n = np.linalg.pinv(An.T @ An)
-        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * s2) / colscale
-    sigma = float(np.sqrt(np.mean(res**2) * n_obs / dof))
-
-    estimates = tuple(
-        ParameterEstimate(
-            effect=names[k][0], name=names[k][1], value=float(theta[k]), prior=float(prior[k]),
-            std_error=float(std[k]), identified=bool(free_mask[k]),
-            note=notes[k] or (
-                "poorly determined: standard error exceeds the value"
-                if free_mask[k] and std[k] > abs(theta[k]) else ""
-            ),
-        )
-        for k in range(P)
-    )
-    c = work.joint_compliance.params
-    k_std = np.full(c.size, np.nan)
-    identified_j = np.ones(c.size, dtype=bool)
-    if jc in effects:
-        off = sum(e.params.size for e in effects[: effects.index(jc)])
-        for j in range(c.size):
-            identified_j[j] = bool(free_mask[off + j])
-            k_std[j] = std[off + j] / c[j] ** 2
-    else:
-        identified_j[:] = False
-    return IdentificationResult(
-        model=work,
-        estimates=estimates,
-        stiffness=1.0 / c,
-        stiffness_std=k_std,
-        joint_identified=identified_j,
-        condition_number=cond,
-        rms_before=rms_before,
-        rms_after=rms(np.where(mask, data.position - model_pos(), np.nan)),
-        sigma=sigma,
-        n_samples=len(data),
-        n_observations=n_obs,
-        iterations=iterations,
-        converged=converged,
-        method=method,
-    )
+    return solve_identification(build_identification(model, data, method, free), max_iter, tol)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from difflib import get_close_matches
 from typing import Literal
 
 import numpy as np
@@ -23,7 +24,7 @@ from rfsw_plan.elastostatics.springs import (
     spring_compliance,
     spring_deflection,
 )
-from rfsw_plan.exceptions import InputError
+from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
 from rfsw_plan.robot.kinematics import Robot
 
@@ -31,6 +32,34 @@ from rfsw_plan.robot.kinematics import Robot
 #: (CAD or measured) in the calibrated base frame. See
 #: :meth:`ElastostaticModel.process_deflection`.
 SeamReference = Literal["taught", "absolute"]
+
+
+def _description_effects(robot: Robot) -> list[Effect]:
+    """The effects stored in the robot description, with errors that name the file and entry.
+
+    Raises:
+        InputError: Unknown effect or parameter (with a "did you mean"), or a parameter outside
+            its physical range (``effects[2].params.c_t1``).
+    """
+    desc = robot.description
+    out: list[Effect] = []
+    for i, spec in enumerate(desc.effects, start=1):
+        try:
+            effect = make_effect(robot, spec.name, spec.params)
+            effect.check_params()
+            out.append(effect)
+        except UnknownNameError as exc:
+            close = get_close_matches(spec.name.split(":")[0], exc.known, n=1)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise InputError(desc.path or desc.name, f"effects[{i}].name",
+                             f"unknown effect '{spec.name}'{hint}",
+                             "" if hint else ", ".join(exc.known)) from None
+        except InputError as exc:
+            param = exc.where.rsplit(".", 1)[1] if "." in exc.where else ""
+            where = f"effects[{i}].params.{param}" if param else f"effects[{i}].name"
+            raise InputError(desc.path or desc.name, where, f"{exc.problem} ({spec.name})",
+                             exc.expected) from None
+    return out
 
 
 class ElastostaticModel:
@@ -45,7 +74,7 @@ class ElastostaticModel:
     def __init__(self, robot: Robot, effects: Sequence[Effect] | None = None) -> None:
         self.robot = robot
         if effects is None:
-            effects = [make_effect(robot, e.name, e.params) for e in robot.description.effects]
+            effects = _description_effects(robot)
         base = [e for e in effects if isinstance(e, JointCompliance)]
         rest = [e for e in effects if not isinstance(e, JointCompliance)]
         self.effects: list[Effect] = [base[0] if base else JointCompliance(robot), *rest]
@@ -278,15 +307,17 @@ class ElastostaticModel:
         return batch.T[:, :3, 3] + self.deflection_batch(batch, np.atleast_2d(wrench))[:, :3]
 
     def is_linear_joint_model(self) -> bool:
-        """True if the model is joint compliance only (the fast path applies)."""
-        return len(self.effects) == 1
+        """True if the model is joint compliance only and the links carry no mass (the fast
+        path applies)."""
+        return len(self.effects) == 1 and not self.robot.has_link_masses
 
     def is_spring_model(self) -> bool:
         """True if every effect after the joint compliance is a spring effect
         (:meth:`Effect.joint_springs`, e.g. tilting compliance): linear in the wrench, and a
         single pose is one Pinocchio Jacobian call."""
-        return all(e.kind == "compliance" and e.joint is not None
-                   and e.joint_springs() is not None for e in self.effects[1:])
+        return not self.robot.has_link_masses and all(
+            e.kind == "compliance" and e.joint is not None and e.joint_springs() is not None
+            for e in self.effects[1:])
 
     # -- storage -----------------------------------------------------------------------------
     def to_description(self, source_note: str | None = None) -> RobotDescription:
@@ -295,7 +326,8 @@ class ElastostaticModel:
         k = self.stiffness
         check_stiffness(k, "model", "joint_compliance")
         out = desc.with_stiffness(k, source_note or desc.sources.get("stiffness", ""))
-        specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:])
+        specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:]
+                      if not e.setup)
         return replace(out, effects=specs)
 
 

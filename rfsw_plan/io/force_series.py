@@ -17,15 +17,14 @@ Format: header row, one sample per row.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
-from difflib import get_close_matches
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.io.table import Quantity, read_table
 
 FloatArray = NDArray[np.float64]
 
@@ -73,55 +72,28 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
     if frame is not None and frame not in FORCE_FRAMES:
         raise InputError("--forces-frame", "", f"unknown frame '{frame}'",
                          " | ".join(FORCE_FRAMES))
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    rows = [r for r in rows if r and any(c.strip() for c in r)]
-    if not rows:
-        raise InputError(path, "", "empty file", "a header row and samples")
-    header = [h.strip() for h in rows[0]]
+    tab = read_table(path)
+    header = tab.header
+    quantities = {name: Quantity(name.split("_")[0], {name.split("_")[1]: 1.0})
+                  for name in (*REQUIRED, *MOMENTS)}
     missing = [c for c in REQUIRED if c not in header]
     if missing:
-        hint = ""
-        for m in missing:
-            close = get_close_matches(m, header, n=1)
-            if close:
-                hint = f"; did you mean '{close[0]}' for '{m}'?"
-                break
+        hint = tab.missing(quantities[missing[0]]).problem.removeprefix("missing")
         raise InputError(path, "header", f"missing column(s) {', '.join(missing)}{hint}",
                          "t_s, fx_N, fy_N, fz_N[, mx_Nm, my_Nm, mz_Nm][, frame]")
     present_m = [c for c in MOMENTS if c in header]
     if present_m and len(present_m) != 3:
         raise InputError(path, "header", f"only {', '.join(present_m)} of the moment columns",
                          "all of mx_Nm, my_Nm, mz_Nm or none")
-    body = rows[1:]
-    if len(body) < 2:
-        raise InputError(path, "", f"{len(body)} sample row(s)", "at least 2 samples")
-    col = {h: i for i, h in enumerate(header)}
+    if len(tab) < 2:
+        raise InputError(path, "", f"{len(tab)} sample row(s)", "at least 2 samples")
     numeric = list(REQUIRED) + present_m
-    data = np.empty((len(body), len(numeric)))
-    frames_seen: set[str] = set()
-    for r, row in enumerate(body, start=2):
-        for j, name in enumerate(numeric):
-            i = col[name]
-            cell = row[i].strip() if i < len(row) else ""
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}' is not a number",
-                                 "a number") from None
-            if not math.isfinite(v):
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}'", "a finite number")
-            data[r - 2, j] = v
-        if "frame" in col:
-            i = col["frame"]
-            frames_seen.add(row[i].strip() if i < len(row) else "")
+    data = np.stack([tab.numbers(name) for name in numeric], axis=1)
+    frames_seen: set[str] = set(tab.texts("frame")) if "frame" in header else set()
     t = data[:, 0]
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
-        r = int(bad[0]) + 3
+        r = tab.row_numbers[int(bad[0]) + 1]
         raise InputError(path, f"row {r}, column t_s",
                          f"time {t[bad[0] + 1]:g} s does not increase (previous {t[bad[0]]:g} s)",
                          "strictly increasing time")

@@ -1,212 +1,370 @@
-"""Measurement files: joint values, wrench at the TCP and measured TCP position.
+"""Measurement files: joint values, wrench at the TCP and measured position (and orientation).
 
-Format (CSV, header row, one sample per row; documented in the README):
+Format (CSV, header row, one sample per row; documented in the README). The delimiter (``,``
+``;`` or tab) and the decimal separator (point or comma) are detected; a lab's own column names
+and units are read through a mapping file (``--columns FILE.toml``, :class:`ColumnMap`).
 
-* ``q1_deg ... qN_deg`` (or ``q1_rad ... qN_rad``): encoder joint values.
-* ``fx_N, fy_N, fz_N`` and optional ``mx_Nm, my_Nm, mz_Nm``: the wrench the environment applies
-  to the tool at the TCP, robot base frame. Missing moment columns mean 0.
-* ``x_mm, y_mm, z_mm``: measured TCP position, base frame; a blank cell means "not measured".
-* Optional ``t_s`` (time [s]), ``pose_id`` (text), ``sigma_mm`` (1-sigma noise of the position
-  measurement of that row). Any other numeric column is kept as an *extra* (temperature...).
+* ``q1_<u> ... qN_<u>``: encoder joint values; ``<u>`` is ``deg``/``rad`` for a revolute joint,
+  ``mm``/``m`` for a prismatic one (each joint its own unit).
+* ``fx_N, fy_N, fz_N`` (or ``_kN``) and optional ``mx_Nm, my_Nm, mz_Nm`` (or ``_kNm``): the
+  wrench the environment applies to the tool at the TCP. Robot base frame unless
+  ``wrench_frame`` says ``tool`` (the TCP frame) or ``sensor`` (a force/torque sensor whose pose
+  in the tool frame is given); converted to the base frame here, once. Missing moments mean 0;
+  a file without any force column is a no-load session (all wrenches 0).
+* ``x_mm, y_mm, z_mm`` (or ``_m``): measured position of the tracked point; a blank cell means
+  "not measured". Robot base frame, or the measuring device's frame (``frame`` column or
+  option ``device``).
+* Optional orientation of the tool frame, in the same frame as the positions: a rotation
+  vector ``rx_mrad, ry_mrad, rz_mrad`` (or ``_rad``/``_deg``), or a unit quaternion
+  ``quat_w, quat_x, quat_y, quat_z``. All components or none.
+* Optional ``t_s`` (time [s]), ``pose_id`` (text), ``load_step`` (integer label of the commanded
+  load), ``sigma_mm`` (1-sigma noise of the position measurement of that row), ``frame``
+  (``base`` or ``device``, the same on every row). Any other numeric column is kept as an
+  *extra* (temperature...).
 """
 
 from __future__ import annotations
 
 import csv
 import math
-from dataclasses import dataclass, field
-from difflib import get_close_matches
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from rfsw_plan.elastostatics.measurement_set import (
+    MEASUREMENT_FRAMES,
+    FloatArray,
+    MeasurementSet,
+)
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.files import atomic_path
+from rfsw_plan.io.table import ColumnMap, Quantity, Table, read_column_map, read_table
 
-FloatArray = NDArray[np.float64]
+__all__ = [
+    "FORCE_COLUMNS",
+    "MOMENT_COLUMNS",
+    "POSITION_COLUMNS",
+    "WRENCH_FRAMES",
+    "MeasurementSet",
+    "read_measurements",
+    "write_measurements",
+]
 
 FORCE_COLUMNS = ("fx_N", "fy_N", "fz_N")
 MOMENT_COLUMNS = ("mx_Nm", "my_Nm", "mz_Nm")
 POSITION_COLUMNS = ("x_mm", "y_mm", "z_mm")
+#: Frames a logged wrench may be given in.
+WRENCH_FRAMES = ("base", "tool", "sensor")
+#: Keys a column mapping file may have besides ``[columns]``.
+MAPPING_OPTIONS = {
+    "frame": "base | device",
+    "wrench_frame": "base | tool | sensor",
+    "source": "a note on where the data comes from",
+}
+
+_ANGLE = {"deg": math.pi / 180.0, "rad": 1.0}
+_LENGTH = {"mm": 1e-3, "m": 1.0}
+FORCES = tuple(Quantity(k, {"N": 1.0, "kN": 1e3}) for k in ("fx", "fy", "fz"))
+MOMENTS = tuple(Quantity(k, {"Nm": 1.0, "kNm": 1e3}) for k in ("mx", "my", "mz"))
+POSITIONS = tuple(Quantity(k, _LENGTH) for k in ("x", "y", "z"))
+ROTVEC = tuple(Quantity(k, {"mrad": 1e-3, "rad": 1.0, "deg": math.pi / 180.0})
+               for k in ("rx", "ry", "rz"))
+QUATERNION = tuple(Quantity(f"quat_{k}", {"": 1.0}) for k in "wxyz")
+TIME = Quantity("t", {"s": 1.0})
+SIGMA = Quantity("sigma", _LENGTH)
+POSE_ID = Quantity("pose_id", {"": 1.0}, text=True)
+LOAD_STEP = Quantity("load_step", {"": 1.0}, text=True)
+FRAME = Quantity("frame", {"": 1.0}, text=True)
+
+#: A function giving the TCP rotation in the base frame for joint values (m, n), shape
+#: (m, 3, 3): what the reader needs to bring a tool- or sensor-frame wrench into the base frame.
+ToolRotation = Callable[[FloatArray], FloatArray]
 
 
-@dataclass(frozen=True)
-class MeasurementSet:
-    """Samples of a load campaign or a weld log (SI units inside).
+def joint_quantity(j: int, prismatic: bool | None) -> Quantity:
+    """Quantity of joint j (1-based): angles for revolute, lengths for prismatic, either if
+    the joint type is not known."""
+    units = _LENGTH if prismatic else _ANGLE if prismatic is False else {**_ANGLE, **_LENGTH}
+    return Quantity(f"q{j}", units)
 
-    Attributes:
-        q: Encoder joint values [rad], shape (m, n).
-        wrench: Wrench at the TCP, base frame [N, N m], shape (m, 6).
-        position: Measured TCP position, base frame [m], shape (m, 3); NaN = not measured.
-        t: Time stamps [s], shape (m,), or None.
-        pose_id: Pose labels, shape (m,), or None.
-        sigma: Per-row 1-sigma position noise [m], shape (m,), or None.
-        extra: Other numeric columns by name, each shape (m,).
-        source: File the data came from.
+
+def load_column_map(path: str | Path | None) -> ColumnMap | None:
+    """Read a ``--columns`` mapping file (None passes through)."""
+    return None if path is None else read_column_map(path, MAPPING_OPTIONS)
+
+
+def _choice(value: object, allowed: Sequence[str], source: str, where: str) -> str:
+    if not isinstance(value, str) or value not in allowed:
+        raise InputError(source, where, f"got {value!r}", " | ".join(allowed))
+    return value
+
+
+def _joints(tab: Table, n_joints: int | None, prismatic: Sequence[bool] | None) -> FloatArray:
+    cols: list[FloatArray] = []
+    j = 1
+    while True:
+        kind = None if prismatic is None or j > len(prismatic) else bool(prismatic[j - 1])
+        q = joint_quantity(j, kind)
+        hit = tab.find(q)
+        if hit is None:
+            other = tab.find(joint_quantity(j, None)) if kind is not None else None
+            if other is not None:
+                what = "a length (mm, m)" if kind else "an angle (deg, rad)"
+                raise InputError(tab.path, f"column '{other[0]}'",
+                                 f"joint {j} is {'prismatic' if kind else 'revolute'}", what)
+            break
+        cols.append(tab.numbers(*hit))
+        j += 1
+    n_file = len(cols)
+    if n_file == 0:
+        raise tab.missing(joint_quantity(1, None if prismatic is None else bool(prismatic[0])))
+    if n_joints is not None and n_file != n_joints:
+        raise InputError(tab.path, f"joint columns q1..q{n_file}",
+                         f"file has {n_file} joints but the robot has {n_joints}",
+                         f"q1 ... q{n_joints}")
+    return np.stack(cols, axis=1)
+
+
+def _vector(tab: Table, qs: Sequence[Quantity], label: str,
+            allow_blank: bool = False) -> FloatArray | None:
+    hits = [tab.find(q) for q in qs]
+    present = [h[0] for h in hits if h is not None]
+    if not present:
+        return None
+    if len(present) != len(qs):
+        first = next(q for q, h in zip(qs, hits, strict=True) if h is None)
+        err = tab.missing(first)
+        raise InputError(err.source, err.where, f"{err.problem} ({label} needs all of "
+                         f"{', '.join(q.key for q in qs)}; the file has {', '.join(present)})",
+                         err.expected)
+    return np.stack([tab.numbers(h[0], h[1], allow_blank) for h in hits if h is not None], axis=1)
+
+
+def _orientation(tab: Table) -> FloatArray | None:
+    rv = _vector(tab, ROTVEC, "an orientation rotation vector")
+    quat = _vector(tab, QUATERNION, "an orientation quaternion")
+    if rv is not None and quat is not None:
+        raise InputError(tab.path, "header", "both a rotation vector and a quaternion",
+                         "one orientation")
+    if quat is None:
+        return rv
+    norm = np.linalg.norm(quat, axis=1)
+    bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
+    if bad.size:
+        r = tab.row_numbers[int(bad[0])]
+        raise InputError(tab.path, f"row {r}, columns quat_w..quat_z",
+                         f"quaternion norm {norm[bad[0]]:.6g}", "a unit quaternion (norm 1)")
+    quat = quat / norm[:, None]
+    quat = np.where(quat[:, :1] < 0, -quat, quat)  # w >= 0: angle in [0, pi]
+    angle = 2.0 * np.arctan2(np.linalg.norm(quat[:, 1:], axis=1), quat[:, 0])
+    s = np.linalg.norm(quat[:, 1:], axis=1)
+    axis = np.divide(quat[:, 1:], s[:, None], out=np.zeros_like(quat[:, 1:]),
+                     where=s[:, None] > 0)
+    return axis * angle[:, None]
+
+
+def _frame(tab: Table, frame: str | None, mapping: ColumnMap | None) -> str:
+    sources: list[tuple[str, str]] = []
+    hit = tab.find(FRAME)
+    if hit is not None:
+        values = sorted(set(tab.texts(hit[0])))
+        if len(values) > 1:
+            raise InputError(tab.path, "column 'frame'", f"several frames {values}",
+                             "the same frame on every row")
+        sources.append((_choice(values[0], MEASUREMENT_FRAMES, str(tab.path), "column 'frame'"),
+                        "the file's frame column"))
+    if mapping is not None and "frame" in mapping.options:
+        sources.append((_choice(mapping.options["frame"], MEASUREMENT_FRAMES, mapping.source,
+                                "frame"), mapping.source))
+    if frame is not None:
+        sources.append((_choice(frame, MEASUREMENT_FRAMES, "--frame", ""), "--frame"))
+    if len({s[0] for s in sources}) > 1:
+        said = "; ".join(f"{b} says {a}" for a, b in sources)
+        raise InputError(tab.path, "frame", f"conflicting frames: {said}", "one frame")
+    return sources[0][0] if sources else "base"
+
+
+def _to_base(
+    tab: Table, wrench: FloatArray, q: FloatArray, frame: str,
+    sensor_pose: FloatArray | None, tool_rotation: ToolRotation | None,
+) -> FloatArray:
+    """Bring a tool- or sensor-frame wrench to the TCP in the base frame.
+
+    Tool frame: ``f_b = R f_t``, ``m_b = R m_t``. Sensor frame (sensor at ``p_s`` with rotation
+    ``R_s`` in the tool frame): ``f_t = R_s f_s``, ``m_t = R_s m_s + p_s x f_t`` (the moment
+    carried from the sensor origin to the TCP), then as the tool frame.
     """
-
-    q: FloatArray
-    wrench: FloatArray
-    position: FloatArray
-    t: FloatArray | None = None
-    pose_id: NDArray[np.str_] | None = None
-    sigma: FloatArray | None = None
-    extra: dict[str, FloatArray] = field(default_factory=dict)
-    source: str = "<memory>"
-
-    def __len__(self) -> int:
-        return int(self.q.shape[0])
-
-    @property
-    def n_joints(self) -> int:
-        """Number of joint columns."""
-        return int(self.q.shape[1])
-
-    @property
-    def measured(self) -> NDArray[np.bool_]:
-        """Mask of measured position axes, shape (m, 3)."""
-        return np.isfinite(self.position)
-
-    def subset(self, idx: NDArray[np.int_] | NDArray[np.bool_]) -> MeasurementSet:
-        """Rows ``idx`` as a new set."""
-        return MeasurementSet(
-            q=self.q[idx],
-            wrench=self.wrench[idx],
-            position=self.position[idx],
-            t=None if self.t is None else self.t[idx],
-            pose_id=None if self.pose_id is None else self.pose_id[idx],
-            sigma=None if self.sigma is None else self.sigma[idx],
-            extra={k: v[idx] for k, v in self.extra.items()},
-            source=self.source,
-        )
+    if frame == "base":
+        if sensor_pose is not None:
+            raise InputError(tab.path, "wrench frame", "a sensor pose was given but the "
+                             "wrench frame is base", "--wrench-frame sensor with a sensor pose")
+        return wrench
+    if frame == "sensor":
+        if sensor_pose is None:
+            raise InputError(tab.path, "wrench frame", "sensor frame without a sensor pose",
+                             "--sensor-pose X_MM,Y_MM,Z_MM,RX_DEG,RY_DEG,RZ_DEG (sensor in "
+                             "the tool frame)")
+        Rs, ps = sensor_pose[:3, :3], sensor_pose[:3, 3]
+        f = wrench[:, :3] @ Rs.T
+        m = wrench[:, 3:] @ Rs.T + np.cross(ps, f)
+        wrench = np.concatenate([f, m], axis=1)
+    elif sensor_pose is not None:
+        raise InputError(tab.path, "wrench frame", "a sensor pose was given but the wrench "
+                         "frame is tool", "--wrench-frame sensor")
+    if tool_rotation is None:
+        raise InputError(tab.path, "wrench frame", f"a {frame}-frame wrench needs the robot's "
+                         "kinematics", "the robot (read through the CLI or the API with it)")
+    R = tool_rotation(q)  # (m, 3, 3)
+    return np.concatenate([np.einsum("mab,mb->ma", R, wrench[:, :3]),
+                           np.einsum("mab,mb->ma", R, wrench[:, 3:])], axis=1)
 
 
-def _missing(path: Path, name: str, header: list[str]) -> InputError:
-    """Error for a missing column, with a hint at the column the user probably meant.
-
-    A header that is the name without its unit (``fz`` for ``fz_N``) or with another unit
-    (``fz_kN``) is preferred over a merely similar spelling.
-    """
-    base = name.rsplit("_", 1)[0].lower()
-    same_quantity = [h for h in header if h.lower() == base or h.lower().startswith(base + "_")]
-    close = same_quantity or get_close_matches(name, header, n=1)
-    hint = ""
-    if close and close[0] != name:
-        hint = f"; found '{close[0]}': rename it to '{name}' (units in the column name)"
-    return InputError(path, f"column '{name}'", f"missing{hint}", f"a column named '{name}'")
-
-
-def read_measurements(path: str | Path, n_joints: int | None = None) -> MeasurementSet:
+def read_measurements(
+    path: str | Path,
+    n_joints: int | None = None,
+    *,
+    prismatic: Sequence[bool] | None = None,
+    columns: ColumnMap | str | Path | None = None,
+    frame: str | None = None,
+    wrench_frame: str | None = None,
+    sensor_pose: FloatArray | None = None,
+    tool_rotation: ToolRotation | None = None,
+) -> MeasurementSet:
     """Read a measurement CSV (see module docstring).
 
     Args:
         path: CSV file.
         n_joints: Expected joint count (the robot's); None accepts what the file has.
+        prismatic: Per joint, True if prismatic (its column must be a length); None accepts
+            either unit kind.
+        columns: A lab's column mapping (:class:`ColumnMap` or its TOML file).
+        frame: Frame of the positions (``base`` or ``device``); must agree with a ``frame``
+            column or mapping key if those exist.
+        wrench_frame: ``base`` (default), ``tool`` or ``sensor``.
+        sensor_pose: Pose of the force sensor in the tool frame, 4x4 [m] (``sensor`` only).
+        tool_rotation: TCP rotation in the base frame for joint values (``tool``/``sensor``).
 
     Raises:
-        InputError: Unreadable file, missing column (named), non-numeric or NaN value (row
-            given, counting the header as row 1), joint count mismatch, no measured axis.
+        InputError: Unreadable file, missing, duplicated or partial columns (named, with a
+            rename hint only from a column of the same quantity), a bad cell (row given,
+            counting the header as row 1), joint count mismatch, no measured axis,
+            inconsistent frames, a sensor frame without a sensor pose.
     """
-    p = Path(path)
-    try:
-        with p.open(newline="") as fh:
-            rows = list(csv.reader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(p, "", f"cannot read file: {exc}") from None
-    rows = [r for r in rows if any(c.strip() for c in r)]
-    if not rows:
-        raise InputError(p, "", "file is empty", "a header row and samples")
-    header = [h.strip() for h in rows[0]]
-    body = rows[1:]
-    if not body:
-        raise InputError(p, "", "no samples after the header row")
-    col = {h: i for i, h in enumerate(header)}
+    mapping = columns if isinstance(columns, ColumnMap) or columns is None else (
+        load_column_map(columns))
+    tab = read_table(path, mapping)
+    p = tab.path
+    q = _joints(tab, n_joints, prismatic)
+    m = len(tab)
+    wrench = np.zeros((m, 6))
+    f = _vector(tab, FORCES, "the force")
+    if f is None:
+        named = [h for h in tab.header if h.strip().lower().split("_")[0] in ("fx", "fy", "fz")]
+        if named or any(tab.find(x) for x in MOMENTS):
+            raise tab.missing(FORCES[0])  # a force under another name: never read it as 0
+    if f is not None:
+        wrench[:, :3] = f
+        mom = _vector(tab, MOMENTS, "the moment")
+        if mom is not None:
+            wrench[:, 3:] = mom
+    wf = wrench_frame
+    if mapping is not None and "wrench_frame" in mapping.options:
+        wf_map = _choice(mapping.options["wrench_frame"], WRENCH_FRAMES, mapping.source,
+                         "wrench_frame")
+        if wf is not None and wf != wf_map:
+            raise InputError(p, "wrench frame", f"{mapping.source} says {wf_map}, "
+                             f"--wrench-frame says {wf}", "one frame")
+        wf = wf_map
+    wf = _choice(wf or "base", WRENCH_FRAMES, "--wrench-frame", "")
+    wrench = _to_base(tab, wrench, q, wf, sensor_pose, tool_rotation)
 
-    unit = "deg" if "q1_deg" in col else "rad" if "q1_rad" in col else None
-    if unit is None:
-        raise _missing(p, "q1_deg", header)
-    n_file = 0
-    while f"q{n_file + 1}_{unit}" in col:
-        n_file += 1
-    if n_joints is not None and n_file != n_joints:
-        raise InputError(
-            p, f"columns q1_{unit}..q{n_file}_{unit}",
-            f"file has {n_file} joints but the robot has {n_joints}",
-            f"q1_{unit} ... q{n_joints}_{unit}",
-        )
-    for name in FORCE_COLUMNS:
-        if name not in col:
-            raise _missing(p, name, header)
-    present_pos = [c for c in POSITION_COLUMNS if c in col]
-    if not present_pos:
+    hits = [tab.find(x) for x in POSITIONS]
+    if not any(hits):
         raise InputError(p, "columns x_mm, y_mm, z_mm", "no measured TCP axis in the file",
-                         "at least one of x_mm, y_mm, z_mm")
-
-    def numbers(name: str, allow_blank: bool) -> FloatArray:
-        i = col[name]
-        out = np.empty(len(body))
-        for r, row in enumerate(body):
-            cell = row[i].strip() if i < len(row) else ""
-            if cell == "" and allow_blank:
-                out[r] = math.nan
-                continue
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputError(p, f"row {r + 2}, column '{name}'", f"'{cell}' is not a number"
-                                 ) from None
-            if not math.isfinite(v):
-                raise InputError(p, f"row {r + 2}, column '{name}'", f"value is {cell}",
-                                 "a finite number (leave position cells blank if not measured)")
-            out[r] = v
-        return out
-
-    q = np.stack([numbers(f"q{j + 1}_{unit}", False) for j in range(n_file)], axis=1)
-    if unit == "deg":
-        q = np.radians(q)
-    wrench = np.zeros((len(body), 6))
-    for k, name in enumerate(FORCE_COLUMNS + MOMENT_COLUMNS):
-        if name in col:
-            wrench[:, k] = numbers(name, False)
-    position = np.full((len(body), 3), math.nan)
-    for k, name in enumerate(POSITION_COLUMNS):
-        if name in col:
-            position[:, k] = numbers(name, True) / 1000.0
+                         "at least one of x_mm, y_mm, z_mm (or _m)")
+    position = np.full((m, 3), math.nan)
+    for k, h in enumerate(hits):
+        if h is not None:
+            position[:, k] = tab.numbers(h[0], h[1], allow_blank=True)
     if not np.any(np.isfinite(position)):
         raise InputError(p, "columns x_mm, y_mm, z_mm", "every position cell is blank",
                          "at least one measured value")
-    t = numbers("t_s", False) if "t_s" in col else None
-    sigma = numbers("sigma_mm", False) / 1000.0 if "sigma_mm" in col else None
+    rotation = _orientation(tab)
+    used = {h[0] for h in hits if h is not None}
+    t_hit = tab.find(TIME)
+    t = None if t_hit is None else tab.numbers(*t_hit)
+    s_hit = tab.find(SIGMA)
+    sigma = None if s_hit is None else tab.numbers(*s_hit)
     if sigma is not None and np.any(sigma <= 0):
-        r = int(np.nonzero(sigma <= 0)[0][0])
-        raise InputError(p, f"row {r + 2}, column 'sigma_mm'", "must be > 0")
-    pose_id = None
-    if "pose_id" in col:
-        i = col["pose_id"]
-        pose_id = np.array([row[i].strip() if i < len(row) else "" for row in body])
-    known = {f"q{j + 1}_{unit}" for j in range(n_file)} | set(FORCE_COLUMNS) | set(
-        MOMENT_COLUMNS) | set(POSITION_COLUMNS) | {"t_s", "pose_id", "sigma_mm"}
+        r = tab.row_numbers[int(np.nonzero(sigma <= 0)[0][0])]
+        raise InputError(p, f"row {r}, column '{s_hit[0] if s_hit else ''}'", "must be > 0")
+    id_hit = tab.find(POSE_ID)
+    pose_id = None if id_hit is None else tab.texts(id_hit[0])
+    step_hit = tab.find(LOAD_STEP)
+    load_step = None
+    if step_hit is not None:
+        steps = tab.numbers(step_hit[0])
+        if np.any(steps != np.round(steps)):
+            r = tab.row_numbers[int(np.flatnonzero(steps != np.round(steps))[0])]
+            raise InputError(p, f"row {r}, column '{step_hit[0]}'", "not an integer",
+                             "an integer load-step label")
+        load_step = steps.astype(np.int_)
+    frame_out = _frame(tab, frame, mapping)
+    for hit in (t_hit, s_hit, id_hit, step_hit, tab.find(FRAME)):
+        if hit is not None:
+            used.add(hit[0])
+    quantities = [joint_quantity(j + 1, None) for j in range(q.shape[1])]
+    quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION]
+    used |= {h[0] for x in quantities if (h := tab.find(x)) is not None}
     extra: dict[str, FloatArray] = {}
-    for name in header:
-        if name in known or not name:
+    for name in tab.header:
+        if name in used:
             continue
         try:
-            extra[name] = numbers(name, False)
+            extra[name] = tab.numbers(name)
         except InputError:
             continue  # non-numeric extra columns are ignored, as documented
-    return MeasurementSet(q, wrench, position, t, pose_id, sigma, extra, str(p))
+    names = {x.key: h[0] for x in (*quantities, *POSITIONS) if (h := tab.find(x)) is not None}
+    return MeasurementSet(
+        q, wrench, position, t, pose_id, sigma, extra, str(p), frame=frame_out,
+        rotation=rotation, load_step=load_step, dialect=tab.dialect, columns=names,
+    )
 
 
-def write_measurements(path: str | Path, data: MeasurementSet) -> Path:
-    """Write a measurement set in the documented CSV format (mm, deg)."""
+def rotvec_to_matrix(rv: FloatArray) -> FloatArray:
+    """Rotation vectors (m, 3) [rad] to rotation matrices (m, 3, 3) (Rodrigues)."""
+    rv = np.atleast_2d(np.asarray(rv, dtype=float))
+    th = np.linalg.norm(rv, axis=1)
+    k = np.divide(rv, th[:, None], out=np.zeros_like(rv), where=th[:, None] > 0)
+    K = np.zeros((rv.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    K = K - K.transpose(0, 2, 1)
+    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    return np.eye(3)[None] + s * K + (1 - c) * (K @ K)
+
+
+def write_measurements(
+    path: str | Path, data: MeasurementSet, prismatic: Sequence[bool] | None = None
+) -> Path:
+    """Write a measurement set in the documented CSV format (mm, deg), atomically.
+
+    Args:
+        path: Target file.
+        data: The samples.
+        prismatic: Per joint, True for a prismatic joint (written in mm); default all revolute.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     n = data.n_joints
+    pris = [False] * n if prismatic is None else [bool(x) for x in prismatic]
     header = ([] if data.t is None else ["t_s"]) + ([] if data.pose_id is None else ["pose_id"])
-    header += [f"q{j + 1}_deg" for j in range(n)]
+    header += [] if data.load_step is None else ["load_step"]
+    header += [f"q{j + 1}_{'mm' if pris[j] else 'deg'}" for j in range(n)]
     header += list(FORCE_COLUMNS + MOMENT_COLUMNS + POSITION_COLUMNS)
+    header += [] if data.rotation is None else ["rx_mrad", "ry_mrad", "rz_mrad"]
     header += [] if data.sigma is None else ["sigma_mm"]
+    header += [] if data.frame == "base" else ["frame"]
     header += list(data.extra)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -217,11 +375,19 @@ def write_measurements(path: str | Path, data: MeasurementSet) -> Path:
                 row.append(f"{data.t[i]:.4f}")
             if data.pose_id is not None:
                 row.append(str(data.pose_id[i]))
-            row += [f"{np.degrees(v):.8f}" for v in data.q[i]]
+            if data.load_step is not None:
+                row.append(str(int(data.load_step[i])))
+            row += [f"{v * 1000.0:.6f}" if pris[j] else f"{np.degrees(v):.8f}"
+                    for j, v in enumerate(data.q[i])]
             row += [f"{v:.6f}" for v in data.wrench[i]]
             row += ["" if not np.isfinite(v) else f"{v * 1000.0:.6f}" for v in data.position[i]]
+            if data.rotation is not None:
+                row += [f"{v * 1000.0:.6f}" for v in data.rotation[i]]
             if data.sigma is not None:
                 row.append(f"{data.sigma[i] * 1000.0:.6f}")
+            if data.frame != "base":
+                row.append(data.frame)
             row += [f"{data.extra[k][i]:.6g}" for k in data.extra]
             w.writerow(row)
     return p
+

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import replace
@@ -42,7 +43,7 @@ from rfsw_plan.planning.nlp import (
     solve_plan_nlp,
     update_parameters,
 )
-from rfsw_plan.planning.options import PlanOptions, options_from_table
+from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.result import BranchInfo, PlanResult
 from rfsw_plan.planning.verify import pin_track, predict, verify_plan
 from rfsw_plan.process.frames import tcp_orientation
@@ -50,30 +51,25 @@ from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+from rfsw_plan.tomlreader import unknown_name_error
 
 log = logging.getLogger(__name__)
 
 
 def options_from_problem(problem: Any, overrides: dict[str, Any] | None = None) -> PlanOptions:
-    """Planner options from a problem's ``[planning]`` table (plus keyword overrides, SI)."""
-    pl = problem.planning
-    extra = dict(getattr(pl, "extra", {}) or {})
-    parsed = options_from_table(extra, f"{problem.path or problem.name}: planning")
-    kw: dict[str, Any] = {_si(k): getattr(parsed, _si(k)) for k in extra}
-    if pl.q_seed is not None:
-        kw["q_seed"] = tuple(float(x) for x in pl.q_seed)
-    kw["tool_rotation"] = float(pl.tool_rotation)
-    kw["force_uncertainty"] = float(pl.force_uncertainty)
-    if pl.offset_rate is not None:
-        kw["offset_rate"] = float(pl.offset_rate)
-    kw.update(overrides or {})
-    return PlanOptions(**kw)
+    """The problem's planner options (its ``[planning]`` table), with keyword overrides (SI).
 
-
-def _si(file_key: str) -> str:
-    from rfsw_plan.planning.options import _FILE_KEYS
-
-    return _FILE_KEYS.get(file_key, (file_key, 1.0))[0]
+    Raises:
+        InputError: An override that is not a :class:`PlanOptions` field, or out of range.
+    """
+    opts: PlanOptions = problem.planning
+    if not overrides:
+        return opts
+    known = {f.name for f in dataclasses.fields(PlanOptions)}
+    for k in overrides:
+        if k not in known:
+            raise unknown_name_error("options", "", k, known, "option")
+    return dataclasses.replace(opts, **overrides)
 
 
 def tool_rotation_of(robot: Robot, task: PlanTask, q: FloatArray) -> FloatArray:

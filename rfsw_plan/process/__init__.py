@@ -16,7 +16,6 @@ from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orien
 from rfsw_plan.process.presets import PROCESS_PRESETS, process_preset
 from rfsw_plan.process.problem import (
     Coupling,
-    PlanningOptions,
     Problem,
     bundled_problem_names,
     load_problem,
@@ -37,7 +36,6 @@ __all__ = [
     "LoadSchedule",
     "PenetrationLaw",
     "PlanTask",
-    "PlanningOptions",
     "Problem",
     "ProcessForces",
     "ProcessModel",

@@ -37,23 +37,26 @@ Units are in the key names (mm, deg, s, N, N m); SI inside. Layout::
     upper_mm = 0.7                      # advancing side
     target_mm = 1.0
 
-    [planning]                          # read by the planner; unknown keys are kept
+    [planning]                          # planner options (rfsw_plan.process.plan_options)
     q_seed_deg = [...]                  # configuration that picks the IK branch
     tool_rotation_deg = 0.0             # rotation about the tool axis
     force_uncertainty = 0.2             # relative
     offset_rate_mm_per_mm = 0.05        # fake-target offset change per mm of seam
+    margin_mm, w_stiffness, ...         # see OPTION_KEYS
 
-Every table except ``[planning]`` rejects unknown keys (they are usually typos).
+Every table rejects unknown keys with a "did you mean" (they are usually typos), and every
+number must be finite and inside its valid range (file units; the ranges are the ``ge``/``gt``/
+``le`` arguments below and in the README). The problem's ``[planning]`` table is parsed here,
+once, into the :class:`~rfsw_plan.process.plan_options.PlanOptions` the planner uses.
 """
 
 from __future__ import annotations
 
 import csv
-import tomllib
-from dataclasses import dataclass, field, replace
-from difflib import get_close_matches
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -62,8 +65,9 @@ from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.process.cosim import PenetrationLaw
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 from rfsw_plan.process.frames import FloatArray, SeamFrames
+from rfsw_plan.process.plan_options import PlanOptions, options_from_table
 from rfsw_plan.process.presets import process_preset
-from rfsw_plan.process.seam import Seam
+from rfsw_plan.process.seam import INTERPOLATIONS, MAX_TILT_DEG, ROTATIONS, Seam
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 from rfsw_plan.robot.description import (
@@ -71,23 +75,34 @@ from rfsw_plan.robot.description import (
     load_robot_description,
     resolve_robot_path,
 )
+from rfsw_plan.tomlreader import Table, unknown_name_error
 
 #: Folder of the bundled problems.
 BUNDLED_PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
 
-_TOP_KEYS = {"name", "title", "robot", "seam", "process", "window", "planning", "source"}
-_SEAM_KEYS = {"points_mm", "csv", "interpolation", "spacing_mm", "tilt_deg", "rotation",
-              "reverse", "surface_normal", "reference", "source"}
-_PROCESS_KEYS = {"preset", "travel_speed_mm_s", "plunge_speed_mm_s", "plunge_depth_mm",
-                 "dwell_s", "retract_speed_mm_s", "approach_height_mm", "approach_speed_mm_s",
-                 "rotation_speed_rpm", "thickness_mm", "material", "name", "source", "forces",
-                 "coupling"}
-_FORCE_KEYS = {"axial_N", "lateral_N", "traverse_N", "lateral_sign", "plunge_peak_axial_N",
-               "dwell_lateral_fraction", "dwell_tau_s", "ramp_length_mm", "spindle_torque_Nm",
-               "source"}
-_COUPLING_KEYS = {"penetration_stiffness_N_per_mm", "reference_penetration_mm",
-                  "reference_force_N", "commanded_depth_mm", "source"}
-_WINDOW_KEYS = {"lower_mm", "upper_mm", "target_mm", "source"}
+TOP_KEYS = ("name", "title", "robot", "seam", "process", "window", "planning", "source")
+SEAM_KEYS = ("points_mm", "csv", "interpolation", "spacing_mm", "tilt_deg", "rotation",
+             "reverse", "surface_normal", "reference", "source")
+PROCESS_KEYS = ("preset", "travel_speed_mm_s", "plunge_speed_mm_s", "plunge_depth_mm",
+                "dwell_s", "retract_speed_mm_s", "approach_height_mm", "approach_speed_mm_s",
+                "rotation_speed_rpm", "thickness_mm", "material", "name", "source", "forces",
+                "coupling")
+FORCE_KEYS = ("axial_N", "lateral_N", "traverse_N", "lateral_sign", "plunge_peak_axial_N",
+              "dwell_lateral_fraction", "dwell_tau_s", "ramp_length_mm", "spindle_torque_Nm",
+              "source")
+COUPLING_KEYS = ("penetration_stiffness_N_per_mm", "reference_penetration_mm",
+                 "reference_force_N", "commanded_depth_mm", "source")
+WINDOW_KEYS = ("lower_mm", "upper_mm", "target_mm", "source")
+
+#: Largest |coordinate| of a seam point [mm] (100 m: beyond any robot cell).
+MAX_COORD_MM = 1e5
+#: Valid waypoint spacing [mm].
+SPACING_RANGE_MM = (0.01, 1e4)
+#: Largest force [N] and torque [N m] of the process model.
+MAX_FORCE_N = 1e6
+MAX_TORQUE_NM = 1e5
+#: Columns of a seam CSV.
+SEAM_CSV_COLUMNS = ("x_mm", "y_mm", "z_mm", "nx", "ny", "nz")
 
 
 @dataclass(frozen=True)
@@ -105,25 +120,6 @@ class Coupling:
 
 
 @dataclass(frozen=True)
-class PlanningOptions:
-    """Options for the planner.
-
-    Attributes:
-        q_seed: Seed configuration [rad], shape (n,), or None (robot-neutral).
-        tool_rotation: Rotation about the tool axis [rad].
-        force_uncertainty: Relative force uncertainty for robust planning [-].
-        offset_rate: Allowed fake-target offset change per seam length [m/m], or None.
-        extra: Other ``[planning]`` keys, as written (for the planner).
-    """
-
-    q_seed: FloatArray | None = None
-    tool_rotation: float = 0.0
-    force_uncertainty: float = 0.2
-    offset_rate: float | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
 class Problem:
     """A welding problem.
 
@@ -134,7 +130,8 @@ class Problem:
         spacing: Waypoint spacing [m].
         process: Process and force model.
         window: Weld window.
-        planning: Planner options.
+        planning: Planner options from the ``[planning]`` table (defaults where absent);
+            ``q_seed`` is checked against the robot's joint limits.
         coupling: Co-simulation settings, or None.
         seam_reference: ``taught`` if the seam points were taught with this robot and tool
             (load-independent deflection such as payload sag is already in them), or
@@ -150,7 +147,7 @@ class Problem:
     spacing: float
     process: ProcessModel
     window: WeldWindow
-    planning: PlanningOptions
+    planning: PlanOptions
     coupling: Coupling | None = None
     seam_reference: SeamReference = "taught"
     title: str = ""
@@ -163,7 +160,7 @@ class Problem:
     def q_seed(self) -> FloatArray:
         """Seed configuration [rad] (the middle of the joint range if none is given)."""
         if self.planning.q_seed is not None:
-            return self.planning.q_seed
+            return np.asarray(self.planning.q_seed, dtype=float)
         return 0.5 * (self.robot.lower + self.robot.upper)
 
 
@@ -177,244 +174,298 @@ def resolve_problem_path(name_or_path: str | Path) -> Path:
 
     Raises:
         UnknownNameError: Neither an existing file nor a bundled stem; lists the bundled ones.
+        InputError: A path with a folder part that does not exist ("no such file").
     """
     return resolve_bundled("problem", BUNDLED_PROBLEMS_DIR, name_or_path)
 
 
-class _Table:
-    """Typed access to one TOML table; errors name the file and the dotted key."""
-
-    def __init__(self, path: Path, data: Any, prefix: str, allowed: set[str] | None) -> None:
-        self.path = path
-        self.prefix = prefix
-        if not isinstance(data, dict):
-            raise InputError(path, prefix.rstrip("."), "is not a table", "a [table]")
-        self.data: dict[str, Any] = data
-        if allowed is not None:
-            for k in data:
-                if k not in allowed:
-                    close = get_close_matches(k, sorted(allowed), n=1)
-                    hint = f"; did you mean '{close[0]}'?" if close else ""
-                    raise InputError(path, self.key(k), f"unknown key{hint}",
-                                     ", ".join(sorted(allowed)))
-
-    def key(self, k: str) -> str:
-        return f"{self.prefix}{k}"
-
-    def has(self, k: str) -> bool:
-        return k in self.data
-
-    def num(self, k: str, default: float | None = None) -> float:
-        if k not in self.data:
-            if default is None:
-                raise InputError(self.path, self.key(k), "missing", "a number")
-            return default
-        v = self.data[k]
-        if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a finite number")
-        return float(v)
-
-    def str_(self, k: str, default: str | None = None) -> str:
-        if k not in self.data:
-            if default is None:
-                raise InputError(self.path, self.key(k), "missing", "a string")
-            return default
-        v = self.data[k]
-        if not isinstance(v, str):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a string")
-        return v
-
-    def bool_(self, k: str, default: bool) -> bool:
-        v = self.data.get(k, default)
-        if not isinstance(v, bool):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "true or false")
-        return v
-
-    def array(self, k: str, shape: tuple[int | None, ...]) -> FloatArray:
-        v = self.data[k]
-        try:
-            a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(self.path, self.key(k), "not a numeric array",
-                             _shape_text(shape)) from None
-        ok = a.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, a.shape,
-                                                                              strict=True))
-        if not ok:
-            raise InputError(self.path, self.key(k), f"got shape {a.shape}", _shape_text(shape))
-        if not np.all(np.isfinite(a)):
-            raise InputError(self.path, self.key(k), "contains NaN or infinity", "finite values")
-        return a
-
-    def sub(self, k: str, allowed: set[str] | None) -> _Table | None:
-        if k not in self.data:
-            return None
-        return _Table(self.path, self.data[k], f"{self.prefix}{k}.", allowed)
-
-
-def _shape_text(shape: tuple[int | None, ...]) -> str:
-    if len(shape) == 1:
-        return f"a list of {shape[0]} numbers"
-    return "a list of [x, y, z] triples"
+# --------------------------------------------------------------------------------------------
+# Seam
 
 
 def _read_seam_csv(path: Path, where: str) -> tuple[FloatArray, FloatArray | None]:
-    try:
-        with path.open(newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read seam CSV ({where}): {exc}") from None
+    """Points [m] (m, 3) and, if the CSV has nx, ny, nz, normals (m, 3) of a seam CSV.
+
+    Raises:
+        InputError: Unreadable file, unknown / duplicated / partial columns, a cell that is not
+            a finite number in range, or a ragged row; names the file, row and column.
+    """
+    rows = _csv_rows(path, where)
     if not rows:
         raise InputError(path, "", "empty file", "a header x_mm,y_mm,z_mm and points")
-    header = [h.strip() for h in rows[0]]
-    need = ["x_mm", "y_mm", "z_mm"]
-    missing = [c for c in need if c not in header]
+    header = [h.strip() for h in rows[0][1]]
+    cols = _seam_columns(path, header)
+    out = np.empty((len(rows) - 1, len(cols)))
+    for r, (line, row) in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InputError(path, f"row {line}", f"has {len(row)} cells",
+                             f"{len(header)} cells, as the header")
+        for j, c in enumerate(cols):
+            cell = row[header.index(c)].strip()
+            try:
+                v = float(cell)
+            except ValueError:
+                raise InputError(path, f"row {line}, column {c}",
+                                 f"'{cell[:40]}' is not a number", "a number") from None
+            limit = MAX_COORD_MM if c.endswith("_mm") else 1e6
+            if not (np.isfinite(v) and abs(v) <= limit):
+                raise InputError(path, f"row {line}, column {c}", f"got {cell[:40]}",
+                                 f"a finite number with |value| <= {limit:g}")
+            out[r, j] = v
+    normals = out[:, 3:6] if len(cols) == 6 else None
+    return out[:, :3] * 1e-3, normals
+
+
+def _csv_rows(path: Path, where: str) -> list[tuple[int, list[str]]]:
+    """Non-blank rows of a CSV with their 1-based line numbers."""
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:
+            return [(i, r) for i, r in enumerate(csv.reader(fh), start=1)
+                    if r and any(c.strip() for c in r)]
+    except FileNotFoundError:
+        raise InputError(path, "", f"no such file (seam CSV of {where})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"cannot read seam CSV ({where}): "
+                         f"{' '.join(str(exc).split())[:120]}") from None
+    except csv.Error as exc:  # a cell over csv.field_size_limit(), a NUL byte...
+        raise InputError(path, "", f"not a readable CSV: {exc}",
+                         "comma-separated numbers under a header x_mm,y_mm,z_mm") from None
+
+
+def _seam_columns(path: Path, header: list[str]) -> list[str]:
+    """The columns to read: x, y, z and, if all three are there, nx, ny, nz."""
+    if len(header) == 1 and any(d in header[0] for d in ";\t "):
+        raise InputError(path, "header", f"'{header[0][:60]}' is one column",
+                         "comma-separated columns x_mm,y_mm,z_mm[,nx,ny,nz]")
+    seen: set[str] = set()
+    for h in header:
+        if h in seen:
+            raise InputError(path, "header", f"column '{h}' appears twice", "each column once")
+        seen.add(h)
+        if h not in SEAM_CSV_COLUMNS:
+            raise unknown_name_error(path, "header", h, SEAM_CSV_COLUMNS, "column")
+    missing = [c for c in ("x_mm", "y_mm", "z_mm") if c not in header]
     if missing:
         raise InputError(path, "header", f"missing column(s) {', '.join(missing)}",
                          "x_mm, y_mm, z_mm[, nx, ny, nz]")
-    use_n = all(c in header for c in ("nx", "ny", "nz"))
-    cols = need + (["nx", "ny", "nz"] if use_n else [])
-    out = np.empty((len(rows) - 1, len(cols)))
-    for r, row in enumerate(rows[1:], start=2):
-        for j, c in enumerate(cols):
-            i = header.index(c)
-            cell = row[i].strip() if i < len(row) else ""
-            try:
-                out[r - 2, j] = float(cell)
-            except ValueError:
-                raise InputError(path, f"row {r}, column {c}", f"'{cell}' is not a number",
-                                 "a number") from None
-    return out[:, :3] * 1e-3, (out[:, 3:6] if use_n else None)
+    normals = [c for c in ("nx", "ny", "nz") if c in header]
+    if normals and len(normals) != 3:
+        absent = [c for c in ("nx", "ny", "nz") if c not in header]
+        raise InputError(path, "header", f"has {', '.join(normals)} but not {', '.join(absent)}",
+                         "all of nx, ny, nz or none")
+    return ["x_mm", "y_mm", "z_mm", *normals]
 
 
-def _seam(path: Path, tab: _Table) -> tuple[Seam, float]:
-    src = str(path)
+def _surface_normal(tab: Table) -> FloatArray:
+    """``surface_normal``: one [nx, ny, nz] or one per point."""
+    v = tab.data["surface_normal"]
+    if isinstance(v, list) and v and all(isinstance(x, list) for x in v):
+        return tab.matrix("surface_normal", None, 3, ge=-1e6, le=1e6)
+    return tab.vec("surface_normal", 3, ge=-1e6, le=1e6)
+
+
+def _seam(path: Path, tab: Table) -> tuple[Seam, float]:
     has_pts, has_csv = tab.has("points_mm"), tab.has("csv")
     if has_pts == has_csv:
         raise InputError(path, "seam", "give exactly one of points_mm and csv",
                          "points_mm = [[x, y, z], ...] or csv = 'file.csv'")
     normals: FloatArray | None = None
     if has_pts:
-        pts = tab.array("points_mm", (None, 3)) * 1e-3
+        pts = tab.matrix("points_mm", None, 3, min_rows=2, ge=-MAX_COORD_MM,
+                         le=MAX_COORD_MM) * 1e-3
     else:
         p = Path(tab.str_("csv"))
         if not p.is_absolute():
             p = path.parent / p
-        pts, normals = _read_seam_csv(p, tab.key("csv"))
+        pts, normals = _read_seam_csv(p, f"{path}: {tab.key('csv')}")
     if tab.has("surface_normal"):
         if normals is not None:
-            raise InputError(path, tab.key("surface_normal"), "the seam CSV already has normals",
-                             "normals in one place")
-        v = np.asarray(tab.data["surface_normal"], dtype=float)
-        normals = tab.array("surface_normal", (3,) if v.ndim == 1 else (None, 3))
-    interp = tab.str_("interpolation", "linear")
-    rot = tab.str_("rotation", "cw")
+            raise tab.error("surface_normal", "the seam CSV already has normals",
+                            "normals in one place")
+        normals = _surface_normal(tab)
     seam = Seam(
         points=pts,
-        interpolation=interp,  # type: ignore[arg-type]  # validated by Seam
-        tilt=np.deg2rad(tab.num("tilt_deg", 0.0)),
-        rotation=rot,  # type: ignore[arg-type]
+        interpolation=tab.str_("interpolation", "linear", choices=INTERPOLATIONS),  # type: ignore[arg-type]
+        tilt=np.deg2rad(tab.num("tilt_deg", 0.0, ge=-MAX_TILT_DEG, le=MAX_TILT_DEG)),
+        rotation=tab.str_("rotation", "cw", choices=ROTATIONS),  # type: ignore[arg-type]
         surface_normal=np.array([0.0, 0.0, 1.0]) if normals is None else normals,
         reverse=tab.bool_("reverse", False),
-        source=f"{src}: seam",
+        source=f"{path}: seam",
     )
-    spacing = tab.num("spacing_mm", 5.0) * 1e-3
-    if spacing <= 0:
-        raise InputError(path, tab.key("spacing_mm"), f"got {spacing * 1e3:g}", "> 0")
+    lo, hi = SPACING_RANGE_MM
+    spacing = tab.num("spacing_mm", 5.0, ge=lo, le=hi) * 1e-3
     return seam, spacing
 
 
-def _process(path: Path, tab: _Table) -> tuple[ProcessModel, Coupling | None]:
+# --------------------------------------------------------------------------------------------
+# Process
+
+
+def _value(tab: Table | None, k: str, prior: float | None, scale: float = 1.0, *,
+           ge: float | None = None, gt: float | None = None, le: float | None = None) -> float:
+    """``tab[k] * scale`` if given (range in file units), else the prior (preset or default).
+
+    Raises:
+        InputError: Out of range, or absent with no prior.
+    """
+    if tab is not None and tab.has(k):
+        return tab.num(k, ge=ge, gt=gt, le=le) * scale
+    if prior is None:
+        where = tab.key(k) if tab is not None else f"process.forces.{k}"
+        raise InputError(tab.source if tab is not None else "problem", where, "missing",
+                         "a number (or a process preset)")
+    return prior
+
+
+def _forces(path: Path, ftab: Table | None, base: ProcessForces | None) -> ProcessForces:
+    """``[process.forces]`` over the preset's forces (every key optional with a preset)."""
+    b = base
+    f_max = MAX_FORCE_N
+    peak = b.plunge_peak_axial if b is not None else None
+    if ftab is not None and ftab.has("plunge_peak_axial_N"):
+        peak = ftab.num("plunge_peak_axial_N", ge=0.0, le=f_max)
+    sign = b.lateral_sign if b is not None else 1.0
+    if ftab is not None and ftab.has("lateral_sign"):
+        sign = ftab.num("lateral_sign", ge=-1.0, le=1.0)
+        if sign not in (1.0, -1.0):
+            raise ftab.error("lateral_sign", f"got {sign:g}",
+                             "+1 (toward the advancing side) or -1")
+    source = ftab.str_("source", "") if ftab is not None else ""
+    return ProcessForces(
+        axial=_value(ftab, "axial_N", b.axial if b else None, ge=0.0, le=f_max),
+        lateral=_value(ftab, "lateral_N", b.lateral if b else None, ge=0.0, le=f_max),
+        traverse=_value(ftab, "traverse_N", b.traverse if b else None, ge=0.0, le=f_max),
+        lateral_sign=sign,
+        plunge_peak_axial=peak,
+        dwell_lateral_fraction=_value(ftab, "dwell_lateral_fraction",
+                                      b.dwell_lateral_fraction if b else 0.5, ge=0.0, le=2.0),
+        dwell_tau=_value(ftab, "dwell_tau_s", b.dwell_tau if b else 2.0, gt=0.0, le=3600.0),
+        ramp_length=_value(ftab, "ramp_length_mm", b.ramp_length if b else 1e-3, 1e-3,
+                           gt=0.0, le=1e4),
+        spindle_torque=_value(ftab, "spindle_torque_Nm", b.spindle_torque if b else 0.0,
+                              ge=-MAX_TORQUE_NM, le=MAX_TORQUE_NM),
+        source=source or (b.source if b else str(path)),
+    )
+
+
+def _phases(path: Path, tab: Table, forces: ProcessForces,
+            base: ProcessModel | None) -> ProcessModel:
+    """The phase kinematics of ``[process]`` over the preset's."""
+    b = base
+    mm = 1e-3
+    return ProcessModel(
+        forces=forces,
+        travel_speed=_value(tab, "travel_speed_mm_s", b.travel_speed if b else None, mm,
+                            gt=0.0, le=1e3),
+        plunge_speed=_value(tab, "plunge_speed_mm_s", b.plunge_speed if b else None, mm,
+                            gt=0.0, le=1e3),
+        plunge_depth=_value(tab, "plunge_depth_mm", b.plunge_depth if b else None, mm,
+                            gt=0.0, le=100.0),
+        dwell_time=_value(tab, "dwell_s", b.dwell_time if b else 5.0, ge=0.0, le=3600.0),
+        retract_speed=_value(tab, "retract_speed_mm_s", b.retract_speed if b else 5e-3, mm,
+                             gt=0.0, le=1e3),
+        approach_height=_value(tab, "approach_height_mm", b.approach_height if b else 0.0, mm,
+                               ge=0.0, le=1e4),
+        approach_speed=_value(tab, "approach_speed_mm_s", b.approach_speed if b else 10e-3, mm,
+                              gt=0.0, le=1e4),
+        rotation_speed_rpm=_value(tab, "rotation_speed_rpm",
+                                  b.rotation_speed_rpm if b else 0.0, ge=0.0, le=1e5),
+        name=tab.str_("name", b.name if b else ""),
+        material=tab.str_("material", b.material if b else ""),
+        thickness=_value(tab, "thickness_mm", b.thickness if b else 0.0, mm, ge=0.0, le=1e3),
+        source=tab.str_("source", b.source if b else str(path)),
+    )
+
+
+def _coupling(ctab: Table | None, proc: ProcessModel) -> Coupling | None:
+    """``[process.coupling]``: the co-simulation penetration law, or None."""
+    if ctab is None:
+        return None
+    law = PenetrationLaw(
+        stiffness=ctab.num("penetration_stiffness_N_per_mm", gt=0.0, le=1e9) * 1e3,
+        ref_penetration=ctab.num("reference_penetration_mm", proc.plunge_depth * 1e3,
+                                 ge=-100.0, le=100.0) * 1e-3,
+        ref_force=ctab.num("reference_force_N", proc.forces.axial, ge=0.0, le=MAX_FORCE_N),
+    )
+    depth = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3, gt=0.0, le=100.0) * 1e-3
+    return Coupling(law=law, commanded_depth=depth)
+
+
+def _process(path: Path, tab: Table) -> tuple[ProcessModel, Coupling | None]:
+    """``[process]`` with its ``[process.forces]`` and ``[process.coupling]`` tables."""
     base = process_preset(tab.str_("preset")) if tab.has("preset") else None
-    ftab = tab.sub("forces", _FORCE_KEYS)
+    ftab = tab.table("forces", FORCE_KEYS)
     if base is None and ftab is None:
         raise InputError(path, "process", "no preset and no [process.forces]",
                          "preset = 'seed001_aa6061_5mm' or a [process.forces] table")
+    forces = _forces(path, ftab, base.forces if base is not None else None)
+    proc = _phases(path, tab, forces, base)
+    return proc, _coupling(tab.table("coupling", COUPLING_KEYS), proc)
 
-    def num(t: _Table | None, k: str, prior: float | None, scale: float = 1.0) -> float:
-        if t is not None and t.has(k):
-            return t.num(k) * scale
-        if prior is None:
-            raise InputError(path, (t.key(k) if t is not None else k), "missing", "a number")
-        return prior
 
-    bf = base.forces if base is not None else None
-    peak = bf.plunge_peak_axial if bf is not None else None
-    if ftab is not None and ftab.has("plunge_peak_axial_N"):
-        peak = ftab.num("plunge_peak_axial_N")
-    forces = ProcessForces(
-        axial=num(ftab, "axial_N", bf.axial if bf else None),
-        lateral=num(ftab, "lateral_N", bf.lateral if bf else None),
-        traverse=num(ftab, "traverse_N", bf.traverse if bf else None),
-        lateral_sign=num(ftab, "lateral_sign", bf.lateral_sign if bf else 1.0),
-        plunge_peak_axial=peak,
-        dwell_lateral_fraction=num(ftab, "dwell_lateral_fraction",
-                                   bf.dwell_lateral_fraction if bf else 0.5),
-        dwell_tau=num(ftab, "dwell_tau_s", bf.dwell_tau if bf else 2.0),
-        ramp_length=num(ftab, "ramp_length_mm", bf.ramp_length if bf else 1e-3, 1e-3),
-        spindle_torque=num(ftab, "spindle_torque_Nm", bf.spindle_torque if bf else 0.0),
-        source=(ftab.str_("source", "") if ftab is not None else "") or (bf.source if bf
-                                                                         else str(path)),
+# --------------------------------------------------------------------------------------------
+# Window, robot and planning
+
+
+def _window(wtab: Table | None) -> WeldWindow:
+    if wtab is None:
+        return WeldWindow()
+    return WeldWindow(
+        lower=wtab.num("lower_mm", -1.25, ge=-100.0, le=100.0) * 1e-3,
+        upper=wtab.num("upper_mm", 0.7, ge=-100.0, le=100.0) * 1e-3,
+        target=wtab.num("target_mm", 1.0, gt=0.0, le=100.0) * 1e-3,
     )
-    b = base
-    proc = ProcessModel(
-        forces=forces,
-        travel_speed=num(tab, "travel_speed_mm_s", b.travel_speed if b else None, 1e-3),
-        plunge_speed=num(tab, "plunge_speed_mm_s", b.plunge_speed if b else None, 1e-3),
-        plunge_depth=num(tab, "plunge_depth_mm", b.plunge_depth if b else None, 1e-3),
-        dwell_time=num(tab, "dwell_s", b.dwell_time if b else 5.0),
-        retract_speed=num(tab, "retract_speed_mm_s", b.retract_speed if b else 5e-3, 1e-3),
-        approach_height=num(tab, "approach_height_mm", b.approach_height if b else 0.0, 1e-3),
-        approach_speed=num(tab, "approach_speed_mm_s", b.approach_speed if b else 10e-3, 1e-3),
-        rotation_speed_rpm=num(tab, "rotation_speed_rpm", b.rotation_speed_rpm if b else 0.0),
-        name=tab.str_("name", b.name if b else ""),
-        material=tab.str_("material", b.material if b else ""),
-        thickness=num(tab, "thickness_mm", b.thickness if b else 0.0, 1e-3),
-        source=tab.str_("source", b.source if b else str(path)),
-    )
-    ctab = tab.sub("coupling", _COUPLING_KEYS)
-    coupling = None
-    if ctab is not None:
-        law = PenetrationLaw(
-            stiffness=ctab.num("penetration_stiffness_N_per_mm") * 1e3,
-            ref_penetration=ctab.num("reference_penetration_mm",
-                                     proc.plunge_depth * 1e3) * 1e-3,
-            ref_force=ctab.num("reference_force_N", proc.forces.axial),
-        )
-        cd = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3) * 1e-3
-        if cd <= 0:
-            raise InputError(path, ctab.key("commanded_depth_mm"), f"got {cd * 1e3:g}", "> 0")
-        coupling = Coupling(law=law, commanded_depth=cd)
-    return proc, coupling
 
 
-def _planning(path: Path, tab: _Table | None, robot: RobotDescription) -> PlanningOptions:
-    if tab is None:
-        return PlanningOptions()
-    known = {"q_seed_deg", "tool_rotation_deg", "force_uncertainty", "offset_rate_mm_per_mm"}
-    q_seed = None
-    if tab.has("q_seed_deg"):
-        q_seed = np.deg2rad(tab.array("q_seed_deg", (robot.n_joints,)))
-        lo, hi = robot.lower, robot.upper
-        bad = np.flatnonzero((q_seed < lo - 1e-9) | (q_seed > hi + 1e-9))
-        if bad.size:
-            j = int(bad[0])
-            raise InputError(path, tab.key("q_seed_deg"),
-                             f"joint {j + 1} at {np.rad2deg(q_seed[j]):g} deg is outside "
-                             f"[{np.rad2deg(lo[j]):g}, {np.rad2deg(hi[j]):g}] deg",
-                             f"values within the limits of {robot.name}")
-    fu = tab.num("force_uncertainty", 0.2)
-    if fu < 0:
-        raise InputError(path, tab.key("force_uncertainty"), f"got {fu:g}", ">= 0")
-    rate = tab.num("offset_rate_mm_per_mm") if tab.has("offset_rate_mm_per_mm") else None
-    if rate is not None and rate <= 0:
-        raise InputError(path, tab.key("offset_rate_mm_per_mm"), f"got {rate:g}", "> 0")
-    return PlanningOptions(
-        q_seed=q_seed,
-        tool_rotation=float(np.deg2rad(tab.num("tool_rotation_deg", 0.0))),
-        force_uncertainty=fu,
-        offset_rate=rate,
-        extra={k: v for k, v in tab.data.items() if k not in known},
-    )
+def _robot(path: Path, top: Table) -> RobotDescription:
+    """The robot named by ``robot =`` (bundled name, or a path relative to the problem)."""
+    ref = top.str_("robot")
+    rp = Path(ref)
+    if rp.suffix == ".toml" and not rp.is_absolute() and (path.parent / rp).is_file():
+        ref = str(path.parent / rp)
+    try:
+        resolve_robot_path(ref)
+    except UnknownNameError as exc:
+        raise UnknownNameError(f"robot (in {path})", ref, exc.known) from None
+    except InputError as exc:
+        raise InputError(path, "robot", f"'{ref}': {exc.problem}",
+                         "a bundled robot name or an existing .toml file") from None
+    return load_robot_description(ref)
+
+
+def _planning(path: Path, top: Table, robot: RobotDescription) -> PlanOptions:
+    """``[planning]`` as :class:`PlanOptions`, with ``q_seed_deg`` inside the joint limits."""
+    raw = top.data.get("planning", {})
+    if not isinstance(raw, dict):
+        raise top.error("planning", f"got {raw!r}"[:80], "a [planning] table")
+    opts = options_from_table(raw, path)
+    if opts.q_seed is None:
+        return opts
+    q = np.asarray(opts.q_seed)
+    if q.shape != (robot.n_joints,):
+        raise InputError(path, "planning.q_seed_deg", f"has {q.size} values",
+                         f"{robot.n_joints} values, one per joint of {robot.name}")
+    lo, hi = robot.lower, robot.upper
+    bad = np.flatnonzero((q < lo - 1e-9) | (q > hi + 1e-9))
+    if bad.size:
+        j = int(bad[0])
+        raise InputError(path, "planning.q_seed_deg",
+                         f"joint {j + 1} at {np.rad2deg(q[j]):g} deg is outside "
+                         f"[{np.rad2deg(lo[j]):g}, {np.rad2deg(hi[j]):g}] deg",
+                         f"values within the limits of {robot.name}")
+    return opts
+
+
+@contextmanager
+def _in_file(path: Path) -> Iterator[None]:
+    """Re-raise an :class:`InputError` that names a table (``process.forces``) with the file."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.source.startswith(str(path)) or exc.source.endswith(".csv"):
+            raise
+        where = f"{exc.source}.{exc.where}" if exc.where else exc.source
+        raise InputError(path, where, exc.problem, exc.expected) from None
 
 
 def load_problem(name_or_path: str | Path) -> Problem:
@@ -422,54 +473,21 @@ def load_problem(name_or_path: str | Path) -> Problem:
 
     Raises:
         UnknownNameError: Unknown bundled problem, robot or process preset.
-        InputError: Malformed file; the message names the file and key.
+        InputError: Malformed file, unknown key or impossible value; the message names the
+            file and key.
     """
     path = resolve_problem_path(name_or_path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(path, "", f"not valid TOML: {exc}") from None
-    top = _Table(path, data, "", _TOP_KEYS)
-    robot_ref = top.str_("robot")
-    rp = Path(robot_ref)
-    if rp.suffix == ".toml" and not rp.is_absolute() and (path.parent / rp).is_file():
-        robot_ref = str(path.parent / rp)
-    try:
-        resolve_robot_path(robot_ref)
-    except UnknownNameError as exc:
-        raise UnknownNameError(f"robot (in {path})", robot_ref, exc.known) from None
-    robot = load_robot_description(robot_ref)
-    for k in ("seam", "process"):
-        if not top.has(k):
-            raise InputError(path, k, "missing table", f"a [{k}] table")
-    seam_tab = top.sub("seam", _SEAM_KEYS)
-    proc_tab = top.sub("process", _PROCESS_KEYS)
+    top = Table.load(path, TOP_KEYS)
+    robot = _robot(path, top)
+    seam_tab = top.table("seam", SEAM_KEYS, required=True)
+    proc_tab = top.table("process", PROCESS_KEYS, required=True)
     assert seam_tab is not None and proc_tab is not None
-    try:
+    with _in_file(path):  # the value objects' own checks name the table, not the file
         seam, spacing = _seam(path, seam_tab)
         process, coupling = _process(path, proc_tab)
-    except InputError as exc:
-        if str(path) in str(exc):
-            raise
-        raise InputError(path, f"{exc.source}.{exc.where}", exc.problem, exc.expected) from None
-    wtab = top.sub("window", _WINDOW_KEYS)
-    try:
-        window = WeldWindow() if wtab is None else WeldWindow(
-            lower=wtab.num("lower_mm", -1.25) * 1e-3,
-            upper=wtab.num("upper_mm", 0.7) * 1e-3,
-            target=wtab.num("target_mm", 1.0) * 1e-3,
-        )
-    except InputError as exc:
-        if str(path) in str(exc):
-            raise
-        raise InputError(path, f"window.{exc.where}", exc.problem, exc.expected) from None
-    planning = _planning(path, top.sub("planning", None), robot)
-    reference = seam_tab.str_("reference", "taught")
-    if reference not in ("taught", "absolute"):
-        raise InputError(path, seam_tab.key("reference"), f"got '{reference}'",
-                         "'taught' or 'absolute'")
+        window = _window(top.table("window", WINDOW_KEYS))
+    planning = _planning(path, top, robot)
+    reference = seam_tab.str_("reference", "taught", choices=("taught", "absolute"))
     return Problem(
         name=top.str_("name", path.stem),
         robot=robot,
@@ -493,7 +511,6 @@ def with_process(problem: Problem, process: ProcessModel) -> Problem:
 __all__ = [
     "BUNDLED_PROBLEMS_DIR",
     "Coupling",
-    "PlanningOptions",
     "Problem",
     "bundled_problem_names",
     "load_problem",

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rfsw_plan.exceptions import UnknownNameError
+from rfsw_plan.exceptions import InputError, UnknownNameError
 
 
 def bundled_names(folder: Path) -> list[str]:
@@ -19,7 +19,10 @@ def resolve_bundled(kind: str, folder: Path, name_or_path: str | Path) -> Path:
     looked up in ``folder``.
 
     Raises:
-        UnknownNameError: Neither; the message lists the bundled stems of ``kind``.
+        UnknownNameError: A bare name that is neither a file nor bundled; the message lists the
+            bundled stems of ``kind``.
+        InputError: A path with a folder part (``problems/nope.toml``) that does not exist,
+            or that is a folder ("no such file"; a typo in a path is not an unknown name).
     """
     p = Path(name_or_path)
     if p.is_file():
@@ -27,4 +30,7 @@ def resolve_bundled(kind: str, folder: Path, name_or_path: str | Path) -> Path:
     bundled = folder / f"{p.stem}.toml"
     if p.suffix in ("", ".toml") and p.parent == Path(".") and bundled.is_file():
         return bundled
+    if p.parent != Path(".") or p.suffix not in ("", ".toml"):
+        problem = "is a folder" if p.is_dir() else "no such file"
+        raise InputError(p, "", problem, f"a {kind} file or a bundled {kind} name")
     raise UnknownNameError(kind, str(name_or_path), bundled_names(folder))

@@ -28,7 +28,7 @@ side, so the joint-space compliance seen by the chain is ``G K^-1 G^T``.
 from __future__ import annotations
 
 import math
-import tomllib
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -39,6 +39,7 @@ from numpy.typing import NDArray
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 from rfsw_plan.robot.urdf import UrdfSerialChain, check_not_xacro, load_urdf_chain
+from rfsw_plan.tomlreader import Table, read_toml
 
 FloatArray = NDArray[np.float64]
 
@@ -133,6 +134,36 @@ class EffectSpec:
 
 
 @dataclass(frozen=True)
+class DeviceFrame:
+    """Where a measuring device sees the robot: its frame in the base frame, and the marker.
+
+    A laser tracker or motion-capture system measures a marker (SMR, rigid body) at an offset
+    from the TCP, in its own frame: ``p_device = R (FK(q) + R_tcp marker) + t`` with the
+    device-to-base transform inverted, i.e. the base frame seen from the device.
+
+    Attributes:
+        rotation: Rotation of the base frame in the device frame, shape (3, 3).
+        translation: Base origin in the device frame [m], shape (3,).
+        marker: Tracked point in the tool (TCP) frame [m], shape (3,).
+        std: 1-sigma standard errors, keyed by parameter (``rx_mrad``, ``x_mm``...), as
+            identified; empty if given, not identified.
+    """
+
+    rotation: FloatArray
+    translation: FloatArray
+    marker: FloatArray
+    std: dict[str, float] = field(default_factory=dict)
+
+    def to_device(self, p_base: FloatArray) -> FloatArray:
+        """Base-frame points (m, 3) [m] in the device frame."""
+        return np.asarray(p_base, dtype=float) @ self.rotation.T + self.translation
+
+    def to_base(self, p_device: FloatArray) -> FloatArray:
+        """Device-frame points (m, 3) [m] in the base frame."""
+        return (np.asarray(p_device, dtype=float) - self.translation) @ self.rotation
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """Everything rfsw_plan knows about one robot.
 
@@ -154,6 +185,10 @@ class RobotDescription:
         sources: Where each group of numbers comes from, keyed by section name.
         path: File the description was read from, if any.
         controller: Controller joint convention and frames (:class:`ControllerConvention`).
+        prismatic: Per joint, True for a prismatic joint (its q, limits and stiffness are in
+            m, m/s, ..., N/m), shape (n,); None = all revolute.
+        device_frame: Registration of a measuring device (laser tracker, motion capture) and
+            the tracked marker's offset, identified by ``validate --frame device``, or None.
     """
 
     name: str
@@ -172,6 +207,8 @@ class RobotDescription:
     sources: dict[str, str] = field(default_factory=dict)
     path: Path | None = None
     controller: ControllerConvention | None = None
+    prismatic: NDArray[np.bool_] | None = None
+    device_frame: DeviceFrame | None = None
 
     @property
     def convention(self) -> ControllerConvention:
@@ -216,7 +253,8 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
     Raises:
         UnknownNameError: Unknown robot name.
-        InputError: Malformed file; the message names the file and key.
+        InputError: Malformed file, unknown key or impossible value; the message names the
+            file and key.
     """
     path = resolve_robot_path(name_or_path)
     check_not_xacro(path, path)
@@ -224,235 +262,309 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
         raise InputError(
             path, "", "a URDF needs a stiffness file", "a .toml with [kinematics] urdf = '...'"
         )
-    try:
-        data = tomllib.loads(path.read_text())
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(path, "", f"not valid TOML: {exc}") from None
-    return parse_robot_description(data, path)
+    return parse_robot_description(read_toml(path), path)
 
 
-class _Reader:
-    """Typed access to a TOML table with errors that name the file and key."""
+# Keys of every table of a robot file. A new key is declared here and read below.
+TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
+            "effects", "device_frame")
+DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
+URDF_KEYS = ("urdf", "tip_link", "source")
+KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
+TOOL_KEYS = ("xyz_mm", "rpy_deg", "source")
+JOINT_KEYS = ("lower_deg", "upper_deg", "velocity_deg_s", "acceleration_deg_s2", "jerk_deg_s3",
+              "lower_mm", "upper_mm", "velocity_mm_s", "acceleration_mm_s2", "jerk_mm_s3",
+              "coupling", "source")
+STIFFNESS_KEYS = ("k_Nm_per_rad", "k_N_per_m", "source")
+DEVICE_FRAME_KEYS = ("base_in_device_xyz_mm", "base_in_device_rpy_deg", "marker_xyz_mm", "std",
+                     "source")
+EFFECT_KEYS = ("name", "params", "source")
+CONTROLLER_KEYS = ("axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg", "flange_xyz_mm",
+                   "flange_rpy_deg", "source")
 
-    def __init__(self, path: Path | str, data: dict[str, Any], prefix: str = "") -> None:
-        self.path = path
-        self.data = data
-        self.prefix = prefix
+#: Valid ranges of robot-file numbers, in file units (mm, deg, N m/rad). Wider than any real
+#: arm; they catch typos and values that would overflow the model (1e300 mm, 1e-320 N m/rad).
+MAX_LENGTH_MM = 1e5          # a link or DH offset of at most 100 m
+MAX_TOOL_MM = 1e4            # flange to TCP at most 10 m
+MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
+MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
+MAX_TRAVEL_MM = 1e5          # prismatic joint limits: at most 100 m
+MAX_VELOCITY_DEG_S = 1e4
+MAX_ACCELERATION_DEG_S2 = 1e6
+MAX_JERK_DEG_S3 = 1e8
+STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)  # prismatic joints: the same range in N/m
+MAX_COUPLING = 100.0         # |G_ij|: gear and parallelogram ratios are O(1)
+MAX_COUPLING_CONDITION = 1e8
+MAX_EFFECT_PARAM = 1e9       # |theta| of any effect parameter [SI]; each effect narrows it
 
-    def key(self, k: str) -> str:
-        return f"{self.prefix}{k}"
-
-    def table(self, k: str, required: bool = True) -> _Reader | None:
-        v = self.data.get(k)
-        if v is None:
-            if required:
-                raise InputError(self.path, f"[{self.key(k)}]", "missing section")
-            return None
-        if not isinstance(v, dict):
-            raise InputError(self.path, self.key(k), "is not a table")
-        return _Reader(self.path, v, f"{self.key(k)}.")
-
-    def str_(self, k: str, default: str | None = None) -> str:
-        v = self.data.get(k, default)
-        if v is None:
-            raise InputError(self.path, self.key(k), "missing key", "a string")
-        if not isinstance(v, str):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a string")
-        return v
-
-    def vec(self, k: str, n: int | None, default: list[float] | None = None) -> FloatArray:
-        v = self.data.get(k, default)
-        if v is None:
-            raise InputError(self.path, self.key(k), "missing key", "a list of numbers")
-        if not isinstance(v, list) or not all(
-            isinstance(x, int | float) and not isinstance(x, bool) for x in v
-        ):
-            raise InputError(self.path, self.key(k), f"got {v!r}", "a list of numbers")
-        arr = np.asarray(v, dtype=float)
-        if n is not None and arr.shape != (n,):
-            raise InputError(self.path, self.key(k), f"has {arr.size} values", f"{n} values")
-        if not np.all(np.isfinite(arr)):
-            raise InputError(self.path, self.key(k), "contains NaN or infinity", "finite numbers")
-        return arr
-
-    def matrix(self, k: str, n: int) -> FloatArray | None:
-        v = self.data.get(k)
-        if v is None:
-            return None
-        try:
-            arr = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError(self.path, self.key(k), f"got {v!r}", f"{n}x{n} numbers") from None
-        if arr.shape != (n, n):
-            raise InputError(self.path, self.key(k), f"has shape {arr.shape}", f"({n}, {n})")
-        return arr
+_EFFECT_LABEL = re.compile(r"^([a-z_]+)(?::j([0-9]+))?$")
 
 
 def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDescription:
-    """Build a :class:`RobotDescription` from parsed TOML data (see module docstring)."""
-    r = _Reader(path, data)
+    """Build a :class:`RobotDescription` from parsed TOML data (see module docstring).
+
+    Every table rejects unknown keys (with a "did you mean"), every number must be finite and
+    inside the ranges above, and the joint limits must hold lower < upper.
+
+    Raises:
+        InputError: The first problem found, naming the file and the dotted key.
+    """
+    r = Table(path, data, TOP_KEYS)
     name = r.str_("name")
+    if not name.strip():
+        raise r.error("name", "is empty", "a robot name")
     title = r.str_("title", name)
-    euler = r.str_("euler", "none")
-    if euler not in EULER_CONVENTIONS:
-        raise InputError(path, "euler", f"got '{euler}'", " or ".join(EULER_CONVENTIONS))
+    euler = r.str_("euler", "none", choices=EULER_CONVENTIONS)
     sources: dict[str, str] = {}
 
-    kin = r.table("kinematics")
-    assert kin is not None  # required=True raises otherwise
-    chain: ModifiedDH | UrdfChain
-    urdf_chain: UrdfSerialChain | None = None
-    if "urdf" in kin.data:
-        urdf = Path(kin.str_("urdf"))
-        if not urdf.is_absolute():
-            urdf = Path(path).parent / urdf
-        check_not_xacro(urdf, path, kin.key("urdf"))
-        if not urdf.is_file():
-            raise InputError(path, kin.key("urdf"), f"file {urdf} does not exist")
-        chain = UrdfChain(urdf, kin.str_("tip_link"))
-        urdf_chain = load_urdf_chain(urdf, chain.tip_link, path)
-        n = urdf_chain.n_joints
-    else:
-        convention = kin.str_("convention", "modified_dh")
-        if convention != "modified_dh":
-            raise InputError(path, kin.key("convention"), f"got '{convention}'", "modified_dh")
-        a = kin.vec("a_mm", None)
-        n = a.size
-        chain = ModifiedDH(
-            a=a / 1000.0,
-            d=kin.vec("d_mm", n) / 1000.0,
-            alpha=np.radians(kin.vec("alpha_deg", n)),
-            theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n)),
-        )
+    kin = r.table("kinematics", KINEMATICS_KEYS, required=True)
+    assert kin is not None
+    chain, urdf_chain = _chain(kin, path)
+    n = urdf_chain.n_joints if urdf_chain is not None else len(chain.a)  # type: ignore[union-attr]
+    prismatic = (urdf_chain.prismatic if urdf_chain is not None
+                 else np.zeros(n, dtype=bool))
     sources["kinematics"] = kin.str_("source", "not stated")
 
-    tool_t = r.table("tool", required=False)
     tool = np.eye(4)
+    tool_t = r.table("tool", TOOL_KEYS)
     if tool_t is not None:
-        tool[:3, 3] = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0]) / 1000.0
-        tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec("rpy_deg", 3, [0.0, 0.0, 0.0])))
+        tool[:3, 3] = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0],
+                                 ge=-MAX_TOOL_MM, le=MAX_TOOL_MM) / 1000.0
+        tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec(
+            "rpy_deg", 3, [0.0, 0.0, 0.0], ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
         sources["tool"] = tool_t.str_("source", "not stated")
 
     controller = _controller(r, n)
     sources["controller"] = controller.source
-    joints = r.table("joints")
+    joints = r.table("joints", JOINT_KEYS, required=True)
     assert joints is not None
-    coupling = joints.matrix("coupling", n)
-    if coupling is None:
-        coupling = np.eye(n)
-    elif abs(np.linalg.det(coupling)) < 1e-9:
-        raise InputError(path, joints.key("coupling"), "is singular", "an invertible matrix")
-    G = controller.sign[:, None] * coupling
-    urdf_lo = urdf_hi = None
-    if urdf_chain is not None:
-        urdf_lo, urdf_hi = controller_box(G, controller.offset, urdf_chain.lower,
-                                          urdf_chain.upper)
-    lower = np.radians(joints.vec("lower_deg", n, _deg_or_none(urdf_lo)))
-    upper = np.radians(joints.vec("upper_deg", n, _deg_or_none(urdf_hi)))
-    bad = np.nonzero(lower >= upper)[0]
-    if bad.size:
-        raise InputError(
-            path, joints.key("lower_deg"), f"joint {bad[0] + 1} lower >= upper", "lower < upper"
-        )
-    if urdf_lo is not None and urdf_hi is not None:
-        _check_inside_urdf(path, joints, lower, upper, urdf_lo, urdf_hi)
-    urdf_v = None
-    if urdf_chain is not None and np.all(np.isfinite(urdf_chain.velocity)) \
-            and _is_signed_permutation(G):
-        urdf_v = np.abs(np.linalg.inv(G)) @ urdf_chain.velocity
-    velocity = np.radians(joints.vec("velocity_deg_s", n, _deg_or_none(urdf_v)))
-    acceleration = np.radians(joints.vec("acceleration_deg_s2", n))
-    jerk = np.radians(joints.vec("jerk_deg_s3", n, list(np.degrees(acceleration * 10.0))))
-    for key, arr in (
-        ("velocity_deg_s", velocity),
-        ("acceleration_deg_s2", acceleration),
-        ("jerk_deg_s3", jerk),
-    ):
-        if np.any(arr <= 0):
-            j = int(np.nonzero(arr <= 0)[0][0])
-            raise InputError(path, joints.key(key), f"joint {j + 1} is {arr[j]:g}", "> 0")
+    limits = _joint_limits(path, joints, prismatic, controller, urdf_chain)
     sources["joints"] = joints.str_("source", "not stated")
 
-    stiff = r.table("stiffness")
+    stiff = r.table("stiffness", STIFFNESS_KEYS, required=True)
     assert stiff is not None
-    k = stiff.vec("k_Nm_per_rad", n)
-    check_stiffness(k, path, stiff.key("k_Nm_per_rad"))
+    lo_k, hi_k = STIFFNESS_RANGE_NM_PER_RAD
+    k = _per_joint(stiff, prismatic, ("k_Nm_per_rad", 1.0, lo_k, hi_k),
+                   ("k_N_per_m", 1.0, lo_k, hi_k), ge_inclusive=True)
     sources["stiffness"] = stiff.str_("source", "not stated")
 
     effects: list[EffectSpec] = []
-    raw_effects = data.get("effects", [])
-    if not isinstance(raw_effects, list):
-        raise InputError(path, "effects", "is not an array of tables", "[[effects]] entries")
-    for i, e in enumerate(raw_effects):
-        if not isinstance(e, dict) or not isinstance(e.get("name"), str):
-            raise InputError(path, f"effects[{i}]", "missing 'name'", "name = 'effect[:jN]'")
-        params = e.get("params", {})
-        if not isinstance(params, dict) or not all(
-            isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-            for v in params.values()
-        ):
-            raise InputError(path, f"effects[{i}].params", "must map names to finite numbers")
-        effects.append(EffectSpec(e["name"], {str(kk): float(v) for kk, v in params.items()}))
-        if "source" in e:
-            sources[f"effects.{e['name']}"] = str(e["source"])
+    for e in r.tables("effects", EFFECT_KEYS):
+        label = _effect_label(e, n)
+        if any(x.name == label for x in effects):
+            raise e.error("name", f"'{label}' appears twice", "each effect once")
+        params = e.mapping("params", ge=-MAX_EFFECT_PARAM, le=MAX_EFFECT_PARAM)
+        effects.append(EffectSpec(label, params))
+        if e.has("source"):
+            sources[f"effects.{label}"] = e.str_("source")
 
     return RobotDescription(
         name=name,
         title=title,
         chain=chain,
         tool=tool,
-        coupling=G,
+        coupling=limits["coupling"],
         stiffness=k,
-        lower=lower,
-        upper=upper,
-        velocity=velocity,
-        acceleration=acceleration,
-        jerk=jerk,
+        lower=limits["lower"],
+        upper=limits["upper"],
+        velocity=limits["velocity"],
+        acceleration=limits["acceleration"],
+        jerk=limits["jerk"],
         euler=euler,
         effects=tuple(effects),
         sources=sources,
         path=Path(path),
         controller=controller,
+        prismatic=prismatic if prismatic.any() else None,
+        device_frame=_device_frame(r, sources),
     )
 
 
-_CONTROLLER_KEYS = {"axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg",
-                    "flange_xyz_mm", "flange_rpy_deg", "source"}
+def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, UrdfSerialChain | None]:
+    """The kinematic chain of ``[kinematics]`` (and the reduced URDF chain for a URDF)."""
+    if kin.has("urdf"):
+        extra = [k for k in DH_KEYS if k != "source" and kin.has(k)]
+        if extra:
+            raise kin.error(extra[0], "given together with urdf", "a URDF or a DH table")
+        urdf = Path(kin.str_("urdf"))
+        if not urdf.is_absolute():
+            urdf = Path(path).parent / urdf
+        check_not_xacro(urdf, path, kin.key("urdf"))
+        if not urdf.is_file():
+            raise kin.error("urdf", f"file {urdf} does not exist")
+        chain = UrdfChain(urdf, kin.str_("tip_link"))
+        return chain, load_urdf_chain(urdf, chain.tip_link, path)
+    if kin.has("tip_link"):
+        raise kin.error("tip_link", "given without urdf", "urdf = 'file.urdf' with it")
+    kin.str_("convention", "modified_dh", choices=("modified_dh",))
+    a = kin.vec("a_mm", None, ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM)
+    n = a.size
+    dh = ModifiedDH(
+        a=a / 1000.0,
+        d=kin.vec("d_mm", n, ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM) / 1000.0,
+        alpha=np.radians(kin.vec("alpha_deg", n, ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
+        theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n,
+                                  ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
+    )
+    return dh, None
 
 
-def _controller(r: _Reader, n: int) -> ControllerConvention:
+def _joint_limits(path: Path | str, joints: Table, prismatic: NDArray[np.bool_],
+                  controller: ControllerConvention,
+                  urdf_chain: UrdfSerialChain | None) -> dict[str, FloatArray]:
+    """Limits [rad or m, /s, /s^2, /s^3] and the signed coupling ``G`` of ``[joints]``.
+
+    Revolute joints are listed under ``*_deg*`` keys, prismatic ones under ``*_mm*`` keys
+    (each in joint order). With a URDF chain, absent limits default to the URDF's (mapped to
+    controller values), and given ones must lie inside them.
+    """
+    n = prismatic.size
+    coupling = np.eye(n)
+    if joints.has("coupling"):
+        coupling = joints.matrix("coupling", n, n, ge=-MAX_COUPLING, le=MAX_COUPLING)
+        cond = np.linalg.cond(coupling)
+        if not np.isfinite(cond) or cond > MAX_COUPLING_CONDITION:
+            raise joints.error("coupling", "is singular", "an invertible matrix")
+    G = controller.sign[:, None] * coupling
+    urdf_lo = urdf_hi = None
+    if urdf_chain is not None:
+        urdf_lo, urdf_hi = controller_box(G, controller.offset, urdf_chain.lower,
+                                          urdf_chain.upper)
+    deg, mm = math.pi / 180.0, 1e-3
+
+    def per_joint(key: str, hi_deg: float, hi_mm: float, default: FloatArray | None = None,
+                  positive: bool = True) -> FloatArray:
+        rev, pri = key.replace("*", "deg"), key.replace("*", "mm")
+        lo_d, lo_m = (0.0, 0.0) if positive else (-hi_deg, -hi_mm)
+        return _per_joint(joints, prismatic, (rev, deg, lo_d, hi_deg), (pri, mm, lo_m, hi_mm),
+                          default=default, ge_inclusive=not positive)
+
+    lower = per_joint("lower_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_lo), False)
+    upper = per_joint("upper_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_hi), False)
+    bad = np.flatnonzero(lower >= upper)
+    if bad.size:
+        j = int(bad[0])
+        unit, f = ("mm", 1e3) if prismatic[j] else ("deg", 180.0 / math.pi)
+        raise joints.error(f"lower_{unit}", f"joint {j + 1}: lower {lower[j] * f:g} >= upper "
+                           f"{upper[j] * f:g}", "lower < upper")
+    if urdf_lo is not None and urdf_hi is not None:
+        _check_inside_urdf(path, joints, lower, upper, urdf_lo, urdf_hi)
+    urdf_v = None
+    if urdf_chain is not None and np.all(np.isfinite(urdf_chain.velocity)) \
+            and _is_signed_permutation(G):
+        urdf_v = np.abs(np.linalg.inv(G)) @ urdf_chain.velocity
+    velocity = per_joint("velocity_*_s", MAX_VELOCITY_DEG_S, 10 * MAX_VELOCITY_DEG_S, urdf_v)
+    acceleration = per_joint("acceleration_*_s2", MAX_ACCELERATION_DEG_S2,
+                             10 * MAX_ACCELERATION_DEG_S2)
+    jerk = per_joint("jerk_*_s3", MAX_JERK_DEG_S3, 10 * MAX_JERK_DEG_S3,
+                     np.minimum(acceleration * 10.0, np.where(prismatic, 10 * mm, deg)
+                                * MAX_JERK_DEG_S3))
+    return {"lower": lower, "upper": upper, "velocity": velocity,
+            "acceleration": acceleration, "jerk": jerk, "coupling": G}
+
+
+def _finite_or_none(x: FloatArray | None) -> FloatArray | None:
+    return None if x is None or not np.all(np.isfinite(x)) else x
+
+
+def _per_joint(t: Table, prismatic: NDArray[np.bool_], rev: tuple[str, float, float, float],
+               pri: tuple[str, float, float, float], default: FloatArray | None = None,
+               ge_inclusive: bool = False) -> FloatArray:
+    """Join a revolute-joint list and a prismatic-joint list (joint order each) in SI.
+
+    ``rev`` and ``pri`` are (key, file-to-SI factor, lower bound, upper bound) with the bounds
+    in file units; the lower bound is exclusive unless ``ge_inclusive``. ``default`` is SI.
+    """
+    n = prismatic.size
+    n_pri = int(prismatic.sum())
+    out = np.empty(n)
+    if n_pri and isinstance(t.data.get(rev[0]), list) and len(t.data[rev[0]]) == n:
+        raise t.error(rev[0], f"has {n} values but {n_pri} joint(s) are prismatic",
+                      f"{n - n_pri} revolute values, and {pri[0]}")
+    for mask, (key, scale, lo, hi) in ((~prismatic, rev), (prismatic, pri)):
+        count = int(mask.sum())
+        if count == 0:
+            if t.has(key):
+                raise t.error(key, "the robot has no such joint",
+                              f"{rev[0]} for revolute, {pri[0]} for prismatic joints")
+            continue
+        dflt = None if default is None else list(default[mask] / scale)
+        vals = t.vec(key, count, dflt, ge=lo if ge_inclusive else None,
+                     gt=None if ge_inclusive else lo, le=hi,
+                     item="joint" if n_pri == 0 else "value")
+        out[mask] = vals * scale
+    return out
+
+
+def read_device_frame(path: Path) -> DeviceFrame:
+    """The ``[device_frame]`` table of a TOML file (a robot file or one with only that table).
+
+    Raises:
+        InputError: Unreadable file, unknown key, bad value, or no ``[device_frame]`` table.
+    """
+    frame = _device_frame(Table.load(path, TOP_KEYS), {})
+    if frame is None:
+        raise InputError(path, "device_frame", "missing table",
+                         "base_in_device_xyz_mm, base_in_device_rpy_deg[, marker_xyz_mm]")
+    return frame
+
+
+def _device_frame(r: Table, sources: dict[str, str]) -> DeviceFrame | None:
+    """The optional ``[device_frame]`` table (see :class:`DeviceFrame`)."""
+    t = r.table("device_frame", DEVICE_FRAME_KEYS)
+    if t is None:
+        return None
+    std = t.mapping("std", ge=0.0, le=1e9)
+    sources["device_frame"] = t.str_("source", "not stated")
+    return DeviceFrame(
+        rotation=_rpy_to_matrix(np.radians(t.vec("base_in_device_rpy_deg", 3,
+                                                 ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG))),
+        translation=t.vec("base_in_device_xyz_mm", 3, ge=-MAX_LENGTH_MM,
+                          le=MAX_LENGTH_MM) / 1000.0,
+        marker=t.vec("marker_xyz_mm", 3, [0.0, 0.0, 0.0], ge=-MAX_TOOL_MM,
+                     le=MAX_TOOL_MM) / 1000.0,
+        std=std,
+    )
+
+
+def _effect_label(e: Table, n: int) -> str:
+    """The effect label ``name[:jN]`` of an ``[[effects]]`` entry, with N in 1..n."""
+    label = e.str_("name")
+    m = _EFFECT_LABEL.match(label)
+    if m is None:
+        raise e.error("name", f"got '{label}'", "'effect_name' or 'effect_name:jN'")
+    if m.group(2) is not None and not 1 <= int(m.group(2)) <= n:
+        raise e.error("name", f"joint {m.group(2)} in '{label}' does not exist",
+                      f"a joint 1..{n}")
+    return label
+
+
+def _controller(r: Table, n: int) -> ControllerConvention:
     """Parse the optional ``[controller]`` table (see :class:`ControllerConvention`)."""
-    t = r.table("controller", required=False)
+    t = r.table("controller", CONTROLLER_KEYS)
     if t is None:
         return ControllerConvention.chain(n)
-    unknown = sorted(set(t.data) - _CONTROLLER_KEYS)
-    if unknown:
-        raise InputError(r.path, t.key(unknown[0]), "unknown key",
-                         ", ".join(sorted(_CONTROLLER_KEYS)))
     axes = t.data.get("axes", [f"J{i + 1}" for i in range(n)])
     if (not isinstance(axes, list) or len(axes) != n
             or not all(isinstance(a, str) and a.isidentifier() for a in axes)
             or len(set(axes)) != n):
-        raise InputError(r.path, t.key("axes"), f"got {axes!r}", f"{n} distinct names like 'A1'")
-    sign = t.vec("sign", n, [1.0] * n)
+        raise t.error("axes", f"got {axes!r}"[:80], f"{n} distinct names like 'A1'")
+    sign = t.vec("sign", n, [1.0] * n, ge=-1.0, le=1.0, item="joint")
     if not np.all(np.abs(sign) == 1.0):
-        raise InputError(r.path, t.key("sign"), f"got {sign.tolist()}", "each +1 or -1")
-    offset = np.radians(t.vec("offset_deg", n, [0.0] * n))
+        raise t.error("sign", f"got {sign.tolist()}", "each +1 or -1")
+    offset = np.radians(t.vec("offset_deg", n, [0.0] * n, ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG,
+                              item="joint"))
 
     def frame(prefix: str) -> FloatArray:
         T = np.eye(4)
-        T[:3, 3] = t.vec(f"{prefix}_xyz_mm", 3, [0.0, 0.0, 0.0]) / 1000.0
-        T[:3, :3] = _rpy_to_matrix(np.radians(t.vec(f"{prefix}_rpy_deg", 3, [0.0, 0.0, 0.0])))
+        T[:3, 3] = t.vec(f"{prefix}_xyz_mm", 3, [0.0, 0.0, 0.0],
+                         ge=-MAX_LENGTH_MM, le=MAX_LENGTH_MM) / 1000.0
+        T[:3, :3] = _rpy_to_matrix(np.radians(t.vec(f"{prefix}_rpy_deg", 3, [0.0, 0.0, 0.0],
+                                                    ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
         return T
 
     return ControllerConvention("controller", tuple(axes), sign, offset, frame("base"),
                                 frame("flange"), t.str_("source", "not stated"))
-
-
-def _deg_or_none(x: FloatArray | None) -> list[float] | None:
-    return None if x is None or not np.all(np.isfinite(x)) else list(np.degrees(x))
 
 
 def _is_signed_permutation(G: FloatArray) -> bool:
@@ -482,7 +594,7 @@ def controller_box(
     return qlo, qhi
 
 
-def _check_inside_urdf(path: Path | str, joints: _Reader, lower: FloatArray, upper: FloatArray,
+def _check_inside_urdf(path: Path | str, joints: Table, lower: FloatArray, upper: FloatArray,
                        urdf_lo: FloatArray, urdf_hi: FloatArray) -> None:
     """A TOML joint limit outside the URDF's is an error naming joint and both values.
 
@@ -557,12 +669,23 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         "rpy_deg": _r(np.degrees(_matrix_to_rpy(desc.tool[:3, :3]))),
         "source": desc.sources.get("tool", "not stated"),
     }
+    pri = np.zeros(desc.n_joints, dtype=bool) if desc.prismatic is None else desc.prismatic
+    rev = ~pri
+
+    def split(arr: FloatArray, rev_key: str, pri_key: str, scale_r: float,
+              scale_p: float) -> dict[str, list[float]]:
+        out_: dict[str, list[float]] = {rev_key: _r(arr[rev] / scale_r)}
+        if pri.any():
+            out_[pri_key] = _r(arr[pri] / scale_p)
+        return out_
+
+    deg, mm = math.pi / 180.0, 1e-3
     out["joints"] = {
-        "lower_deg": _r(np.degrees(desc.lower)),
-        "upper_deg": _r(np.degrees(desc.upper)),
-        "velocity_deg_s": _r(np.degrees(desc.velocity)),
-        "acceleration_deg_s2": _r(np.degrees(desc.acceleration)),
-        "jerk_deg_s3": _r(np.degrees(desc.jerk)),
+        **split(desc.lower, "lower_deg", "lower_mm", deg, mm),
+        **split(desc.upper, "upper_deg", "upper_mm", deg, mm),
+        **split(desc.velocity, "velocity_deg_s", "velocity_mm_s", deg, mm),
+        **split(desc.acceleration, "acceleration_deg_s2", "acceleration_mm_s2", deg, mm),
+        **split(desc.jerk, "jerk_deg_s3", "jerk_mm_s3", deg, mm),
         "coupling": [_r(row) for row in desc.convention.sign[:, None] * desc.coupling],
         "source": desc.sources.get("joints", "not stated"),
     }
@@ -578,10 +701,20 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
             "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
             "source": conv.source,
         }
-    out["stiffness"] = {
-        "k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness],
-        "source": desc.sources.get("stiffness", "not stated"),
-    }
+    stiff: dict[str, Any] = {"k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness[rev]]}
+    if pri.any():
+        stiff["k_N_per_m"] = [float(f"{k:.6g}") for k in desc.stiffness[pri]]
+    stiff["source"] = desc.sources.get("stiffness", "not stated")
+    out["stiffness"] = stiff
+    if desc.device_frame is not None:
+        dfr = desc.device_frame
+        out["device_frame"] = {
+            "base_in_device_xyz_mm": _r(dfr.translation * 1000.0),
+            "base_in_device_rpy_deg": _r(np.degrees(_matrix_to_rpy(dfr.rotation))),
+            "marker_xyz_mm": _r(dfr.marker * 1000.0),
+            "std": {k: float(f"{v:.6g}") for k, v in dfr.std.items()},
+            "source": desc.sources.get("device_frame", "not stated"),
+        }
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:

@@ -44,11 +44,14 @@ class ChainGeometry:
         placements: Joint placement of joint i in its parent joint frame, shape (n, 4, 4) [m].
         axes: Unit rotation axis of joint i in its own frame, shape (n, 3).
         tcp: TCP placement in the last joint frame, shape (4, 4) [m].
+        prismatic: True for a prismatic joint (translation along its axis, q in [m]),
+            False for a revolute one (rotation about it, q in [rad]), shape (n,).
     """
 
     placements: FloatArray
     axes: FloatArray
     tcp: FloatArray
+    prismatic: NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -131,21 +134,24 @@ def _chain_geometry(model: pin.Model) -> ChainGeometry:
     n = model.nq
     placements = np.zeros((n, 4, 4))
     axes = np.zeros((n, 3))
+    prismatic = np.zeros(n, dtype=bool)
     for i in range(n):
         jid = i + 1
         if model.parents[jid] != jid - 1:
             raise InputError(model.name, f"joint {jid}", "not a serial chain")
         placements[i] = model.jointPlacements[jid].homogeneous
         short = model.joints[jid].shortname()
-        if short.startswith("JointModelR") and short[-1] in "XYZ" and "Unbounded" not in short:
+        prismatic[i] = short.startswith("JointModelP")
+        if short[-1] in "XYZ" and short[:-1] in ("JointModelR", "JointModelP"):
             axes[i, "XYZ".index(short[-1])] = 1.0
-        elif short == "JointModelRevoluteUnaligned":
+        elif short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
             axes[i] = np.asarray(model.joints[jid].extract().axis).ravel()
         else:
-            raise InputError(model.name, f"joint {jid}", f"joint type {short} not supported",
-                             "revolute joints")
+            raise InputError(model.name, f"joint {jid} ({model.names[jid]})",
+                             f"joint type {short} not supported",
+                             "revolute or prismatic joints (continuous joints: give limits)")
     tcp = model.frames[model.getFrameId(TCP_FRAME)].placement.homogeneous
-    return ChainGeometry(placements, axes, tcp)
+    return ChainGeometry(placements, axes, tcp, prismatic)
 
 
 class Robot:
@@ -176,8 +182,14 @@ class Robot:
         return self.description.n_joints
 
     @property
+    def prismatic(self) -> NDArray[np.bool_]:
+        """True for each prismatic joint (q in [m], stiffness in [N/m]), shape (n,)."""
+        return self.geometry.prismatic
+
+    @property
     def stiffness(self) -> FloatArray:
-        """Joint stiffness on the controller side [N m/rad], shape (n,)."""
+        """Joint stiffness on the controller side [N m/rad] ([N/m] for a prismatic joint),
+        shape (n,)."""
         return self.description.stiffness
 
     @cached_property
@@ -199,6 +211,28 @@ class Robot:
         if not np.all(np.isfinite(arr)):
             raise InputError(source, "", "joint values contain NaN or infinity", "finite values")
         return arr
+
+    @cached_property
+    def has_link_masses(self) -> bool:
+        """True if the description gives link masses (a URDF with inertials): the robot's own
+        weight then loads its joints (:meth:`gravity_torque`)."""
+        return bool(sum(float(inertia.mass) for inertia in self.model.inertias) > 0.0)
+
+    def gravity_torque(self, Q: FloatArray) -> FloatArray:
+        """Joint torques the links' own weight applies, controller side, shape (m, n).
+
+        tau_ext = -G^T g(G q): Pinocchio's generalised gravity g is the torque that *holds*
+        the links against gravity (-Z of the base frame, 9.81 m/s^2); the springs feel its
+        opposite, as they feel J^T F of an external wrench. [N m] for revolute joints, [N] for
+        prismatic ones; zeros when the description has no link masses.
+        """
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.zeros_like(Q)
+        if not self.has_link_masses:
+            return out
+        for k, qc in enumerate(self.chain_q(Q)):
+            out[k] = -(pin.computeGeneralizedGravity(self.model, self.data, qc) @ self.coupling)
+        return out
 
     # -- Pinocchio single-pose ---------------------------------------------------------------
     def fk(self, q: FloatArray) -> FloatArray:
@@ -343,6 +377,7 @@ class Robot:
                 n_extra += 1
         u = np.empty((n_extra, 3, m))
         qc = Q.T if identity else self.coupling @ Q.T  # chain angles, shape (n, m)
+        slide = self.geometry.prismatic
         cq = np.cos(qc)
         sq = np.sin(qc)
         R = np.empty((3, 3, m))  # R[a, b, k]: rotation of pose k, structure-of-arrays
@@ -359,13 +394,15 @@ class Robot:
                 R = np.matmul(rot[i].T, R)  # R <- R M_i, one BLAS product per row of R
             z[i] = R[:, 2]
             o[i] = p
-            # R <- R Rz(q_i): only columns 0 and 1 change.
-            x, y = R[:, 0], R[:, 1]
-            np.multiply(x, sq[i], out=tmp)
-            x *= cq[i]
-            x += y * sq[i]
-            y *= cq[i]
-            y -= tmp
+            if slide[i]:  # prismatic: p <- p + q_i z_i, no rotation
+                p = p + qc[i] * R[:, 2]
+            else:  # R <- R Rz(q_i): only columns 0 and 1 change.
+                x, y = R[:, 0], R[:, 1]
+                np.multiply(x, sq[i], out=tmp)
+                x *= cq[i]
+                x += y * sq[i]
+                y *= cq[i]
+                y -= tmp
             if Rf is not None:
                 Rf[i] = R if aligned[i] else np.matmul(A[i], R)
             for k, b in extra.get(i, ()):
@@ -395,6 +432,10 @@ class Robot:
         Jd[1] = z[:, 2] * r[:, 0] - z[:, 0] * r[:, 2]
         Jd[2] = z[:, 0] * r[:, 1] - z[:, 1] * r[:, 0]
         Jd[3:] = z.transpose(1, 0, 2)
+        slide = self.geometry.prismatic
+        if slide.any():  # a prismatic column is [z; 0]
+            Jd[:3, slide] = z[slide].transpose(1, 0, 2)
+            Jd[3:, slide] = 0.0
         if not self._z_aligned_chain[4]:
             Jd = np.matmul(self.coupling.T, Jd)  # J_ctrl = J_chain G, per row
         J_out[:] = Jd.transpose(2, 0, 1)
@@ -428,12 +469,21 @@ class Robot:
         zj = z[:, None, :, :]  # axis of the column j
         rj = r[:, None, :, :]
         upper = (np.arange(n)[:, None] < np.arange(n)[None, :])[None, :, :, None]
-        dz = np.cross(zi, zj)  # (m, i, j, 3)
-        lin_upper = np.cross(dz, rj) + np.cross(zj, np.cross(zi, rj))
-        lin_lower = np.cross(zj, np.cross(z, r)[:, :, None, :])
+        slide = self.geometry.prismatic
+        si = slide[None, :, None, None]  # differentiated joint i is prismatic
+        sj = slide[None, None, :, None]  # column j is prismatic
+        dz = np.where(si, 0.0, np.cross(zi, zj))  # (m, i, j, 3); a slide turns nothing
+        v = np.where(slide[None, :, None], z, np.cross(z, r))  # TCP velocity of joint i
+        # Revolute column j = [z_j x r_j; z_j]: for i < j a revolute i turns z_j and r_j,
+        # a prismatic i moves p and o_j together; for i >= j joint i moves p only.
+        lin_upper = np.cross(dz, rj) + np.where(si, 0.0, np.cross(zj, np.cross(zi, rj)))
+        lin_lower = np.cross(zj, v[:, :, None, :])
+        lin = np.where(upper, lin_upper, lin_lower)
+        lin = np.where(sj, np.where(upper, dz, 0.0), lin)  # prismatic column j = [z_j; 0]
+        ang = np.where(upper & ~sj, dz, 0.0)
         dJd = np.empty((Q.shape[0], n, 6, n))  # [m, i] = dJ_chain / dq_chain_i
-        dJd[:, :, :3, :] = np.where(upper, lin_upper, lin_lower).transpose(0, 1, 3, 2)
-        dJd[:, :, 3:, :] = np.where(upper, dz, 0.0).transpose(0, 1, 3, 2)
+        dJd[:, :, :3, :] = lin.transpose(0, 1, 3, 2)
+        dJd[:, :, 3:, :] = ang.transpose(0, 1, 3, 2)
         G = self.coupling
         # dJ_ctrl/dq_ctrl_k = sum_i (dJ_chain/dq_chain_i) G[i, k], then times G on the right.
         return np.einsum("ik,miab,bc->mkac", G, dJd, G)

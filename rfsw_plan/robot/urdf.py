@@ -56,6 +56,12 @@ class UrdfSerialChain:
         """Number of chain joints."""
         return len(self.joint_names)
 
+    @property
+    def prismatic(self) -> NDArray[np.bool_]:
+        """True for each prismatic chain joint (limits in m, velocity in m/s), shape (n,)."""
+        return np.array([self.model.joints[j].shortname().startswith("JointModelP")
+                         for j in range(1, self.model.njoints)], dtype=bool)
+
 
 def check_not_xacro(path: Path, where: Path | str, key: str = "") -> None:
     """Raise a one-line :class:`InputError` if ``path`` is an unexpanded xacro file."""
@@ -103,10 +109,11 @@ def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSe
     names = tuple(full.names[j] for j in path)
     for jid in range(1, model.njoints):
         short = model.joints[jid].shortname()
-        if not short.startswith(("JointModelR", "JointModelRevoluteUnaligned")) or \
-                "Unbounded" in short:
+        if not short.startswith(("JointModelR", "JointModelRevoluteUnaligned", "JointModelP")) \
+                or "Unbounded" in short:
             raise InputError(where, "kinematics.urdf",
-                             f"chain joint '{model.names[jid]}' is {short}", "revolute joints")
+                             f"chain joint '{model.names[jid]}' is {short}",
+                             "revolute or prismatic joints")
     lower = np.array(model.lowerPositionLimit, dtype=float)
     upper = np.array(model.upperPositionLimit, dtype=float)
     velocity = np.array(model.velocityLimit, dtype=float)

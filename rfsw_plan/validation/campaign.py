@@ -31,9 +31,9 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.effects import EFFECTS, Effect, PoseBatch, parse_effect_label
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TAU_REF_NM
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, UnknownNameError, UnreachableError
-from rfsw_plan.io.measurements import MeasurementSet
 from rfsw_plan.robot.description import RobotDescription
 from rfsw_plan.robot.kinematics import Robot, load_robot
 

@@ -52,9 +52,9 @@ from rfsw_plan.elastostatics.identification import (
     identify,
     position_jacobian,
 )
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
-from rfsw_plan.io.measurements import MeasurementSet
 from rfsw_plan.validation.residuals import (
     FeatureCorrelation,
     NoiseFloor,
@@ -301,7 +301,7 @@ def candidate_labels(model: ElastostaticModel) -> list[str]:
     """Every library effect (per joint where it applies) that the model does not contain."""
     out = []
     for name, cls in EFFECTS.items():
-        if name == "joint_compliance":
+        if name == "joint_compliance" or cls.setup:
             continue
         labels = [f"{name}:j{j + 1}" for j in range(model.robot.nq)] if cls.per_joint else [name]
         out += [x for x in labels if not model.has(x)]

@@ -27,9 +27,9 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.measurements import MeasurementSet
 
 AXES = ("x", "y", "z")
 #: Percentiles of |r| reported [%].
@@ -189,6 +189,15 @@ class ResidualAnalysis:
     tcp: FloatArray = field(repr=False)
     tau: FloatArray = field(repr=False)
 
+    @property
+    def rms_3d(self) -> float:
+        """RMS over samples of the 3-D error norm [m] (samples measured in x, y and z), NaN
+        if none is; equals sqrt(3) x :attr:`rms` when every axis is measured."""
+        full = np.all(np.isfinite(self.residual), axis=1)
+        if not full.any():
+            return float("nan")
+        return float(np.sqrt(np.mean(np.sum(self.residual[full] ** 2, axis=1))))
+
     def to_json(self) -> dict[str, Any]:
         """JSON-ready summary in mm (arrays left out)."""
         mm = 1e3
@@ -196,6 +205,7 @@ class ResidualAnalysis:
             "n_samples": self.n_samples,
             "n_observations": self.n_observations,
             "rms_mm": self.rms * mm,
+            "rms_3d_mm": None if not np.isfinite(self.rms_3d) else self.rms_3d * mm,
             "max_abs_mm": self.max_abs * mm,
             "percentiles_mm": {f"p{p:g}": v * mm for p, v in self.percentiles.items()},
             "norm_percentiles_mm": {

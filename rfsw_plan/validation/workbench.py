@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -20,10 +20,11 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects import make_effect, parse_effect_label
 from rfsw_plan.elastostatics.identification import IdentificationResult
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.measurements import MeasurementSet
-from rfsw_plan.robot.description import save_robot_description
+from rfsw_plan.robot.description import DeviceFrame, save_robot_description
 from rfsw_plan.validation.diagnosis import (
     DEFAULT_FOLDS,
     CrossValidation,
@@ -98,6 +99,9 @@ class ValidationResult:
             writes).
         add: The add-and-re-identify step, if effects were added.
         seconds: Wall time [s].
+        setup: How device-frame data was registered (None for base-frame data).
+        device_frame: The registration and marker offset used: fitted on this data (folded
+            from the identification) or held as given; None for base-frame data.
     """
 
     robot: str
@@ -109,6 +113,15 @@ class ValidationResult:
     identification: IdentificationResult = field(repr=False)
     add: AddResult | None = None
     seconds: float = 0.0
+    setup: DeviceSetup | None = field(default=None, repr=False)
+    device_frame: DeviceFrame | None = None
+    dialect: str = ""
+
+    @property
+    def rms_3d(self) -> float:
+        """RMS over samples of the 3-D position error |measured - predicted| [m] (samples
+        measured in all three axes); what motion-capture calibration papers quote."""
+        return self.analysis.rms_3d
 
     @property
     def verdict(self) -> str:
@@ -124,6 +137,11 @@ class ValidationResult:
             "data": self.data_source,
             "model_effects": list(self.model.labels),
             "rms_mm": self.rms * 1e3,
+            "rms_3d_mm": None if not np.isfinite(self.rms_3d) else self.rms_3d * 1e3,
+            "frame": "base" if self.setup is None else "device",
+            "dialect": self.dialect,
+            "device_frame": None if self.device_frame is None else device_frame_json(
+                self.device_frame, self.setup),
             "heldout_rms_mm": d.heldout_rms * 1e3,
             "refit_rms_mm": self.identification.rms_after * 1e3,
             "noise_floor_mm": None if noise.sigma is None else noise.sigma * 1e3,
@@ -141,6 +159,20 @@ class ValidationResult:
             "n_samples": self.analysis.n_samples,
             "seconds": self.seconds,
         }
+
+
+def device_frame_json(frame: DeviceFrame, setup: DeviceSetup | None) -> dict[str, Any]:
+    """JSON form of a registration (mm, deg; the base frame seen from the device)."""
+    from rfsw_plan.robot.description import _matrix_to_rpy
+
+    return {
+        "base_in_device_xyz_mm": [float(v) for v in frame.translation * 1e3],
+        "base_in_device_rpy_deg": [float(v) for v in np.degrees(_matrix_to_rpy(frame.rotation))],
+        "marker_xyz_mm": [float(v) for v in frame.marker * 1e3],
+        "std": dict(frame.std),
+        "registration": "fitted" if setup is not None and setup.fit_registration else "held",
+        "marker": "fitted" if setup is not None and setup.fit_marker else "held",
+    }
 
 
 def check_effect_labels(model: ElastostaticModel, labels: Sequence[str]) -> list[str]:
@@ -177,6 +209,7 @@ def validate(
     add: Sequence[str] = (),
     folds: int = DEFAULT_FOLDS,
     seed: int = 0,
+    setup: DeviceSetup | None = None,
 ) -> ValidationResult:
     """Compare a model with measurements, optionally add effects, and diagnose what is missing.
 
@@ -188,12 +221,21 @@ def validate(
         add: Effect labels (``name`` or ``name:jN``) to add before re-identifying.
         folds: Cross-validation folds.
         seed: Seed of the fold assignment.
+        setup: For device-frame data (:func:`~rfsw_plan.elastostatics.registration.
+            prepare_device_setup`): the registration and marker offset are held or fitted
+            jointly with every other parameter, in every fold.
 
     Raises:
         IdentificationError: Too few samples/poses for what was asked (says how many).
         UnknownNameError, InputError: Bad effect label, bad noise, mismatched joints.
     """
     t0 = time.perf_counter()
+    if setup is None and data.frame != "base":
+        raise InputError(data.source, "frame", f"positions are in the {data.frame} frame",
+                         "a device set-up (rfsw-plan validate --frame device)")
+    if setup is not None:
+        model = setup.model(model)
+        data = setup.data(data)
     if data.n_joints != model.robot.nq:
         raise InputError(data.source, "joint columns",
                          f"data has {data.n_joints} joints but robot {model.robot.name} has "
@@ -250,6 +292,11 @@ def validate(
 
     analysis = analyze_residuals(evaluated, data, noise=noise, batch=batch)
     diagnosis = diagnose(evaluated, data, noise, folds, seed, batch=batch, base=base)
+    frame = None
+    if setup is not None:
+        frame = setup.frame
+        if setup.fit_registration or setup.fit_marker:
+            _, frame = setup.fold(base.fit.model, base.fit.estimates)
     return ValidationResult(
         robot=model.robot.name,
         data_source=data.source,
@@ -260,6 +307,9 @@ def validate(
         identification=base.fit,
         add=add_result,
         seconds=time.perf_counter() - t0,
+        setup=setup,
+        device_frame=frame,
+        dialect=data.dialect or "in memory",
     )
 
 
@@ -275,4 +325,12 @@ def save_extended_robot(result: ValidationResult, path: str | Path) -> Path:
         f"({fit.n_samples} samples, RMS {fit.rms_after * 1e3:.4g} mm, effects: "
         f"{', '.join(fit.model.labels)})"
     )
-    return save_robot_description(fit.model.to_description(note), path)
+    if result.setup is None:
+        return save_robot_description(fit.model.to_description(note), path)
+    model, frame = result.setup.fold(fit.model, fit.estimates)
+    desc = model.to_description(note)
+    if result.setup.fit_registration or result.setup.fit_marker:
+        desc.sources["device_frame"] = (
+            f"identified by rfsw-plan validate --frame device from {result.data_source} "
+            f"({fit.n_samples} samples), jointly with {', '.join(model.labels)}")
+    return save_robot_description(replace(desc, device_frame=frame), path)

@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import argparse
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from rfsw_plan.cli import measurement_args
 from rfsw_plan.elastostatics.identification import IdentificationResult, identify
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import UnknownNameError
-from rfsw_plan.io.measurements import read_measurements
+from rfsw_plan.exceptions import IdentificationError, UnknownNameError
 from rfsw_plan.robot.description import save_robot_description
 from rfsw_plan.robot.kinematics import load_robot
 
@@ -36,6 +37,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("-o", "--output", metavar="NEW_ROBOT_FILE",
                         help="write the robot description with the identified values (TOML)")
+    measurement_args.register(parser)
 
 
 def _num(x: float) -> float | None:
@@ -77,23 +79,41 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.io.files import prepare_output_file, strict_json
+    from rfsw_plan.validation.sanity import check_data, check_registered
 
     if args.output:
         prepare_output_file(args.output, "-o")
     robot = load_robot(args.robot)
-    data = read_measurements(args.data, n_joints=robot.nq)
     model = ElastostaticModel(robot)
+    data = measurement_args.load(args, model)
     free = None if args.free.strip() == "all" else [x.strip() for x in args.free.split(",")]
     unknown = [x for x in free or [] if not model.has(x)]
     if unknown:
         raise UnknownNameError("effect in the model", unknown[0], model.labels)
-    res = identify(model, data, method=args.method, free=free)
+    check_data(model, data)
+    setup = measurement_args.device_setup(args, model, data)
+    fit_model, fit_data = model, data
+    if setup is not None:
+        fit_model, fit_data = setup.model(model), setup.data(data)
+        check_registered(fit_model, fit_data)
+        if free is not None:
+            free = [*free, *setup.effect_labels]
+    res = identify(fit_model, fit_data, method=args.method, free=free)
+    if not (math.isfinite(res.rms_after) and all(math.isfinite(e.value)
+                                                 for e in res.estimates)):
+        raise IdentificationError(f"{args.data}: the fit gave non-finite values; nothing "
+                                  "written")
     output = None
     if args.output:
         note = (f"identified by rfsw-plan identify ({res.method}, {res.n_samples} samples) "
                 f"from {Path(args.data).name}; prior: "
                 f"{robot.description.sources.get('stiffness', 'not stated')}")
-        output = save_robot_description(res.model.to_description(note), args.output)
+        if setup is None:
+            desc = res.model.to_description(note)
+        else:
+            base_model, frame = setup.fold(res.model, res.estimates)
+            desc = replace(base_model.to_description(note), device_frame=frame)
+        output = save_robot_description(desc, args.output)
     rep = _report(res, robot.name, output)
     if args.json:
         print(strict_json(rep, indent=None), end="")

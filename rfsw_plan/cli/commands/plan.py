@@ -28,8 +28,14 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
 
 
-def _overrides(items: list[str]) -> dict[str, Any]:
-    from rfsw_plan.planning.options import _FILE_KEYS, options_from_table
+def _overrides(items: list[str], base: Any) -> Any:
+    """``--set KEY=VALUE`` items (file units, as in ``[planning]``) applied to ``base``.
+
+    Raises:
+        InputError: A malformed item, or an unknown key (with a "did you mean"), a wrong type
+            or an out-of-range value, as for the problem file.
+    """
+    from rfsw_plan.process.plan_options import options_from_table
 
     table: dict[str, Any] = {}
     for it in items:
@@ -37,17 +43,17 @@ def _overrides(items: list[str]) -> dict[str, Any]:
         if not sep:
             raise InputError("--set", it, "missing '='", "KEY=VALUE")
         v: Any
-        if val.lower() in ("true", "false"):
-            v = val.lower() == "true"
+        if val.strip().lower() in ("true", "false"):
+            v = val.strip().lower() == "true"
         else:
             try:
                 v = float(val)
             except ValueError:
                 raise InputError("--set", key, f"got '{val}'", "a number or true/false") from None
+            if v.is_integer() and abs(v) < 2**53:
+                v = int(v)
         table[key.strip()] = v
-    parsed = options_from_table(table, "--set")
-    return {_FILE_KEYS.get(k, (k, 1.0))[0]: getattr(parsed, _FILE_KEYS.get(k, (k, 1.0))[0])
-            for k in table}
+    return options_from_table(table, "--set", base, prefix="", what="option")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -58,18 +64,18 @@ def run(args: argparse.Namespace) -> int:
         write_plan_json,
         write_waypoints_csv,
     )
-    from rfsw_plan.planning.api import options_from_problem, plan
+    from rfsw_plan.planning.api import plan
+    from rfsw_plan.process.plan_options import options_from_table
     from rfsw_plan.process.problem import load_problem
 
     problem = load_problem(args.problem)
-    over = _overrides(args.set)
+    opts = _overrides(args.set, problem.planning)
     if args.force_uncertainty is not None:
-        if not args.force_uncertainty >= 0:
-            raise InputError("--force-uncertainty", "", f"got {args.force_uncertainty}", ">= 0")
-        over["force_uncertainty"] = args.force_uncertainty
-    if args.spacing_mm is not None and not args.spacing_mm > 0:
-        raise InputError("--spacing-mm", "", f"got {args.spacing_mm}", "> 0")
-    opts = options_from_problem(problem, over)
+        opts = options_from_table({"force_uncertainty": args.force_uncertainty},
+                                  "--force-uncertainty", opts, prefix="", what="option")
+    if args.spacing_mm is not None and not 0.01 <= args.spacing_mm <= 1e4:
+        raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
+                         "a number in [0.01, 10000]")
     out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
     with OutputLock(out):
         # An earlier run's files must never sit beside this run's as if they were its own:

@@ -14,7 +14,8 @@ HELP = "write a measurement CSV of a simulated load campaign with hidden effects
 
 _EPILOG = f"""\
 --hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {", ".join(
-    n for n in EFFECTS if n != "joint_compliance")}, and {THERMAL_DRIFT} (not in the library:
+    n for n, c in EFFECTS.items()
+    if n != "joint_compliance" and not c.setup)}, and {THERMAL_DRIFT} (not in the library:
 a TCP drift with time, parameters rate_mm_per_h, dir_x, dir_y, dir_z; it also makes the
 temperature_C column rise). Values are SI (rad, m, kg, N, N m, kg m), missing ones take the
 effect's prior; without '=' the values are random and plausible, scaled up if needed to at

@@ -7,10 +7,10 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rfsw_plan.cli import measurement_args
 from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.measurements import read_measurements
 from rfsw_plan.robot.kinematics import load_robot
 
 if TYPE_CHECKING:
@@ -21,7 +21,8 @@ NAME = "validate"
 HELP = "compare the model with measurements, diagnose the missing effect, add it and re-identify"
 
 _EPILOG = f"""\
-Effects for --add: {", ".join(n for n in EFFECTS if n != "joint_compliance")}; per-joint ones
+Effects for --add: {", ".join(n for n, c in EFFECTS.items()
+    if n != "joint_compliance" and not c.setup)}; per-joint ones
 take :jN (1-based), e.g. --add tilting_compliance:j2 --add payload_gravity.
 Verdicts: adequate (held-out residual at the noise floor), missing (names the effect and
 joint), unexplained (no library effect reaches the noise floor; see what the residual
@@ -49,6 +50,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the fold split (default 0)")
     parser.add_argument("--no-report", action="store_true",
                         help="do not write report.html, PNGs and validate.json")
+    measurement_args.register(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -60,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
     if args.folds < 2:
         raise InputError("--folds", "", f"{args.folds}", "at least 2")
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, prepare_output_file
+    from rfsw_plan.validation.sanity import check_data, check_registered
 
     out = None
     if not args.no_report:
@@ -69,11 +72,15 @@ def run(args: argparse.Namespace) -> int:
         prepare_output_file(args.save_robot, "--save-robot")
     robot = load_robot(args.robot)
     model = ElastostaticModel(robot)
-    data = read_measurements(args.data, robot.nq)
+    data = measurement_args.load(args, model)
+    check_data(model, data)
+    setup = measurement_args.device_setup(args, model, data)
+    if setup is not None:
+        check_registered(setup.model(model), setup.data(data))
     result = validate(
         model, data,
         noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
-        add=args.add, folds=args.folds, seed=args.seed,
+        add=args.add, folds=args.folds, seed=args.seed, setup=setup,
     )
     files = None
     if out is not None:
@@ -93,10 +100,21 @@ def _print_summary(
     dg = result.diagnosis
     out = sys.stdout
     noise = "unknown" if dg.noise.sigma is None else f"{dg.noise.sigma * 1e3:.4g} mm"
-    print(f"robot {result.robot}, {result.analysis.n_samples} samples, effects: "
+    print(f"robot {result.robot}, {result.analysis.n_samples} samples ({result.dialect}; "
+          f"positions in the {'device' if result.setup else 'base'} frame), effects: "
           f"{', '.join(result.model.labels)}", file=out)
-    print(f"RMS {result.rms * 1e3:.4g} mm, held-out RMS {dg.heldout_rms * 1e3:.4g} mm, "
-          f"noise floor {noise} ({dg.noise.source})", file=out)
+    print(f"RMS {result.rms * 1e3:.4g} mm (3-D {result.rms_3d * 1e3:.4g} mm), held-out RMS "
+          f"{dg.heldout_rms * 1e3:.4g} mm, noise floor {noise} ({dg.noise.source})", file=out)
+    if result.device_frame is not None and result.setup is not None:
+        from rfsw_plan.validation.workbench import device_frame_json
+
+        fr = device_frame_json(result.device_frame, result.setup)
+        std = ", ".join(f"{k} {v:.3g}" for k, v in fr["std"].items()) or "held, no fit"
+        print(f"device frame ({fr['registration']}): base origin in the device frame "
+              f"{', '.join(f'{v:.2f}' for v in fr['base_in_device_xyz_mm'])} mm, rpy "
+              f"{', '.join(f'{v:.3f}' for v in fr['base_in_device_rpy_deg'])} deg; marker "
+              f"({fr['marker']}) {', '.join(f'{v:.2f}' for v in fr['marker_xyz_mm'])} mm in "
+              f"the tool frame; std errors: {std}", file=out)
     if result.add is not None:
         ad = result.add
         print("added and re-identified:", file=out)

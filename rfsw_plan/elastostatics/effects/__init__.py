@@ -10,6 +10,7 @@ from collections.abc import Mapping
 
 from rfsw_plan.elastostatics.effects.base import Effect, EffectKind, PoseBatch
 from rfsw_plan.elastostatics.effects.complementary_stiffness import ComplementaryStiffness
+from rfsw_plan.elastostatics.effects.device_registration import DeviceRegistration, MarkerOffset
 from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
 from rfsw_plan.elastostatics.effects.joint_backlash import JointBacklash
 from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
@@ -34,6 +35,8 @@ EFFECTS: dict[str, type[Effect]] = {
         SensorMisalignment,
         ForceSensorBias,
         KinematicOffsets,
+        DeviceRegistration,
+        MarkerOffset,
     )
 }
 
@@ -73,12 +76,14 @@ def make_effect(robot: Robot, label: str, params: Mapping[str, float] | None = N
 __all__ = [
     "EFFECTS",
     "ComplementaryStiffness",
+    "DeviceRegistration",
     "Effect",
     "EffectKind",
     "ForceSensorBias",
     "JointBacklash",
     "JointCompliance",
     "KinematicOffsets",
+    "MarkerOffset",
     "PayloadGravity",
     "PoseBatch",
     "SensorMisalignment",

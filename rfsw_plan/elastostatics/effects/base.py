@@ -25,8 +25,10 @@ that are linear in theta). Identification stacks the regressors (see
 from __future__ import annotations
 
 import abc
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from difflib import get_close_matches
 from typing import Any, ClassVar, Literal
 
 import numpy as np
@@ -38,6 +40,9 @@ from rfsw_plan.robot.kinematics import Robot
 FloatArray = NDArray[np.float64]
 
 EffectKind = Literal["compliance", "wrench", "geometric"]
+
+#: Largest |value| of any effect parameter [SI] (each effect narrows it in param_ranges).
+PARAM_LIMIT = 1e9
 
 
 @dataclass(frozen=True)
@@ -96,10 +101,20 @@ class Effect(abc.ABC):
     per_joint: ClassVar[bool] = False
     #: True if the contribution is linear in theta (one least-squares step identifies it).
     linear_in_params: ClassVar[bool] = True
+    #: Physically possible range (lo, hi) of each parameter [SI], keyed by the parameter name
+    #: without its trailing digits (``c_t`` for ``c_t1``, ``c_t2``). A value outside it (a
+    #: negative compliance, a 1e308 mass) is rejected when a robot file is read; parameters
+    #: not listed only have to be finite and within +-PARAM_LIMIT. Checked by
+    #: :meth:`check_params` on effects read from a robot file.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {}
     #: True if the effect distorts what the force sensor logs, not the physics (sensor
     #: misalignment, sensor bias): it applies to logged wrenches only, never to a wrench that
     #: comes from the process model (planning, deviation, the truth of a virtual weld).
     sensor_only: ClassVar[bool] = False
+    #: True if the effect belongs to the measurement set-up (device registration, marker
+    #: offset), not to the robot: never a diagnosis candidate, never dropped for collinearity
+    #: in favour of a robot parameter, and not written into a robot's ``[[effects]]``.
+    setup: ClassVar[bool] = False
 
     def __init__(
         self, robot: Robot, joint: int | None = None, params: Mapping[str, float] | None = None
@@ -118,11 +133,32 @@ class Effect(abc.ABC):
         values = np.array(self.prior(), dtype=float)
         for k, v in (params or {}).items():
             if k not in names:
-                raise InputError(
-                    "effect", f"{self.label}.{k}", "unknown parameter", ", ".join(names)
-                )
+                close = get_close_matches(k, names, n=1)
+                hint = f"; did you mean '{close[0]}'?" if close else ""
+                raise InputError("effect", f"{self.label}.{k}", f"unknown parameter{hint}",
+                                 "" if hint else ", ".join(names))
             values[names.index(k)] = float(v)
         self.params = values
+
+    def check_params(self) -> None:
+        """Raise unless every parameter is finite and inside its physical range.
+
+        Called on effects read from a file (a negative compliance there is a typo); not on
+        every instance, because identification may pass through such values and reports them.
+
+        Raises:
+            InputError: The first parameter outside :meth:`param_range`.
+        """
+        for k, x in zip(self.param_names(), self.params, strict=True):
+            lo, hi = self.param_range(k)
+            if not (math.isfinite(x) and lo <= x <= hi):
+                raise InputError("effect", f"{self.label}.{k}", f"got {x:g}",
+                                 f"a number in [{lo:g}, {hi:g}]")
+
+    def param_range(self, name: str) -> tuple[float, float]:
+        """Physically possible range (lo, hi) of parameter ``name`` [SI]."""
+        return tuple(self.param_ranges.get(name.rstrip("0123456789"),  # type: ignore[return-value]
+                                           (-PARAM_LIMIT, PARAM_LIMIT)))
 
     @property
     def label(self) -> str:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -103,6 +106,9 @@ class ComplementaryStiffness(Effect):
         "arms of the load (the complementary stiffness Kc of seed 000 eq. 6)."
     )
     kind = "compliance"
+
+    #: Gain g [-]: 1 is the physics; identification may move it, never by an order.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"gain": (-10.0, 10.0)}
 
     def param_names(self) -> tuple[str, ...]:
         return ("gain",)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -26,6 +29,10 @@ class ForceSensorBias(Effect):
     )
     kind = "wrench"
     sensor_only = True
+
+    #: Offsets [N, N m]: at most 100 kN / 100 kN m (beyond any FSW force sensor).
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {k: (-1e5, 1e5) for k in ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")})
 
     def param_names(self) -> tuple[str, ...]:
         return ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -29,6 +32,9 @@ class JointBacklash(Effect):
     )
     kind = "compliance"
     per_joint = True
+
+    #: Lost motion [rad]: >= 0, at most 0.1 rad (5.7 deg).
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"b": (0.0, 0.1)}
 
     def param_names(self) -> tuple[str, ...]:
         return ("b",)

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -9,6 +12,10 @@ from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
 
 class JointCompliance(Effect):
     """dX = J diag(c) J^T F with c_k = 1/k_k the joint compliances [rad/(N m)].
+
+    When the robot description gives link masses (a URDF with inertials), the links' own
+    weight loads the springs too: dX = J diag(c) (J^T F + tau_g(q)),
+    tau_g = -g(q) (:meth:`~rfsw_plan.robot.kinematics.Robot.gravity_torque`).
 
     The regressor is seed 000 eq. 14 (seed 001 eq. 9): column k is J_k (J_k^T F), so
     dX = W c and c is identified by least squares (eq. 15).
@@ -21,21 +28,34 @@ class JointCompliance(Effect):
     )
     kind = "compliance"
 
+    #: Compliance 1/k [rad/(N m)]: >= 0 (0 = rigid), at most that of a 1 N m/rad joint.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c": (0.0, 1.0)}
+
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"c{j + 1}" for j in range(self.robot.nq))
 
     def prior(self) -> FloatArray:
         return 1.0 / np.asarray(self.robot.stiffness, dtype=float)
 
+    @staticmethod
+    def torques(batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """Joint torques J^T F plus the links' own weight (:meth:`Robot.gravity_torque`,
+        zero without link masses) [N m], shape (m, n)."""
+        tau = np.matmul(wrench[:, None, :], batch.J)[:, 0]
+        if batch.robot.has_link_masses:
+            if "link_gravity" not in batch.cache:
+                batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
+            tau = tau + batch.cache["link_gravity"]
+        return tau
+
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:
-        tau = np.matmul(wrench[:, None, :], batch.J)  # joint torques [N m], (m, 1, n)
-        return batch.J * tau
+        return batch.J * self.torques(batch, wrench)[:, None, :]
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        tau = np.matmul(wrench[:, None, :], batch.J)[:, 0]  # joint torques J^T F [N m]
-        return np.matmul(batch.J, (tau * theta)[:, :, None])[:, :, 0]  # J diag(c) J^T F
+        tau = self.torques(batch, wrench)
+        return np.matmul(batch.J, (tau * theta)[:, :, None])[:, :, 0]  # J diag(c) (J^T F + g)
 
     def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         return np.matmul(batch.J * theta, batch.J.transpose(0, 2, 1))

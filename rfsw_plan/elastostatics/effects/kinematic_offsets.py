@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -24,6 +27,10 @@ class KinematicOffsets(Effect):
         "pose-dependent amount whether or not the robot is loaded."
     )
     kind = "geometric"
+
+    #: Joint zero offsets [rad] at most 0.5 rad; TCP offsets [m] at most 1 m.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {"dq": (-0.5, 0.5), "dt_x": (-1.0, 1.0), "dt_y": (-1.0, 1.0), "dt_z": (-1.0, 1.0)})
 
     def param_names(self) -> tuple[str, ...]:
         return (*(f"dq{j + 1}" for j in range(self.robot.nq)), "dt_x", "dt_y", "dt_z")

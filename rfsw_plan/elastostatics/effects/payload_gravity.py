@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -37,6 +40,10 @@ class PayloadGravity(Effect):
         "arm load every joint in every pose, also when there is no process force."
     )
     kind = "wrench"
+
+    #: Mass [kg] >= 0 up to 10 t; first moments m r [kg m] of at most 10 t at 1 m.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {"m": (0.0, 1e4), "m_rx": (-1e4, 1e4), "m_ry": (-1e4, 1e4), "m_rz": (-1e4, 1e4)})
 
     def param_names(self) -> tuple[str, ...]:
         return ("m", "m_rx", "m_ry", "m_rz")

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import math
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -57,6 +61,11 @@ class SensorMisalignment(Effect):
     kind = "wrench"
     sensor_only = True
     linear_in_params = False
+
+    #: Rotation vector [rad]: at most half a turn per component.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {"phi_x": (-math.pi, math.pi), "phi_y": (-math.pi, math.pi),
+         "phi_z": (-math.pi, math.pi)})
 
     def param_names(self) -> tuple[str, ...]:
         return ("phi_x", "phi_y", "phi_z")

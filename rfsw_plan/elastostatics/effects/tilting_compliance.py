@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -34,6 +37,9 @@ class TiltingCompliance(Effect):
     )
     kind = "compliance"
     per_joint = True
+
+    #: Tilting compliance [rad/(N m)]: >= 0 (0 = rigid bearing); 1e-3 is 1 rad per kN m.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c_t": (0.0, 1e-3)}
 
     def param_names(self) -> tuple[str, ...]:
         return ("c_t1", "c_t2")

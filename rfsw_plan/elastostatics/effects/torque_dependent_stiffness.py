@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
@@ -30,6 +33,10 @@ class TorqueDependentStiffness(Effect):
     )
     kind = "compliance"
     per_joint = True
+
+    #: Extra deflection at 10 kN m [rad]; wrist joints never carry 10 kN m, so their fitted
+    #: d is an extrapolation and can be large (1 rad) while the real deflection is small.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"d": (-1e3, 1e3)}
 
     def param_names(self) -> tuple[str, ...]:
         return ("d2", "d3")

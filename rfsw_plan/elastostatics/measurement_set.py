@@ -1,0 +1,98 @@
+"""The measurement data type that identification and validation work on.
+
+A :class:`MeasurementSet` holds the samples of a load campaign, a weld log or a metrology
+session in SI units: joint values, the wrench at the TCP in the robot base frame, and the
+measured position (and optionally orientation) of the tracked point, in the base frame or in
+the frame of the measuring device. Files are read and written in ``rfsw_plan.io.measurements``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+
+#: Frames measured positions may be expressed in: the robot base frame, or the frame of the
+#: measuring device (laser tracker, motion capture), whose pose in the base frame is unknown.
+MeasurementFrame = Literal["base", "device"]
+MEASUREMENT_FRAMES: tuple[str, ...] = ("base", "device")
+
+
+@dataclass(frozen=True)
+class MeasurementSet:
+    """Samples of a load campaign or a weld log (SI units inside).
+
+    Attributes:
+        q: Encoder joint values, shape (m, n): [rad] for revolute joints, [m] for prismatic ones.
+        wrench: Wrench the environment applies to the tool at the TCP, robot base frame
+            [N, N m], shape (m, 6) (converted at the reader from a tool or sensor frame).
+        position: Measured position of the tracked point (the TCP, or a marker at an offset
+            from it), in ``frame`` [m], shape (m, 3); NaN = not measured.
+        t: Time stamps [s], shape (m,), or None.
+        pose_id: Pose labels, shape (m,), or None.
+        sigma: Per-row 1-sigma position noise [m], shape (m,), or None.
+        extra: Other numeric columns by name, each shape (m,).
+        source: File the data came from.
+        frame: ``base`` (robot base frame) or ``device`` (the measuring device's own frame).
+        rotation: Measured orientation of the tool frame as a rotation vector in ``frame``
+            [rad], shape (m, 3), or None (positions only).
+        load_step: Commanded load step of each row (an integer label), shape (m,), or None.
+        dialect: What the reader detected (delimiter, decimal separator), for the report.
+        columns: File column read for each quantity (``q1`` -> ``q1_deg``, ``x`` -> ``x1``),
+            so that messages can name what the user wrote.
+    """
+
+    q: FloatArray
+    wrench: FloatArray
+    position: FloatArray
+    t: FloatArray | None = None
+    pose_id: NDArray[np.str_] | None = None
+    sigma: FloatArray | None = None
+    extra: dict[str, FloatArray] = field(default_factory=dict)
+    source: str = "<memory>"
+    frame: str = "base"
+    rotation: FloatArray | None = None
+    load_step: NDArray[np.int_] | None = None
+    dialect: str = ""
+    columns: dict[str, str] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.q.shape[0])
+
+    @property
+    def n_joints(self) -> int:
+        """Number of joint columns."""
+        return int(self.q.shape[1])
+
+    @property
+    def measured(self) -> NDArray[np.bool_]:
+        """Mask of measured position axes, shape (m, 3)."""
+        return np.isfinite(self.position)
+
+    def subset(self, idx: NDArray[np.int_] | NDArray[np.bool_]) -> MeasurementSet:
+        """Rows ``idx`` as a new set."""
+        return MeasurementSet(
+            q=self.q[idx],
+            wrench=self.wrench[idx],
+            position=self.position[idx],
+            t=None if self.t is None else self.t[idx],
+            pose_id=None if self.pose_id is None else self.pose_id[idx],
+            sigma=None if self.sigma is None else self.sigma[idx],
+            extra={k: v[idx] for k, v in self.extra.items()},
+            source=self.source,
+            frame=self.frame,
+            rotation=None if self.rotation is None else self.rotation[idx],
+            load_step=None if self.load_step is None else self.load_step[idx],
+            dialect=self.dialect,
+            columns=self.columns,
+        )
+
+    def with_position(self, position: FloatArray, frame: str) -> MeasurementSet:
+        """The same samples with positions (m, 3) [m] expressed in another frame."""
+        from dataclasses import replace
+
+        return replace(self, position=np.asarray(position, dtype=float), frame=frame)

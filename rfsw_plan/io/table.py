@@ -1,0 +1,325 @@
+"""Column tables from CSV files: dialect detection, strict cells, and named quantities.
+
+One helper for every CSV reader of measured data (:mod:`rfsw_plan.io.measurements`,
+:mod:`rfsw_plan.io.force_series`):
+
+* :func:`read_table` reads the file once, detects the delimiter (``,`` ``;`` or tab) and the
+  decimal separator (point, or comma as a German spreadsheet writes it), rejects duplicated
+  column names and over-long cells, and says what it detected (:attr:`Table.dialect`);
+* :class:`Quantity` names a physical quantity with the units a file may give it in (``fz`` in
+  ``N`` or ``kN``); :meth:`Table.find` finds its column by the ``<quantity>_<unit>`` naming rule
+  or through a lab's own mapping (:class:`ColumnMap`, a ``--columns FILE.toml``), and
+  :meth:`Table.numbers` returns it in SI units;
+* a missing column gets a rename hint only from a column that holds the same quantity (``fz``
+  or ``fz_kN`` for ``fz_N``), never from a merely similar spelling (``fy_N``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+
+FloatArray = NDArray[np.float64]
+
+#: Largest magnitude accepted in any numeric cell. Nothing a robot cell measures comes near it
+#: in any unit; a 1e300 would overflow the least-squares algebra downstream.
+MAX_MAGNITUDE = 1e12
+#: Longest cell accepted [characters] (the csv module's own limit is 131,072).
+MAX_CELL = 10_000
+DELIMITERS = (",", ";", "\t")
+_DECIMAL_COMMA = re.compile(r"^[+-]?(\d+,\d*|,\d+)([eE][+-]?\d+)?$")
+_NAMES = {",": "comma", ";": "semicolon", "\t": "tab"}
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A physical quantity a column may hold.
+
+    Attributes:
+        key: Quantity name, the column name before the unit (``fz``, ``q3``, ``x``).
+        units: Accepted units and their factor to SI, e.g. ``{"N": 1.0, "kN": 1e3}``; an empty
+            string means a unit-less column (``pose_id``, ``quat_w``).
+        text: True if the column holds text (labels), not numbers.
+    """
+
+    key: str
+    units: Mapping[str, float]
+    text: bool = False
+
+    def names(self) -> list[str]:
+        """Column names that hold this quantity under the naming rule."""
+        return [self.key if u == "" else f"{self.key}_{u}" for u in self.units]
+
+    def default(self) -> str:
+        """The canonical column name (first unit)."""
+        return self.names()[0]
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """A lab's own column names and units (``--columns FILE.toml``).
+
+    File format::
+
+        frame = "device"                        # optional: positions in the device frame
+        [columns]
+        q1 = { name = "torso_lift_joint", unit = "m" }
+        x = { name = "x1", unit = "m" }
+
+    Attributes:
+        columns: Quantity key -> (column name in the file, unit).
+        options: Other top-level keys (``frame``, ``wrench_frame``, ...), validated by the
+            reader that uses them.
+        source: The mapping file.
+    """
+
+    columns: Mapping[str, tuple[str, str]]
+    options: Mapping[str, Any] = field(default_factory=dict)
+    source: str = "<memory>"
+
+
+def read_column_map(path: str | Path, allowed_options: Mapping[str, str]) -> ColumnMap:
+    """Read a column mapping TOML (format in :class:`ColumnMap`).
+
+    Args:
+        path: The TOML file.
+        allowed_options: Top-level keys besides ``[columns]`` and what each expects.
+
+    Raises:
+        InputError: Unreadable file, unknown key, entry without name or unit.
+    """
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text())
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(p, "", f"cannot read file: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(p, "", f"not valid TOML: {exc}") from None
+    cols = data.get("columns")
+    if not isinstance(cols, dict) or not cols:
+        raise InputError(p, "[columns]", "missing or empty table",
+                         "quantity = { name = 'column in the file', unit = '...' }")
+    out: dict[str, tuple[str, str]] = {}
+    for key, entry in cols.items():
+        if not isinstance(entry, dict) or set(entry) - {"name", "unit"} or "name" not in entry:
+            raise InputError(p, f"columns.{key}", f"got {entry!r}",
+                             "{ name = 'column in the file', unit = '...' }")
+        name, unit = entry["name"], entry.get("unit", "")
+        if not isinstance(name, str) or not isinstance(unit, str) or not name.strip():
+            raise InputError(p, f"columns.{key}", f"got {entry!r}", "name and unit as strings")
+        out[key] = (name.strip(), unit.strip())
+    used = [v[0] for v in out.values()]
+    dup = sorted({n for n in used if used.count(n) > 1})
+    if dup:
+        raise InputError(p, "[columns]", f"column '{dup[0]}' is mapped twice",
+                         "each file column mapped to one quantity")
+    options: dict[str, Any] = {}
+    for key, value in data.items():
+        if key == "columns":
+            continue
+        if key not in allowed_options:
+            known = ", ".join(["columns", *allowed_options])
+            raise InputError(p, key, "unknown key", known)
+        options[key] = value
+    return ColumnMap(out, options, str(p))
+
+
+@dataclass(frozen=True)
+class Table:
+    """A CSV file read into cells.
+
+    Attributes:
+        path: The file.
+        header: Column names (stripped), unique.
+        rows: Data rows (cells stripped), blank rows removed; ``row_numbers`` gives each one's
+            1-based line in the file.
+        row_numbers: File row of every data row (header = row 1 when it is the first line).
+        delimiter: Detected delimiter.
+        decimal: Detected decimal separator, ``.`` or ``,``.
+        mapping: The lab's column mapping, if one was given.
+    """
+
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+    row_numbers: list[int]
+    delimiter: str
+    decimal: str
+    mapping: ColumnMap | None = None
+
+    @property
+    def dialect(self) -> str:
+        """What was detected, e.g. ``"semicolon-separated, decimal comma"``."""
+        return (f"{_NAMES[self.delimiter]}-separated, "
+                f"decimal {'comma' if self.decimal == ',' else 'point'}")
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    # -- columns ------------------------------------------------------------------------------
+    def find(self, q: Quantity) -> tuple[str, float] | None:
+        """Column holding quantity ``q`` and its factor to SI, or None if absent.
+
+        Raises:
+            InputError: Two columns give the same quantity (``q1_deg`` and ``q1_rad``), or the
+                mapping names a column the file lacks or a unit the quantity cannot have.
+        """
+        if self.mapping is not None and q.key in self.mapping.columns:
+            name, unit = self.mapping.columns[q.key]
+            if unit not in q.units:
+                raise InputError(self.mapping.source, f"columns.{q.key}", f"unit '{unit}'",
+                                 " | ".join(repr(u) for u in q.units))
+            if name not in self.header:
+                raise InputError(self.path, f"column '{name}'",
+                                 f"missing (mapped to {q.key} by {self.mapping.source})",
+                                 _close_hint(name, self.header))
+            return name, q.units[unit]
+        hits = [n for n in q.names() if n in self.header]
+        if len(hits) > 1:
+            raise InputError(self.path, "header", f"columns {' and '.join(hits)} both give "
+                             f"{q.key}", "one column per quantity")
+        if not hits:
+            return None
+        unit = hits[0][len(q.key) + 1:] if hits[0] != q.key else ""
+        return hits[0], q.units[unit]
+
+    def require(self, q: Quantity) -> tuple[str, float]:
+        """:meth:`find` that raises the missing-column error (with a rename hint)."""
+        hit = self.find(q)
+        if hit is None:
+            raise self.missing(q)
+        return hit
+
+    def missing(self, q: Quantity) -> InputError:
+        """Error for a missing quantity, with a hint at a column of the *same* quantity.
+
+        A header that is the quantity without its unit (``fz``), with another unit
+        (``fz_kN``) or in other letter case (``FZ_N``) is offered; a merely similar
+        spelling of another quantity (``fy_N`` for ``fz_N``) never is.
+        """
+        want = q.default()
+        same = [h for h in self.header if _quantity_of(h) == q.key.lower()]
+        hint = ""
+        if same:
+            units = ", ".join(u if u else "(none)" for u in q.units)
+            hint = (f"; found '{same[0]}': rename it to '{want}' if it holds {q.key} "
+                    f"(units in the column name: {units}), or map it with --columns")
+        return InputError(self.path, f"column '{want}'", f"missing{hint}",
+                          f"a column named {' or '.join(repr(n) for n in q.names())}")
+
+    def numbers(self, name: str, factor: float = 1.0, allow_blank: bool = False) -> FloatArray:
+        """Numeric column ``name`` times ``factor`` (to SI), shape (rows,).
+
+        Raises:
+            InputError: A cell that is not a finite number of at most :data:`MAX_MAGNITUDE`
+                (row and column named); a blank cell unless ``allow_blank`` (then NaN).
+        """
+        i = self.header.index(name)
+        out = np.empty(len(self.rows))
+        for r, row in enumerate(self.rows):
+            cell = row[i] if i < len(row) else ""
+            where = f"row {self.row_numbers[r]}, column '{name}'"
+            if cell == "":
+                if allow_blank:
+                    out[r] = math.nan
+                    continue
+                raise InputError(self.path, where, "blank cell", "a number")
+            text = cell.replace(",", ".") if self.decimal == "," else cell
+            try:
+                v = float(text)
+            except ValueError:
+                raise InputError(self.path, where, f"'{_short(cell)}' is not a number") from None
+            if not math.isfinite(v):
+                raise InputError(self.path, where, f"value is {_short(cell)}",
+                                 "a finite number (leave position cells blank if not measured)")
+            if abs(v) > MAX_MAGNITUDE:
+                raise InputError(self.path, where, f"value {v:.3g} is out of range",
+                                 f"|value| <= {MAX_MAGNITUDE:g} in any unit")
+            out[r] = v * factor
+        return out
+
+    def texts(self, name: str) -> NDArray[np.str_]:
+        """Text column ``name``, shape (rows,)."""
+        i = self.header.index(name)
+        return np.array([row[i] if i < len(row) else "" for row in self.rows])
+
+
+def _quantity_of(header: str) -> str:
+    """The quantity part of a column name: lower case, before the unit or a bracket."""
+    h = header.strip().lower()
+    h = re.split(r"[\s\[\(]", h, maxsplit=1)[0]
+    return h.split("_", 1)[0] if re.match(r"^[a-z]+\d*_", h) else h
+
+
+def _close_hint(name: str, header: list[str]) -> str:
+    same = [h for h in header if h.lower() == name.lower()]
+    return f"a column named '{name}'" + (f" (found '{same[0]}')" if same else "")
+
+
+def _short(cell: str) -> str:
+    return cell if len(cell) <= 40 else cell[:37] + "..."
+
+
+def _detect_delimiter(line: str) -> str:
+    counts = {d: line.count(d) for d in DELIMITERS}
+    best = max(DELIMITERS, key=lambda d: counts[d])
+    return best if counts[best] > 0 else ","
+
+
+def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
+    """Read a CSV file with a header row (see module docstring).
+
+    Raises:
+        InputError: Unreadable or empty file, no data rows, a duplicated or empty column name,
+            a cell longer than :data:`MAX_CELL` characters, a malformed CSV row.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(p, "", f"cannot read file: {exc}") from None
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    if not first:
+        raise InputError(p, "", "file is empty", "a header row and samples")
+    delimiter = _detect_delimiter(first)
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
+    rows: list[list[str]] = []
+    numbers: list[int] = []
+    try:
+        for row in reader:
+            if any(len(c) > MAX_CELL for c in row):
+                raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
+                                 f"{MAX_CELL} characters", "short numeric cells")
+            if any(c.strip() for c in row):
+                rows.append([c.strip() for c in row])
+                numbers.append(reader.line_num)
+    except csv.Error as exc:
+        raise InputError(p, f"row {reader.line_num}", f"malformed CSV: {exc}") from None
+    header = rows[0]
+    seen: set[str] = set()
+    for k, h in enumerate(header):
+        if h == "":
+            raise InputError(p, f"header, column {k + 1}", "empty column name", "a name")
+        if h in seen:
+            raise InputError(p, "header", f"column '{h}' appears twice",
+                             "each column name once")
+        seen.add(h)
+    body, body_rows = rows[1:], numbers[1:]
+    if not body:
+        raise InputError(p, "", "no samples after the header row")
+    decimal = "."
+    if delimiter != "," and any(_DECIMAL_COMMA.match(c) for row in body for c in row):
+        decimal = ","
+    return Table(p, header, body, body_rows, delimiter, decimal, mapping)
