@@ -59,6 +59,7 @@ class ExportResult:
         n_points: Number of program points.
         stream_rows: Rows of the stream file (0 if not written).
         header: The program header.
+        sample_check: What checked the re-read points and stream rows (empty: none).
     """
 
     files: tuple[Path, ...]
@@ -66,6 +67,7 @@ class ExportResult:
     n_points: int
     stream_rows: int
     header: ProgramHeader
+    sample_check: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units)."""
@@ -76,6 +78,7 @@ class ExportResult:
             "spacing_mm": self.header.spacing * 1e3,
             "path_tolerance_mm": self.header.path_tol * 1e3,
             "stream_rows": self.stream_rows,
+            "sample_check": self.sample_check or "none (plan samples vouched by plan.json)",
             "round_trip": {k: {"max_position_error_mm": float(np.max(r.pose_error)) * 1e3,
                                "max_angle_error_deg": math.degrees(float(np.max(r.angle_error))),
                                "max_joint_error_deg": math.degrees(float(np.max(r.joint_error)))}
@@ -167,7 +170,9 @@ def export_programs(
             final.append(target)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
-    return ExportResult(tuple(final), trips, len(program.sample_index), rows, header)
+    checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
+    return ExportResult(tuple(final), trips, len(program.sample_index), rows, header,
+                        checked.strip())
 
 
 def _window(record: dict[str, Any]) -> tuple[float, float]:

@@ -83,8 +83,9 @@ def _speed(speed: float, duration: float) -> str:
     return f"{duration:.2f}sec"
 
 
-def write_tp(program: Program, folder: str | Path) -> list[Path]:
-    """Write ``<name>.ls`` atomically; returns its path."""
+def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None) -> list[Path]:
+    """Write ``<name>.ls`` atomically; returns its path (``stamp``: CREATE/MODIFIED time,
+    default now)."""
     name = tp_name(program.header.name)
     robot = program.robot
     xyzwpr = np.array([frame_to_xyzwpr(p) for p in program.poses])
@@ -92,11 +93,12 @@ def write_tp(program: Program, folder: str | Path) -> list[Path]:
     uf = frame_to_xyzwpr(program.work)
     ut = frame_to_xyzwpr(program.tool)
 
-    mn: list[str] = [f"! {line[:60]}" for line in program.header.lines()]
+    mn: list[str] = [f"! {line if len(line) <= 60 else '...' + line[-57:]}"
+                     for line in program.header.lines()]
     mn += [f"! UFRAME {UFRAME} = seam work object in world:",
-           "!  " + " ".join(f"{k}={x:.3f}" for k, x in zip("XYZWPR", uf, strict=True)),
+           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", uf, strict=True)),
            f"! UTOOL {UTOOL} = TCP in faceplate:",
-           "!  " + " ".join(f"{k}={x:.3f}" for k, x in zip("XYZWPR", ut, strict=True)),
+           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", ut, strict=True)),
            f"UFRAME_NUM={UFRAME}", f"UTOOL_NUM={UTOOL}"]
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
@@ -121,8 +123,8 @@ def write_tp(program: Program, folder: str | Path) -> list[Path]:
 
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;",
              f"COMMENT\t\t= \"{program.header.plan_id[:16]}\";", "PROG_SIZE\t= 0;"]
-    stamp = datetime.now(UTC).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
-    lines += [f"CREATE\t\t= {stamp};", f"MODIFIED\t= {stamp};", "FILE_NAME\t= ;",
+    when = (stamp or datetime.now(UTC)).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
+    lines += [f"CREATE\t\t= {when};", f"MODIFIED\t= {when};", "FILE_NAME\t= ;",
               "VERSION\t\t= 0;", f"LINE_COUNT\t= {len(mn)};", "MEMORY_SIZE\t= 0;",
               "PROTECT\t\t= READ_WRITE;",
               "TCD:  STACK_SIZE\t= 0,", "      TASK_PRIORITY\t= 50,", "      TIME_SLICE\t= 0,",
@@ -135,11 +137,19 @@ def write_tp(program: Program, folder: str | Path) -> list[Path]:
     for k, (v, q) in enumerate(zip(xyzwpr, program.samples.q, strict=True)):
         lines += [f"P[{k + 1}]{{", "   GP1:",
                   f"\tUF : {UFRAME}, UT : {UTOOL},\t\tCONFIG : '{fanuc_config(robot, q)}',",
-                  f"\tX = {v[0]:10.4f}  mm,\tY = {v[1]:10.4f}  mm,\tZ = {v[2]:10.4f}  mm,",
-                  f"\tW = {v[3]:10.5f} deg,\tP = {v[4]:10.5f} deg,\tR = {v[5]:10.5f} deg",
+                  f"\tX = {_num(v[0], 4):>10}  mm,\tY = {_num(v[1], 4):>10}  mm,"
+                  f"\tZ = {_num(v[2], 4):>10}  mm,",
+                  f"\tW = {_num(v[3], 5):>10} deg,\tP = {_num(v[4], 5):>10} deg,"
+                  f"\tR = {_num(v[5], 5):>10} deg",
                   "};"]
     lines.append("/END")
     return [write_text(Path(folder) / f"{name}.ls", "\n".join(lines) + "\n")]
+
+
+def _num(x: float, digits: int) -> str:
+    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
+    t = f"{x:.{digits}f}"
+    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
 
 
 def _adjacent(program: Program, i: int) -> list[float]:

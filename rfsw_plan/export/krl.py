@@ -58,8 +58,14 @@ def xyzabc_to_frame(v: tuple[float, ...] | list[float]) -> FloatArray:
     return T
 
 
+def _num(x: float, digits: int) -> str:
+    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
+    t = f"{x:.{digits}f}"
+    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+
+
 def _frame(v: tuple[float, ...]) -> str:
-    return "{" + ", ".join(f"{k} {x:.6f}" for k, x in zip("XYZABC", v, strict=True)) + "}"
+    return "{" + ", ".join(f"{k} {_num(x, 6)}" for k, x in zip("XYZABC", v, strict=True)) + "}"
 
 
 def krl_name(name: str) -> str:
@@ -80,8 +86,9 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
     for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
         s, t = kuka_status_turn(robot, q)
         v = frame_to_xyzabc(pose)
-        dat.append(f"DECL E6POS XP{k + 1}={{X {v[0]:.4f},Y {v[1]:.4f},Z {v[2]:.4f},"
-                   f"A {v[3]:.5f},B {v[4]:.5f},C {v[5]:.5f},S {s},T {t},"
+        dat.append(f"DECL E6POS XP{k + 1}={{X {_num(v[0], 4)},Y {_num(v[1], 4)},"
+                   f"Z {_num(v[2], 4)},A {_num(v[3], 5)},B {_num(v[4], 5)},"
+                   f"C {_num(v[5], 5)},S {s},T {t},"
                    "E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
     dat.append("ENDDAT")
 

@@ -130,14 +130,15 @@ class ProgramHeader:
         tol_s = "unbounded" if not math.isfinite(tol) else f"+-{100 * tol:.3g} %"
         return [
             f"rfsw-plan program {self.name}",
-            f"plan id: {self.plan_id} (problem {self.problem})",
-            f"robot: {self.robot}, file {self.robot_file}",
-            f"verified tolerated force uncertainty: {tol_s} "
-            f"(requested +-{100 * self.requested_uncertainty:.3g} %)",
+            f"plan id: {self.plan_id}",
+            f"robot: {self.robot}",
+            f"robot file: {self.robot_file}",
+            f"verified tolerated force uncertainty: {tol_s}",
+            f"requested force uncertainty: +-{100 * self.requested_uncertainty:.3g} %",
             f"weld window: {self.window_mm[0]:+.3f} .. {self.window_mm[1]:+.3f} mm",
-            f"points: verified plan samples at {self.spacing * 1e3:.3g} mm along the seam, "
-            f"path within {self.path_tol * 1e3:.3g} mm of every sample",
-            "joint values: controller axis values; lengths mm, angles deg",
+            f"points: plan samples every {self.spacing * 1e3:.3g} mm of seam",
+            f"path within {self.path_tol * 1e3:.3g} mm of every verified sample",
+            "lengths mm, angles deg, joints = controller axes",
         ]
 
 

@@ -63,10 +63,10 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
     name = rapid_name(program.header.name)
     robot = program.robot
     out = ["%%%", "  VERSION:1", "  LANGUAGE:ENGLISH", "%%%", "", f"MODULE {name}"]
-    out += [f"    ! {line}" for line in program.header.lines()]
-    out += [f"    PERS tooldata tFSW := [TRUE,{_pose(program.tool)},"
+    out += [f"  ! {line}" for line in program.header.lines()]
+    out += [f"  PERS tooldata tFSW := [TRUE,{_pose(program.tool)},"
             "[1,[0,0,1],[1,0,0,0],0,0,0]];  ! load data: placeholder, enter the spindle's",
-            f"    PERS wobjdata wSeam := [FALSE,TRUE,\"\",{_pose(program.work)},"
+            f"  PERS wobjdata wSeam := [FALSE,TRUE,\"\",{_pose(program.work)},"
             "[[0,0,0],[1,0,0,0]]];"]
     speeds: dict[float, str] = {}
     zones: dict[float, str] = {}
@@ -78,36 +78,36 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
                 z = round(m.blend * 1e3, 4)
                 zones.setdefault(z, f"zB{len(zones) + 1}")
     for v, nm in speeds.items():
-        out.append(f"    CONST speeddata {nm} := [{max(v, 1e-4):.4f},30,5000,1000];  ! mm/s")
+        out.append(f"  CONST speeddata {nm} := [{max(v, 1e-4):.4f},30,5000,1000];  ! mm/s")
     for z, nm in zones.items():
-        out.append(f"    CONST zonedata {nm} := [FALSE,{z:.4f},{1.5 * z:.4f},{1.5 * z:.4f},"
+        out.append(f"  CONST zonedata {nm} := [FALSE,{z:.4f},{1.5 * z:.4f},{1.5 * z:.4f},"
                    f"{0.15 * z:.4f},{1.5 * z:.4f},{0.15 * z:.4f}];  ! mm")
     for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
         cf = abb_confdata(robot, q)
-        out.append(f"    CONST robtarget p{k + 1} := {_pose(pose)[:-1]},"
+        out.append(f"  CONST robtarget p{k + 1} := {_pose(pose)[:-1]},"
                    f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
                    "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
     out.append("")
-    out.append("    PROC main()")
+    out.append("  PROC main()")
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
         if i in marks:
-            out.append(f"        ! ---- phase: {marks[i]}")
+            out.append(f"    ! ---- phase: {marks[i]}")
             if marks[i] == "plunge":
-                out += ["        ! SPINDLE START placeholder: e.g. SetDO doSpindle, 1;",
-                        "        ! WaitDI diSpindleAtSpeed, 1;"]
+                out += ["    ! SPINDLE START placeholder: e.g. SetDO doSpindle, 1;",
+                        "    ! WaitDI diSpindleAtSpeed, 1;"]
             if marks[i] == "retract":
-                out.append("        ! SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;")
+                out.append("    ! SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;")
         p = f"p{m.point + 1}"
         if m.kind == "ptp":
-            out.append(f"        MoveJ {p},{MOVEJ_SPEED},fine,tFSW\\WObj:=wSeam;")
+            out.append(f"    MoveJ {p},{MOVEJ_SPEED},fine,tFSW\\WObj:=wSeam;")
         elif m.kind == "wait":
-            out.append(f"        WaitTime\\InPos,{m.duration:.3f};")
+            out.append(f"    WaitTime\\InPos,{m.duration:.3f};")
         else:
             vname = speeds[round(m.speed * 1e3, 4)]
             zname = zones[round(m.blend * 1e3, 4)] if m.blend > 0 else "fine"
-            out.append(f"        MoveL {p},{vname},{zname},tFSW\\WObj:=wSeam;")
-    out += ["    ENDPROC", "ENDMODULE"]
+            out.append(f"    MoveL {p},{vname},{zname},tFSW\\WObj:=wSeam;")
+    out += ["  ENDPROC", "ENDMODULE"]
     return [write_text(Path(folder) / f"{name}.mod", "\n".join(out) + "\n")]
 
 
