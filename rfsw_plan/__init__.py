@@ -9,34 +9,63 @@ Public API (see the README for a tour):
   :func:`load_problem`
 * planning: :func:`plan` (problem -> verified, timed :class:`PlanResult`)
 
-``plan`` and ``PlanResult`` are imported on first use, so ``import rfsw_plan`` does not load
-CasADi.
+Every name is imported on first use, so ``import rfsw_plan`` loads none of the heavy
+libraries (CasADi, Pinocchio, SciPy, matplotlib) until they are needed.
 """
 
-from typing import Any
+from __future__ import annotations
 
-from rfsw_plan.elastostatics.identification import IdentificationResult, identify
-from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
-from rfsw_plan.exceptions import RfswError
-from rfsw_plan.io.measurements import MeasurementSet, read_measurements, write_measurements
-from rfsw_plan.process.frames import LoadSchedule, SeamFrames
-from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.robot.description import RobotDescription, load_robot_description
-from rfsw_plan.robot.kinematics import Robot, load_robot
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rfsw_plan.elastostatics.identification import IdentificationResult, identify
+    from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
+    from rfsw_plan.exceptions import RfswError
+    from rfsw_plan.io.measurements import MeasurementSet, read_measurements, write_measurements
+    from rfsw_plan.planning.api import plan
+    from rfsw_plan.planning.result import PlanResult
+    from rfsw_plan.process.frames import LoadSchedule, SeamFrames
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.process.window import WeldWindow
+    from rfsw_plan.robot.description import RobotDescription, load_robot_description
+    from rfsw_plan.robot.kinematics import Robot, load_robot
 
 __version__ = "0.1.0"
 
+# Every public name is imported on first use (PEP 562), so ``import rfsw_plan`` and the CLI's
+# ``--help`` load neither Pinocchio, SciPy nor CasADi.
+_EXPORTS = {
+    "IdentificationResult": "rfsw_plan.elastostatics.identification",
+    "identify": "rfsw_plan.elastostatics.identification",
+    "ElastostaticModel": "rfsw_plan.elastostatics.model",
+    "load_model": "rfsw_plan.elastostatics.model",
+    "RfswError": "rfsw_plan.exceptions",
+    "MeasurementSet": "rfsw_plan.io.measurements",
+    "read_measurements": "rfsw_plan.io.measurements",
+    "write_measurements": "rfsw_plan.io.measurements",
+    "plan": "rfsw_plan.planning.api",
+    "PlanResult": "rfsw_plan.planning.result",
+    "LoadSchedule": "rfsw_plan.process.frames",
+    "SeamFrames": "rfsw_plan.process.frames",
+    "load_problem": "rfsw_plan.process.problem",
+    "WeldWindow": "rfsw_plan.process.window",
+    "RobotDescription": "rfsw_plan.robot.description",
+    "load_robot_description": "rfsw_plan.robot.description",
+    "Robot": "rfsw_plan.robot.kinematics",
+    "load_robot": "rfsw_plan.robot.kinematics",
+}
+
 
 def __getattr__(name: str) -> Any:
-    if name in ("plan", "PlanResult"):
-        from rfsw_plan.planning import api, result
-
-        return api.plan if name == "plan" else result.PlanResult
-    if name == "load_problem":
-        from rfsw_plan.process.problem import load_problem
-
-        return load_problem
+    if name in _EXPORTS:
+        return getattr(importlib.import_module(_EXPORTS[name]), name)
     raise AttributeError(f"module 'rfsw_plan' has no attribute '{name}'")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))
+
 
 __all__ = [
     "ElastostaticModel",

@@ -163,3 +163,25 @@ def test_the_library_never_configures_logging():
                     and node.func.attr in calls):
                 found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.func.attr}")
     assert not found, found
+
+
+def test_no_dispatch_on_effect_types_outside_the_effect_classes():
+    """Effects are dispatched by their own methods (``Effect.join``, ``pose_regressor``...):
+    no ``isinstance`` on an effect class outside ``elastostatics/effects/`` (effects have no
+    ``kind`` attribute any more, so mypy catches a dispatch on it)."""
+    from rfsw_plan.elastostatics import effects
+
+    names = {c.__name__ for c in effects.EFFECTS.values()} | {
+        "Effect", "ComplianceEffect", "WrenchEffect", "GeometricEffect"}
+    found = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.parent == PACKAGE / "elastostatics" / "effects":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+                    and node.func.id in ("isinstance", "issubclass") and len(node.args) == 2):
+                classes = node.args[1].elts if isinstance(node.args[1], ast.Tuple) else [
+                    node.args[1]]
+                if any(isinstance(c, ast.Name) and c.id in names for c in classes):
+                    found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} isinstance")
+    assert not found, found

@@ -198,8 +198,6 @@ def _tilted_tcp_twist_fd(robot: Robot, q: np.ndarray, joint: int, axis_local: np
 
 
 def test_tilting_compliance_twists_and_regressor_vs_fd() -> None:
-    from rfsw_plan.elastostatics.effects.tilting_compliance import _normal_axes
-
     r = load_robot("kuka_kr600_r2830")
     rng = np.random.default_rng(17)
     Q = random_q(r, 3, seed=17)
@@ -208,7 +206,9 @@ def test_tilting_compliance_twists_and_regressor_vs_fd() -> None:
     for j in range(r.nq):
         eff = TiltingCompliance(r, j)
         tw = eff.tilt_twists(batch)
-        local = _normal_axes(r.geometry.axes[j])
+        local = eff.joint_springs()
+        np.testing.assert_allclose(local @ local.T, np.eye(2), atol=1e-12)
+        np.testing.assert_allclose(local @ r.geometry.axes[j], 0.0, atol=1e-12)
         for m in range(3):
             for t in range(2):
                 fd = _tilted_tcp_twist_fd(r, Q[m], j, local[t])

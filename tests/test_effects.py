@@ -8,7 +8,15 @@ import numpy as np
 import pytest
 
 from rfsw_plan.elastostatics.compliance import complementary_stiffness, deflection_with_kc
-from rfsw_plan.elastostatics.effects import EFFECTS, Effect, PoseBatch, make_effect
+from rfsw_plan.elastostatics.effects import (
+    EFFECTS,
+    ComplianceEffect,
+    Effect,
+    GeometricEffect,
+    PoseBatch,
+    WrenchEffect,
+    make_effect,
+)
 from rfsw_plan.elastostatics.effects.complementary_stiffness import batch_complementary_stiffness
 from rfsw_plan.elastostatics.effects.joint_backlash import TAU_EPS_NM
 from rfsw_plan.elastostatics.effects.payload_gravity import GRAVITY
@@ -81,13 +89,8 @@ def _central_difference(f, theta: np.ndarray, h: np.ndarray) -> np.ndarray:
 
 
 def _contribution_and_regressor(eff: Effect, batch: PoseBatch, F: np.ndarray):
-    if eff.kind == "compliance":
-        return (lambda th: eff.deflection(batch, F, th),
-                lambda th: eff.deflection_regressor(batch, F, th))
-    if eff.kind == "wrench":
-        return (lambda th: eff.delta_wrench(batch, F, th),
-                lambda th: eff.wrench_regressor(batch, F, th))
-    return (lambda th: eff.offset(batch, th), lambda th: eff.offset_regressor(batch, th))
+    return (lambda th: eff.contribution(batch, F, th),
+            lambda th: eff.contribution_regressor(batch, F, th))
 
 
 def test_registry_holds_the_issue_table() -> None:
@@ -95,7 +98,8 @@ def test_registry_holds_the_issue_table() -> None:
     assert expected <= set(EFFECTS)
     for name, cls in EFFECTS.items():
         assert cls.name == name
-        assert cls.kind in ("compliance", "wrench", "geometric")
+        bases = (ComplianceEffect, WrenchEffect, GeometricEffect)
+        assert sum(issubclass(cls, b) for b in bases) == 1
         assert cls.description.endswith(".") and len(cls.description) > 30
 
 

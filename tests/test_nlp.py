@@ -9,11 +9,13 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.nlp import (
     ABS_EPS,
+    GLOBALS,
     POINT_CONSTRAINTS,
     build_plan_nlp,
     n_par,
     nlp_prediction,
     point_functions,
+    point_layout,
     solve_plan_nlp,
 )
 from rfsw_plan.planning.options import PlanOptions
@@ -89,17 +91,20 @@ def test_point_derivatives_match_finite_differences(robot_name):
     w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 3), rng.uniform(0, 1, 1)])
     q = w[:n]
     R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-    par = np.zeros(n_par(n))
-    par[0:3] = model.robot.fk(q)[:3, 3] + rng.normal(0, 1e-3, 3)  # target near the TCP
-    par[3:12] = R.T.ravel()  # t, l, n orthonormal
-    par[12:18] = np.concatenate([rng.normal(0, 2e3, 3), rng.normal(0, 50, 3)])
-    par[18:21] = 0.2 * np.abs(R.T @ par[12:15])
-    par[21:24] = rng.normal(0, 0.1, 3)
-    par[24:27] = [1.0, 0.01, 0.3]
-    par[27:27 + n] = q + 0.01
-    par[27 + n:27 + 2 * n] = rng.normal(0, 0.1, n)
-    par[27 + 2 * n] = 1.0  # weld waypoint: the stiffness-cap row is on
-    glob = np.array([1, 1, 10, 0.1, 0.1, 3.0, -0.275, 0.975, 0.1, 1e-3, 0.5])
+    wrench = np.concatenate([rng.normal(0, 2e3, 3), rng.normal(0, 50, 3)])
+    par = point_layout(n).pack(1, {
+        "target": model.robot.fk(q)[:3, 3] + rng.normal(0, 1e-3, 3),  # target near the TCP
+        "t": R[:, 0], "l": R[:, 1], "n": R[:, 2],  # orthonormal
+        "wrench": wrench, "force_spread": 0.2 * np.abs(R.T @ wrench[:3]),
+        "correction": rng.normal(0, 0.1, 3), "det_sign": 1.0, "det_floor": 0.01,
+        "det_value": 0.3, "q_lin": q + 0.01, "det_grad": rng.normal(0, 0.1, n),
+        "weld": 1.0,  # weld waypoint: the stiffness-cap row is on
+    })[0]
+    assert par.size == n_par(n)
+    glob = GLOBALS.pack(1, {
+        "w_stiffness": 1, "w_worst": 1, "w_robust": 10, "w_centre": 0.1, "w_depth": 0.1,
+        "compliance_ref": 3.0, "centre": -0.275, "half_width": 0.975, "inv_k": 0.1,
+        "w_proximity": 1e-3, "mean_share": 0.5})[0]
     lam = rng.normal(0, 1, len(POINT_CONSTRAINTS))
     J = np.asarray(pf.jac(w, par))
     grad = np.asarray(pf.grad(w, par, glob)).ravel()
@@ -243,7 +248,8 @@ def test_assembled_constraint_jacobian_matches_the_nlp_definition(setup):
 
 
 def test_single_thread_blas_is_scoped():
-    from rfsw_plan.planning.nlp import _casadi_blas, single_thread_blas
+    from rfsw_plan.planning.casadi_ import casadi_blas as _casadi_blas
+    from rfsw_plan.planning.casadi_ import single_thread_blas
 
     lib = _casadi_blas()
     if lib is None:

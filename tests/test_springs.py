@@ -68,7 +68,7 @@ def test_batch_path_matches_the_effect_by_effect_sum_on_random_kuka_poses() -> N
     np.testing.assert_allclose(model.deflection(Q, F), want, rtol=0, atol=tol)
     # Chunk boundaries: the same with tiny chunks, and one wrench broadcast to every pose.
     robot = model.robot
-    springs, _ = model._springs()
+    springs = model.springs()
     c = model.joint_compliance.params
     robot.BATCH_CHUNK = 7  # instance attribute shadows the class constant
     try:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import logging
 import os
@@ -10,21 +11,48 @@ import pkgutil
 import re
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from types import ModuleType
 from typing import Any, NoReturn
 
 from rfsw_plan.exceptions import RfswError
 
 
-def _command_modules() -> list[ModuleType]:
+def _command_specs() -> list[tuple[str, str, str]]:
+    """``(NAME, HELP, module)`` of every command module, sorted by module name.
+
+    NAME and HELP are read from the module's source (string literals) without importing it, so
+    ``rfsw-plan --help`` imports no command and none of the heavy libraries; a module whose
+    NAME or HELP is not a literal is imported to read them."""
     import rfsw_plan.cli.commands as pkg
 
-    mods = []
+    specs = []
     for info in sorted(pkgutil.iter_modules(pkg.__path__), key=lambda i: i.name):
         if info.name.startswith("_"):
             continue
-        mods.append(importlib.import_module(f"{pkg.__name__}.{info.name}"))
-    return mods
+        modname = f"{pkg.__name__}.{info.name}"
+        found = _literal_names(Path(pkg.__path__[0]) / f"{info.name}.py")
+        if "NAME" not in found or "HELP" not in found:
+            mod = importlib.import_module(modname)
+            found = {"NAME": mod.NAME, "HELP": mod.HELP}
+        specs.append((found["NAME"], found["HELP"], modname))
+    return specs
+
+
+def _literal_names(path: Path) -> dict[str, str]:
+    """Top-level ``NAME = "..."`` and ``HELP = "..."`` string literals of a module file."""
+    try:
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, UnicodeDecodeError):
+        return {}
+    out = {}
+    for node in tree.body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and isinstance(node.targets[0], ast.Name)
+                and node.targets[0].id in ("NAME", "HELP")
+                and isinstance(node.value, ast.Constant) and isinstance(node.value.value, str)):
+            out[node.targets[0].id] = node.value.value
+    return out
 
 
 class OneLineArgumentParser(argparse.ArgumentParser):
@@ -42,8 +70,15 @@ class OneLineArgumentParser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
-    """The top-level parser and the subcommand modules by name."""
+def build_parser(only: str | None = None, lazy: bool = False
+                 ) -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
+    """The top-level parser and the subcommand modules by name.
+
+    Args:
+        only: With ``lazy``: the one subcommand whose module is imported and whose arguments
+            are registered (the one on the command line).
+        lazy: Import only that module; every other subcommand is listed by NAME and HELP.
+    """
     parser = OneLineArgumentParser(
         prog="rfsw-plan",
         description="Offline planning of robotic friction stir welding around the robot's "
@@ -55,18 +90,27 @@ def build_parser() -> tuple[argparse.ArgumentParser, dict[str, ModuleType]]:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     commands: dict[str, ModuleType] = {}
-    for mod in _command_modules():
-        p = sub.add_parser(mod.NAME, help=mod.HELP, description=mod.HELP)
-        mod.register(p)
-        commands[mod.NAME] = mod
+    for name, help_, modname in _command_specs():
+        p = sub.add_parser(name, help=help_, description=help_)
+        if not lazy or name == only:
+            mod = importlib.import_module(modname)
+            mod.register(p)
+            commands[name] = mod
     return parser, commands
+
+
+def _command_word(argv: Sequence[str]) -> str | None:
+    """The subcommand on a command line: the first word that is not an option (the top-level
+    options take no value)."""
+    return next((a for a in argv if not a.startswith("-")), None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible)."""
-    parser, commands = build_parser()
+    words = list(sys.argv[1:] if argv is None else argv)
+    parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(words)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
     logging.basicConfig(

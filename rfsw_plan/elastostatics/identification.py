@@ -140,51 +140,15 @@ def axis_variances(res: FloatArray) -> FloatArray:
     return np.where(usable, var, var[usable].max())
 
 
-def _compliance_parts(
-    model: ElastostaticModel, batch: PoseBatch
-) -> tuple[FloatArray, list[Effect]]:
-    """Cartesian compliance (m, 6, 6) of the wrench-linear compliance effects, and the
-    compliance effects that are not linear in the wrench (no Cartesian compliance)."""
-    return model.linear_compliance(batch)
-
-
-def _effect_position_jacobian(
-    model: ElastostaticModel, effect: Effect, batch: PoseBatch, F_logged: FloatArray,
-    F_true: FloatArray, parts: tuple[FloatArray, list[Effect]] | None = None,
-) -> FloatArray:
-    """d(predicted TCP position)/d(theta_effect), shape (m, 3, p).
-
-    ``parts`` is :func:`_compliance_parts` of the model, computed once per evaluation when
-    several wrench effects need it.
-    """
-    th = effect.params
-    if effect.kind == "compliance":
-        return effect.deflection_regressor(batch, F_true, th)[:, :3, :]
-    if effect.kind == "geometric":
-        return effect.offset_regressor(batch, th)[:, :3, :]
-    # Wrench effect: chain rule through the compliance effects, dX/dF . dF/dtheta.
-    dF = effect.wrench_regressor(batch, F_logged, th)  # (m, 6, p)
-    C, nonlinear = parts if parts is not None else _compliance_parts(model, batch)
-    out = np.matmul(C, dF)[:, :3, :]  # linear compliance part
-    for e in nonlinear:
-        # Non-linear-in-wrench compliance: directional finite difference per column.
-        base = e.deflection(batch, F_true, e.params)[:, :3]
-        for k in range(dF.shape[2]):
-            h = 1e-6 * max(1.0, float(np.max(np.abs(F_true))))
-            scale = np.max(np.abs(dF[:, :, k])) or 1.0
-            step = dF[:, :, k] / scale * h
-            moved = e.deflection(batch, F_true + step, e.params)[:, :3]
-            out[:, :, k] += (moved - base) / h * scale
-    return out
-
-
 def position_jacobian(
     model: ElastostaticModel, batch: PoseBatch, wrench: FloatArray, effects: Sequence[Effect]
 ) -> FloatArray:
-    """Stacked d(position)/d(theta) for the given effects, shape (m, 3, P)."""
+    """Stacked d(position)/d(theta) for the given effects, shape (m, 3, P): each effect's
+    :meth:`~rfsw_plan.elastostatics.effects.base.Effect.pose_regressor` (wrench effects chain
+    through the model's compliance, computed once)."""
     F_true = model.true_wrench(batch, wrench)
-    parts = _compliance_parts(model, batch) if any(e.kind == "wrench" for e in effects) else None
-    blocks = [_effect_position_jacobian(model, e, batch, wrench, F_true, parts) for e in effects]
+    through = model.wrench_to_pose()
+    blocks = [e.pose_regressor(batch, wrench, F_true, through)[:, :3, :] for e in effects]
     return np.concatenate(blocks, axis=2)
 
 
@@ -342,7 +306,7 @@ def build_identification(
     batch = work.batch(data.q)
     # Positions are linear in theta when every free effect is a linear compliance or
     # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
-    linear = all(e.linear_in_params and e.kind in ("compliance", "geometric") for e in effects)
+    linear = all(e.pose_linear_in_params() for e in effects)
     prob = IdentificationProblem(
         model=work, effects=effects, names=names, prior=prior, data=data, batch=batch,
         mask=mask, y=np.where(mask, data.position, 0.0), free=np.ones(prior.size, dtype=bool),

@@ -15,8 +15,15 @@ from typing import Literal
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects import Effect, JointCompliance, PoseBatch, make_effect
-from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.elastostatics.effects import (
+    ComplianceEffect,
+    Effect,
+    EffectGroups,
+    JointCompliance,
+    PoseBatch,
+    make_effect,
+)
+from rfsw_plan.elastostatics.effects.base import FloatArray, WrenchToPose
 from rfsw_plan.elastostatics.springs import (
     JointSprings,
     SpringChain,
@@ -75,10 +82,10 @@ class ElastostaticModel:
         self.robot = robot
         if effects is None:
             effects = _description_effects(robot)
-        base = [e for e in effects if isinstance(e, JointCompliance)]
-        rest = [e for e in effects if not isinstance(e, JointCompliance)]
-        self.effects: list[Effect] = [base[0] if base else JointCompliance(robot), *rest]
-        self._spring_chain: tuple[tuple[tuple[str, int | None], ...], SpringChain] | None = None
+        base = EffectGroups.of(effects).joint or JointCompliance(robot)
+        self._joint_compliance = base
+        self.effects: list[Effect] = [base, *(e for e in effects if e is not base)]
+        self._spring_chain: tuple[tuple[tuple[int, bytes], ...], SpringChain] | None = None
         labels = self.labels
         dup = {x for x in labels if labels.count(x) > 1}
         if dup:
@@ -110,9 +117,23 @@ class ElastostaticModel:
     @property
     def joint_compliance(self) -> JointCompliance:
         """The base joint-compliance effect."""
-        eff = self.effects[0]
-        assert isinstance(eff, JointCompliance)
-        return eff
+        return self._joint_compliance
+
+    @property
+    def groups(self) -> EffectGroups:
+        """The effects sorted by how the model evaluates them (each effect joins its group,
+        :meth:`Effect.join`)."""
+        return EffectGroups.of(self.effects)
+
+    def springs(self) -> list[JointSprings]:
+        """The spring effects (:meth:`ComplianceEffect.joint_springs`) with their current
+        compliances, in model order."""
+        out: list[JointSprings] = []
+        for e in self.groups.springs:
+            axes = e.joint_springs()
+            assert axes is not None and e.joint is not None  # how the effect joined
+            out.append(JointSprings(e.joint, axes, e.params))
+        return out
 
     @property
     def stiffness(self) -> FloatArray:
@@ -132,38 +153,59 @@ class ElastostaticModel:
         """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6)).copy()
         logged = F.copy()
-        for e in self.effects:
-            if e.kind == "wrench":
-                F += e.delta_wrench(batch, logged, e.params)
+        for e in self.groups.wrench:
+            F += e.delta_wrench(batch, logged, e.params)
         return F
 
-    def _springs(self) -> tuple[list[JointSprings], list[Effect]]:
-        """The spring effects (:meth:`Effect.joint_springs`) with their current compliances,
-        and every other effect, in model order."""
-        springs: list[JointSprings] = []
-        others: list[Effect] = []
-        for e in self.effects:
-            axes = e.joint_springs() if e.kind == "compliance" else None
-            if axes is None or e.joint is None:
-                others.append(e)
-            else:
-                springs.append(JointSprings(e.joint, axes, e.params))
-        return springs, others
-
-    def linear_compliance(self, batch: PoseBatch) -> tuple[FloatArray, list[Effect]]:
+    def linear_compliance(self, batch: PoseBatch) -> tuple[FloatArray, list[ComplianceEffect]]:
         """Cartesian compliance (m, 6, 6) of the wrench-linear compliance effects, and the
         compliance effects that are not linear in the wrench (no Cartesian compliance)."""
-        springs, others = self._springs()
-        C = spring_compliance(batch, springs)
-        nonlinear: list[Effect] = []
-        for e in others:
-            if e.kind == "compliance":
-                Ce = e.cartesian_compliance(batch, e.params)
-                if Ce is None:
-                    nonlinear.append(e)
-                else:
-                    C += Ce
+        C = spring_compliance(batch, self.springs())
+        nonlinear: list[ComplianceEffect] = []
+        for e in self.groups.compliance:
+            Ce = e.cartesian_compliance(batch, e.params)
+            if Ce is None:
+                nonlinear.append(e)
+            else:
+                C += Ce
         return C, nonlinear
+
+    def deflection_jvp(
+        self, batch: PoseBatch, wrench: FloatArray, dF: FloatArray,
+        parts: tuple[FloatArray, list[ComplianceEffect]] | None = None,
+    ) -> FloatArray:
+        """d(deflection)/dF applied to wrench directions: (d dX/dF) dF, shape (m, 6, p).
+
+        Args:
+            batch: Poses.
+            wrench: True wrench [N, N m], base frame, (m, 6), where the derivative is taken.
+            dF: Wrench directions [N, N m per unit], (m, 6, p).
+            parts: :meth:`linear_compliance` of the batch, if already computed.
+        """
+        C, nonlinear = parts if parts is not None else self.linear_compliance(batch)
+        out = np.matmul(C, dF)  # linear compliance part
+        for e in nonlinear:
+            # Non-linear-in-wrench compliance: directional finite difference per column.
+            base = e.deflection(batch, wrench, e.params)
+            for k in range(dF.shape[2]):
+                h = 1e-6 * max(1.0, float(np.max(np.abs(wrench))))
+                scale = np.max(np.abs(dF[:, :, k])) or 1.0
+                step = dF[:, :, k] / scale * h
+                moved = e.deflection(batch, wrench + step, e.params)
+                out[:, :, k] += (moved - base) / h * scale
+        return out
+
+    def wrench_to_pose(self) -> WrenchToPose:
+        """:meth:`deflection_jvp` that computes the linear compliance of a batch once (for
+        the identification Jacobian of several wrench effects)."""
+        last: list[tuple[PoseBatch, tuple[FloatArray, list[ComplianceEffect]]]] = []
+
+        def through(batch: PoseBatch, wrench: FloatArray, dF: FloatArray) -> FloatArray:
+            if not last or last[0][0] is not batch:
+                last[:] = [(batch, self.linear_compliance(batch))]
+            return self.deflection_jvp(batch, wrench, dF, last[0][1])
+
+        return through
 
     def cartesian_compliance(self, batch: PoseBatch) -> FloatArray:
         """Cartesian compliance of the wrench-linear compliance effects, shape (m, 6, 6)."""
@@ -177,13 +219,12 @@ class ElastostaticModel:
         (:func:`~rfsw_plan.elastostatics.springs.spring_deflection`).
         """
         F = self.true_wrench(batch, wrench)
-        springs, others = self._springs()
-        dX = spring_deflection(batch, springs, F)
-        for e in others:
-            if e.kind == "compliance":
-                dX += e.deflection(batch, F, e.params)
-            elif e.kind == "geometric":
-                dX += e.offset(batch, e.params)
+        groups = self.groups
+        dX = spring_deflection(batch, self.springs(), F)
+        for e in groups.compliance:
+            dX += e.deflection(batch, F, e.params)
+        for g in groups.geometric:
+            dX += g.offset(batch, g.params)
         return dX
 
     def deflection(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
@@ -197,9 +238,8 @@ class ElastostaticModel:
         if self.is_spring_model():
             if single:
                 return self._spring_deflection_single(q, wrench)
-            springs, _ = self._springs()
             return chain_spring_deflection(self.robot, q, wrench, self.joint_compliance.params,
-                                           springs)
+                                           self.springs())
         batch = self.batch(q)
         dX = self.deflection_batch(batch, np.atleast_2d(wrench))
         return dX[0] if single else dX
@@ -211,14 +251,13 @@ class ElastostaticModel:
         virtual joint per spring (:class:`~rfsw_plan.elastostatics.springs.SpringChain`) is
         built once per effect layout.
         """
-        springs = self.effects[1:]
-        key = tuple((e.name, e.joint) for e in springs)
+        springs = self.springs()
+        key = tuple((s.joint, s.axes.tobytes()) for s in springs)
         if self._spring_chain is None or self._spring_chain[0] != key:
-            layout = [(int(e.joint), axes) for e in springs
-                      if e.joint is not None and (axes := e.joint_springs()) is not None]
+            layout = [(s.joint, s.axes) for s in springs]
             self._spring_chain = (key, SpringChain(self.robot, layout))
         chain = self._spring_chain[1]
-        c_springs = np.concatenate([e.params for e in springs])
+        c_springs = np.concatenate([s.compliance for s in springs])
         return chain.deflection(np.asarray(q, dtype=float), wrench,
                                 self.joint_compliance.params, c_springs)
 
@@ -299,7 +338,7 @@ class ElastostaticModel:
     def has_load_independent_part(self) -> bool:
         """True if the model deflects the TCP at zero logged wrench (wrench or geometric
         effects such as payload gravity or kinematic offsets)."""
-        return any(e.kind in ("wrench", "geometric") for e in self.effects)
+        return any(e.load_independent for e in self.effects)
 
     def predict_position(self, q: FloatArray, wrench: FloatArray) -> FloatArray:
         """Loaded TCP position [m], base frame: FK(q) + dX_translation; shape (m, 3)."""
@@ -313,11 +352,10 @@ class ElastostaticModel:
 
     def is_spring_model(self) -> bool:
         """True if every effect after the joint compliance is a spring effect
-        (:meth:`Effect.joint_springs`, e.g. tilting compliance): linear in the wrench, and a
-        single pose is one Pinocchio Jacobian call."""
-        return not self.robot.has_link_masses and all(
-            e.kind == "compliance" and e.joint is not None and e.joint_springs() is not None
-            for e in self.effects[1:])
+        (:meth:`ComplianceEffect.joint_springs`, e.g. tilting compliance): linear in the
+        wrench, and a single pose is one Pinocchio Jacobian call."""
+        return (not self.robot.has_link_masses
+                and len(self.groups.springs) == len(self.effects) - 1)
 
     # -- storage -----------------------------------------------------------------------------
     def to_description(self, source_note: str | None = None) -> RobotDescription:

@@ -22,22 +22,27 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, UnreachableError
 from rfsw_plan.planning.baselines import (
     BaselinePlan,
     branch_seeds,
+    commanded_poses,
+    ik_paths,
     metrics,
     mirror_compensation,
     no_compensation,
 )
+from rfsw_plan.planning.coarse import interpolate_coarse, project_fine, subsample_task
 from rfsw_plan.planning.nlp import (
+    _POINT_CACHE,
+    PlanNLP,
+    _model_key,
     build_plan_nlp,
     nlp_prediction,
     solve_plan_nlp,
@@ -92,22 +97,6 @@ def tool_is_coaxial(robot: Robot, tol: float = 1e-9) -> bool:
     return bool(np.linalg.norm(np.cross(a, T[:3, 2])) < tol
                 and np.linalg.norm(np.cross(a, T[:3, 3])) < tol * max(1.0, float(
                     np.linalg.norm(T[:3, 3]))) * 1e3)
-
-
-def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, NDArray[np.int_]]:
-    """The stationary waypoints and about ``max_weld`` evenly spread weld waypoints (first and
-    last included), and their indices; the task itself if it is that small."""
-    m, K = task.n_start, len(task)
-    if K - m <= max_weld:
-        return task, np.arange(K)
-    weld = np.unique(np.round(np.linspace(m, K - 1, max_weld)).astype(int))
-    idx = np.concatenate([np.arange(m), weld])
-    fr = task.frames
-    frames = type(fr)(*(getattr(fr, a)[idx] for a in ("s", "p", "t", "l", "n")))
-    sub = PlanTask(frames, task.target[idx], task.force_seam[idx], task.moment_base[idx],
-                   task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed,
-                   task.reference)
-    return sub, idx
 
 
 def start_objective(model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
@@ -171,13 +160,15 @@ def choose_branch(
         for name, seed in seeds for k in range(n_rot)
     ]
     cref = np.nan
-    for name, seed, rotation in starts:
-        try:
-            taught = no_compensation(robot, coarse, seed, rotation)
-        except UnreachableError as exc:
-            first_err = first_err or exc
-            infos.append(BranchInfo(name, False, nan_q, np.nan, np.nan, str(exc)))
+    zero = np.zeros((len(coarse), 3))
+    paths = ik_paths(robot, np.stack([commanded_poses(coarse, zero, rot) for _, _, rot in starts]),
+                     np.stack([seed for _, seed, _ in starts]), s=coarse.s)
+    for (name, _, rotation), path in zip(starts, paths, strict=True):
+        if isinstance(path, UnreachableError):
+            first_err = first_err or path
+            infos.append(BranchInfo(name, False, nan_q, np.nan, np.nan, str(path)))
             continue
+        taught = BaselinePlan("none", path, zero)
         if rotation == opts.tool_rotation:
             taught_start.setdefault(name, taught.q[0])
         if any(np.allclose(taught.q, c[3], atol=1e-4) for c in cands):
@@ -206,7 +197,10 @@ def choose_branch(
     note = ""
     for _, _, name, q_coarse, rotation in cands:
         try:
-            taught = no_compensation(robot, task, q_coarse[0], rotation)
+            near = None
+            if coarse is not task:
+                near = interpolate_coarse(task, idx, q_coarse)
+            taught = no_compensation(robot, task, q_coarse[0], rotation, q_near=near)
         except UnreachableError as exc:
             note = str(exc)
             continue
@@ -299,30 +293,7 @@ def plan_task(
             log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
 
     t0 = time.perf_counter()
-    nlp = build_plan_nlp(model, task, window, warm.q, warm.offsets, opts,
-                         compile_c=compile_c, load_steps=np.diff(warm.offsets, axis=0))
-    x = nlp.x0
-    corr = np.zeros((len(task), 3))
-    iters = 0
-    sol = None
-    outer = 0
-    for outer in range(1, opts.max_outer + 1):
-        sol = solve_plan_nlp(nlp, x)
-        iters += sol.iterations
-        x = sol.x
-        pred = predict(model, task, sol.q, opts.force_uncertainty, opts.length_scale)
-        full = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
-        new_corr = full - nlp_prediction(nlp, x)
-        change = float(np.max(np.abs(new_corr - corr)))
-        kappa_ok = bool(np.all(pred.kappa <= opts.kappa_max))
-        log.info("outer %d: correction change %.3g m, max kappa %.3g", outer, change,
-                 float(np.max(pred.kappa)))
-        if change < opts.outer_tol and kappa_ok:
-            break
-        corr = new_corr
-        nlp = update_parameters(nlp, correction=corr,
-                                q_lin=None if kappa_ok else sol.q)
-    assert sol is not None
+    sol = solve_plan(model, task, window, warm, opts, compile_c)
     solve_time = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -352,12 +323,109 @@ def plan_task(
         window=window, options=opts, q=sol.q, offsets=sol.offsets,
         tool_rotation=tool_rotation_of(robot, task, sol.q), verification=ver,
         baselines=base, e_none=e_none, e_mirror=e_mirror, branch=branch, branches=infos,
-        solver_status=sol.status, iterations=iters, outer_iterations=outer,
-        skipped_effects=nlp.skipped, solve_time=solve_time, verify_time=verify_time,
+        solver_status=sol.status, iterations=sol.iterations, outer_iterations=sol.outer,
+        skipped_effects=sol.skipped, solve_time=solve_time, verify_time=verify_time,
         timing_time=timing_time, total_time=time.perf_counter() - t_all, trajectory=traj,
         model=model,
     )
 
 
-__all__ = ["choose_branch", "options_from_problem", "plan", "plan_task", "start_objective",
-           "subsample_task", "tool_is_coaxial"]
+@dataclass(frozen=True)
+class Solved:
+    """The planner's solution on the whole task.
+
+    Attributes:
+        q: Joint values [rad], (K, n).
+        offsets: Offsets (lateral, normal, along-track) [m], (K, 3).
+        success: IPOPT reported success (the coarse NLP's for the coarse-to-fine solve).
+        status: IPOPT's return status, plus how the fine plan was obtained.
+        iterations: IPOPT iterations (all solves).
+        outer: Outer correction iterations (of the last NLP solved).
+        skipped: Effects the symbolic model lacks.
+        objective: The objective of the NLP on the whole task at the solution.
+        method: ``full``, ``coarse`` (coarse NLP and exact fine projection) or
+            ``coarse+full`` (the projection failed a row; the full NLP was solved).
+        nlp: The NLP on the whole task (with its final outer correction).
+        x: Its variable vector at the solution.
+    """
+
+    q: FloatArray
+    offsets: FloatArray
+    success: bool
+    status: str
+    iterations: int
+    outer: int
+    skipped: tuple[str, ...]
+    objective: float
+    method: str
+    nlp: PlanNLP
+    x: FloatArray
+
+
+def _solve_outer(model: ElastostaticModel, nlp: PlanNLP, opts: PlanOptions,
+                 x0: FloatArray | None = None) -> tuple[Any, PlanNLP, FloatArray, int, int]:
+    """IPOPT with the outer correction loop (effects the symbolic model lacks) and the
+    re-linearisation of the singularity row; returns (solution, NLP with the last
+    correction, correction [m] (K, 3), IPOPT iterations, outer iterations)."""
+    task = nlp.task
+    x = nlp.x0 if x0 is None else x0
+    corr = np.zeros((len(task), 3))
+    iters = 0
+    sol = None
+    outer = 0
+    for outer in range(1, opts.max_outer + 1):
+        sol = solve_plan_nlp(nlp, x)
+        iters += sol.iterations
+        x = sol.x
+        pred = predict(model, task, sol.q, opts.force_uncertainty, opts.length_scale)
+        full = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
+        new_corr = full - nlp_prediction(nlp, x)
+        change = float(np.max(np.abs(new_corr - corr)))
+        kappa_ok = bool(np.all(pred.kappa <= opts.kappa_max))
+        log.info("outer %d: correction change %.3g m, max kappa %.3g", outer, change,
+                 float(np.max(pred.kappa)))
+        if change < opts.outer_tol and kappa_ok:
+            break
+        corr = new_corr
+        nlp = update_parameters(nlp, correction=corr, q_lin=None if kappa_ok else sol.q)
+    assert sol is not None
+    return sol, nlp, corr, iters, outer
+
+
+def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+               warm: BaselinePlan, opts: PlanOptions, compile_c: bool | None = None) -> Solved:
+    """The NLP on the whole task: coarse-to-fine (:mod:`rfsw_plan.planning.coarse`) or the
+    full NLP (``solver = "full"``, small tasks, or when the fine projection fails a row)."""
+    if compile_c is None:
+        compile_c = len(task) >= 200 or (*_model_key(model.physical()), True) in _POINT_CACHE
+    load_steps = np.diff(warm.offsets, axis=0)
+    fine = build_plan_nlp(model, task, window, warm.q, warm.offsets, opts, compile_c=compile_c,
+                          load_steps=load_steps)
+    sub, idx = subsample_task(task, opts.coarse_waypoints)
+    x0 = None
+    iters = 0
+    if opts.solver == "coarse" and len(sub) < len(task) and model.robot.nq == 6:
+        cnlp = build_plan_nlp(model, sub, window, warm.q[idx], warm.offsets[idx], opts,
+                              compile_c=compile_c, offset_reference=warm.offsets[idx])
+        csol, cnlp, ccorr, iters, outer = _solve_outer(model, cnlp, opts)
+        proj = project_fine(model, fine, idx, csol.q, csol.offsets, warm.q, warm.offsets,
+                            ccorr)
+        if proj.feasible and csol.success:
+            return Solved(proj.q, proj.offsets, True,
+                          f"{csol.status} (coarse NLP on {len(sub)} waypoints, exact fine "
+                          f"projection on {len(task)})", iters, outer, fine.skipped,
+                          proj.objective, "coarse", proj.nlp, proj.x)
+        log.info("coarse-to-fine: %s; solving the full NLP",
+                 "coarse NLP " + csol.status if not csol.success else
+                 f"fine row {proj.violations[0][0]} violated by {proj.violations[0][1]:.3g}")
+        if np.all(np.isfinite(proj.x)):
+            x0 = proj.x
+        fine = proj.nlp
+    sol, fine, _, it, outer = _solve_outer(model, fine, opts, x0)
+    method = "full" if x0 is None and iters == 0 else "coarse+full"
+    return Solved(sol.q, sol.offsets, sol.success, sol.status, iters + it, outer, fine.skipped,
+                  sol.objective, method, fine, sol.x)
+
+
+__all__ = ["Solved", "choose_branch", "options_from_problem", "plan", "plan_task", "solve_plan",
+           "start_objective", "subsample_task", "tool_is_coaxial"]

@@ -77,11 +77,123 @@ def ik_path(
     return Q
 
 
-def _rotation_log(R: FloatArray) -> FloatArray:
-    """Rotation vectors of rotation matrices (m, 3, 3), shape (m, 3) [rad]."""
-    from scipy.spatial.transform import Rotation
+def ik_paths(
+    robot: Robot, poses: FloatArray, q_seeds: FloatArray, tol: float = 1e-7,
+    s: FloatArray | None = None, max_jump: float = 0.5,
+) -> list[FloatArray | UnreachableError]:
+    """:func:`ik_path` for several starts at once: poses (S, K, 4, 4), seeds (S, n) [rad].
 
-    return np.asarray(Rotation.from_matrix(R).as_rotvec())
+    The same damped least-squares iteration as :func:`~rfsw_plan.robot.ik.solve_ik` (step
+    capped at 0.3 rad, joint limits clipped, same tolerance), batched:
+
+    1. the first waypoint of every start from its seed;
+    2. every other waypoint of every start from that start's first solution, all at once;
+    3. a start whose path does not converge everywhere or jumps between neighbours by more
+       than ``max_jump`` [rad] (it left the branch) is redone by continuation along the
+       waypoints like :func:`ik_path` (each step batched over those starts).
+
+    Returns:
+        Per start the joint values (K, n), or the :class:`UnreachableError` naming the first
+        waypoint it cannot reach.
+    """
+    S, K = poses.shape[:2]
+    n = robot.nq
+    seeds = np.array(q_seeds, dtype=float).reshape(S, n)
+    q0, ok0, ep0, er0 = _batch_ik(robot, poses[:, 0], seeds, tol, 400)
+    out = np.repeat(q0[:, None], K, axis=1)
+    errors: dict[int, UnreachableError] = {}
+    for i in np.flatnonzero(~ok0):
+        errors[int(i)] = _unreachable(poses[i], s, 0, ep0[i], er0[i])
+    good = np.flatnonzero(ok0)
+    redo: list[int] = []
+    if K > 1 and len(good):
+        flat = poses[good, 1:].reshape(-1, 4, 4)
+        qa, oka, _, _ = _batch_ik(robot, flat, np.repeat(q0[good], K - 1, axis=0), tol, 200)
+        out[good, 1:] = qa.reshape(len(good), K - 1, n)
+        oka = oka.reshape(len(good), K - 1)
+        for j, g in enumerate(good):
+            jump = float(np.max(np.abs(np.diff(out[g], axis=0))))
+            if not np.all(oka[j]) or jump > max_jump:
+                redo.append(int(g))
+    if redo:  # continuation, batched over the starts that need it
+        act = np.array(redo)
+        alive = np.ones(len(act), dtype=bool)
+        for k in range(1, K):
+            live = act[alive]
+            if not len(live):
+                break
+            qk, okk, ep, er = _batch_ik(robot, poses[live, k], out[live, k - 1], tol, 400)
+            out[live, k] = qk
+            for jj in np.flatnonzero(~okk):
+                errors[int(live[jj])] = _unreachable(poses[live[jj]], s, k, ep[jj], er[jj])
+            alive[np.flatnonzero(alive)[~okk]] = False
+    return [errors.get(i, out[i]) for i in range(S)]
+
+
+def _unreachable(poses: FloatArray, s: FloatArray | None, k: int, ep: float, er: float
+                 ) -> UnreachableError:
+    s_k = float(s[k]) * 1e3 if s is not None else _s(poses, k)
+    return UnreachableError(
+        f"seam waypoint {k} (s = {s_k:.1f} mm) is unreachable: "
+        f"the closest pose within the joint limits misses it by "
+        f"{ep * 1e3:.2f} mm and {np.rad2deg(er):.2f} deg")
+
+
+def _batch_ik(robot: Robot, poses: FloatArray, Q: FloatArray, tol: float, max_iter: int,
+              damping: float = 1e-6) -> tuple[FloatArray, NDArray[np.bool_], FloatArray,
+                                              FloatArray]:
+    """Damped least-squares IK of poses (m, 4, 4) from Q (m, n), as
+    :func:`~rfsw_plan.robot.ik.solve_ik`, all at once. Returns q, converged, position and
+    rotation errors [m, rad]."""
+    lo, hi = robot.description.lower, robot.description.upper
+    q = np.array(Q, dtype=float)
+    m = len(q)
+    run = np.ones(m, dtype=bool)
+    ep = np.full(m, np.inf)
+    er = np.full(m, np.inf)
+    eye = damping * np.eye(6)
+    for _ in range(max_iter):
+        idx = np.flatnonzero(run)
+        T, J = robot.batch_fk_jacobian(q[idx])[:2]
+        target = poses[idx]
+        e_p = target[:, :3, 3] - T[:, :3, 3]
+        e_r = _rotation_log(target[:, :3, :3] @ np.transpose(T[:, :3, :3], (0, 2, 1)))
+        ep[idx], er[idx] = np.linalg.norm(e_p, axis=1), np.linalg.norm(e_r, axis=1)
+        done = (ep[idx] < tol) & (er[idx] < tol)
+        run[idx[done]] = False
+        if not np.any(run):
+            break
+        keep = ~done
+        Jk = J[keep]
+        b = np.hstack([e_p, e_r])[keep][:, :, None]
+        dq = (np.transpose(Jk, (0, 2, 1))
+              @ np.linalg.solve(Jk @ np.transpose(Jk, (0, 2, 1)) + eye, b))[:, :, 0]
+        step = np.max(np.abs(dq), axis=1)
+        dq *= np.minimum(1.0, 0.3 / np.maximum(step, 1e-300))[:, None]
+        moving = idx[keep]
+        q[moving] = np.clip(q[moving] + dq, lo, hi)
+    return q, ~run, ep, er
+
+
+def _rotation_log(R: FloatArray) -> FloatArray:
+    """Rotation vectors of rotation matrices (m, 3, 3), shape (m, 3) [rad].
+
+    From the skew part (theta / sin theta (R - R^T)^v / 2) where the angle is below 2.5 rad;
+    SciPy's quaternion route for larger angles, where the skew part loses precision."""
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                        R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    sin = np.linalg.norm(v, axis=1)
+    cos = 0.5 * (np.trace(R, axis1=1, axis2=2) - 1.0)
+    theta = np.arctan2(sin, cos)
+    small = sin < 1e-12
+    scale = np.where(small, 1.0, theta / np.where(small, 1.0, sin))
+    out = v * scale[:, None]
+    big = theta > 2.5
+    if np.any(big):
+        from scipy.spatial.transform import Rotation
+
+        out[big] = Rotation.from_matrix(R[big]).as_rotvec()
+    return np.asarray(out)
 
 
 def refine_path(
@@ -228,10 +340,17 @@ class BaselinePlan:
 
 
 def no_compensation(robot: Robot, task: PlanTask, q_seed: FloatArray,
-                    rotation: float = 0.0) -> BaselinePlan:
-    """Baseline 1: taught to the seam, no offsets."""
+                    rotation: float = 0.0, q_near: FloatArray | None = None) -> BaselinePlan:
+    """Baseline 1: taught to the seam, no offsets.
+
+    With ``q_near`` (K, n) [rad], a nearby path on the wanted branch (e.g. a coarse taught
+    path interpolated), the path is found by batched Newton steps from it
+    (:func:`refine_path`), else by IK continuation from ``q_seed`` (:func:`ik_path`)."""
     off = np.zeros((len(task), 3))
-    q = ik_path(robot, commanded_poses(task, off, rotation), q_seed, s=task.s)
+    poses = commanded_poses(task, off, rotation)
+    if q_near is not None:
+        return BaselinePlan("none", refine_path(robot, poses, q_near, s=task.s), off)
+    q = ik_path(robot, poses, q_seed, s=task.s)
     return BaselinePlan("none", q, off)
 
 

@@ -56,19 +56,11 @@ with K. Built solvers are cached by (model, K).
 
 from __future__ import annotations
 
-import ctypes
-import hashlib
 import logging
-import os
-import shutil
-import subprocess
-import tempfile
 import time
 from collections import OrderedDict
-from collections.abc import Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, replace
-from pathlib import Path
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import casadi as ca
@@ -76,6 +68,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.planning.casadi_ import compile_functions, single_thread_blas
 from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
 from rfsw_plan.process.task import PlanTask, offsets3
@@ -96,17 +89,108 @@ POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "no
 #: Offset components per waypoint (lateral, normal, along-track).
 N_OFF = 3
 _NG = len(POINT_CONSTRAINTS)
-#: Global scalars passed to every waypoint: 5 weights, compliance reference, window centre and
-#: half width [mm], 1 / K, proximity weight, share of the stiffness weight on the mean.
-N_GLOB = 11
 #: Smoothing of |x| in the worst case [mm]: sqrt(x^2 + eps^2) over-estimates |x| by at most eps.
 ABS_EPS = 1e-2
 
 
+@dataclass(frozen=True)
+class Layout:
+    """Named, contiguous slices of a flat vector, in order.
+
+    One object describes a vector for both sides: :meth:`split` cuts a CasADi symbol (or a
+    numpy row) into named parts, :meth:`pack` assembles numeric rows by name, so the symbolic
+    unpack and the numeric pack cannot disagree on positions.
+
+    Attributes:
+        fields: ``(name, width)`` pairs in order.
+    """
+
+    fields: tuple[tuple[str, int], ...]
+    _slices: dict[str, slice] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        sl: dict[str, slice] = {}
+        i = 0
+        for name, width in self.fields:
+            if name in sl or width < 0:
+                raise ValueError(f"layout field {name!r} repeated or of negative width")
+            sl[name] = slice(i, i + width)
+            i += width
+        object.__setattr__(self, "_slices", sl)
+
+    @property
+    def size(self) -> int:
+        """Length of the vector."""
+        return sum(w for _, w in self.fields)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """Field names in order."""
+        return tuple(name for name, _ in self.fields)
+
+    def __getitem__(self, name: str) -> slice:
+        return self._slices[name]
+
+    def split(self, v: Any) -> dict[str, Any]:
+        """The named parts of a vector v (CasADi column or numpy array: last axis)."""
+        if isinstance(v, np.ndarray):
+            return {name: v[..., sl] for name, sl in self._slices.items()}
+        return {name: v[sl] for name, sl in self._slices.items()}
+
+    def pack(self, rows: int, values: Mapping[str, Any]) -> FloatArray:
+        """Numeric rows (rows, size) from every field by name (broadcast to (rows, width)).
+
+        Raises:
+            KeyError: A field is missing or a name is not in the layout.
+        """
+        unknown = set(values) - set(self._slices)
+        missing = set(self._slices) - set(values)
+        if unknown or missing:
+            raise KeyError(f"layout fields unknown {sorted(unknown)} / missing {sorted(missing)}")
+        out = np.empty((rows, self.size))
+        for name, sl in self._slices.items():
+            width = sl.stop - sl.start
+            out[:, sl] = np.broadcast_to(
+                np.asarray(values[name], dtype=float).reshape(-1, width)
+                if np.ndim(values[name]) else float(values[name]), (rows, width))
+        return out
+
+
+def point_layout(n: int) -> Layout:
+    """Per-waypoint parameters: nominal target [m], seam frame t, l, n, wrench (base frame)
+    [N, Nm], force spread u |f| per seam component [N], outer correction (lateral, normal,
+    along-track) [mm], singularity row (sign, floor, det at q_lin, q_lin [rad], d det / dq),
+    weld flag."""
+    return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
+                   ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
+                   ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1)))
+
+
+#: Global scalars passed to every waypoint: the objective weights, the lateral compliance
+#: reference [mm/kN], window centre and half width [mm], 1 / K and the share of the stiffness
+#: weight on the mean (1 - ``min_stiffness_share``).
+GLOBALS = Layout((("w_stiffness", 1), ("w_worst", 1), ("w_robust", 1), ("w_centre", 1),
+                  ("w_depth", 1), ("compliance_ref", 1), ("centre", 1), ("half_width", 1),
+                  ("inv_k", 1), ("w_proximity", 1), ("mean_share", 1)))
+N_GLOB = GLOBALS.size
+
+
+def variable_layout(n: int) -> Layout:
+    """Variables per waypoint: q [rad] (n), offsets [mm] (3), sigma [mm]."""
+    return Layout((("q", n), ("offsets", N_OFF), ("sigma", 1)))
+
+
+def problem_layout(n: int, K: int) -> Layout:
+    """The whole parameter vector: K waypoints' parameters (waypoint-major), 1 / link length
+    [1/m] (K - 1), the globals, the smoothing weights and the window bounds [mm]."""
+    return Layout((("points", point_layout(n).size * K), ("inv_link", max(K - 1, 0)),
+                   ("globals", N_GLOB), ("w_smooth_q", 1), ("w_smooth_o", 1),
+                   ("lower", 1), ("upper", 1)))
+
+
 def n_par(n: int) -> int:
-    """Per-waypoint parameters: target(3) t(3) l(3) n(3) F(6) u|f|(3) corr(3) det sign,
-    floor, value (3), q at linearisation (n), d det / dq (n), weld flag (1)."""
-    return 28 + 2 * n
+    """Per-waypoint parameters (see :func:`point_layout`)."""
+    return point_layout(n).size
 
 
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
@@ -148,7 +232,8 @@ class PointFunctions:
 
 
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
-_SOLVER_CACHE: OrderedDict[tuple[object, ...], tuple[ca.Function, ca.Function]] = OrderedDict()
+_SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
+_EVAL_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 
 
 def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointFunctions:
@@ -164,15 +249,16 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
         return _POINT_CACHE[key]
     robot = model.robot
     n = robot.nq
-    w = ca.SX.sym("w", n + N_OFF + 1)
-    par = ca.SX.sym("par", n_par(n))
+    vl, pl = variable_layout(n), point_layout(n)
+    w = ca.SX.sym("w", vl.size)
+    par = ca.SX.sym("par", pl.size)
     glob = ca.SX.sym("glob", N_GLOB)
-    q, o, sigma = w[:n], w[n:n + N_OFF], w[n + N_OFF]
-    target, t, l, nn = par[0:3], par[3:6], par[6:9], par[9:12]
-    F, uf, corr = par[12:18], par[18:21], par[21:24]
-    det_sign, det_floor, det0 = par[24], par[25], par[26]
-    q_lin, ddet = par[27:27 + n], par[27 + n:27 + 2 * n]
-    weld_flag = par[27 + 2 * n]
+    v, pp, gl = vl.split(w), pl.split(par), GLOBALS.split(glob)
+    q, o, sigma = v["q"], v["offsets"], v["sigma"]
+    target, t, l, nn = pp["target"], pp["t"], pp["l"], pp["n"]
+    F, uf, corr = pp["wrench"], pp["force_spread"], pp["correction"]
+    det_sign, det_floor, det0 = pp["det_sign"], pp["det_floor"], pp["det_value"]
+    q_lin, ddet, weld_flag = pp["q_lin"], pp["det_grad"], pp["weld"]
     ch = symbolic_chain(robot, q)
     C, skipped = symbolic_cartesian_compliance(model, ch)
     dX = C @ F
@@ -193,11 +279,11 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
         weld_flag * cll,  # - c_max (the global epigraph variable) is added in the NLP
     )
     terms = ca.vertcat(cll, r, sigma, e, dep, along)
-    wt, cref, centre, hw, inv_k = glob[:5], glob[5], glob[6], glob[7], glob[8]
-    mean_share = glob[10]
-    phi = inv_k * (wt[0] * mean_share * cll / cref + wt[1] * r / hw + wt[2] * sigma / hw
-                   + wt[3] * ((e - centre) / hw) ** 2 + wt[4] * dep ** 2
-                   + glob[9] * ca.sumsqr(q - q_lin))
+    cref, centre, hw = gl["compliance_ref"], gl["centre"], gl["half_width"]
+    phi = gl["inv_k"] * (gl["w_stiffness"] * gl["mean_share"] * cll / cref
+                         + gl["w_worst"] * r / hw + gl["w_robust"] * sigma / hw
+                         + gl["w_centre"] * ((e - centre) / hw) ** 2 + gl["w_depth"] * dep ** 2
+                         + gl["w_proximity"] * ca.sumsqr(q - q_lin))
     lam_f = ca.SX.sym("lam_f")
     lam_g = ca.SX.sym("lam_g", _NG)
     H = ca.hessian(lam_f * phi + ca.dot(lam_g, g), w)[0]
@@ -211,7 +297,7 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     compiled = False
     fg_vm = fg_nlp = fns[1]
     if compile_c:
-        loaded = _compile(fns)
+        loaded = compile_functions(fns, "rfsw_point", fd_index=1)
         if loaded is not None:
             fns, compiled = loaded[:-1], True
             fg_nlp = loaded[-1]
@@ -223,56 +309,15 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     return pf
 
 
-def _cache_dir() -> Path:
-    root = os.environ.get("RFSW_PLAN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "rfsw_plan")
-    return Path(root)
-
-
-def _compile(fns: list[ca.Function]) -> list[ca.Function] | None:
-    """Compile functions to a shared library with the system C compiler, cached on disk by a
-    hash of their serialisation. Returns the loaded functions and, last, ``fns[1]`` again with
-    finite-difference derivatives enabled, or None (then the caller keeps the CasADi virtual
-    machine) if no compiler is available or compilation fails."""
-    cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
-    if cc is None:
-        log.info("no C compiler; the NLP runs in the CasADi virtual machine")
-        return None
-    h = hashlib.sha1(str(getattr(ca, "__version__", "")).encode())
-    for f in fns:
-        h.update(f.serialize().encode())
-    tag = h.hexdigest()[:16]
-    d = _cache_dir()
-    so = d / f"rfsw_point_{tag}.so"
-    try:
-        if not so.exists():
-            d.mkdir(parents=True, exist_ok=True)
-            t0 = time.perf_counter()
-            with tempfile.TemporaryDirectory(dir=d) as tmp:
-                cg = ca.CodeGenerator(f"rfsw_point_{tag}.c")
-                for f in fns:
-                    cg.add(f)
-                cg.generate(tmp + os.sep)
-                out = Path(tmp) / so.name
-                src = str(Path(tmp) / f"rfsw_point_{tag}.c")
-                subprocess.run([cc, "-O1", "-shared", "-fPIC", src, "-o", str(out)],
-                               check=True, capture_output=True, timeout=600)
-                os.replace(out, so)
-            log.info("compiled the NLP point functions in %.1f s (%s)", time.perf_counter() - t0,
-                     so)
-        return ([ca.external(f.name(), str(so)) for f in fns]
-                + [ca.external(fns[1].name(), str(so), {"enable_fd": True})])
-    except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
-        log.warning("compiling the NLP functions failed (%s); using the virtual machine", exc)
-        return None
-
-
 @dataclass(frozen=True)
 class PlanNLP:
     """A built, unsolved planning NLP; everything needed to inspect or solve it.
 
+    The IPOPT solver itself (:attr:`solver`) is built on first use: a plan that only
+    evaluates the NLP (the fine level of the coarse-to-fine solve) never pays for it.
+
     Attributes:
-        solver: The CasADi ``nlpsol`` (IPOPT, exact Hessian, MUMPS).
+        cache_key: Key of the built solver (model, K, tolerances).
         nlp_function: ``(x, p) -> (f, g)`` for numeric inspection.
         point: The per-waypoint functions.
         robot: The robot.
@@ -286,7 +331,7 @@ class PlanNLP:
         p: Parameter vector.
     """
 
-    solver: ca.Function
+    cache_key: tuple[object, ...]
     nlp_function: ca.Function
     point: PointFunctions
     robot: Robot
@@ -316,10 +361,31 @@ class PlanNLP:
         return self.n_joints + N_OFF + 1
 
     @property
+    def layout(self) -> Layout:
+        """Layout of the parameter vector ``p`` (see :func:`problem_layout`)."""
+        return problem_layout(self.n_joints, self.n_waypoints)
+
+    @property
     def par(self) -> FloatArray:
-        """Per-waypoint parameters, shape (K, n_par)."""
+        """Per-waypoint parameters, shape (K, n_par) (columns: :func:`point_layout`)."""
         K = self.n_waypoints
-        return self.p[: K * n_par(self.n_joints)].reshape(K, n_par(self.n_joints))
+        return self.p[self.layout["points"]].reshape(K, n_par(self.n_joints))
+
+    def point_parameter(self, name: str) -> FloatArray:
+        """One per-waypoint parameter by name (:func:`point_layout`), shape (K, width)."""
+        return self.par[:, point_layout(self.n_joints)[name]]
+
+    @property
+    def solver(self) -> ca.Function:
+        """The CasADi ``nlpsol`` (IPOPT, exact Hessian, MUMPS); built on first use and cached
+        by (model, K, tolerances)."""
+        key = self.cache_key
+        if key not in _SOLVER_CACHE:
+            _SOLVER_CACHE[key] = _build_solver(self.point, self.n_waypoints, self.n_joints,
+                                               self.options)
+            while len(_SOLVER_CACHE) > 6:
+                _SOLVER_CACHE.popitem(last=False)
+        return _SOLVER_CACHE[key]
 
     def constraint_names(self) -> list[str]:
         """Name of every constraint row, e.g. ``window[12]`` or ``joint_step_q3[4]``."""
@@ -343,7 +409,7 @@ class PlanNLP:
         """Per-waypoint (g (K, 12), terms (K, 6), dX (K, 6)) at x (the NLP's own model)."""
         K = self.n_waypoints
         W = np.asarray(x, dtype=float)[: K * self.n_w].reshape(K, self.n_w)
-        g, t, dx = self.point.info.map(K)(W.T, self.par.T)
+        g, t, dx = _info_map(self.point, K)(W.T, self.par.T)
         return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
 
     def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
@@ -356,9 +422,9 @@ class PlanNLP:
         x = np.append(W.reshape(-1), 0.0)
         _, terms, _ = self.point_values(x)
         e, r = terms[:, 3], terms[:, 1]
-        lo, hi = self.p[-2], self.p[-1]  # window [mm]
+        lo, hi = self.p[self.layout["lower"]][0], self.p[self.layout["upper"]][0]  # [mm]
         W[:, n + N_OFF] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
-        c_max = float(np.max(terms[:, 0] * self.par[:, -1]))
+        c_max = float(np.max(terms[:, 0] * self.point_parameter("weld")[:, 0]))
         return np.append(W.reshape(-1), c_max)
 
     def evaluate(self, x: FloatArray) -> tuple[float, FloatArray]:
@@ -375,30 +441,58 @@ class PlanNLP:
         return [(names[i], float(v[i])) for i in np.flatnonzero(v > tol)]
 
 
-def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
-                  ) -> tuple[ca.Function, ca.Function]:
-    nw, npar = n + N_OFF + 1, n_par(n)
+_INFO_MAPS: OrderedDict[tuple[int, int], ca.Function] = OrderedDict()
+
+
+def _info_map(pf: PointFunctions, K: int) -> ca.Function:
+    """``pf.info`` mapped over K waypoints (cached: building a map costs a few ms)."""
+    key = (id(pf), K)
+    if key not in _INFO_MAPS:
+        _INFO_MAPS[key] = pf.info.map(K)
+        while len(_INFO_MAPS) > 16:
+            _INFO_MAPS.popitem(last=False)
+    return _INFO_MAPS[key]
+
+
+@dataclass(frozen=True)
+class _Expressions:
+    """The NLP's MX graph, shared by the evaluation function and the solver."""
+
+    X: ca.MX
+    P: ca.MX
+    W: ca.MX
+    PAR: ca.MX
+    GLOB: ca.MX
+    glob: ca.MX
+    c_max: ca.MX
+    f: ca.MX
+    g: ca.MX
+    fs: ca.MX
+
+
+def _mapped(f: ca.Function, K: int) -> ca.Function:
+    return f.map(K, "thread", 2) if K >= 256 else f.map(K)
+
+
+def _expressions(pf: PointFunctions, K: int, n: int) -> _Expressions:
+    nw, npar = variable_layout(n).size, n_par(n)
     X = ca.MX.sym("x", nw * K + 1)
     W = ca.reshape(X[: nw * K], nw, K)
     c_max = X[nw * K]  # epigraph of the weld waypoints' lateral compliance [mm/kN]
-    P = ca.MX.sym("p", npar * K + (K - 1) + N_GLOB + 4)
-    PAR = ca.reshape(P[: npar * K], npar, K)
-    off = npar * K
-    hinv = P[off:off + K - 1].T
-    glob = P[off + K - 1: off + K - 1 + N_GLOB]
-    wq, wo = P[off + K - 1 + N_GLOB], P[off + K + N_GLOB]
+    lay = problem_layout(n, K)
+    P = ca.MX.sym("p", lay.size)
+    pv = lay.split(P)
+    PAR = ca.reshape(pv["points"], npar, K)
+    hinv = pv["inv_link"].T
+    glob = pv["globals"]
+    gl = GLOBALS.split(glob)
+    wq, wo = pv["w_smooth_q"], pv["w_smooth_o"]
     GLOB = ca.repmat(glob, 1, K)
-
-    def mapped(f: ca.Function) -> ca.Function:
-        return f.map(K, "thread", 2) if K >= 256 else f.map(K)
-
-    phi, G = mapped(pf.fg_nlp)(W, PAR, GLOB)
+    phi, G = _mapped(pf.fg_nlp, K)(W, PAR, GLOB)
     # The weakest waypoint's share of the stiffness term: w_stiffness (1 - share) c_max / cref.
-    f = ca.sum2(phi) + glob[0] * (1 - glob[10]) * c_max / glob[5]
+    f = ca.sum2(phi) + gl["w_stiffness"] * (1 - gl["mean_share"]) * c_max / gl["compliance_ref"]
     cap = np.zeros(_NG)
     cap[_NG - 1] = 1.0
-    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_NG - 1, _NG * K, _NG)),
-                                        [0] * K), -1.0)
     g_parts = [ca.vec(G) - ca.repmat(ca.DM(cap), K, 1) * c_max]
     fs = ca.MX(0)
     if K > 1:
@@ -407,13 +501,38 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
         fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
               + wo * ca.sumsqr(1e-3 * do[:2, :] * ca.repmat(hinv, 2, 1))) / (K - 1)
         g_parts.append(ca.vec(ca.vertcat(dq, do)))
-    f = f + fs
-    g = ca.vertcat(*g_parts)
+    return _Expressions(X, P, W, PAR, GLOB, glob, c_max, f + fs, ca.vertcat(*g_parts), fs)
+
+
+def _build_eval(pf: PointFunctions, K: int, n: int) -> ca.Function:
+    e = _expressions(pf, K, n)
+    return ca.Function("plan_eval", [e.X, e.P], [e.f, e.g])
+
+
+#: IPOPT's MUMPS settings: AMD ordering (``mumps_pivot_order`` 0) and the monotone barrier
+#: strategy. On the banded KKT matrix of zk500_table6_seam at 1000 weld waypoints they took the
+#: solve from 2.8 s to 1.2 s (minimum of 3, same run, same 18 iterations; METIS, the default
+#: ordering, spends its time in the analysis of a matrix whose band AMD already finds).
+MUMPS_OPTIONS: dict[str, Any] = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_strategy": "monotone"}
+
+
+def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.Function:
+    nw = variable_layout(n).size
+    ex = _expressions(pf, K, n)
+    X, P, W, PAR, GLOB, glob = ex.X, ex.P, ex.W, ex.PAR, ex.GLOB, ex.glob
+    gl = GLOBALS.split(glob)
+    f, g, fs = ex.f, ex.g, ex.fs
+    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_NG - 1, _NG * K, _NG)),
+                                        [0] * K), -1.0)
+
+    def mapped(fn: ca.Function) -> ca.Function:
+        return _mapped(fn, K)
 
     # Exact derivatives, assembled from the per-waypoint blocks (block diagonal: the map's
     # horizontally stacked dense blocks have the same nonzero order as the block diagonal).
     grad = ca.vertcat(ca.vec(mapped(pf.grad)(W, PAR, GLOB)),
-                      glob[0] * (1 - glob[10]) / glob[5]) + ca.gradient(fs, X)
+                      gl["w_stiffness"] * (1 - gl["mean_share"]) / gl["compliance_ref"]
+                      ) + ca.gradient(fs, X)
     Jb = mapped(pf.jac)(W, PAR)
     J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool))), cap_col)
     if K > 1:
@@ -437,7 +556,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
         "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
         "ipopt.tol": opts.tol, "ipopt.constr_viol_tol": 1e-7, "ipopt.max_iter": opts.max_iter,
         "ipopt.linear_solver": "mumps", "ipopt.hessian_approximation": "exact",
-        "ipopt.mu_strategy": "adaptive", "ipopt.warm_start_init_point": "yes",
+        **MUMPS_OPTIONS, "ipopt.warm_start_init_point": "yes",
         # Push the warm start 1e-6 off its bounds: at 1e-9 (the warm start's sigma, slack and
         # c_max rows sit exactly on their bounds) the first steps were ~1e-8 long and IPOPT
         # needed about twice the iterations (34 instead of 18 at 1000 waypoints).
@@ -446,8 +565,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions
         "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess, "calc_lam_p": False,
     }
     nlp_dict: dict[str, Any] = {"x": X, "p": P, "f": f, "g": g}
-    solver = ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
-    return solver, ca.Function("plan_eval", [X, P], [f, g])
+    return ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
 
 
 def _link_jacobian(K: int, n: int, nw: int) -> ca.DM:
@@ -501,6 +619,7 @@ def build_plan_nlp(
     correction: FloatArray | None = None,
     compile_c: bool | None = None,
     load_steps: FloatArray | None = None,
+    offset_reference: FloatArray | None = None,
 ) -> PlanNLP:
     """Build the planning NLP (no solve).
 
@@ -520,6 +639,11 @@ def build_plan_nlp(
             along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
             offset-rate bound so the bound limits only the *extra* offset change (the force
             ramps at the weld start need offsets that follow them). None: zero.
+        offset_reference: Instead of ``load_steps``: offsets (K, 3) [m] (the mirror
+            baseline's) whose change the offset-rate rows follow, |delta (o - o_ref)| <=
+            offset rate * travel. Tighter than ``load_steps`` (|delta o| <= rate * travel +
+            |delta o_ref|); the coarse NLP uses it so that its solution, interpolated as a
+            departure from the mirror offsets, meets the fine NLP's offset-rate rows.
 
     Returns:
         The inspectable :class:`PlanNLP`.
@@ -532,33 +656,38 @@ def build_plan_nlp(
         compile_c = K >= 200 or (*_model_key(model), True) in _POINT_CACHE
     pf = point_functions(model, compile_c)
     skey = (*_model_key(model), pf.compiled, K, opts.tol, opts.max_iter)
-    if skey in _SOLVER_CACHE:
-        solver, nlp_fn = _SOLVER_CACHE[skey]
-    else:
-        solver, nlp_fn = _build_solver(pf, K, n, opts)
-        _SOLVER_CACHE[skey] = (solver, nlp_fn)
-        while len(_SOLVER_CACHE) > 6:
-            _SOLVER_CACHE.popitem(last=False)
+    ekey = skey[:-2]
+    if ekey not in _EVAL_CACHE:
+        _EVAL_CACHE[ekey] = _build_eval(pf, K, n)
+        while len(_EVAL_CACHE) > 6:
+            _EVAL_CACHE.popitem(last=False)
+    nlp_fn = _EVAL_CACHE[ekey]
 
     q_init = np.asarray(q_init, dtype=float)
     fr = task.frames
-    F = task.wrench_base
     corr = np.zeros((K, N_OFF)) if correction is None else np.asarray(correction, dtype=float)
-    PAR = np.column_stack([
-        task.target, fr.t, fr.l, fr.n, F, opts.force_uncertainty * np.abs(task.force_seam),
-        corr * 1e3, np.zeros((K, 3 + 2 * n)), (task.phase == "weld").astype(float),
-    ])
-    _set_det(PAR, robot, q_init, opts)
-    h = task.link_lengths()
+    pl = point_layout(n)
+    det = _det_parameters(robot, q_init, opts)
+    PAR = pl.pack(K, {
+        "target": task.target, "t": fr.t, "l": fr.l, "n": fr.n, "wrench": task.wrench_base,
+        "force_spread": opts.force_uncertainty * np.abs(task.force_seam),
+        "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
+    })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6
     w = opts.weights
-    glob = [w["w_stiffness"], w["w_worst"], w["w_robust"], w["w_centre"], w["w_depth"],
-            max(float(np.mean(cll0)), 1e-12), window.centre * 1e3, window.half_width * 1e3,
-            1.0 / K, w["w_proximity"], 1.0 - opts.min_stiffness_share]
-    p = np.concatenate([PAR.reshape(-1), 1.0 / h, glob,
-                        [w["w_smooth_q"], w["w_smooth_o"], window.lower * 1e3,
-                         window.upper * 1e3]])
+    glob = GLOBALS.pack(1, {
+        **{k: w[k] for k in ("w_stiffness", "w_worst", "w_robust", "w_centre", "w_depth",
+                             "w_proximity")},
+        "compliance_ref": max(float(np.mean(cll0)), 1e-12), "centre": window.centre * 1e3,
+        "half_width": window.half_width * 1e3, "inv_k": 1.0 / K,
+        "mean_share": 1.0 - opts.min_stiffness_share,
+    })
+    p = problem_layout(n, K).pack(1, {
+        "points": PAR.reshape(-1), "inv_link": 1.0 / task.link_lengths(), "globals": glob,
+        "w_smooth_q": w["w_smooth_q"], "w_smooth_o": w["w_smooth_o"],
+        "lower": window.lower * 1e3, "upper": window.upper * 1e3,
+    })[0]
 
     d = robot.description
     lbw = np.concatenate([d.lower, np.full(N_OFF, -np.inf), [0]])
@@ -567,8 +696,15 @@ def build_plan_nlp(
     lbx, ubx = np.append(np.tile(lbw, K), 0.0), np.append(np.tile(ubw, K), np.inf)
     lo, hi = window.lower * 1e3, window.upper * 1e3
     m = opts.margin * 1e3
-    lbp = np.array([0, 0, 0, 0, 0, -1.5, lo + m, lo, -np.inf, 0.0, 0.0, -np.inf])
-    ubp = np.array([0, 0, 0, 0, 0, -0.5, hi - m, np.inf, hi, 0.0, np.inf, 0.0])
+    bounds = {  # per-waypoint rows by name (:data:`POINT_CONSTRAINTS`), NLP units
+        "position_x": (0.0, 0.0), "position_y": (0.0, 0.0), "position_z": (0.0, 0.0),
+        "axis_t": (0.0, 0.0), "axis_l": (0.0, 0.0), "axis_n": (-1.5, -0.5),
+        "window": (lo + m, hi - m), "robust_lower": (lo, np.inf), "robust_upper": (-np.inf, hi),
+        "along_track": (0.0, 0.0), "singularity": (0.0, np.inf),
+        "stiffness_cap": (-np.inf, 0.0),
+    }
+    lbp = np.array([bounds[c][0] for c in POINT_CONSTRAINTS])
+    ubp = np.array([bounds[c][1] for c in POINT_CONSTRAINTS])
     lbg_parts, ubg_parts = [np.tile(lbp, K)], [np.tile(ubp, K)]
     if K > 1:
         ds = task.link_travel()
@@ -576,42 +712,42 @@ def build_plan_nlp(
         stationary = ds <= 1e-12
         o_step = (opts.offset_rate * ds + np.where(stationary, opts.offset_speed_stationary
                                                    * dt, 0.0)) * 1e3 + 1e-6
-        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None
+        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None or offset_reference is not None
                  else np.abs(offsets3(load_steps)) * 1e3)
+        centre = (np.zeros((K - 1, n + N_OFF)) if offset_reference is None else np.column_stack(
+            [np.zeros((K - 1, n)), np.diff(offsets3(offset_reference), axis=0) * 1e3]))
         link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
                                    o_step[:, None] + extra])
-        lbg_parts.append(-link_hi.reshape(-1))
-        ubg_parts.append(link_hi.reshape(-1))
-    nlp = PlanNLP(solver, nlp_fn, pf, robot, task, opts, n, np.zeros((n + N_OFF + 1) * K + 1),
+        lbg_parts.append((centre - link_hi).reshape(-1))
+        ubg_parts.append((centre + link_hi).reshape(-1))
+    nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros((n + N_OFF + 1) * K + 1),
                   lbx, ubx,
                   np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
 
 
-def _set_det(PAR: FloatArray, robot: Robot, Q: FloatArray, opts: PlanOptions) -> None:
-    n = robot.nq
+def _det_parameters(robot: Robot, Q: FloatArray, opts: PlanOptions) -> dict[str, FloatArray]:
+    """The singularity row's parameters linearised at Q (K, n) [rad], by name."""
     d0, dd = _det_linearisation(robot, Q, opts.length_scale)
-    PAR[:, 24] = np.where(d0 >= 0, 1.0, -1.0)
-    PAR[:, 25] = opts.det_fraction * np.abs(d0)
-    PAR[:, 26] = d0
-    PAR[:, 27:27 + n] = Q
-    PAR[:, 27 + n:27 + 2 * n] = dd
+    return {"det_sign": np.where(d0 >= 0, 1.0, -1.0), "det_floor": opts.det_fraction * np.abs(d0),
+            "det_value": d0, "q_lin": np.asarray(Q, dtype=float), "det_grad": dd}
 
 
 def update_parameters(nlp: PlanNLP, correction: FloatArray | None = None,
                       q_lin: FloatArray | None = None) -> PlanNLP:
     """The same NLP with a new outer correction (lateral, normal, along-track) [m] (K, 3)
     and/or the singularity constraint re-linearised at q_lin (K, n) [rad]."""
-    K = nlp.n_waypoints
+    pl = point_layout(nlp.n_joints)
     p = nlp.p.copy()
     PAR = nlp.par.copy()
     if correction is not None:
-        PAR[:, 21:24] = np.asarray(correction) * 1e3
+        PAR[:, pl["correction"]] = np.asarray(correction) * 1e3
     if q_lin is not None:
-        floor = PAR[:, 25].copy()  # the floor stays where the warm start put it
-        _set_det(PAR, nlp.robot, np.asarray(q_lin), nlp.options)
-        PAR[:, 25] = floor
-    p[: K * PAR.shape[1]] = PAR.reshape(-1)
+        det = _det_parameters(nlp.robot, np.asarray(q_lin), nlp.options)
+        det.pop("det_floor")  # the floor stays where the warm start put it
+        for name, value in det.items():
+            PAR[:, pl[name]] = value.reshape(len(PAR), -1)
+    p[nlp.layout["points"]] = PAR.reshape(-1)
     return replace(nlp, p=p)
 
 
@@ -642,45 +778,6 @@ class NLPSolution:
     objective: float
 
 
-_BLAS: list[Any] = []
-
-
-def _casadi_blas() -> Any:
-    """CasADi's own OpenBLAS (MUMPS' BLAS inside IPOPT; not numpy's), or None."""
-    if not _BLAS:
-        lib = None
-        path = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
-        if path.exists():
-            try:
-                lib = ctypes.CDLL(str(path))
-                lib.openblas_get_num_threads.restype = ctypes.c_int
-                lib.openblas_set_num_threads.argtypes = [ctypes.c_int]
-            except (OSError, AttributeError):
-                lib = None
-        _BLAS.append(lib)
-    return _BLAS[0]
-
-
-@contextmanager
-def single_thread_blas() -> Iterator[None]:
-    """Run IPOPT's MUMPS with single-threaded BLAS; the previous thread count is restored.
-
-    MUMPS' fronts on the banded KKT matrix are small: a second OpenBLAS thread only spins
-    (sched_yield) and takes the CPU from the callbacks (about 5-10 % of the solve time on two
-    cores). Only CasADi's bundled OpenBLAS is touched, numpy's BLAS is a separate library.
-    """
-    lib = _casadi_blas()
-    if lib is None:
-        yield
-        return
-    before = int(lib.openblas_get_num_threads())
-    lib.openblas_set_num_threads(1)
-    try:
-        yield
-    finally:
-        lib.openblas_set_num_threads(before)
-
-
 def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
     """Solve a built NLP with IPOPT, warm-started from ``x0`` (default ``nlp.x0``)."""
     t0 = time.perf_counter()
@@ -703,4 +800,4 @@ def nlp_prediction(nlp: PlanNLP, x: FloatArray) -> FloatArray:
     """The NLP's own predicted (lateral, normal, along-track) pin error [m] at x, without the
     outer correction, shape (K, 3)."""
     _, terms, _ = nlp.point_values(x)
-    return (terms[:, [3, 4, 5]] - nlp.par[:, 21:24]) * 1e-3
+    return (terms[:, [3, 4, 5]] - nlp.point_parameter("correction")) * 1e-3

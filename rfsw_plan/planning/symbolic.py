@@ -12,8 +12,6 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from rfsw_plan.elastostatics.effects import JointCompliance, TiltingCompliance
-from rfsw_plan.elastostatics.effects.tilting_compliance import _normal_axes
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.robot.kinematics import Robot
 
@@ -81,26 +79,21 @@ def symbolic_cartesian_compliance(
 ) -> tuple[ca.SX, list[str]]:
     """Cartesian compliance C_X(q) of the model's wrench-linear effects, shape (6, 6).
 
-    Joint compliance (J diag(c) J^T) and tilting compliance are expressed symbolically.
-    Returns the expression and the labels of effects it could *not* include (non-linear or
-    wrench/geometric effects), which the planner treats by an outer correction loop.
+    The joint compliance J diag(c) J^T (seed 000 eq. 11) plus every spring effect the model
+    declares (:meth:`ElastostaticModel.springs`): spring s at chain joint i about the axis
+    a_s of that joint's frame adds c_s j_s j_s^T, j_s = [u_s x (p - o_i); u_s],
+    u_s = R_i a_s (seed 002 eq. 2). Returns the expression and the labels of the effects it
+    does *not* include (not springs: non-linear compliance, wrench and geometric effects),
+    which the planner treats by an outer correction loop.
     """
-    C = ca.SX.zeros(6, 6)
-    skipped: list[str] = []
-    for e in model.effects:
-        if isinstance(e, JointCompliance):
-            C += chain.J @ ca.diag(ca.DM(e.params)) @ chain.J.T
-        elif isinstance(e, TiltingCompliance):
-            assert e.joint is not None
-            i = e.joint
-            local = _normal_axes(model.robot.geometry.axes[i])
-            for k in range(2):
-                u = chain.joint_R[i] @ ca.DM(local[k])
-                jt = ca.vertcat(ca.cross(u, chain.p - chain.joint_o[i]), u)
-                C += e.params[k] * (jt @ jt.T)
-        else:
-            skipped.append(e.label)
-    return C, skipped
+    C = chain.J @ ca.diag(ca.DM(model.joint_compliance.params)) @ chain.J.T
+    for s in model.springs():
+        for axis, c in zip(s.axes, s.compliance, strict=True):
+            u = chain.joint_R[s.joint] @ ca.DM(axis)
+            jt = ca.vertcat(ca.cross(u, chain.p - chain.joint_o[s.joint]), u)
+            C += float(c) * (jt @ jt.T)
+    included = {id(model.joint_compliance), *(id(e) for e in model.groups.springs)}
+    return C, [e.label for e in model.effects if id(e) not in included]
 
 
 def kinematics_function(robot: Robot) -> ca.Function:

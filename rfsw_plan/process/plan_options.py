@@ -82,6 +82,11 @@ class PlanOptions:
         outer_tol: Convergence of the outer correction [m].
         tol: IPOPT tolerance.
         max_iter: IPOPT iteration cap.
+        solver: ``coarse`` (default): the NLP on ``coarse_waypoints`` evenly spread weld
+            waypoints, then every waypoint projected exactly onto the fine NLP's equality rows
+            and checked against all its rows (the full NLP if any row fails); ``full``: the
+            NLP on every waypoint (:mod:`rfsw_plan.planning.coarse`).
+        coarse_waypoints: Weld waypoints of the coarse NLP (``solver = "coarse"``).
         min_stiffness_share: Share of ``w_stiffness`` on the weakest weld waypoint (0..1).
         w_stiffness, w_worst, w_robust, w_centre, w_depth, w_smooth_q, w_smooth_o, w_proximity:
             Objective
@@ -109,6 +114,8 @@ class PlanOptions:
     outer_tol: float = 1e-6
     tol: float = 1e-8
     max_iter: int = 300
+    solver: str = "coarse"
+    coarse_waypoints: int = 60
     min_stiffness_share: float = 0.5
     w_stiffness: float = 1.0
     w_worst: float = 0.1
@@ -143,6 +150,11 @@ class PlanOptions:
             raise InputError("planning", "kappa_max", f"got {self.kappa_max}", "> 1")
         if self.rotation_starts < 1:
             raise InputError("planning", "rotation_starts", f"got {self.rotation_starts}", ">= 1")
+        if self.solver not in SOLVERS:
+            raise InputError("planning", "solver", f"got {self.solver!r}", " or ".join(SOLVERS))
+        if self.coarse_waypoints < 2:
+            raise InputError("planning", "coarse_waypoints", f"got {self.coarse_waypoints}",
+                             ">= 2")
         if self.max_start_waypoints < 0 or self.max_outer < 1 or self.max_iter < 1:
             raise InputError("planning", "max_start_waypoints/max_outer/max_iter",
                              "out of range", "max_start_waypoints >= 0, the others >= 1")
@@ -162,6 +174,7 @@ class OptionKey:
         field: :class:`PlanOptions` field name.
         factor: File unit to SI factor (1 for unitless keys).
         ge, gt, le: Valid range in file units (None = open).
+        choices: The allowed names of a string key.
     """
 
     field: str
@@ -169,7 +182,11 @@ class OptionKey:
     ge: float | None = None
     gt: float | None = None
     le: float | None = None
+    choices: tuple[str, ...] | None = None
 
+
+#: Values of ``solver``: the coarse-to-fine solve or the NLP on every waypoint.
+SOLVERS = ("coarse", "full")
 
 _DEG = float(np.pi / 180)
 
@@ -193,6 +210,8 @@ OPTION_KEYS: dict[str, OptionKey] = {
     "outer_tol": OptionKey("outer_tol", gt=0.0, le=1.0),
     "tol": OptionKey("tol", gt=0.0, le=1.0),
     "max_iter": OptionKey("max_iter", ge=1, le=1000000),
+    "solver": OptionKey("solver", choices=SOLVERS),
+    "coarse_waypoints": OptionKey("coarse_waypoints", ge=2, le=100000),
     "min_stiffness_share": OptionKey("min_stiffness_share", ge=0.0, le=1.0),
     **{w: OptionKey(w, ge=0.0, le=1e9) for w in (
         "w_stiffness", "w_worst", "w_robust", "w_centre", "w_depth", "w_smooth_q", "w_smooth_o",
@@ -231,6 +250,8 @@ def options_from_table(table: Mapping[str, Any], source: str | Path = "planning"
                 key, None, ge=spec.ge, le=spec.le))
         elif isinstance(default, bool):
             kw[spec.field] = tab.bool_(key)
+        elif isinstance(default, str):
+            kw[spec.field] = tab.str_(key, choices=spec.choices)
         elif isinstance(default, int):
             kw[spec.field] = tab.int_(key, ge=None if spec.ge is None else int(spec.ge),
                                       le=None if spec.le is None else int(spec.le))

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.effects import Effect, PoseBatch
+from rfsw_plan.elastostatics.effects import PoseBatch, WrenchEffect
 from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule
@@ -238,7 +238,7 @@ def sensor_reading(
         InputError: The fixed point does not converge (a sensor effect too large to invert,
             e.g. a misalignment near 1 rad or more).
     """
-    sensor: list[Effect] = [e for e in truth.effects if e.sensor_only and e.kind == "wrench"]
+    sensor: list[WrenchEffect] = [e for e in truth.groups.wrench if e.sensor_only]
     F = np.asarray(wrench, dtype=float)
     if not sensor:
         return F

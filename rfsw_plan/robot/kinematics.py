@@ -212,6 +212,11 @@ class Robot:
             raise InputError(source, "", "joint values contain NaN or infinity", "finite values")
         return arr
 
+    @property
+    def joint_names(self) -> list[str]:
+        """Names of the joints in order (the URDF's, or ``joint1``.. for an MDH table)."""
+        return [str(n) for n in list(self.model.names)[1: self.nq + 1]]
+
     @cached_property
     def has_link_masses(self) -> bool:
         """True if the description gives link masses (a URDF with inertials): the robot's own

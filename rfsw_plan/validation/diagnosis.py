@@ -81,7 +81,14 @@ FIT_TOL = 1e-7
 #: Default number of folds.
 DEFAULT_FOLDS = 5
 
-Verdict = Literal["adequate", "missing", "unexplained"]
+Verdict = Literal["adequate", "missing", "unexplained", "undetermined"]
+
+#: What a campaign without a noise floor should add next time.
+NO_FLOOR = (
+    "no repeats and no --noise-mm: the floor is unknown; for the next campaign, measure some "
+    "poses twice in a row at the same load (repeats) or give the measuring device's noise "
+    "with --noise-mm"
+)
 
 
 # --------------------------------------------------------------------------------------------
@@ -264,6 +271,7 @@ class Candidate:
     notes: tuple[str, ...] = ()
     sse: float = float("nan")
     tied_with_best: bool = False
+    std: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         """JSON form (mm)."""
@@ -350,6 +358,7 @@ def _score(
         params={e.name: e.value for e in est},
         notes=tuple(f"{e.name}: {e.note}" for e in est if e.note),
         sse=after.sse,
+        std={e.name: e.std_error for e in est if e.identified},
     )
 
 
@@ -581,7 +590,13 @@ def diagnose(
     verdict: Verdict
     mm = 1e3
     floor = "unknown" if noise.sigma is None else f"{noise.sigma * mm:.4g} mm"
-    if at_noise0:
+    if at_noise0 and noise.sigma is None:
+        verdict = "undetermined"
+        message = (
+            f"undetermined: held-out RMS {base.heldout_rms * mm:.4g} mm and no tested feature "
+            "explains it, but without a noise floor that does not make the model adequate"
+        )
+    elif at_noise0:
         verdict = "adequate"
         message = (
             f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm is at the noise floor "
@@ -612,6 +627,8 @@ def diagnose(
             f"{base.heldout_rms * mm:.4g} mm to the noise floor ({floor}){partial}; the "
             f"residual correlates most with {points}"
         )
+    if noise.sigma is None:
+        message += f"; {NO_FLOOR}"
     seconds = time.perf_counter() - t0
     log.info("diagnosis of %s: %d candidates, %d skipped, %d chain step(s), %.2f s: %s",
              ", ".join(model.labels), len(candidates), len(skipped), len(chain), seconds,

@@ -267,7 +267,7 @@ table{border-collapse:collapse;margin:0.5em 0 1em}
 td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em}
 th{background:#eee}td:first-child{text-align:left}
 .verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
-.adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}
+.adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
 img{max-width:100%}figure{margin:0.5em 0}
 """
 

@@ -52,9 +52,10 @@ def _overrides(items: list[str], base: Any) -> Any:
             try:
                 v = float(val)
             except ValueError:
-                raise InputError("--set", key, f"got '{val}'", "a number or true/false") from None
-            if v.is_integer() and abs(v) < 2**53:
-                v = int(v)
+                v = val.strip()  # a name (solver=full); numeric keys reject it with one line
+            else:
+                if v.is_integer() and abs(v) < 2**53:
+                    v = int(v)
         table[key.strip()] = v
     return options_from_table(table, "--set", base, prefix="", what="option")
 

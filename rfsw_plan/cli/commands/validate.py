@@ -14,6 +14,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.kinematics import load_robot
 
 if TYPE_CHECKING:
+    from rfsw_plan.validation.diagnosis import Candidate
     from rfsw_plan.validation.report import ReportFiles
     from rfsw_plan.validation.workbench import ValidationResult
 
@@ -25,7 +26,9 @@ Effects for --add: {", ".join(n for n, c in EFFECTS.items()
     if n != "joint_compliance" and not c.setup)}; per-joint ones
 take :jN (1-based), e.g. --add tilting_compliance:j2 --add payload_gravity.
 Verdicts: adequate (held-out residual at the noise floor), missing (names the effect and
-joint), unexplained (no library effect reaches the noise floor; see what the residual
+joint), undetermined (no noise floor: no repeats, no --noise-mm, and nothing significant
+left; a model is never called adequate on significance alone), unexplained (no library
+effect reaches the noise floor; see what the residual
 correlates with). The loop: validate -> validate --add EFFECT --save-robot NEW.toml ->
 validate --robot NEW.toml ... until adequate.
 """
@@ -94,6 +97,23 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _clear_params(cand: Candidate, joint_names: list[str], prismatic: list[bool]) -> str:
+    """The candidate's parameters beyond 2 standard errors, joint offsets by joint name."""
+    parts = []
+    for name, value in cand.params.items():
+        std = cand.std.get(name, float("nan"))
+        if not (abs(value) > 2 * std):
+            continue
+        if name.startswith("dq") and name[2:].isdigit():
+            j = int(name[2:]) - 1
+            label = joint_names[j] if j < len(joint_names) else name
+            unit = "mm" if j < len(prismatic) and prismatic[j] else "mrad"
+            parts.append(f"{label} offset {value * 1e3:.3g} +- {std * 1e3:.2g} {unit}")
+        else:
+            parts.append(f"{name} {value:.4g} +- {std:.2g}")
+    return ", ".join(parts)
+
+
 def _print_summary(
     result: ValidationResult, files: ReportFiles | None, saved: Path | None
 ) -> None:
@@ -131,6 +151,11 @@ def _print_summary(
             flag = "significant" if c.significant else "not significant"
             print(f"  {c.label:<34} {c.rms_after * 1e3:8.4g} mm  explains "
                   f"{100 * c.explained_fraction:5.1f} %  ({flag})", file=out)
+        top = dg.candidates[0]
+        robot = result.model.robot
+        clear = _clear_params(top, robot.joint_names, list(robot.prismatic))
+        if clear:
+            print(f"  {top.label} parameters beyond 2 standard errors: {clear}", file=out)
     if dg.skipped:
         print("not identifiable from this data: "
               + ", ".join(s.label for s in dg.skipped), file=out)

@@ -1,14 +1,26 @@
 """Library of elastostatic effects and the registry that turns names into instances.
 
-Effect labels are ``name`` or ``name:jN`` (N 1-based) for per-joint effects.
+Effect labels are ``name`` or ``name:jN`` (N 1-based) for per-joint effects. Every module of
+this folder is imported here, and every concrete effect class registers itself in
+:data:`EFFECTS` (:meth:`Effect.__init_subclass__`): a new effect is one file in this folder.
 """
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 import re
 from collections.abc import Mapping
 
-from rfsw_plan.elastostatics.effects.base import Effect, EffectKind, PoseBatch
+from rfsw_plan.elastostatics.effects.base import (
+    EFFECTS,
+    ComplianceEffect,
+    Effect,
+    EffectGroups,
+    GeometricEffect,
+    PoseBatch,
+    WrenchEffect,
+)
 from rfsw_plan.elastostatics.effects.complementary_stiffness import ComplementaryStiffness
 from rfsw_plan.elastostatics.effects.device_registration import DeviceRegistration, MarkerOffset
 from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
@@ -22,23 +34,17 @@ from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TorqueDep
 from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.robot.kinematics import Robot
 
-#: Effect classes by registry name.
-EFFECTS: dict[str, type[Effect]] = {
-    cls.name: cls
-    for cls in (
-        JointCompliance,
-        ComplementaryStiffness,
-        TiltingCompliance,
-        TorqueDependentStiffness,
-        JointBacklash,
-        PayloadGravity,
-        SensorMisalignment,
-        ForceSensorBias,
-        KinematicOffsets,
-        DeviceRegistration,
-        MarkerOffset,
-    )
-}
+for _module in pkgutil.iter_modules(__path__):
+    importlib.import_module(f"{__name__}.{_module.name}")
+
+#: The library's order (the base model first, then compliance, wrench and geometric effects)
+#: for listings; effects of other files follow in the order they registered.
+_LIBRARY = (JointCompliance, ComplementaryStiffness, TiltingCompliance, TorqueDependentStiffness,
+            JointBacklash, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
+            DeviceRegistration, MarkerOffset)
+_others = {k: v for k, v in EFFECTS.items() if v not in _LIBRARY}
+EFFECTS.clear()
+EFFECTS.update({cls.name: cls for cls in _LIBRARY} | _others)
 
 _LABEL = re.compile(r"^([a-z_]+)(?::j(\d+))?$")
 
@@ -76,10 +82,12 @@ def make_effect(robot: Robot, label: str, params: Mapping[str, float] | None = N
 __all__ = [
     "EFFECTS",
     "ComplementaryStiffness",
+    "ComplianceEffect",
     "DeviceRegistration",
     "Effect",
-    "EffectKind",
+    "EffectGroups",
     "ForceSensorBias",
+    "GeometricEffect",
     "JointBacklash",
     "JointCompliance",
     "KinematicOffsets",
@@ -89,6 +97,7 @@ __all__ = [
     "SensorMisalignment",
     "TiltingCompliance",
     "TorqueDependentStiffness",
+    "WrenchEffect",
     "make_effect",
     "parse_effect_label",
 ]

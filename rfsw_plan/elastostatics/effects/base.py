@@ -5,31 +5,38 @@ robot really feels. The base model is :class:`~rfsw_plan.elastostatics.effects.j
 JointCompliance` (dX = J K^-1 J^T F); the others are added on top of it in an
 :class:`~rfsw_plan.elastostatics.model.ElastostaticModel`.
 
-Three kinds, applied in this order by the model:
+Every effect derives from one of three abstract bases, applied in this order by the model:
 
-``wrench``
+:class:`WrenchEffect`
     Corrects the logged wrench into the wrench that really acts at the TCP
     (sensor misalignment, sensor bias, payload gravity): ``F_true = F_logged + dF(theta)``.
-``compliance``
+:class:`ComplianceEffect`
     Deflects the TCP under the true wrench (joint compliance, tilting, backlash,
-    torque-dependent stiffness). Linear-in-wrench ones also expose a Cartesian compliance.
-``geometric``
+    torque-dependent stiffness). Linear-in-wrench ones also give a Cartesian compliance, and
+    rotational springs at a joint declare their axes (:meth:`ComplianceEffect.joint_springs`),
+    which the model and the planner's symbolic compliance evaluate generically.
+:class:`GeometricEffect`
     Load-independent pose error (kinematic offsets).
 
 Each effect owns a parameter vector theta (SI units) with a prior, returns its contribution and
 the derivative of that contribution with respect to theta (a *regressor*, exact for effects
-that are linear in theta). Identification stacks the regressors (see
-``rfsw_plan.elastostatics.identification``).
+that are linear in theta). Each base implements, once, what the model and identification ask
+of every effect (:meth:`Effect.join` sorts it into the model's :class:`EffectGroups`,
+:meth:`Effect.pose_regressor` is its column block of the identification Jacobian), so a new
+effect is one class in one file of this folder: it registers itself by its :attr:`Effect.name`
+(:data:`EFFECTS`) and implements the abstract methods of its base. Nothing outside the effect
+classes asks an effect what kind it is.
 """
 
 from __future__ import annotations
 
 import abc
+import inspect
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from difflib import get_close_matches
-from typing import Any, ClassVar, Literal
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,9 +44,15 @@ from numpy.typing import NDArray
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.kinematics import Robot
 
+if TYPE_CHECKING:
+    from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
+
 FloatArray = NDArray[np.float64]
 
-EffectKind = Literal["compliance", "wrench", "geometric"]
+#: d(deflection)/dF applied to wrench directions: (batch, F_true, dF (m, 6, p)) -> (m, 6, p).
+#: The model supplies it (:meth:`ElastostaticModel.deflection_jvp`); wrench effects chain their
+#: wrench regressor through it.
+WrenchToPose = Callable[["PoseBatch", FloatArray, FloatArray], FloatArray]
 
 #: Largest |value| of any effect parameter [SI] (each effect narrows it in param_ranges).
 PARAM_LIMIT = 1e9
@@ -82,8 +95,10 @@ class PoseBatch:
 class Effect(abc.ABC):
     """One physical effect with its parameters.
 
-    Subclasses set the class attributes and implement :meth:`param_names`, :meth:`prior` and
-    the method(s) of their kind.
+    Do not subclass :class:`Effect` directly: derive from :class:`ComplianceEffect`,
+    :class:`WrenchEffect` or :class:`GeometricEffect`, set the class attributes and implement
+    :meth:`param_names`, :meth:`prior` and the abstract methods of that base. A concrete
+    subclass with a :attr:`name` registers itself in :data:`EFFECTS`.
 
     Args:
         robot: The robot the effect belongs to (for joint count and priors).
@@ -95,8 +110,6 @@ class Effect(abc.ABC):
     name: ClassVar[str]
     #: One-sentence physical description.
     description: ClassVar[str]
-    #: Kind: ``"compliance"``, ``"wrench"`` or ``"geometric"``.
-    kind: ClassVar[EffectKind]
     #: True if the effect is instantiated per joint (``name:jN``).
     per_joint: ClassVar[bool] = False
     #: True if the contribution is linear in theta (one least-squares step identifies it).
@@ -115,6 +128,17 @@ class Effect(abc.ABC):
     #: offset), not to the robot: never a diagnosis candidate, never dropped for collinearity
     #: in favour of a robot parameter, and not written into a robot's ``[[effects]]``.
     setup: ClassVar[bool] = False
+    #: True if the effect moves the TCP at zero logged wrench (set by the three bases).
+    load_independent: ClassVar[bool]
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if inspect.isabstract(cls) or "name" not in cls.__dict__:
+            return
+        known = EFFECTS.get(cls.name)
+        if known is not None and known.__qualname__ != cls.__qualname__:
+            raise TypeError(f"effect name '{cls.name}' is taken by {known.__qualname__}")
+        EFFECTS[cls.name] = cls
 
     def __init__(
         self, robot: Robot, joint: int | None = None, params: Mapping[str, float] | None = None
@@ -178,56 +202,205 @@ class Effect(abc.ABC):
         th = self.params if theta is None else theta
         return {k: float(v) for k, v in zip(self.param_names(), th, strict=True)}
 
-    # -- kind "compliance" -------------------------------------------------------------------
+    def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        """Why this data cannot identify the effect, or None if it can (checked before fitting).
+
+        The default says nothing, except for a sensor-only effect on data that logs no wrench
+        at all (no force sensor: a motion-capture session without load); effects with an
+        obvious data requirement (backlash needs both torque signs) override it.
+        """
+        if self.sensor_only and not np.any(np.asarray(wrench, dtype=float)):
+            return "the data logs no wrench (no force sensor), so a sensor error has no effect"
+        return None
+
+    # -- what the model and identification ask of every effect (implemented by the bases) ----
+    @abc.abstractmethod
+    def join(self, groups: EffectGroups) -> None:
+        """Add this effect to the model's group that evaluates it."""
+
+    @abc.abstractmethod
+    def contribution(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        """The effect's own output for parameters theta, shape (m, 6): the deflection, the
+        wrench correction or the offset (see the base)."""
+
+    @abc.abstractmethod
+    def contribution_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        """d(:meth:`contribution`)/d(theta), shape (m, 6, p)."""
+
+    @abc.abstractmethod
+    def pose_regressor(
+        self, batch: PoseBatch, logged: FloatArray, true: FloatArray, through: WrenchToPose
+    ) -> FloatArray:
+        """d(TCP pose error)/d(theta) at the current parameters [m, rad per unit], base frame,
+        shape (m, 6, p): this effect's block of the identification Jacobian.
+
+        Args:
+            batch: Poses.
+            logged: Logged wrench [N, N m], base frame, (m, 6).
+            true: Wrench after the model's wrench effects, (m, 6).
+            through: The model's d(deflection)/dF (for wrench effects).
+        """
+
+    @abc.abstractmethod
+    def pose_linear_in_params(self) -> bool:
+        """True if the TCP pose is linear in this effect's theta with the other effects held
+        (one least-squares step identifies it)."""
+
+
+class ComplianceEffect(Effect):
+    """Deflects the TCP under the true wrench (joint compliance, tilting, backlash...)."""
+
+    load_independent = False
+
+    @abc.abstractmethod
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         """TCP deflection [m, rad] under the true wrench, base frame, shape (m, 6)."""
-        raise NotImplementedError(f"{self.label} has no deflection")
 
+    @abc.abstractmethod
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:
         """d(deflection)/d(theta), shape (m, 6, p)."""
-        raise NotImplementedError(f"{self.label} has no deflection regressor")
 
     def cartesian_compliance(self, batch: PoseBatch, theta: FloatArray) -> FloatArray | None:
-        """Cartesian compliance (m, 6, 6) if the deflection is linear in the wrench, else None."""
+        """Cartesian compliance (m, 6, 6) if the deflection is linear in the wrench, else None
+        (the default: the model then evaluates :meth:`deflection` itself)."""
         return None
 
     def joint_springs(self) -> FloatArray | None:
-        """Spring axes (k, 3) in the frame of chain joint :attr:`joint`, or None.
+        """Spring axes (k, 3) in the frame of chain joint :attr:`joint`, or None (the default).
 
         An effect that returns axes declares that it is k linear rotational springs through
         that joint's origin, about those axes, with compliances theta (k,) [rad/(N m)]:
         dX = sum_s theta_s j_s (j_s^T F), j_s the TCP twist of a unit turn (seed 002 eq. 2).
-        The model then evaluates all such effects together
-        (:mod:`rfsw_plan.elastostatics.springs`); its :meth:`deflection` must agree.
+        The model evaluates all such effects together
+        (:mod:`rfsw_plan.elastostatics.springs`) and the planner builds them symbolically;
+        its :meth:`deflection` must agree.
         """
         return None
 
-    # -- kind "wrench" -----------------------------------------------------------------------
+    def join(self, groups: EffectGroups) -> None:
+        if self.joint is not None and self.joint_springs() is not None:
+            groups.springs.append(self)
+        else:
+            groups.compliance.append(self)
+
+    def contribution(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return self.deflection(batch, wrench, theta)
+
+    def contribution_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        return self.deflection_regressor(batch, wrench, theta)
+
+    def pose_regressor(
+        self, batch: PoseBatch, logged: FloatArray, true: FloatArray, through: WrenchToPose
+    ) -> FloatArray:
+        return self.deflection_regressor(batch, true, self.params)
+
+    def pose_linear_in_params(self) -> bool:
+        return self.linear_in_params
+
+
+class WrenchEffect(Effect):
+    """Corrects the logged wrench into the true one: F_true = F_logged + dF(theta)."""
+
+    load_independent = True
+
+    @abc.abstractmethod
     def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         """Correction added to the logged wrench [N, N m], base frame, shape (m, 6)."""
-        raise NotImplementedError(f"{self.label} has no wrench correction")
 
+    @abc.abstractmethod
     def wrench_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:
         """d(delta_wrench)/d(theta), shape (m, 6, p)."""
-        raise NotImplementedError(f"{self.label} has no wrench regressor")
 
-    # -- kind "geometric" --------------------------------------------------------------------
+    def join(self, groups: EffectGroups) -> None:
+        groups.wrench.append(self)
+
+    def contribution(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return self.delta_wrench(batch, wrench, theta)
+
+    def contribution_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        return self.wrench_regressor(batch, wrench, theta)
+
+    def pose_regressor(
+        self, batch: PoseBatch, logged: FloatArray, true: FloatArray, through: WrenchToPose
+    ) -> FloatArray:
+        # Chain rule through the compliance effects: dX/dF . dF/dtheta.
+        return through(batch, true, self.wrench_regressor(batch, logged, self.params))
+
+    def pose_linear_in_params(self) -> bool:
+        return False  # the pose is bilinear: wrench parameters times compliances
+
+
+class GeometricEffect(Effect):
+    """Load-independent TCP pose error (kinematic offsets)."""
+
+    load_independent = True
+
+    @abc.abstractmethod
     def offset(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         """Load-independent TCP pose error [m, rad], base frame, shape (m, 6)."""
-        raise NotImplementedError(f"{self.label} has no offset")
 
+    @abc.abstractmethod
     def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         """d(offset)/d(theta), shape (m, 6, p)."""
-        raise NotImplementedError(f"{self.label} has no offset regressor")
 
-    def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
-        """Why this data cannot identify the effect, or None if it can (checked before fitting).
+    def join(self, groups: EffectGroups) -> None:
+        groups.geometric.append(self)
 
-        The default says nothing; effects with an obvious data requirement (backlash needs
-        both torque signs) override it.
-        """
-        return None
+    def contribution(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
+        return self.offset(batch, theta)
+
+    def contribution_regressor(
+        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
+    ) -> FloatArray:
+        return self.offset_regressor(batch, theta)
+
+    def pose_regressor(
+        self, batch: PoseBatch, logged: FloatArray, true: FloatArray, through: WrenchToPose
+    ) -> FloatArray:
+        return self.offset_regressor(batch, self.params)
+
+    def pose_linear_in_params(self) -> bool:
+        return self.linear_in_params
+
+
+@dataclass
+class EffectGroups:
+    """A model's effects sorted by how the model evaluates them (each effect joins its group,
+    :meth:`Effect.join`), in model order within a group.
+
+    Attributes:
+        joint: The base joint compliance (the robot's joint stiffness), if given.
+        springs: Compliance effects that are rotational springs at a joint
+            (:meth:`ComplianceEffect.joint_springs`), evaluated together.
+        compliance: The other compliance effects (the base joint compliance first).
+        wrench: Wrench effects (corrections of the logged wrench).
+        geometric: Load-independent pose errors.
+    """
+
+    joint: JointCompliance | None = None
+    springs: list[ComplianceEffect] = field(default_factory=list)
+    compliance: list[ComplianceEffect] = field(default_factory=list)
+    wrench: list[WrenchEffect] = field(default_factory=list)
+    geometric: list[GeometricEffect] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, effects: Sequence[Effect]) -> EffectGroups:
+        """The groups of ``effects``."""
+        groups = cls()
+        for e in effects:
+            e.join(groups)
+        return groups
+
+
+#: Effect classes by registry name; every concrete effect class adds itself when defined.
+EFFECTS: dict[str, type[Effect]] = {}

@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 #: Largest basis (floats) kept in :attr:`PoseBatch.cache`: 2e7 floats = 160 MB, i.e.
 #: ~9e4 poses of a six-axis robot; larger batches recompute it per call.
@@ -85,7 +85,7 @@ def batch_complementary_stiffness(batch: PoseBatch, wrench: FloatArray) -> Float
     return np.matmul(G.T, np.matmul(Kc_chain, G))
 
 
-class ComplementaryStiffness(Effect):
+class ComplementaryStiffness(ComplianceEffect):
     """Extra deflection from the load-induced geometry change, scaled by a gain g.
 
     Seed 000 eq. 6: K_X = J^-T (Kq - Kc) J^-1 with Kc = [dJ^T/dq_1 F ... dJ^T/dq_n F], so the
@@ -105,7 +105,6 @@ class ComplementaryStiffness(Effect):
         "The loaded arm changes its geometry as the joints deflect, which changes the lever "
         "arms of the load (the complementary stiffness Kc of seed 000 eq. 6)."
     )
-    kind = "compliance"
 
     #: Gain g [-]: 1 is the physics; identification may move it, never by an order.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"gain": (-10.0, 10.0)}

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch
 
 
-class DeviceRegistration(Effect):
+class DeviceRegistration(GeometricEffect):
     """Small rigid motion of the measured points: the device->base registration's error.
 
     Measured positions in a device frame (laser tracker, motion capture) are brought into the
@@ -27,7 +27,6 @@ class DeviceRegistration(Effect):
         "The measuring device's frame is not exactly where the registration puts it: every "
         "measured point is off by the same small rotation and translation."
     )
-    kind = "geometric"
     setup = True
 
     def param_names(self) -> tuple[str, ...]:
@@ -51,7 +50,7 @@ class DeviceRegistration(Effect):
         return np.einsum("map,p->ma", self.offset_regressor(batch, theta), theta)
 
 
-class MarkerOffset(Effect):
+class MarkerOffset(GeometricEffect):
     """The tracked marker's offset from the TCP, in the tool frame: dX = [R dc; 0] [m].
 
     Linear in dc. Part of the measurement set-up like :class:`DeviceRegistration`.
@@ -62,7 +61,6 @@ class MarkerOffset(Effect):
         "The tracked point (reflector, rigid-body marker) sits at an offset from the TCP, "
         "fixed in the tool frame."
     )
-    kind = "geometric"
     setup = True
 
     def param_names(self) -> tuple[str, ...]:

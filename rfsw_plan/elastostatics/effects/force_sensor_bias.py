@@ -7,10 +7,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, WrenchEffect
 
 
-class ForceSensorBias(Effect):
+class ForceSensorBias(WrenchEffect):
     """The sensor reads a constant offset b on top of the true wrench, in its own frame.
 
     The sensor frame is taken as the tool frame at the TCP (the logged wrench is reported at
@@ -27,7 +27,6 @@ class ForceSensorBias(Effect):
         "The force sensor has a zero offset (drift, bad tare) that it adds to every reading, "
         "fixed in the sensor frame, so the robot is loaded differently from what is logged."
     )
-    kind = "wrench"
     sensor_only = True
 
     #: Offsets [N, N m]: at most 100 kN / 100 kN m (beyond any FSW force sensor).

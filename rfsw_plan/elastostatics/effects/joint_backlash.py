@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 #: Torque over which the lost motion is taken up [N m] (smooths the sign function).
 TAU_EPS_NM = 20.0
@@ -15,7 +15,7 @@ TAU_EPS_NM = 20.0
 MIN_SAMPLES_PER_SIGN = 3
 
 
-class JointBacklash(Effect):
+class JointBacklash(ComplianceEffect):
     """Joint N sits at +b/2 or -b/2 inside its gear play depending on the sign of its torque.
 
         dq_N = (b / 2) tanh(tau_N / TAU_EPS_NM),   tau_N = (J^T F)_N,   dX = J_N dq_N
@@ -30,7 +30,6 @@ class JointBacklash(Effect):
         "Play in the joint's gears: when its torque changes sign the joint crosses its "
         "backlash and the TCP jumps by the lost motion."
     )
-    kind = "compliance"
     per_joint = True
 
     #: Lost motion [rad]: >= 0, at most 0.1 rad (5.7 deg).

@@ -7,10 +7,15 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import (
+    ComplianceEffect,
+    EffectGroups,
+    FloatArray,
+    PoseBatch,
+)
 
 
-class JointCompliance(Effect):
+class JointCompliance(ComplianceEffect):
     """dX = J diag(c) J^T F with c_k = 1/k_k the joint compliances [rad/(N m)].
 
     When the robot description gives link masses (a URDF with inertials), the links' own
@@ -26,7 +31,11 @@ class JointCompliance(Effect):
         "Each joint is a linear torsional spring about its own axis: the joint torque "
         "J^T F turns it by tau/k, which moves the TCP by J dq."
     )
-    kind = "compliance"
+
+    def join(self, groups: EffectGroups) -> None:
+        """The base of the model: its joint stiffness (and a compliance effect like others)."""
+        groups.joint = self
+        super().join(groups)
 
     #: Compliance 1/k [rad/(N m)]: >= 0 (0 = rigid), at most that of a 1 N m/rad joint.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c": (0.0, 1.0)}

@@ -7,10 +7,10 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch
 
 
-class KinematicOffsets(Effect):
+class KinematicOffsets(GeometricEffect):
     """First-order pose error of wrong joint zeros dq0 and a wrong tool centre point dt.
 
         dX = J dq0 + [R_tool dt; 0]   (base frame [m, rad]),
@@ -26,7 +26,6 @@ class KinematicOffsets(Effect):
         "The joint zeros and the tool length are slightly wrong, which shifts the TCP by a "
         "pose-dependent amount whether or not the robot is loaded."
     )
-    kind = "geometric"
 
     #: Joint zero offsets [rad] at most 0.5 rad; TCP offsets [m] at most 1 m.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (

@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, WrenchEffect
 
 #: Standard gravity [m/s^2], acting along -Z of the robot base frame (floor-mounted robot).
 GRAVITY = 9.80665
@@ -18,7 +18,7 @@ PRIOR_MASS_KG = 150.0
 PRIOR_COM_M = (0.0, 0.0, -0.25)
 
 
-class PayloadGravity(Effect):
+class PayloadGravity(WrenchEffect):
     """Gravity wrench of the spindle and tool, added to the logged wrench.
 
     Assumption: the force sensor sits between flange and spindle and is tared (or load-
@@ -39,7 +39,6 @@ class PayloadGravity(Effect):
         "The spindle and tool weigh as much as a person or more: their weight and its lever "
         "arm load every joint in every pose, also when there is no process force."
     )
-    kind = "wrench"
 
     #: Mass [kg] >= 0 up to 10 t; first moments m r [kg m] of at most 10 t at 1 m.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (

@@ -8,7 +8,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, WrenchEffect
 
 
 def skew(v: FloatArray) -> FloatArray:
@@ -40,7 +40,7 @@ def rotation_and_right_jacobian(phi: FloatArray) -> tuple[FloatArray, FloatArray
     return R, Jr
 
 
-class SensorMisalignment(Effect):
+class SensorMisalignment(WrenchEffect):
     """The sensor frame is the tool frame turned by a small rotation vector phi (tool frame).
 
     The controller expresses the sensor reading in the base frame as if the sensor were aligned,
@@ -58,7 +58,6 @@ class SensorMisalignment(Effect):
         "The force sensor is mounted turned against the tool frame, so the logged force and "
         "moment point in slightly wrong directions."
     )
-    kind = "wrench"
     sensor_only = True
     linear_in_params = False
 

@@ -7,7 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 
 def _normal_axes(axis: FloatArray) -> FloatArray:
@@ -22,7 +22,7 @@ def _normal_axes(axis: FloatArray) -> FloatArray:
     return np.stack([t1, np.cross(a, t1)])
 
 
-class TiltingCompliance(Effect):
+class TiltingCompliance(ComplianceEffect):
     """Joint N tilts about its frame's t1 and t2 axes under the moment it carries.
 
     Each tilting direction is a rotational spring through the joint origin o_N about the base-
@@ -35,7 +35,6 @@ class TiltingCompliance(Effect):
         "The joint's bearing is not rigid against bending: the moment normal to the joint axis "
         "tilts the joint about its two normal axes and swings the TCP."
     )
-    kind = "compliance"
     per_joint = True
 
     #: Tilting compliance [rad/(N m)]: >= 0 (0 = rigid bearing); 1e-3 is 1 rad per kN m.

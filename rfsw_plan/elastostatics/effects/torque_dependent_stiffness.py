@@ -7,13 +7,13 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
 #: Reference torque that normalises the polynomial [N m]: s = tau / TAU_REF_NM.
 TAU_REF_NM = 1.0e4
 
 
-class TorqueDependentStiffness(Effect):
+class TorqueDependentStiffness(ComplianceEffect):
     """Deflection of joint N beyond linear, as an odd polynomial in its torque.
 
     Seed 002 Fig. 7 fits each joint's angular displacement phi(tau) with a polynomial; the
@@ -31,7 +31,6 @@ class TorqueDependentStiffness(Effect):
         "The joint's stiffness changes with the torque it carries (gears and bearings stiffen "
         "as they load), so its deflection is a polynomial in its torque, not a straight line."
     )
-    kind = "compliance"
     per_joint = True
 
     #: Extra deflection at 10 kN m [rad]; wrist joints never carry 10 kN m, so their fitted

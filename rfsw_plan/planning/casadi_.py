@@ -1,0 +1,125 @@
+"""Adapter around CasADi's machinery: C compilation cache and IPOPT's BLAS threads.
+
+The NLP (:mod:`rfsw_plan.planning.nlp`) states the problem; this module holds what is about
+running CasADi on this machine:
+
+* :func:`compile_functions`: CasADi functions compiled to one shared library with the system C
+  compiler, cached on disk by a hash of their serialisation (``$RFSW_PLAN_CACHE``, default
+  ``$XDG_CACHE_HOME/rfsw_plan``);
+* :func:`single_thread_blas`: run IPOPT's MUMPS on one OpenBLAS thread (CasADi's bundled
+  OpenBLAS, not numpy's).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+
+log = logging.getLogger(__name__)
+
+
+def cache_dir() -> Path:
+    """Folder of the compiled libraries: ``$RFSW_PLAN_CACHE`` or ``~/.cache/rfsw_plan``."""
+    root = os.environ.get("RFSW_PLAN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "rfsw_plan")
+    return Path(root)
+
+
+def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | None = None
+                      ) -> list[ca.Function] | None:
+    """Compile functions to one shared library, cached on disk, and load them.
+
+    Args:
+        fns: The functions (SX or MX, code-generable).
+        prefix: File name prefix of the library (``<prefix>_<hash>.so``).
+        fd_index: If given, ``fns[fd_index]`` is loaded once more, last in the returned
+            list, with finite-difference derivatives enabled (for an ``nlpsol`` definition
+            that asks for derivative functions it never evaluates).
+
+    Returns:
+        The loaded functions (same order, plus the finite-difference copy), or None if no C
+        compiler is available or compilation fails (the caller keeps the virtual machine).
+    """
+    cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+    if cc is None:
+        log.info("no C compiler; CasADi functions run in the virtual machine")
+        return None
+    h = hashlib.sha1(str(getattr(ca, "__version__", "")).encode())
+    for f in fns:
+        h.update(f.serialize().encode())
+    tag = h.hexdigest()[:16]
+    d = cache_dir()
+    so = d / f"{prefix}_{tag}.so"
+    try:
+        if not so.exists():
+            d.mkdir(parents=True, exist_ok=True)
+            t0 = time.perf_counter()
+            with tempfile.TemporaryDirectory(dir=d) as tmp:
+                cg = ca.CodeGenerator(f"{prefix}_{tag}.c")
+                for f in fns:
+                    cg.add(f)
+                cg.generate(tmp + os.sep)
+                out = Path(tmp) / so.name
+                src = str(Path(tmp) / f"{prefix}_{tag}.c")
+                subprocess.run([cc, "-O1", "-shared", "-fPIC", src, "-o", str(out)],
+                               check=True, capture_output=True, timeout=600)
+                os.replace(out, so)  # atomic: a concurrent process sees all or nothing
+            log.info("compiled %s in %.1f s (%s)", prefix, time.perf_counter() - t0, so)
+        loaded = [ca.external(f.name(), str(so)) for f in fns]
+        if fd_index is not None:
+            loaded.append(ca.external(fns[fd_index].name(), str(so), {"enable_fd": True}))
+        return loaded
+    except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
+        log.warning("compiling %s failed (%s); using the virtual machine", prefix, exc)
+        return None
+
+
+_BLAS: list[Any] = []
+
+
+def casadi_blas() -> Any:
+    """CasADi's own OpenBLAS (MUMPS' BLAS inside IPOPT; not numpy's), or None."""
+    if not _BLAS:
+        lib = None
+        path = Path(ca.__file__).parent / "libcasadi-tp-openblas.so.0"
+        if path.exists():
+            try:
+                lib = ctypes.CDLL(str(path))
+                lib.openblas_get_num_threads.restype = ctypes.c_int
+                lib.openblas_set_num_threads.argtypes = [ctypes.c_int]
+            except (OSError, AttributeError):
+                lib = None
+        _BLAS.append(lib)
+    return _BLAS[0]
+
+
+@contextmanager
+def single_thread_blas() -> Iterator[None]:
+    """Run IPOPT's MUMPS with single-threaded BLAS; the previous thread count is restored.
+
+    MUMPS' fronts on the banded KKT matrix are small: a second OpenBLAS thread only spins
+    (sched_yield) and takes the CPU from the callbacks (about 5-10 % of the solve time on two
+    cores). Only CasADi's bundled OpenBLAS is touched, numpy's BLAS is a separate library.
+    """
+    lib = casadi_blas()
+    if lib is None:
+        yield
+        return
+    before = int(lib.openblas_get_num_threads())
+    lib.openblas_set_num_threads(1)
+    try:
+        yield
+    finally:
+        lib.openblas_set_num_threads(before)

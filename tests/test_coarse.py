@@ -1,0 +1,82 @@
+"""The coarse-to-fine solve gives the full NLP's plan: every fine row holds, same objective.
+
+For each bundled problem (at a spacing with more weld waypoints than the coarse NLP has), the
+planner's default (coarse NLP, exact fine projection) and ``solver = "full"`` (the NLP on every
+waypoint) are solved from the same branch and warm start; both are checked against every row
+of the same fine NLP at IPOPT's tolerance, and the objectives compared.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.planning.api import choose_branch, options_from_problem, solve_plan
+from rfsw_plan.planning.baselines import mirror_compensation
+from rfsw_plan.planning.coarse import ROW_TOL, interpolate_offsets, subsample_task
+from rfsw_plan.planning.verify import verify_plan
+from rfsw_plan.process.problem import load_problem
+from rfsw_plan.process.task import task_from_schedule
+from rfsw_plan.robot.kinematics import load_robot
+
+#: Bundled problems and the weld waypoints to plan them with (None: the problem's spacing).
+CASES = [("zk500_table6_seam", 200), ("fanuc_butt_1700mm", None), ("kr600_curved_seam", None)]
+
+
+def _setup(name: str, n_weld: int | None):
+    problem = load_problem(name)
+    opts = options_from_problem(problem)
+    model = ElastostaticModel(load_robot(problem.robot))
+    spacing = problem.seam.length / (n_weld - 1) if n_weld else problem.spacing
+    frames = problem.seam.frames(spacing)
+    task = task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
+                              opts.max_start_waypoints, problem.seam_reference)
+    q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
+    start, _, _, rotation, _ = choose_branch(model, task, q_seed, opts, problem.window)
+    warm = mirror_compensation(model, task, start.q, rotation)
+    return problem, opts, model, task, warm
+
+
+@pytest.mark.parametrize(("name", "n_weld"), CASES)
+def test_coarse_to_fine_is_the_full_nlp_plan(name: str, n_weld: int | None) -> None:
+    problem, opts, model, task, warm = _setup(name, n_weld)
+    assert len(task) - task.n_start > opts.coarse_waypoints  # the coarse path is exercised
+    fast = solve_plan(model, task, problem.window, warm, replace(opts, solver="coarse"))
+    full = solve_plan(model, task, problem.window, warm, replace(opts, solver="full"))
+    assert fast.method == "coarse" and full.method == "full"
+    # Every row of the fine NLP holds at the same tolerance as IPOPT's, for both.
+    assert fast.nlp.violations(fast.x, ROW_TOL) == []
+    assert full.nlp.violations(full.x, ROW_TOL) == []
+    lo, hi = model.robot.description.lower, model.robot.description.upper
+    assert np.all((fast.q >= lo) & (fast.q <= hi))
+    # The fine NLP's objective within 0.5 % of its optimum (the fast path cannot beat it).
+    gap = (fast.objective - full.objective) / abs(full.objective)
+    assert -1e-6 < gap < 5e-3, gap
+    # The independent numeric verification passes for both.
+    for sol in (fast, full):
+        ver = verify_plan(model, task, problem.window, sol.q, sol.offsets,
+                          opts.force_uncertainty, opts.robust_hard,
+                          opts.joint_step * (1 + 1e-6), opts.kappa_max, opts.length_scale)
+        assert ver.feasible, ver.messages
+
+
+def test_offset_interpolation_keeps_the_fine_offset_rate_rows() -> None:
+    """Where the coarse offsets leave the mirror faster than the rate, the fine offsets still
+    change by at most |mirror change| + rate * travel per fine link."""
+    _, opts, _, task, warm = _setup("zk500_table6_seam", 200)
+    _, idx = subsample_task(task, 20)
+    rng = np.random.default_rng(3)
+    m = warm.offsets
+    # Coarse offsets that use the coarse rows' whole allowance |dm| + rate S, with random sign.
+    o_c = m[idx].copy()
+    for j in range(task.n_start, len(idx) - 1):
+        a, b = idx[j], idx[j + 1]
+        allow = np.abs(m[b] - m[a]) + opts.offset_rate * (task.s[b] - task.s[a])
+        o_c[j + 1] = o_c[j] + rng.choice([-1.0, 1.0], 3) * allow
+    fine = interpolate_offsets(task, idx, o_c, m, opts.offset_rate)
+    np.testing.assert_allclose(fine[idx], o_c, atol=1e-12)
+    bound = np.abs(np.diff(m, axis=0)) + opts.offset_rate * task.link_travel()[:, None]
+    assert np.all(np.abs(np.diff(fine, axis=0))[task.n_start:] <= bound[task.n_start:] + 1e-12)
