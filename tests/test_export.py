@@ -168,7 +168,7 @@ def test_stream_at_the_controller_cycle(planned) -> None:
         q = np.radians([float(r[c]) for c in cols])
         T = np.linalg.inv(conv.base) @ robot.fk(q)
         np.testing.assert_allclose([float(r[k]) for k in ("x_mm", "y_mm", "z_mm")],
-                                   T[:3, 3] * 1e3, atol=1e-5)
+                                   T[:3, 3] * 1e3, atol=1e-4)  # joints written to 1e-6 deg
 
 
 def _rapid_errors(path: Path) -> list[str]:
