@@ -306,3 +306,9 @@ def test_export_command_on_a_written_plan(planned, tmp_path: Path,
     assert (tmp_path / "export.json").is_file()
     assert rec["round_trip"]["krl"]["max_position_error_mm"] <= 0.01
     assert rec["points"] > 1 + 113.0 / 2  # 2 mm spacing on the 113.6 mm seam, plus refinement
+    # A stream from a written plan is its samples: a 4 ms stream needs plan --export stream.
+    assert main(["export", str(out), "-o", str(tmp_path / "s"), "--format", "stream"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "plan's sample time 10 ms" in err
+    assert main(["export", str(out), "-o", str(tmp_path / "s"), "--format", "stream",
+                 "--stream-cycle-ms", "10"]) == 0

@@ -39,7 +39,7 @@ from rfsw_plan.export.program import (
 )
 from rfsw_plan.export.rapid import read_rapid, write_rapid
 from rfsw_plan.export.readback import ReadPoint, RoundTrip, round_trip
-from rfsw_plan.export.stream import DEFAULT_CYCLE, resample, write_stream
+from rfsw_plan.export.stream import DEFAULT_CYCLE, write_stream
 from rfsw_plan.io.files import sha256_file
 from rfsw_plan.robot.kinematics import Robot
 
@@ -112,6 +112,7 @@ def export_programs(
     robot: Robot, waypoints_csv: Path, record: dict[str, Any], formats: Sequence[str],
     out: Path, spacing: float | None = None, cycle: float = DEFAULT_CYCLE,
     path_tol: float = 1e-5, check: SampleCheck | None = None,
+    stream: Samples | None = None,
 ) -> ExportResult:
     """Write the programs of a plan (see the module docstring).
 
@@ -125,6 +126,10 @@ def export_programs(
         cycle: Stream cycle [s].
         path_tol: Largest distance of a verified sample from the programmed path [m].
         check: The planner's sample check, applied to the re-read points and the stream.
+        stream: The plan timed at the controller cycle (``plan --export stream``). Without
+            it the stream is the written samples themselves, which needs the plan's sample
+            time to be the cycle: a resampled trajectory would be a new, unchecked one
+            (interpolating 10 ms samples at 4 ms breaks the jerk limits).
     """
     problem = str(record.get("problem", "plan"))
     spacing = plan_spacing(record) if spacing is None else spacing
@@ -148,7 +153,7 @@ def export_programs(
         rows = 0
         for fmt in formats:
             if fmt == "stream":
-                st = resample(samples, cycle)
+                st = stream if stream is not None else _stream_from(samples, cycle)
                 if check is not None:
                     check(st)
                 staged.append(write_stream(stage / f"{header.name}_stream.csv", robot, st))
@@ -173,6 +178,15 @@ def export_programs(
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, header,
                         checked.strip())
+
+
+def _stream_from(samples: Samples, cycle: float) -> Samples:
+    dt = float(np.median(np.diff(samples.t)))
+    if abs(dt - cycle) > 1e-9:
+        raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's sample "
+                         f"time {dt * 1e3:g} ms", "the plan's sample time, or plan again with "
+                         "--export stream (it times the plan at the cycle)")
+    return samples
 
 
 def _window(record: dict[str, Any]) -> tuple[float, float]:

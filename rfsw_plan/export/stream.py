@@ -1,10 +1,12 @@
 """Stream file for real-time interfaces (KUKA RSI, ABB EGM): one row per controller cycle.
 
-The verified samples (10 ms in ``waypoints.csv``) are resampled at the controller cycle
-(default 4 ms, RSI's and EGM's fastest cycle) by a shape-preserving interpolation in time
-(PCHIP per joint: between two samples every joint value stays between theirs, no overshoot);
-the pose is the forward kinematics of the resampled joint values. The resampled rows are
-checked like the plan's samples before the file is written (the caller's ``check``).
+The rows are the plan's trajectory timed at the controller cycle (default 4 ms, RSI's and
+EGM's fastest cycle) by the planner's own time parameterisation (``plan --export stream``
+re-times the verified plan with ``dt`` = the cycle), never an interpolation of the 10 ms
+samples: resampling 10 ms samples at 4 ms makes a new trajectory whose finite-difference jerk
+breaks the joint limits (measured on zk500_table6_seam: 1866 deg/s^3 against 1800 with PCHIP).
+The rows pass the planner's sample check before the file is written (the caller's ``check``);
+the pose is the forward kinematics of the joint values.
 
 Columns: ``t_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the commanded TCP, i.e. the
 fake target, in the controller's base frame: KUKA ROBROOT, FANUC world, ABB base), the maker's
@@ -19,10 +21,8 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.interpolate import PchipInterpolator
 from scipy.spatial.transform import Rotation
 
-from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.program import Samples
 from rfsw_plan.io.files import atomic_path
 from rfsw_plan.robot.kinematics import Robot
@@ -33,21 +33,13 @@ FloatArray = NDArray[np.float64]
 DEFAULT_CYCLE = 0.004
 
 
-def resample(samples: Samples, cycle: float = DEFAULT_CYCLE) -> Samples:
-    """The samples at a fixed cycle [s] (see the module docstring)."""
-    if not cycle > 0:
-        raise InputError("--stream-cycle-ms", "", f"got {cycle * 1e3:g}", "> 0")
-    t = samples.t
-    tn = np.arange(t[0], t[-1] + 0.5 * cycle, cycle)
-    tn = tn[tn <= t[-1] + 1e-12]
-    q = PchipInterpolator(t, samples.q, axis=0)(tn)
-    idx = np.clip(np.searchsorted(t, tn, side="right") - 1, 0, len(t) - 1)
-
-    def lin(a: FloatArray) -> FloatArray:
-        return np.stack([np.interp(tn, t, a[:, i]) for i in range(a.shape[1])], axis=1)
-
-    return Samples(tn, samples.phase[idx], np.interp(tn, t, samples.s), q,
-                   lin(samples.wrench), lin(samples.seam))
+def samples_of(trajectory: object, seam: FloatArray) -> Samples:
+    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``) and its seam points
+    [m], (N, 3)."""
+    tr = trajectory
+    return Samples(np.asarray(tr.t), np.asarray(tr.phase).astype(str),  # type: ignore[attr-defined]
+                   np.asarray(tr.s), np.asarray(tr.q), np.asarray(tr.wrench),  # type: ignore[attr-defined]
+                   np.asarray(seam, dtype=float))
 
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples) -> Path:

@@ -74,8 +74,28 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
 
     formats = parse_formats(args.export, "--export")
     spacing, cycle, tol = _checked(args)
+    stream = _stream_at_cycle(args, result, cycle) if "stream" in formats else None
     return export_programs(result.model.robot, out / "waypoints.csv", record, formats, out,
-                           spacing, cycle, tol, check=_plan_check(result))
+                           spacing, cycle, tol, check=_plan_check(result), stream=stream)
+
+
+def _stream_at_cycle(args: argparse.Namespace, result: PlanResult, cycle: float) -> Any:
+    """The verified plan timed again by the planner's time parameterisation at the cycle."""
+    import numpy as np
+
+    from rfsw_plan.export.stream import samples_of
+    from rfsw_plan.planning.verify import seam_frames_at
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+
+    opts = result.options
+    process = load_problem(args.problem).process
+    traj = time_parameterise(result.model.robot, result.task, result.q, result.offsets,
+                             TimingLimits(clearance=opts.clearance,
+                                          approach_speed=opts.approach_speed,
+                                          plunge_speed=process.plunge_speed, dt=cycle))
+    seam = seam_frames_at(result.task, np.asarray(traj.s))[0]
+    return samples_of(traj, seam)
 
 
 def _plan_check(result: PlanResult) -> Any:
