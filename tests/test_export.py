@@ -161,7 +161,10 @@ def test_stream_at_the_controller_cycle(planned) -> None:
     out, robot, _ = planned
     rows = list(csv.DictReader(_program_files(out)["stream"].open()))
     t = np.array([float(r["t_s"]) for r in rows])
+    t_plan = np.array([float(r["t_plan_s"]) for r in rows])
     np.testing.assert_allclose(np.diff(t), 0.004, atol=1e-6)
+    # each of the 7 pieces is stretched by less than one cycle
+    assert 0.0 <= t[-1] - t_plan[-1] < 7 * 0.004
     cols = robot.description.convention.column_names()
     conv = robot.description.convention
     for r in rows[:: max(len(rows) // 25, 1)]:

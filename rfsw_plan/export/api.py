@@ -156,7 +156,7 @@ def export_programs(
                 st = stream if stream is not None else _stream_from(samples, cycle)
                 if check is not None:
                     check(st)
-                staged.append(write_stream(stage / f"{header.name}_stream.csv", robot, st))
+                staged.append(write_stream(stage / f"{header.name}_stream.csv", robot, st, cycle))
                 rows = len(st)
                 continue
             files, trip = _write_and_read_back(fmt, program, stage)
@@ -181,8 +181,8 @@ def export_programs(
 
 
 def _stream_from(samples: Samples, cycle: float) -> Samples:
-    dt = float(np.median(np.diff(samples.t)))
-    if abs(dt - cycle) > 1e-9:
+    dt = float(np.max(np.diff(samples.t)))
+    if abs(dt - cycle) > 1e-6:
         raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's sample "
                          f"time {dt * 1e3:g} ms", "the plan's sample time, or plan again with "
                          "--export stream (it times the plan at the cycle)")

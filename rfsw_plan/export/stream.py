@@ -8,7 +8,13 @@ breaks the joint limits (measured on zk500_table6_seam: 1866 deg/s^3 against 180
 The rows pass the planner's sample check before the file is written (the caller's ``check``);
 the pose is the forward kinematics of the joint values.
 
-Columns: ``t_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the commanded TCP, i.e. the
+Each piece of the plan (approach, plunge, dwell, ramps, weld, retract) is sampled with the
+whole number of cycles that covers it, so a piece whose duration is not a multiple of the
+cycle is stretched by less than one cycle when the rows are sent one per cycle (slower, so
+every velocity, acceleration and jerk limit checked on the planned times still holds):
+``t_s`` is the stream clock (row k at k cycles), ``t_plan_s`` the planned time of the row.
+
+Columns: ``t_s, t_plan_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the commanded TCP, i.e. the
 fake target, in the controller's base frame: KUKA ROBROOT, FANUC world, ABB base), the maker's
 Euler angles where the robot has them (``A_deg, B_deg, C_deg`` or ``W_deg, P_deg, R_deg``),
 then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...).
@@ -42,7 +48,7 @@ def samples_of(trajectory: object, seam: FloatArray) -> Samples:
                    np.asarray(seam, dtype=float))
 
 
-def write_stream(path: str | Path, robot: Robot, stream: Samples) -> Path:
+def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
     """Write the stream CSV atomically (columns in the module docstring)."""
     from rfsw_plan.io.waypoints import EULER_COLUMNS, maker_euler
 
@@ -50,8 +56,9 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples) -> Path:
     T = robot.batch_fk_jacobian(stream.q)[0]
     T = np.linalg.inv(conv.base)[None] @ T
     quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()
-    header = ["t_s", "phase", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
-    cols = [stream.t, stream.phase, *(T[:, :3, 3] * 1e3).T, quat[:, 3], *quat[:, :3].T]
+    header = ["t_s", "t_plan_s", "phase", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
+    clock = stream.t[0] + cycle * np.arange(len(stream))
+    cols = [clock, stream.t, stream.phase, *(T[:, :3, 3] * 1e3).T, quat[:, 3], *quat[:, :3].T]
     euler = robot.description.euler
     if euler in EULER_COLUMNS:
         header += list(EULER_COLUMNS[euler])
