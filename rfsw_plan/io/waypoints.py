@@ -37,6 +37,7 @@ without ``[controller]``)
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -282,12 +283,11 @@ def read_waypoints_csv(path: str | Path) -> WrittenSamples:
     header, body = rows[0], rows[1:]
     col = {h: i for i, h in enumerate(header)}
     need = ["t_s", "s_mm", "phase", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
-    # The joint columns carry the controller's axis names (A1_deg.., J1_deg.., q1_deg..):
-    # they are the *_deg columns between the orientation (qz, maker Euler) and fx_N.
-    euler = {c for cols in EULER_COLUMNS.values() for c in cols}
-    lo, hi = col.get("qz", -1) + 1, col.get("fx_N", 0)
-    qcols = [h for h in header[lo:hi] if h.endswith("_deg") and h not in euler]
-    missing = [h for h in need if h not in col] + ([] if qcols else ["A1_deg/J1_deg/q1_deg"])
+    # Joint columns: the controller's names (q1_deg, A1_deg, J1_deg...), in joint order.
+    jc = [(re.fullmatch(r"([A-Za-z]+)(\d+)_deg", h), h) for h in header]
+    qcols = sorted((h for mt, h in jc if mt), key=lambda h: int(
+        re.fullmatch(r"[A-Za-z]+(\d+)_deg", h).group(1)))  # type: ignore[union-attr]
+    missing = [h for h in need if h not in col] + ([] if qcols else ["q1_deg"])
     if missing:
         raise InputError(p, "header", f"missing column {missing[0]}", "a waypoints.csv")
 
