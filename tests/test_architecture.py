@@ -15,10 +15,11 @@ PACKAGE = Path(rfsw_plan.__file__).parent
 
 #: Layers, lowest first: a module may import its own layer and the layers before it, never a
 #: later one (ARCHITECTURE.md draws the same order). ``io/`` is the edge: its readers and
-#: writers turn files into the data types defined below it (MeasurementSet, ForceSeries,
-#: PlanResult) and back, and only the CLI (and the package facade) imports them. Keys are subpackages or top-level modules
-#: of ``rfsw_plan``, or a dotted module that sits on a different floor than its folder
-#: (``io.files``: the atomic-write primitives every writer uses).
+#: writers turn files into the data types of earlier layers (MeasurementSet, ForceSeries,
+#: PlanResult) and back, and only the CLI (and the package facade) imports them. Keys are
+#: subpackages or top-level modules of ``rfsw_plan``, or a dotted module that sits on a
+#: different floor than its folder (``io.files``: the atomic-write primitives every writer
+#: uses).
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("exceptions", "progress", "io.files", "tomlreader"),
     ("robot",),
