@@ -218,18 +218,23 @@ def _read_seam_csv(path: Path, where: str) -> tuple[FloatArray, FloatArray | Non
 
 def _csv_rows(path: Path, where: str) -> list[tuple[int, list[str]]]:
     """Non-blank rows of a CSV with their 1-based line numbers."""
+    rows: list[tuple[int, list[str]]] = []
     try:
         with path.open(newline="", encoding="utf-8-sig") as fh:
-            return [(i, r) for i, r in enumerate(csv.reader(fh), start=1)
-                    if r and any(c.strip() for c in r)]
+            reader = csv.reader(fh)
+            try:
+                for r in reader:
+                    if r and any(c.strip() for c in r):
+                        rows.append((reader.line_num, r))
+            except csv.Error as exc:  # a cell over csv.field_size_limit(), a NUL byte...
+                raise InputError(path, f"row {reader.line_num}", f"not readable as CSV: {exc}",
+                                 "comma-separated numbers under a header x_mm,y_mm,z_mm") from None
     except FileNotFoundError:
         raise InputError(path, "", f"no such file (seam CSV of {where})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, "", f"cannot read seam CSV ({where}): "
                          f"{' '.join(str(exc).split())[:120]}") from None
-    except csv.Error as exc:  # a cell over csv.field_size_limit(), a NUL byte...
-        raise InputError(path, "", f"not a readable CSV: {exc}",
-                         "comma-separated numbers under a header x_mm,y_mm,z_mm") from None
+    return rows
 
 
 def _seam_columns(path: Path, header: list[str]) -> list[str]:

@@ -13,6 +13,11 @@ An unexpanded ``.xacro`` is refused with one line: expand it first with the ``xa
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -63,6 +68,27 @@ class UrdfSerialChain:
                          for j in range(1, self.model.njoints)], dtype=bool)
 
 
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[list[str]]:
+    """Collect what C++ code writes on file descriptor 2 (urdfdom's parse errors).
+
+    Yields a list that holds the captured lines once the block ends; nothing reaches the
+    terminal, so an error stays one line.
+    """
+    lines: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            tmp.seek(0)
+            lines.extend(tmp.read().decode("utf-8", "replace").splitlines())
+
+
 def check_not_xacro(path: Path, where: Path | str, key: str = "") -> None:
     """Raise a one-line :class:`InputError` if ``path`` is an unexpanded xacro file."""
     if path.name.endswith(XACRO_SUFFIXES):
@@ -88,11 +114,17 @@ def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSe
 
     where = where or urdf
     check_not_xacro(urdf, where, "kinematics.urdf")
-    try:
-        full = pin.buildModelFromUrdf(str(urdf))
-    except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise InputError(urdf, "", f"cannot parse URDF: {first}") from None
+    with _captured_stderr() as said:
+        try:
+            full = pin.buildModelFromUrdf(str(urdf))
+        except Exception as exc:  # pinocchio raises plain RuntimeError/ValueError
+            full = None
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    if full is None:
+        # urdfdom prints its reason ("Unable to parse component [nan]...") on the C stderr.
+        detail = next((ln.split("Error:", 1)[1].strip() for ln in said
+                       if ln.strip().startswith("Error:")), "")
+        raise InputError(urdf, "", f"cannot parse URDF: {detail or first}")
     links = [f.name for f in full.frames if f.type == pin.FrameType.BODY]
     if tip_link not in links:
         raise InputError(where, "kinematics.tip_link", f"no link '{tip_link}' in {urdf.name}",
@@ -114,6 +146,7 @@ def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSe
             raise InputError(where, "kinematics.urdf",
                              f"chain joint '{model.names[jid]}' is {short}",
                              "revolute or prismatic joints")
+    _check_urdf_numbers(model, where)
     lower = np.array(model.lowerPositionLimit, dtype=float)
     upper = np.array(model.upperPositionLimit, dtype=float)
     velocity = np.array(model.velocityLimit, dtype=float)
@@ -134,3 +167,34 @@ def axis_of(model: pin.Model, jid: int) -> FloatArray:
     axis = np.zeros(3)
     axis["XYZ".index(short[-1])] = 1.0
     return axis
+
+
+#: Largest |origin offset| of a URDF joint [m] and |limit| [rad or m] accepted.
+MAX_URDF_OFFSET_M = 100.0
+MAX_URDF_LIMIT = 1e4
+
+
+def _check_urdf_numbers(model: pin.Model, where: Path | str) -> None:
+    """Reject URDF numbers the model cannot use (NaN, 1e300 in an origin or a limit).
+
+    Raises:
+        InputError: Names the URDF joint and the value.
+    """
+    for jid in range(1, model.njoints):
+        name = model.names[jid]
+        xyz = np.asarray(model.jointPlacements[jid].translation, dtype=float)
+        R = np.asarray(model.jointPlacements[jid].rotation, dtype=float)
+        if not (np.all(np.isfinite(xyz)) and np.all(np.isfinite(R))
+                and float(np.max(np.abs(xyz))) <= MAX_URDF_OFFSET_M):
+            raise InputError(where, "kinematics.urdf",
+                             f"joint '{name}' origin xyz {xyz.tolist()} m",
+                             f"finite offsets within {MAX_URDF_OFFSET_M:g} m")
+    for label, arr in (("lower limit", model.lowerPositionLimit),
+                       ("upper limit", model.upperPositionLimit),
+                       ("velocity limit", model.velocityLimit)):
+        a = np.asarray(arr, dtype=float)
+        bad = np.flatnonzero(np.isnan(a) | (np.isfinite(a) & (np.abs(a) > MAX_URDF_LIMIT)))
+        if bad.size:
+            raise InputError(where, "kinematics.urdf",
+                             f"joint {int(bad[0]) + 1} {label} is {a[bad[0]]:g}",
+                             f"a finite limit within {MAX_URDF_LIMIT:g}")
