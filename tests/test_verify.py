@@ -55,7 +55,7 @@ def test_mirror_plan_verifies_and_uncompensated_fails_naming_the_waypoint(setup)
     k = int(np.argmax(bad.prediction.e_lat))
     assert bad.worst_waypoint == k
     assert bad.binding_margin == pytest.approx(0.7e-3 - bad.prediction.e_lat[k])
-    with pytest.raises(InfeasibleError, match=f"waypoint {k} .*window violated by") as ei:
+    with pytest.raises(InfeasibleError, match=f"waypoint {k + 1} .*window violated by") as ei:
         bad.raise_if_infeasible()
     assert ei.value.waypoint == k and ei.value.constraint == "window"
     assert ei.value.margin is not None and ei.value.margin < 0

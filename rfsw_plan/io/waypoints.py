@@ -37,6 +37,7 @@ without ``[controller]``)
 from __future__ import annotations
 
 import csv
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -52,6 +53,8 @@ FloatArray = NDArray[np.float64]
 
 #: Euler columns per maker convention.
 EULER_COLUMNS = {"kuka_abc": ("A_deg", "B_deg", "C_deg"), "fanuc_wpr": ("W_deg", "P_deg", "R_deg")}
+#: Rounding of the joint values in ``waypoints.csv`` [rad] (6 decimals of a degree, half a unit).
+Q_RESOLUTION = float(np.deg2rad(0.5e-6))
 #: Phases in which the pin is in the material.
 CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
 
@@ -210,7 +213,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     m = task.n_start
     s = task.s * 1e3
     w = result.window
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, ax = plt.subplots(figsize=(9, 4.5))
     ax.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
                label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:g}] mm")
     # Worst case of the plan under the force uncertainty box: e +- r (verified numerically).
@@ -225,18 +228,141 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
                         ecolor="tab:blue", alpha=0.3)
     for e, lab, c in ((result.e_none, "no compensation", "tab:red"),
                       (result.e_mirror, "mirror fake targets", "tab:orange"),
-                      (result.e_lat, "planned (NLP)", "tab:blue")):
+                      (result.e_lat, "planned (NLP), waypoints", "tab:blue")):
         ax.plot(s[m:], e[m:] * 1e3, color=c, label=lab)
         if m:
             ax.plot(np.zeros(m), e[:m] * 1e3, "o", color=c, ms=3)
+    sv = result.samples
+    if sv is not None:  # what waypoints.csv contains, verified sample by sample
+        tr = result.trajectory
+        inside = sv.contact
+        ax.plot(tr.s[inside] * 1e3, sv.e_lat[inside] * 1e3, ".", color="k", ms=1.5,
+                label=f"written samples ({int(inside.sum())}, waypoints.csv; plunge and dwell "
+                "at s = 0)")
     ax.set_xlabel("arc length s [mm] (dots at s = 0: plunge and dwell)")
     ax.set_ylabel("predicted lateral pin error [mm]")
     ax.set_title(f"{result.problem_name}: predicted lateral error")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="best", fontsize=7)
     fig.tight_layout()
     p = Path(path)
     with atomic_path(p) as tmp:
         fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    return p
+
+
+@dataclass(frozen=True)
+class WrittenSamples:
+    """The samples of a written ``waypoints.csv``, read back (SI, base frame): what
+    :func:`rfsw_plan.planning.verify.verify_samples` checks.
+
+    Attributes:
+        t: Time [s], (N,).
+        phase: Phase, (N,).
+        s: Arc length [m], (N,).
+        q: Joint values [rad], (N, n).
+        wrench: Wrench on the tool [N, N m], (N, 6).
+    """
+
+    t: FloatArray
+    phase: NDArray[np.str_]
+    s: FloatArray
+    q: FloatArray
+    wrench: FloatArray
+
+
+def read_waypoints_csv(path: str | Path) -> WrittenSamples:
+    """Read the samples of a ``waypoints.csv`` back (to re-verify what was written)."""
+    p = Path(path)
+    with p.open(newline="") as fh:
+        rows = list(csv.reader(fh))
+    if not rows:
+        raise InputError(p, "", "empty file", "a waypoints.csv written by rfsw-plan plan")
+    header, body = rows[0], rows[1:]
+    col = {h: i for i, h in enumerate(header)}
+    need = ["t_s", "s_mm", "phase", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
+    qcols = sorted((h for h in header if h.startswith("q") and h.endswith("_deg")
+                    and h[1:-4].isdigit()), key=lambda h: int(h[1:-4]))
+    missing = [h for h in need if h not in col] + ([] if qcols else ["q1_deg"])
+    if missing:
+        raise InputError(p, "header", f"missing column {missing[0]}", "a waypoints.csv")
+
+    def num(name: str) -> FloatArray:
+        return np.array([float(r[col[name]]) for r in body])
+
+    return WrittenSamples(
+        num("t_s"), np.array([r[col["phase"]] for r in body]), num("s_mm") * 1e-3,
+        np.deg2rad(np.column_stack([num(h) for h in qcols])),
+        np.column_stack([num(h) for h in need[3:]]))
+
+
+#: Shading of the phases in :func:`plot_lateral_error_time`.
+PHASE_COLOURS = {"approach": "0.92", "plunge": "tab:purple", "dwell": "tab:orange",
+                 "accelerate": "tab:cyan", "weld": "tab:green", "decelerate": "tab:cyan",
+                 "retract": "0.92"}
+
+
+def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
+    """``lateral_error_time.png``: the predicted lateral pin error and its margin to the window
+    against time for every written sample (what ``waypoints.csv`` contains, verified sample
+    by sample), with the phases shaded, the window band, the required margin and the worst
+    case under the requested force uncertainty; 1400 x 800 px, legend outside the data."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    tr = result.trajectory
+    sv = result.samples
+    w = result.window
+    u = result.options.force_uncertainty
+    if sv is None:
+        raise ValueError("plot_lateral_error_time needs a sample-verified plan")
+    c = sv.contact
+    t = tr.t
+    e = np.where(c, sv.e_lat, np.nan) * 1e3
+    marg = np.where(c, sv.margin, np.nan) * 1e3
+    r = np.where(c, u * sv.worst_per_unit, np.nan) * 1e3
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, dpi=100)
+    for ax in (a1, a2):
+        start = 0
+        ph = tr.phase
+        for i in range(1, len(ph) + 1):
+            if i == len(ph) or ph[i] != ph[start]:
+                ax.axvspan(t[start], t[i - 1], color=PHASE_COLOURS.get(str(ph[start]), "0.9"),
+                           alpha=0.12, lw=0)
+                if ax is a1 and t[i - 1] - t[start] > 0.04 * (t[-1] - t[0]):
+                    ax.text(0.5 * (t[start] + t[i - 1]), 1.0, str(ph[start]), fontsize=8,
+                            ha="center", va="bottom", transform=ax.get_xaxis_transform())
+                start = i
+        ax.grid(True, alpha=0.3)
+    a1.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
+               label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm")
+    if u > 0:
+        a1.fill_between(t, e - r, e + r, color="tab:blue", alpha=0.2, lw=0,
+                        label=f"worst case under +-{100 * u:g} % force")
+    a1.plot(t, e, color="tab:blue", lw=1, label="predicted lateral pin error (every sample)")
+    a1.set_ylabel("lateral pin error [mm]\n(+ advancing side)")
+    a2.plot(t, marg, color="k", lw=1, label="margin to the nearest window bound")
+    if u > 0:
+        a2.plot(t, marg - r, color="tab:red", lw=0.8,
+                label=f"margin of the worst case (+-{100 * u:g} % force)")
+    a2.axhline(result.options.margin * 1e3, color="tab:red", ls="--", lw=0.8,
+               label=f"required margin {result.options.margin * 1e3:g} mm")
+    a2.axhline(0.0, color="k", lw=0.5)
+    a2.set_ylabel("margin [mm] (negative = outside)")
+    a2.set_xlabel("time t [s] (sample time of waypoints.csv)")
+    tol = result.tolerated_force_uncertainty
+    held = ("any force uncertainty" if tol == np.inf
+            else f"force uncertainty up to +-{100 * tol:.3g} %")
+    fig.suptitle(f"{result.problem_name}: {int(c.sum())} written in-material samples, all in "
+                 f"the window; holds {held} (requested +-{100 * u:g} %)", fontsize=11)
+    for ax in (a1, a2):
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    p = Path(path)
+    with atomic_path(p) as tmp:
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
     return p

@@ -48,9 +48,15 @@ from rfsw_plan.planning.nlp import (
     solve_plan_nlp,
     update_parameters,
 )
-from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.options import PlanOptions, check_well_posed
 from rfsw_plan.planning.result import BranchInfo, PlanResult
-from rfsw_plan.planning.verify import pin_track, predict, verify_plan
+from rfsw_plan.planning.verify import (
+    pin_track,
+    predict,
+    tolerated_uncertainty,
+    verify_plan,
+    verify_samples,
+)
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
@@ -277,6 +283,7 @@ def plan_task(
 ) -> PlanResult:
     """The pipeline of :func:`plan` on an explicit task (see there)."""
     t_all = t_start if t_start is not None else time.perf_counter()
+    check_well_posed(opts, window)
     robot = model.robot
     start, branch, infos, rotation, q_taught0 = choose_branch(
         model, task, np.asarray(q_seed, float), opts, window)
@@ -293,7 +300,7 @@ def plan_task(
             log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
 
     t0 = time.perf_counter()
-    sol = solve_plan(model, task, window, warm, opts, compile_c)
+    sol = _solver_call(solve_plan, model, task, window, warm, opts, compile_c)
     solve_time = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -311,6 +318,21 @@ def plan_task(
     traj = time_parameterise(robot, task, sol.q, sol.offsets, timing)
     traj = replace(traj, s_pin=pin_track(model, task, traj))
     timing_time = time.perf_counter() - t0
+    # What is written is what is verified: every sample, independently of the timing.
+    samples = verify_samples(model, task, window, traj, opts.margin, sol.q)
+    samples.raise_if_failed()
+    tolerated = {
+        "none": tolerated_uncertainty(predict(model, task, taught.q, 1.0), window, 1.0),
+        "mirror": tolerated_uncertainty(predict(model, task, mirror.q, 1.0), window, 1.0),
+        "nlp": min(tolerated_uncertainty(predict(model, task, sol.q, 1.0), window, 1.0),
+                   samples.tolerated_uncertainty),
+    }
+    held = tolerated["nlp"] >= opts.force_uncertainty * (1 - 1e-9)
+    if opts.robust_hard and not held:
+        raise InfeasibleError(
+            f"robust_hard: the plan holds the window up to +-{100 * tolerated['nlp']:.3g} % "
+            f"force uncertainty, not the requested +-{100 * opts.force_uncertainty:.3g} %",
+            constraint="robust_window")
 
     base = (metrics("none", model, task, taught.q, window, opts.force_uncertainty),
             metrics("mirror", model, task, mirror.q, window, opts.force_uncertainty),
@@ -318,7 +340,7 @@ def plan_task(
     e_none = predict(model, task, taught.q, 0.0).e_lat
     e_mirror = predict(model, task, mirror.q, 0.0).e_lat
     return PlanResult(
-        status="optimal" if sol.success else "verified",
+        status=("optimal" if sol.success else "verified") + ("" if held else "_nominal"),
         problem_name=name, robot_name=robot.name, euler=robot.description.euler, task=task,
         window=window, options=opts, q=sol.q, offsets=sol.offsets,
         tool_rotation=tool_rotation_of(robot, task, sol.q), verification=ver,
@@ -326,8 +348,22 @@ def plan_task(
         solver_status=sol.status, iterations=sol.iterations, outer_iterations=sol.outer,
         skipped_effects=sol.skipped, solve_time=solve_time, verify_time=verify_time,
         timing_time=timing_time, total_time=time.perf_counter() - t_all, trajectory=traj,
-        model=model,
+        model=model, samples=samples, tolerated_force_uncertainty=tolerated["nlp"],
+        tolerated_by_strategy=tolerated,
     )
+
+
+def _solver_call(fn: Any, *args: Any, **kwargs: Any) -> Any:
+    """Call a CasADi/IPOPT step; a solver exception becomes one line (:class:`InfeasibleError`,
+    exit 3) instead of a CasADi traceback."""
+    try:
+        return fn(*args, **kwargs)
+    except RuntimeError as exc:
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        reason = next((ln for ln in lines if "Ill-posed" in ln or ("Error" in ln
+                       and ".cpp" not in ln)), lines[-1] if lines else type(exc).__name__)
+        raise InfeasibleError(f"the NLP solver (CasADi/IPOPT) failed: {reason[:200]}",
+                              constraint="solver") from None
 
 
 @dataclass(frozen=True)

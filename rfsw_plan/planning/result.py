@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import BaselineMetrics
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.verify import Verification
+from rfsw_plan.planning.verify import SampleVerification, Verification
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
@@ -103,6 +103,34 @@ class PlanResult:
     total_time: float
     trajectory: TimedTrajectory
     model: ElastostaticModel
+    samples: SampleVerification | None = None
+    tolerated_force_uncertainty: float = float("nan")
+    tolerated_by_strategy: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def robust_held(self) -> bool:
+        """The plan holds the window under the requested force uncertainty at every
+        in-material waypoint and written sample."""
+        return bool(self.tolerated_force_uncertainty
+                    >= self.options.force_uncertainty * (1 - 1e-9))
+
+    def robust_warning(self) -> str:
+        """One line saying what the plan holds, what it does not, by how much and what to do;
+        empty if the requested force uncertainty is held."""
+        if self.robust_held or not np.isfinite(self.tolerated_force_uncertainty):
+            return ""
+        u = self.options.force_uncertainty
+        tol = self.tolerated_force_uncertainty
+        worst = 0.0
+        if self.samples is not None and self.samples.contact.any():
+            c = self.samples.contact
+            worst = float(np.max(u * self.samples.worst_per_unit[c] - self.samples.margin[c]))
+        return (f"the plan holds the weld window nominally and up to +-{100 * tol:.3g} % force "
+                f"uncertainty, not the requested +-{100 * u:.3g} % (the worst case leaves the "
+                f"window by {worst * 1e3:.3f} mm); to refuse such plans use --set "
+                "robust_hard=true; to hold it try a stiffer placement (rfsw-plan place), a force "
+                "model calibrated on a trial weld (plan --forces) or the hybrid strategy of "
+                "rfsw-plan compare")
 
     @property
     def e_lat(self) -> FloatArray:
@@ -122,6 +150,22 @@ class PlanResult:
         return {
             "status": self.status,
             "problem": self.problem_name,
+            "force_uncertainty_requested": self.options.force_uncertainty,
+            "tolerated_force_uncertainty": self.tolerated_force_uncertainty,
+            "tolerated_force_uncertainty_by_strategy": dict(self.tolerated_by_strategy),
+            "robust_window_held": self.robust_held,
+            "warning": self.robust_warning() or None,
+            "samples": None if self.samples is None else {
+                "n": len(self.samples.e_lat),
+                "in_material": int(np.sum(self.samples.contact)),
+                "verified": self.samples.ok,
+                "min_margin_mm": self.samples.min_margin * 1e3,
+                "max_abs_lateral_mm": float(np.max(np.abs(
+                    self.samples.e_lat[self.samples.contact]))) * 1e3
+                if self.samples.contact.any() else None,
+                "limit_ratios": self.samples.limit_ratios,
+                "stationarity_excess_mm": self.samples.station_excess * 1e3,
+            },
             "robot": self.robot_name,
             "solver_status": self.solver_status,
             "ipopt_iterations": self.iterations,
@@ -144,7 +188,8 @@ class PlanResult:
             "weights": self.options.weights,
             "baselines": [b.to_dict() for b in self.baselines],
             "worst_waypoint": {
-                "index": k, "phase": str(self.task.phase[k]), "s_mm": self.task.s[k] * 1e3,
+                "waypoint": k + 1, "index": k, "phase": str(self.task.phase[k]),
+                "s_mm": self.task.s[k] * 1e3, "t_s": float(self.task.time[k]),
                 "e_lat_mm": v.prediction.e_lat[k] * 1e3, "margin_mm": v.margin[k] * 1e3,
                 "worst_case_mm": v.prediction.worst[k] * 1e3,
                 "robust_margin_mm": v.robust_margin[k] * 1e3,

@@ -21,6 +21,7 @@ NLP cannot verify itself. Every waypoint is checked:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -238,7 +239,8 @@ def verify_plan(
 
 def _message(task: PlanTask, k: int, name: str, m: float, unit: str, e: FloatArray,
              pred: Prediction) -> str:
-    where = f"waypoint {k} ({task.phase[k]}, s = {task.s[k] * 1e3:.2f} mm)"
+    where = (f"waypoint {k + 1} ({task.phase[k]}, s = {task.s[k] * 1e3:.2f} mm, t = "
+             f"{task.time[k]:.2f} s)")
     if name in ("window", "robust_window"):
         extra = f"; e_lat = {e[k] * 1e3:+.3f} mm, worst case +-{pred.worst[k] * 1e3:.3f} mm"
         return (f"plan infeasible at {where}: {name} violated by {-m * 1e3:.3f} mm{extra}")
@@ -276,3 +278,314 @@ def pin_track(model: ElastostaticModel, task: PlanTask, traj: TimedTrajectory) -
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     pin = batch.T[:, :3, 3] + dX[:, :3]
     return np.asarray(traj.s + np.einsum("ki,ki->k", t, pin - at_s(fr.p)))
+
+
+# --------------------------------------------------------------------------------------------
+# Sample-by-sample verification of what is written
+
+#: Phases in which the pin is in the material.
+CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+#: Tolerance of the lateral window check on samples [m] (IPOPT's constraint tolerance).
+WINDOW_TOL = 1e-6
+#: Stationarity while the pin is plunged and not travelling. Every joint of every plunge and
+#: dwell sample stays within the range of the planned stationary waypoints of its phase
+#: (shape-preserving interpolation: between its neighbouring waypoints) [rad] ...
+JOINT_RANGE_TOL = 1e-9
+#: ... and the commanded TCP inside the box of those waypoints' commanded TCP, widened by this
+#: much [m]: joint-space interpolation is not straight in Cartesian space (kr600_curved_seam,
+#: offset head, with the tool turning during the dwell: up to 0.25 mm outside the box); the
+#: overshoot this catches was 5 to 25 mm.
+STATION_TOL = 1e-3
+#: Relative tolerance of the joint velocity, acceleration and jerk limits.
+LIMIT_TOL = 1e-9
+
+
+class SampleLike(Protocol):
+    """What :func:`verify_samples` needs of a sampled trajectory (a
+    :class:`~rfsw_plan.timing.trajectory.TimedTrajectory`, or samples re-read from a written
+    file or controller program): time [s] (N,), phase (N,), the pin's arc length along the
+    seam [m] (N,), joint values [rad] (N, n) and the wrench on the tool [N, N m] (N, 6), base
+    frame."""
+
+    @property
+    def t(self) -> FloatArray: ...
+
+    @property
+    def phase(self) -> NDArray[np.str_]: ...
+
+    @property
+    def s(self) -> FloatArray: ...
+
+    @property
+    def q(self) -> FloatArray: ...
+
+    @property
+    def wrench(self) -> FloatArray: ...
+
+
+@dataclass(frozen=True)
+class SampleFailure:
+    """The first sample failing one check.
+
+    Attributes:
+        index: 0-based sample index (``sample`` is the 1-based row of ``waypoints.csv``).
+        t: Its time [s].
+        phase: Its phase.
+        s: Its arc length [m].
+        check: ``window``, ``joint_limit_qj``, ``joint_velocity_qj``,
+            ``joint_acceleration_qj``, ``joint_jerk_qj``, ``plunge_stationarity`` or
+            ``dwell_stationarity``.
+        value: The offending value (file units: mm, deg, deg/s, deg/s^2, deg/s^3).
+        bound: The bound it breaks (same unit).
+        unit: The unit of value and bound.
+    """
+
+    index: int
+    t: float
+    phase: str
+    s: float
+    check: str
+    value: float
+    bound: float
+    unit: str
+
+    @property
+    def sample(self) -> int:
+        """1-based sample number (the row of ``waypoints.csv`` below the header)."""
+        return self.index + 1
+
+    @property
+    def message(self) -> str:
+        """One line: which sample, where, what, value and bound."""
+        what = {"window": "lateral pin error outside the window with the margin",
+                "dwell_stationarity": "commanded TCP leaves the box of the planned dwell "
+                                      "waypoints by",
+                "plunge_stationarity": "commanded TCP leaves the box of the planned plunge "
+                                       "waypoints by",
+                "plunge_joint_range": "a joint leaves the range of the planned plunge "
+                                      "waypoints by",
+                "dwell_joint_range": "a joint leaves the range of the planned dwell "
+                                     "waypoints by"}.get(self.check, self.check)
+        return (f"sample {self.sample} (t = {self.t:.3f} s, {self.phase}, s = "
+                f"{self.s * 1e3:.2f} mm): {what}: {self.value:+.4g} {self.unit}, bound "
+                f"{self.bound:.4g} {self.unit}")
+
+
+@dataclass(frozen=True)
+class SampleVerification:
+    """Result of :func:`verify_samples` (base frame, SI unless stated).
+
+    Attributes:
+        ok: Every sample passes every check.
+        contact: In-material samples (plunge, dwell, accelerate, weld, decelerate), (N,).
+        e_lat: Predicted lateral pin error l . (FK_p + dX_p - p) [m], (N,).
+        margin: Distance of e_lat to the nearest window bound [m], (N,) (>= 0 inside).
+        worst_per_unit: Change of e_lat per unit relative force uncertainty,
+            R = sum_i |f_i| |l^T C_tt b_i| [m], (N,) (the worst case at +-u is u R).
+        tolerated_uncertainty: Largest uniform u for which e +- u R stays in the window at
+            every in-material sample (inf if no force reaches the lateral axis; 0 if a
+            sample is outside the window).
+        limit_ratios: max |derivative| / limit over all samples and joints per order
+            (``velocity``, ``acceleration``, ``jerk``).
+        station_excess: Largest distance of a plunge or dwell sample's commanded TCP outside
+            the box of its planned stationary waypoints [m] (-inf if not checked).
+        failures: The first failing sample of every failing check, in time order.
+    """
+
+    ok: bool
+    contact: NDArray[np.bool_]
+    e_lat: FloatArray
+    margin: FloatArray
+    worst_per_unit: FloatArray
+    tolerated_uncertainty: float
+    limit_ratios: dict[str, float]
+    station_excess: float
+    failures: tuple[SampleFailure, ...]
+
+    @property
+    def first_failure(self) -> SampleFailure | None:
+        """The earliest failing sample, or None."""
+        return self.failures[0] if self.failures else None
+
+    @property
+    def min_margin(self) -> float:
+        """Smallest window margin over the in-material samples [m] (inf if none)."""
+        return float(np.min(self.margin[self.contact])) if self.contact.any() else np.inf
+
+    def raise_if_failed(self) -> None:
+        """Raise :class:`InfeasibleError` naming the first failing sample."""
+        f = self.first_failure
+        if f is not None:
+            more = f" (and {len(self.failures) - 1} more checks fail)" if len(
+                self.failures) > 1 else ""
+            raise InfeasibleError(f"written trajectory fails the sample check at {f.message}"
+                                  + more, None, f.check, None)
+
+
+def seam_frames_at(task: PlanTask, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                           FloatArray]:
+    """Seam point p and unit tangent t, lateral l, normal n at arc lengths s [m] (N,), by
+    linear interpolation between the task's weld waypoints (what ``waypoints.csv`` uses)."""
+    m = task.n_start
+    fr = task.frames
+    sw = fr.s[m:]
+
+    def at_s(a: FloatArray, unit: bool) -> FloatArray:
+        out = np.stack([np.interp(s, sw, a[m:, i]) for i in range(3)], axis=1)
+        if unit:
+            out /= np.linalg.norm(out, axis=1, keepdims=True)
+        return out
+
+    return at_s(fr.p, False), at_s(fr.t, True), at_s(fr.l, True), at_s(fr.n, True)
+
+
+def verify_samples(
+    model: ElastostaticModel, task: PlanTask, window: WeldWindow, samples: SampleLike,
+    margin: float = 0.0, q_waypoints: FloatArray | None = None, q_resolution: float = 0.0,
+) -> SampleVerification:
+    """Check every sample of a trajectory as it is written, numerically and independently.
+
+    Nothing here uses CasADi or the planner's interpolation: the commanded pose is the
+    forward kinematics of the sample's joint values, the deflection the model's process
+    deflection (every physical effect, the task's seam reference) under the sample's wrench,
+    the derivatives finite differences of the samples in time. Checks:
+
+    * in-material samples (plunge, dwell, accelerate, weld, decelerate): the lateral pin error
+      e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside [lower + margin, upper - margin];
+    * every sample: joint limits, and joint velocity, acceleration and jerk limits;
+    * stationarity (with ``q_waypoints``): the commanded TCP of every plunge sample inside the
+      box spanned by the planned plunge waypoints (and the first dwell one), of every dwell
+      sample inside the box of the planned dwell waypoints (with the last plunge and the first
+      weld waypoint), each widened by ``STATION_TOL``: the TCP moves only as the fake target
+      must follow the force ramp, no overshoot between ramp points.
+
+    It also gives the tolerated force uncertainty: the worst case of e over the force box
+    |delta f_i| <= u |f_i| (seam-frame components) is e +- u R with
+    R = sum_i |f_i| |l^T C_tt b_i| (deflection linear in F; seed 000 eq. 11), so the largest
+    u keeping every in-material sample in the window is min_k dist_k / R_k (closed form;
+    dist_k the distance of e_k to the nearest bound of the bare window).
+
+    Args:
+        model: Elastostatic model (all effects are evaluated).
+        task: The planned task (seam frames, seam reference).
+        window: Weld window [m].
+        samples: The samples (:class:`SampleLike`).
+        margin: Required margin to the window bounds [m].
+        q_waypoints: The planned joint values of the task's waypoints [rad], (K, n), for the
+            stationarity check (skipped if None).
+        q_resolution: Rounding of the joint values as written [rad] (half a unit of the last
+            written digit: ``waypoints.csv`` writes 1e-6 deg, so 0.5e-6 deg), added to the
+            tolerance of the joint-limit and joint-range checks. The finite-difference
+            derivatives see the rounding too (with 1e-6 deg and 10 ms samples, about
+            1 deg/s^3 of jerk).
+
+    Returns:
+        The verification; ``ok`` False names the failing samples.
+    """
+    t = np.asarray(samples.t, dtype=float)
+    phase = np.asarray(samples.phase).astype(str)
+    s = np.asarray(samples.s, dtype=float)
+    Q = np.atleast_2d(np.asarray(samples.q, dtype=float))
+    W = np.asarray(samples.wrench, dtype=float)
+    N = len(t)
+    d = model.robot.description
+    batch = model.batch(Q)
+    dX = model.process_deflection_batch(batch, W, task.reference)
+    p, tt, ll, nn = seam_frames_at(task, s)
+    x = batch.T[:, :3, 3]
+    e = np.einsum("ki,ki->k", ll, x + dX[:, :3] - p)
+    contact = np.isin(phase, CONTACT_PHASES)
+    dist = np.minimum(e - window.lower, window.upper - e)
+    # Worst case per unit uncertainty, at the in-material samples only.
+    R = np.zeros(N)
+    if contact.any():
+        sub = model.batch(Q[contact])
+        Ctt = model.physical().cartesian_compliance(sub)[:, :3, :3]
+        lC = np.einsum("ki,kij->kj", ll[contact], Ctt)
+        f = W[contact, :3]
+        for b in (tt[contact], ll[contact], nn[contact]):
+            R[contact] += np.abs(np.einsum("ki,ki->k", f, b)) * np.abs(
+                np.einsum("kj,kj->k", lC, b))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u_k = np.where(R > 0, np.maximum(dist, 0.0) / R, np.where(dist >= 0, np.inf, 0.0))
+    tolerated = float(np.min(u_k[contact])) if contact.any() else np.inf
+
+    fails: list[SampleFailure] = []
+
+    def first(bad: NDArray[np.bool_], check: str, value: FloatArray, bound: FloatArray | float,
+              unit: str) -> None:
+        idx = np.flatnonzero(bad)
+        if len(idx):
+            i = int(idx[0])
+            b = bound[i] if isinstance(bound, np.ndarray) else bound
+            fails.append(SampleFailure(i, float(t[i]), str(phase[i]), float(s[i]), check,
+                                       float(value[i]), float(b), unit))
+
+    lo, hi = window.lower + margin, window.upper - margin
+    bad = contact & ((e < lo - WINDOW_TOL) | (e > hi + WINDOW_TOL))
+    first(bad, "window", e * 1e3, np.where(e < lo, lo, hi) * 1e3, "mm")
+    for j in range(Q.shape[1]):
+        qj = Q[:, j]
+        bad = (qj < d.lower[j] - 1e-9 - q_resolution) | (qj > d.upper[j] + 1e-9 + q_resolution)
+        first(bad, f"joint_limit_q{j + 1}", np.rad2deg(qj),
+              np.rad2deg(np.where(qj < d.lower[j], d.lower[j], d.upper[j])), "deg")
+    ratios: dict[str, float] = {}
+    if N >= 3:
+        der = Q
+        for name, limit, unit in (("velocity", d.velocity, "deg/s"),
+                                  ("acceleration", d.acceleration, "deg/s^2"),
+                                  ("jerk", d.jerk, "deg/s^3")):
+            der = np.gradient(der, t, axis=0)
+            ratio = np.abs(der) / limit
+            ratios[name] = float(np.max(ratio))
+            for j in range(Q.shape[1]):
+                first(ratio[:, j] > 1.0 + LIMIT_TOL, f"joint_{name}_q{j + 1}",
+                      np.rad2deg(der[:, j]), float(np.rad2deg(limit[j])), unit)
+    excess = -np.inf
+    if q_waypoints is not None and task.n_start:
+        m = task.n_start
+        xw = model.robot.batch_fk_jacobian(np.asarray(q_waypoints, float)[:m + 1])[0][:, :3, 3]
+        ph_w = task.phase[:m]
+        plunge_w = np.flatnonzero(ph_w == "plunge")
+        dwell_w = np.flatnonzero(ph_w == "dwell")
+        for name, wk in (("plunge", np.append(plunge_w, dwell_w[:1] if len(dwell_w) else m)),
+                         ("dwell", np.concatenate([plunge_w[-1:], dwell_w, [m]]))):
+            rows = np.flatnonzero(phase == name)
+            if not len(rows) or not len(wk):
+                continue
+            wk = wk.astype(int)
+            qw = np.asarray(q_waypoints, float)[wk]
+            jout = np.max(np.maximum(qw.min(axis=0) - Q[rows], Q[rows] - qw.max(axis=0)),
+                          axis=1)
+            out = np.max(np.maximum(xw[wk].min(axis=0) - x[rows], x[rows] - xw[wk].max(axis=0)),
+                         axis=1)
+            excess = max(excess, float(np.max(out)))
+            for check, o, tol, scale, unit in (
+                    (f"{name}_joint_range", jout, JOINT_RANGE_TOL + q_resolution,
+                     float(np.rad2deg(1.0)), "deg"),
+                    (f"{name}_stationarity", out, STATION_TOL, 1e3, "mm")):
+                bad = np.zeros(N, dtype=bool)
+                bad[rows] = o > tol
+                val = np.zeros(N)
+                val[rows] = o * scale
+                first(bad, check, val, tol * scale, unit)
+    fails.sort(key=lambda f: (f.index, f.check))
+    return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
+                              tuple(fails))
+
+
+def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,
+                          mask: NDArray[np.bool_] | None = None) -> float:
+    """Largest uniform relative force uncertainty whose worst case keeps every waypoint of a
+    :class:`Prediction` (made at ``uncertainty``) in the window: min_k dist_k / R_k, with
+    R_k = worst_k / uncertainty (closed form; see :func:`verify_samples`). inf if no force
+    reaches the lateral axis."""
+    e = pred.e_lat if mask is None else pred.e_lat[mask]
+    worst = pred.worst if mask is None else pred.worst[mask]
+    if uncertainty <= 0:
+        raise ValueError("tolerated_uncertainty needs the prediction at an uncertainty > 0")
+    R = worst / uncertainty
+    dist = np.minimum(e - window.lower, window.upper - e)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(R > 0, np.maximum(dist, 0.0) / R, np.where(dist >= 0, np.inf, 0.0))
+    return float(np.min(u)) if len(u) else np.inf

@@ -7,12 +7,12 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rfsw_plan.exceptions import InfeasibleError, InputError
+from rfsw_plan.exceptions import InfeasibleError, InputError, RfswError
 
 NAME = "plan"
 HELP = "plan poses and fake-target offsets, verify them, time them and write waypoint files"
 
-_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png")
+_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -62,10 +62,12 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.io.waypoints import (
         mark_outputs_stale,
         plot_lateral_error,
+        plot_lateral_error_time,
         write_plan_json,
         write_waypoints_csv,
     )
     from rfsw_plan.planning.api import plan
+    from rfsw_plan.planning.options import check_well_posed
     from rfsw_plan.process.plan_options import options_from_table
     from rfsw_plan.process.problem import load_problem
 
@@ -77,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     if args.spacing_mm is not None and not 0.01 <= args.spacing_mm <= 1e4:
         raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
                          "a number in [0.01, 10000]")
+    check_well_posed(opts, problem.window, f"{problem.name}: [planning] and --set")
     out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
     with OutputLock(out):
         # An earlier run's files must never sit beside this run's as if they were its own:
@@ -85,18 +88,25 @@ def run(args: argparse.Namespace) -> int:
         try:
             result = plan(problem, opts, spacing=None if args.spacing_mm is None
                           else args.spacing_mm * 1e-3)
-        except InfeasibleError as exc:
-            write_plan_json(out / "plan.json", {
-                "status": "infeasible", "problem": problem.name, "message": str(exc),
-                "waypoint": exc.waypoint, "constraint": exc.constraint,
-                "margin_mm": None if exc.margin is None else exc.margin * 1e3,
-            })
+        except RfswError as exc:
+            record: dict[str, Any] = {"status": "failed", "problem": problem.name,
+                                      "message": str(exc)}
+            if isinstance(exc, InfeasibleError):
+                record.update(
+                    status="infeasible",
+                    waypoint=None if exc.waypoint is None else exc.waypoint + 1,
+                    constraint=exc.constraint,
+                    margin_mm=None if exc.margin is None else exc.margin * 1e3)
+            write_plan_json(out / "plan.json", record)
             raise
         summary = result.summary()
         written = [write_waypoints_csv(out / "waypoints.csv", result),
-                   plot_lateral_error(out / "lateral_error.png", result)]
+                   plot_lateral_error(out / "lateral_error.png", result),
+                   plot_lateral_error_time(out / "lateral_error_time.png", result)]
         summary["files"] = [str(p) for p in written]
         write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
+    if result.robust_warning():
+        print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
     if args.json:
         brief = {k: v for k, v in summary.items() if k != "waypoints"}
         print(strict_json(brief), end="")
@@ -105,17 +115,35 @@ def run(args: argparse.Namespace) -> int:
           f"{result.iterations} IPOPT iterations, branch {result.branch})")
     u = result.options.force_uncertainty
     print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
-          f"{'worst margin mm':>16} {'k_lat N/mm':>11}")
+          f"{'worst margin mm':>16} {'k_lat N/mm':>11}  {'force uncertainty held':<22}")
     for b in result.baselines:
         d = b.to_dict()
+        tol = result.tolerated_by_strategy.get(b.name, float("nan"))
         print(f"{b.name:<8} {d['max_abs_lateral_mm']:>10.3f} {d['rms_lateral_mm']:>8.3f} "
               f"{d['worst_case_lateral_mm']:>9.3f} {d['worst_case_window_margin_mm']:>16.3f} "
-              f"{d['min_lateral_stiffness_N_mm']:>11.1f}")
+              f"{d['min_lateral_stiffness_N_mm']:>11.1f}  {_held(tol):<22}")
     print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
-          "case to the window, negative = outside)")
+          "case to the window, negative = outside; held: the largest uniform +-u on the "
+          "seam-frame force components that keeps every in-material waypoint, and for nlp every "
+          "written sample, in the window)")
     ww = summary["worst_waypoint"]
-    print(f"worst waypoint {ww['index']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm): "
-          f"e = {ww['e_lat_mm']:+.3f} mm, margin {ww['margin_mm']:.3f} mm")
+    print(f"worst waypoint {ww['waypoint']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm, "
+          f"t = {ww['t_s']:.2f} s): e = {ww['e_lat_mm']:+.3f} mm, margin {ww['margin_mm']:.3f} mm")
+    if result.samples is not None:
+        sv = result.samples
+        print(f"written samples: {len(sv.e_lat)} ({int(sv.contact.sum())} in the material), "
+              f"all verified; smallest window margin {sv.min_margin * 1e3:.3f} mm")
     print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); files in {out}",
           file=sys.stdout)
     return 0
+
+
+def _held(u: float) -> str:
+    """``holds up to +-9 %`` for a tolerated relative uncertainty."""
+    if u != u:
+        return ""
+    if u <= 0:
+        return "holds none (nominal outside)"
+    if u == float("inf"):
+        return "holds any (no lateral force)"
+    return f"holds up to +-{100 * u:.3g} %"

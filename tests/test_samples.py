@@ -1,0 +1,142 @@
+"""What the planner writes is what it verified, sample by sample (issue 9 §1-3)."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from rfsw_plan.cli.main import main
+from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.io.waypoints import Q_RESOLUTION, check_plan_folder, read_waypoints_csv
+from rfsw_plan.planning.api import plan
+from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
+from rfsw_plan.process.problem import load_problem
+from rfsw_plan.timing.trajectory import monotone_interp
+
+BUNDLED = ("zk500_table6_seam", "fanuc_butt_1700mm", "kr600_curved_seam")
+
+
+def _reject(c: str) -> float:
+    raise ValueError(f"non-strict JSON constant {c}")
+
+
+@pytest.fixture(scope="module")
+def planned(tmp_path_factory):
+    out = {}
+    for name in BUNDLED:
+        d = tmp_path_factory.mktemp(name)
+        assert main(["-q", "plan", name, "-o", str(d)]) == 0
+        out[name] = d
+    return out
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_every_written_in_material_sample_is_inside_the_window(planned, name) -> None:
+    d = planned[name]
+    rec = check_plan_folder(d)  # the commit record vouches for the files beside it
+    assert set(rec["sha256"]) == {"waypoints.csv", "lateral_error.png",
+                                  "lateral_error_time.png"}
+    problem = load_problem(name)
+    res = plan(problem)
+    written = read_waypoints_csv(d / "waypoints.csv")
+    assert len(written.t) == len(res.trajectory)
+    sv = verify_samples(res.model, res.task, res.window, written, res.options.margin, res.q,
+                        Q_RESOLUTION)
+    assert sv.ok, sv.failures[0].message
+    c = np.isin(written.phase, CONTACT_PHASES)
+    assert sv.contact.sum() == c.sum() > 1000
+    assert sv.min_margin >= res.options.margin - 1e-6
+    # The file's own columns say the same.
+    rows = np.genfromtxt(d / "waypoints.csv", delimiter=",", names=True, dtype=None,
+                         encoding="utf-8")
+    assert np.nanmin(rows["margin_mm"][c]) >= res.options.margin * 1e3 - 1e-3
+    assert rec["samples"]["verified"] is True
+    assert rec["tolerated_force_uncertainty"] == pytest.approx(res.tolerated_force_uncertainty)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_plunge_and_dwell_samples_stay_between_their_neighbouring_waypoints(name) -> None:
+    res = plan(load_problem(name))
+    tr = res.trajectory
+    m = res.task.n_start
+    qw = res.q[:m + 1]
+    for ph in ("plunge", "dwell"):
+        rows = tr.phase == ph
+        if rows.any():
+            assert np.all(tr.q[rows] >= qw.min(axis=0) - 1e-12)
+            assert np.all(tr.q[rows] <= qw.max(axis=0) + 1e-12)
+
+
+def test_monotone_interp_never_overshoots() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        xk = np.cumsum(rng.uniform(0.01, 3.0, 6))
+        yk = rng.normal(size=(6, 3))
+        x = np.linspace(xk[0], xk[-1], 997)
+        y = monotone_interp(xk, yk, x, rest_ends=True)
+        i = np.clip(np.searchsorted(xk, x, side="right") - 1, 0, 4)
+        assert np.all(y >= np.minimum(yk[i], yk[i + 1]) - 1e-15)
+        assert np.all(y <= np.maximum(yk[i], yk[i + 1]) + 1e-15)
+        assert np.allclose(monotone_interp(xk, yk, xk), yk)
+
+
+def test_a_swinging_dwell_is_refused_naming_the_first_sample() -> None:
+    """The old clamped spline swung the fanuc dwell by 15 mm; a swing of that kind is caught
+    at its first sample, with time, phase, value and bound."""
+    res = plan(load_problem("fanuc_butt_1700mm"))
+    tr = res.trajectory
+    dw = np.flatnonzero(tr.phase == "dwell")
+    q = tr.q.copy()
+    bump = np.sin(np.linspace(0, np.pi, len(dw)))
+    q[dw, 0] += np.deg2rad(0.8) * bump  # ~ the swing seen before the fix
+    bad = replace(tr, q=q)
+    sv = verify_samples(res.model, res.task, res.window, bad, res.options.margin, res.q)
+    assert not sv.ok
+    f = sv.first_failure
+    assert f is not None and f.phase == "dwell" and dw[0] <= f.index <= dw[-1]
+    assert f"sample {f.index + 1} (t = {tr.t[f.index]:.3f} s, dwell" in f.message
+    assert "bound" in f.message
+    with pytest.raises(InfeasibleError, match="sample check at sample"):
+        sv.raise_if_failed()
+
+
+def test_robust_status_warning_and_robust_hard(tmp_path, capsys) -> None:
+    out = tmp_path / "f"
+    assert main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out)]) == 0
+    cap = capsys.readouterr()
+    rec = json.loads((out / "plan.json").read_text(), parse_constant=_reject)
+    assert rec["status"] == "optimal_nominal"
+    tol = rec["tolerated_force_uncertainty"]
+    assert 0.0 < tol < 0.2
+    warn = [ln for ln in cap.err.splitlines() if "warning" in ln]
+    assert len(warn) == 1
+    for part in (f"+-{100 * tol:.3g} %", "not the requested +-20 %", "robust_hard=true",
+                 "placement", "trial weld", "hybrid"):
+        assert part in warn[0]
+    assert f"holds up to +-{100 * tol:.3g} %" in cap.out
+    # robust_hard refuses it: exit 3, nothing claiming success.
+    assert main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out), "--set",
+                 "robust_hard=true"]) == 3
+    rec = json.loads((out / "plan.json").read_text(), parse_constant=_reject)
+    assert rec["status"] == "infeasible" and rec["message"]
+    assert not (out / "waypoints.csv").exists()
+    # A requested uncertainty below the tolerated one is held: plain optimal.
+    assert main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out), "--force-uncertainty",
+                 f"{0.9 * tol:.6f}"]) == 0
+    rec = json.loads((out / "plan.json").read_text(), parse_constant=_reject)
+    assert rec["status"] == "optimal" and rec["robust_window_held"] is True
+
+
+@pytest.mark.parametrize("sets", [["margin_mm=1"], ["margin_mm=0.975"]])
+def test_ill_posed_options_are_refused_before_the_solver(tmp_path, capsys, sets) -> None:
+    args = ["-q", "plan", "zk500_table6_seam", "-o", str(tmp_path / "o")]
+    for s in sets:
+        args += ["--set", s]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1
+    assert "margin_mm" in err and "0.975" in err
+    assert not (tmp_path / "o").exists()  # refused before anything was done
