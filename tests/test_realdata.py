@@ -130,7 +130,8 @@ def test_cli_fit_save_and_hold_out(tmp_path: Path, capsys: pytest.CaptureFixture
     text = capsys.readouterr().out
     # The diagnosis names the kinematic offsets first, with the arm's joint offsets, and says
     # what remains unexplained and that the floor is unknown.
-    best = next(ln for ln in text.splitlines() if ln.startswith("  "))
+    lines = text.splitlines()
+    best = lines[lines.index("best candidates (held-out RMS after adding):") + 1]
     assert best.split()[0] == "kinematic_offsets", text
     assert "arm_5_joint offset" in text
     assert "unexplained" in text and "floor is unknown" in text

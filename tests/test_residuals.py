@@ -158,3 +158,40 @@ def test_per_joint_breakdown_finds_extra_joint_motion(model: ElastostaticModel) 
     an = analyze_residuals(model, d, residual=res)
     shares = [j.r2_joint_motion for j in an.per_joint]
     assert int(np.argmax(shares)) == 2 and shares[2] > 0.95
+
+
+def _cycle(model: ElastostaticModel, loads: list[float], poses: int = 60) -> MeasurementSet:
+    """Per pose the load steps ``loads`` (x 3 kN along z) in time order; 0.03 mm noise, and a
+    0.1 mm backlash step in every sample after the load cycle (the last zero load)."""
+    rng = np.random.default_rng(4)
+    q0 = np.radians([10.0, 20.0, -10.0, 30.0, 80.0, 0.0])
+    W = np.array([0.0, 0, 3000, 0, 0, 0])
+    F = np.array([s * W for _ in range(poses) for s in loads])
+    Q = np.repeat(q0[None] + rng.normal(0, 0.2, (poses, 6)), len(loads), axis=0)
+    after = np.array([k == len(loads) - 1 for _ in range(poses) for k in range(len(loads))])
+    P = (model.predict_position(Q, F) + rng.normal(0, 3e-5, (len(F), 3))
+         + 1e-4 * after[:, None])
+    pid = np.repeat(np.array([f"P{i}" for i in range(poses)]), len(loads))
+    return MeasurementSet(Q, F, P, np.arange(len(F)) * 1.0, pid)
+
+
+def test_zero_load_readings_of_a_load_cycle_are_not_pooled(model: ElastostaticModel) -> None:
+    # 0, +W, -W, 0: the two zero loads bracket a load cycle (different hysteresis states)
+    # and are not repeats: no floor rather than an inflated one.
+    d = _cycle(model, [0.0, 1.0, -1.0, 0.0])
+    assert estimate_noise_floor(d, d.position - model.predict_position(d.q, d.wrench)
+                                ).sigma is None
+    # 0, 0, +W, -W, 0: the adjacent pair is a repeat; the floor is the true 0.03 mm.
+    d = _cycle(model, [0.0, 0.0, 1.0, -1.0, 0.0])
+    nf = estimate_noise_floor(d, d.position - model.predict_position(d.q, d.wrench))
+    assert nf.source == "repeats" and nf.n_groups == 60
+    assert nf.sigma == pytest.approx(3e-5, rel=0.15)
+
+
+def test_force_noise_is_part_of_the_floor(model: ElastostaticModel) -> None:
+    d = _data(model, poses=20, loads=3, repeats=1)
+    res = d.position - model.predict_position(d.q, d.wrench)
+    nf = estimate_noise_floor(d, res, 1e-5, model=model, force_noise_n=5.0)
+    assert nf.device_sigma == 1e-5 and nf.force_sigma is not None and nf.force_sigma > 0
+    assert nf.sigma == pytest.approx(np.hypot(1e-5, nf.force_sigma))
+    assert nf.force_noise_source == "given"

@@ -37,6 +37,7 @@ without ``[controller]``)
 from __future__ import annotations
 
 import csv
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -282,8 +283,10 @@ def read_waypoints_csv(path: str | Path) -> WrittenSamples:
     header, body = rows[0], rows[1:]
     col = {h: i for i, h in enumerate(header)}
     need = ["t_s", "s_mm", "phase", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
-    qcols = sorted((h for h in header if h.startswith("q") and h.endswith("_deg")
-                    and h[1:-4].isdigit()), key=lambda h: int(h[1:-4]))
+    # Joint columns: the controller's names (q1_deg, A1_deg, J1_deg...), in joint order.
+    jc = [(re.fullmatch(r"([A-Za-z]+)(\d+)_deg", h), h) for h in header]
+    qcols = sorted((h for mt, h in jc if mt), key=lambda h: int(
+        re.fullmatch(r"[A-Za-z]+(\d+)_deg", h).group(1)))  # type: ignore[union-attr]
     missing = [h for h in need if h not in col] + ([] if qcols else ["q1_deg"])
     if missing:
         raise InputError(p, "header", f"missing column {missing[0]}", "a waypoints.csv")

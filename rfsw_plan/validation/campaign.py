@@ -191,12 +191,13 @@ def campaign_wrenches(
 ) -> FloatArray:
     """Logged wrenches [N, N m], base frame, shape (n_poses * loads_per_pose, 6).
 
-    Per pose: zero load first, a zero-load repeat last (with >= 3 samples), +W/-W pairs in
-    between (W: force 1-5 kN in a random direction, moments N(0, 100 N m) per axis).
+    Per pose: zero load, read twice in a row (with >= 3 samples: a repeat at the same load
+    step, adjacent in time, gives the noise floor), then +W/-W pairs (W: force 1-5 kN in a
+    random direction, moments N(0, 100 N m) per axis).
     """
     M = loads_per_pose
     W = np.zeros((n_poses, M, 6))
-    loaded = list(range(1, M - 1 if M >= 3 else M))
+    loaded = list(range(2 if M >= 3 else 1, M))
     for k in range(0, len(loaded), 2):
         u = rng.normal(size=(n_poses, 3))
         u /= np.linalg.norm(u, axis=1, keepdims=True)

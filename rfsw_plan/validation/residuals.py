@@ -39,22 +39,35 @@ REPEAT_Q_TOL_RAD = 1e-4
 #: ... and their forces to this [N] and moments to REPEAT_MOMENT_TOL_NM [N m].
 REPEAT_FORCE_TOL_N = 5.0
 REPEAT_MOMENT_TOL_NM = 1.0
+#: A logged force below this [N] counts as a zero-load reading for the sensor-noise estimate
+#: (when the file has no ``load_step``).
+ZERO_LOAD_N = 50.0
 #: Family-wise significance level of the feature tests (Bonferroni over the features).
 FEATURE_ALPHA = 1e-3
 
 
 @dataclass(frozen=True)
 class NoiseFloor:
-    """1-sigma measurement noise of one position axis.
+    """1-sigma noise of one measured position axis, in its two parts.
+
+    The floor a model can reach is the measuring device's noise plus the force sensor's
+    noise propagated through the model's compliance (a logged force off by dF moves the
+    *predicted* TCP by C dF): sigma^2 = sigma_device^2 + sigma_force^2.
 
     Attributes:
-        sigma: Noise [m], or None when it cannot be estimated (no repeats, none given).
+        sigma: Total noise [m], or None when it cannot be estimated (no repeats, none given).
         source: ``given`` (--noise-mm), ``repeats`` (scatter of repeated samples), ``sigma
             column`` (the file's ``sigma_mm``) or ``none``.
         dof: Degrees of freedom of the estimate (inf when given).
         n_groups: Number of groups of repeated samples used (0 if none).
         repeats_sigma: The repeat-based estimate [m] when repeats exist, even if another
             source was used (for comparison), else None.
+        device_sigma: The measuring device's part [m] (None if unknown).
+        force_sigma: The force sensor's part [m]: its noise propagated through the compliance,
+            RMS over the measured values (0 without force readings, None if unknown).
+        force_noise: Force sensor noise per axis [N] (None if unknown).
+        force_noise_source: ``given`` (--force-noise-N), ``zero-load readings``, ``no force
+            sensor`` or ``unknown``.
     """
 
     sigma: float | None
@@ -62,6 +75,10 @@ class NoiseFloor:
     dof: float
     n_groups: int = 0
     repeats_sigma: float | None = None
+    device_sigma: float | None = None
+    force_sigma: float | None = None
+    force_noise: float | None = None
+    force_noise_source: str = "unknown"
 
     @property
     def known(self) -> bool:
@@ -250,6 +267,10 @@ def noise_json(n: NoiseFloor) -> dict[str, Any]:
         "dof": None if np.isinf(n.dof) else n.dof,
         "n_groups": n.n_groups,
         "repeats_sigma_mm": None if n.repeats_sigma is None else n.repeats_sigma * 1e3,
+        "device_sigma_mm": None if n.device_sigma is None else n.device_sigma * 1e3,
+        "force_sigma_mm": None if n.force_sigma is None else n.force_sigma * 1e3,
+        "force_noise_N": n.force_noise,
+        "force_noise_source": n.force_noise_source,
     }
 
 
@@ -257,49 +278,125 @@ def noise_json(n: NoiseFloor) -> dict[str, Any]:
 # Noise floor
 
 
-def repeat_groups(data: MeasurementSet) -> NDArray[np.int_]:
+def repeat_groups(data: MeasurementSet, force_tol_n: float = REPEAT_FORCE_TOL_N
+                  ) -> NDArray[np.int_]:
     """Group index of every sample; samples in one group are repeats of each other.
 
-    Repeats have the same ``pose_id`` (when the file has one), joint values within
-    REPEAT_Q_TOL_RAD and a wrench within REPEAT_FORCE_TOL_N / REPEAT_MOMENT_TOL_NM (rounded to
-    those grids), shape (m,).
+    Repeats are samples of the same pose at the same load step *in sequence*: taken in time
+    order (``t_s``, else file order), a sample joins the previous one's group when it has the
+    same ``pose_id`` (when the file has one), joint values within REPEAT_Q_TOL_RAD, and the same
+    ``load_step`` (when the file has one) or a wrench within ``force_tol_n`` [N] /
+    REPEAT_MOMENT_TOL_NM of the previous one. Zero-load readings of one pose taken at different
+    points of a load cycle (different hysteresis states) are therefore never pooled.
+
+    Returns:
+        Group index per sample, shape (m,).
     """
-    keys = np.concatenate(
-        [
-            np.round(data.q / REPEAT_Q_TOL_RAD),
-            np.round(data.wrench[:, :3] / REPEAT_FORCE_TOL_N),
-            np.round(data.wrench[:, 3:] / REPEAT_MOMENT_TOL_NM),
-        ],
-        axis=1,
-    )
-    if data.pose_id is not None:
-        _, pid = np.unique(data.pose_id, return_inverse=True)
-        keys = np.concatenate([pid[:, None].astype(float), keys], axis=1)
-    _, inverse = np.unique(keys, axis=0, return_inverse=True)
-    return np.asarray(inverse, dtype=np.int_).reshape(-1)
+    m = len(data)
+    order = np.argsort(data.t, kind="stable") if data.t is not None else np.arange(m)
+    groups = np.empty(m, dtype=np.int_)
+    g = -1
+    prev: int | None = None
+    for i in order:
+        same = prev is not None and bool(
+            np.all(np.abs(data.q[i] - data.q[prev]) <= REPEAT_Q_TOL_RAD)
+            and (data.pose_id is None or data.pose_id[i] == data.pose_id[prev])
+            and (data.load_step[i] == data.load_step[prev] if data.load_step is not None else
+                 np.all(np.abs(data.wrench[i, :3] - data.wrench[prev, :3]) <= force_tol_n)
+                 and np.all(np.abs(data.wrench[i, 3:] - data.wrench[prev, 3:])
+                            <= REPEAT_MOMENT_TOL_NM)))
+        if not same:
+            g += 1
+        groups[i] = g
+        prev = int(i)
+    return groups
+
+
+def estimate_force_noise(data: MeasurementSet) -> tuple[float | None, str]:
+    """Force sensor noise per axis [N] from the spread of its zero-load readings.
+
+    Zero-load rows are ``load_step == 0`` when the file has load steps, else rows whose logged
+    force is below ZERO_LOAD_N. Their per-axis standard deviation about the mean (a bias is
+    not noise), pooled over the three axes, needs at least 3 such rows. A log without any
+    non-zero force reading (no sensor, or a simulated/tared log) gives no estimate.
+
+    Returns:
+        (noise [N] or None, source text).
+    """
+    F = data.wrench[:, :3]
+    if not np.any(F):
+        return None, "no force readings"
+    zero = (data.load_step == 0) if data.load_step is not None else (
+        np.linalg.norm(F, axis=1) < ZERO_LOAD_N)
+    Fz = F[zero]
+    if Fz.shape[0] < 3 or not np.any(Fz):
+        return None, "unknown"
+    return float(np.sqrt(np.mean(np.var(Fz, axis=0, ddof=1)))), "zero-load readings"
+
+
+def force_noise_sigma(
+    model: ElastostaticModel, data: MeasurementSet, force_noise_n: float,
+    batch: PoseBatch | None = None,
+) -> float:
+    """RMS over measured values of the predicted-position noise from force noise [m].
+
+    Per sample and axis a: sigma_a^2 = sigma_F^2 sum_j C[a, j]^2 over the force columns j of
+    the model's Cartesian compliance C (the deflection is C F; force noise independent per
+    axis).
+    """
+    if force_noise_n <= 0:
+        return 0.0
+    if batch is None:
+        batch = model.batch(data.q)
+    C = model.cartesian_compliance(batch)[:, :3, :3]  # (m, 3, 3) [m/N]
+    var = force_noise_n**2 * np.sum(C**2, axis=2)  # (m, 3) [m^2]
+    return float(np.sqrt(np.mean(var[data.measured]))) if data.measured.any() else 0.0
 
 
 def estimate_noise_floor(
-    data: MeasurementSet, residual: FloatArray, noise_m: float | None = None
+    data: MeasurementSet, residual: FloatArray, noise_m: float | None = None,
+    model: ElastostaticModel | None = None, force_noise_n: float | None = None,
+    batch: PoseBatch | None = None,
 ) -> NoiseFloor:
-    """Noise floor from a given value, the scatter of repeated samples, or the sigma column.
+    """Noise floor from a given value, the scatter of repeated samples, or the sigma column,
+    plus the force sensor's part (see :class:`NoiseFloor`).
 
     The repeat estimate pools the within-group variance of the *residuals* (so small
     differences of q and wrench inside a group are corrected by the model):
 
         sigma^2 = sum_g sum_i (r_gi - mean_g)^2 / sum_g (n_g - 1)   (per axis, pooled).
 
+    A repeat scatter already contains the force sensor's part (each repeat is predicted with
+    its own logged force): the device part is what remains. A given device noise (--noise-mm,
+    the sigma column) gets the force part added.
+
     Args:
         data: The samples.
         residual: Measured minus predicted position [m], shape (m, 3).
-        noise_m: A noise level given by the user [m] (takes precedence).
+        noise_m: The measuring device's noise given by the user [m] (takes precedence).
+        model: The model whose compliance propagates the force noise (None: no force part).
+        force_noise_n: Force sensor noise [N] given by the user (default: from zero-load
+            readings).
+        batch: Kinematics of ``data.q`` if already computed.
 
     Raises:
-        InputError: noise_m not positive.
+        InputError: noise_m or force_noise_n not positive.
     """
     if noise_m is not None and not (np.isfinite(noise_m) and noise_m > 0):
         raise InputError("--noise-mm", "", f"{noise_m * 1e3:g} mm", "a positive noise level")
-    groups = repeat_groups(data)
+    if force_noise_n is not None and not (np.isfinite(force_noise_n) and force_noise_n >= 0):
+        raise InputError("--force-noise-N", "", f"{force_noise_n:g} N", "a noise >= 0 N")
+    fn: float | None
+    if force_noise_n is not None:
+        fn, fsrc = float(force_noise_n), "given"
+    elif not np.any(data.wrench[:, :3]):
+        fn, fsrc = 0.0, "no force sensor"
+    else:
+        fn, fsrc = estimate_force_noise(data)
+    force_sigma = None if fn is None or model is None else force_noise_sigma(
+        model, data, fn, batch)
+    tol = REPEAT_FORCE_TOL_N if fn is None else max(REPEAT_FORCE_TOL_N, 3.0 * fn)
+    groups = repeat_groups(data, tol)
     ss, dof, n_groups = 0.0, 0, 0
     for a in range(3):
         ok = np.isfinite(residual[:, a])
@@ -315,14 +412,29 @@ def estimate_noise_floor(
         dof += int(np.sum(counts[multi] - 1))
         n_groups = max(n_groups, int(np.sum(multi)))
     rep = float(np.sqrt(ss / dof)) if dof >= 2 and ss > 0 else None
+    fs2 = 0.0 if force_sigma is None else force_sigma**2
+
+    def parts(device: float | None, total_from_device: bool) -> tuple[float | None, float | None]:
+        if device is None:
+            return None, None
+        if total_from_device:  # a given device noise: add the force part
+            return float(np.sqrt(device**2 + fs2)), device
+        return device, float(np.sqrt(max(device**2 - fs2, 0.0)))  # repeats hold both
+
+    def floor(total: float | None, source: str, dof_: float, ng: int, rep_: float | None,
+              dev: float | None) -> NoiseFloor:
+        return NoiseFloor(total, source, dof_, ng, rep_, dev, force_sigma, fn, fsrc)
+
     if noise_m is not None:
-        return NoiseFloor(float(noise_m), "given", float("inf"), n_groups, rep)
+        total, dev = parts(float(noise_m), True)
+        return floor(total, "given", float("inf"), n_groups, rep, dev)
     if rep is not None:
-        return NoiseFloor(rep, "repeats", float(dof), n_groups, rep)
+        total, dev = parts(rep, False)
+        return floor(total, "repeats", float(dof), n_groups, rep, dev)
     if data.sigma is not None:
-        return NoiseFloor(float(np.sqrt(np.mean(data.sigma**2))), "sigma column",
-                          float("inf"), 0, None)
-    return NoiseFloor(None, "none", float("nan"), 0, None)
+        total, dev = parts(float(np.sqrt(np.mean(data.sigma**2))), True)
+        return floor(total, "sigma column", float("inf"), 0, None, dev)
+    return floor(None, "none", float("nan"), 0, None, None)
 
 
 # --------------------------------------------------------------------------------------------

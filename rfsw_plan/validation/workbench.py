@@ -210,6 +210,7 @@ def validate(
     folds: int = DEFAULT_FOLDS,
     seed: int = 0,
     setup: DeviceSetup | None = None,
+    force_noise_n: float | None = None,
 ) -> ValidationResult:
     """Compare a model with measurements, optionally add effects, and diagnose what is missing.
 
@@ -221,6 +222,8 @@ def validate(
         add: Effect labels (``name`` or ``name:jN``) to add before re-identifying.
         folds: Cross-validation folds.
         seed: Seed of the fold assignment.
+        force_noise_n: Force sensor noise [N] (default: from zero-load readings); its effect
+            through the compliance is part of the noise floor.
         setup: For device-frame data (:func:`~rfsw_plan.elastostatics.registration.
             prepare_device_setup`): the registration and marker offset are held or fitted
             jointly with every other parameter, in every fold.
@@ -244,7 +247,8 @@ def validate(
     batch = model.batch(data.q)
     pred = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
     residual0 = np.where(data.measured, data.position - pred, np.nan)
-    noise = estimate_noise_floor(data, residual0, noise_m)
+    noise = estimate_noise_floor(data, residual0, noise_m, model=model,
+                                 force_noise_n=force_noise_n, batch=batch)
     fold = make_folds(data, folds, seed)
     before = cross_validate(model, data, fold, batch)
 

@@ -45,6 +45,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="print one JSON object on stdout instead of the text summary")
     parser.add_argument("--noise-mm", type=float, metavar="S",
                         help="1-sigma position noise [mm] (default: from repeated samples)")
+    parser.add_argument("--force-noise-N", dest="force_noise_n", type=float, metavar="S",
+                        help="1-sigma force sensor noise [N] (default: from the spread of "
+                        "zero-load readings); propagated through the compliance into the floor")
     parser.add_argument("--add", action="append", default=[], metavar="EFFECT[:jN]",
                         help="add an effect and re-identify all parameters (repeatable)")
     parser.add_argument("--save-robot", metavar="NEW_FILE.toml",
@@ -84,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
         model, data,
         noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
         add=args.add, folds=args.folds, seed=args.seed, setup=setup,
+        force_noise_n=args.force_noise_n,
     )
     files = None
     if out is not None:
@@ -125,6 +129,14 @@ def _print_summary(
           f"{', '.join(result.model.labels)}", file=out)
     print(f"RMS {result.rms * 1e3:.4g} mm (3-D {result.rms_3d * 1e3:.4g} mm), held-out RMS "
           f"{dg.heldout_rms * 1e3:.4g} mm, noise floor {noise} ({dg.noise.source})", file=out)
+    nf = dg.noise
+
+    def _mm(v: float | None) -> str:
+        return "unknown" if v is None else f"{v * 1e3:.3g} mm"
+
+    fnoise = "unknown" if nf.force_noise is None else f"{nf.force_noise:.3g} N"
+    print(f"  floor parts: measuring device {_mm(nf.device_sigma)}, force sensor "
+          f"{_mm(nf.force_sigma)} (force noise {fnoise}, {nf.force_noise_source})", file=out)
     if result.device_frame is not None and result.setup is not None:
         from rfsw_plan.validation.workbench import device_frame_json
 
