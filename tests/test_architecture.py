@@ -14,23 +14,24 @@ import rfsw_plan
 PACKAGE = Path(rfsw_plan.__file__).parent
 
 #: Layers, lowest first: a module may import its own layer and the layers before it, never a
-#: later one (ARCHITECTURE.md draws the same order). ``io/`` is the edge: its readers and
-#: writers turn files into the data types of earlier layers (MeasurementSet, ForceSeries,
-#: PlanResult) and back, and only the CLI (and the package facade) imports them. Keys are
-#: subpackages or top-level modules of ``rfsw_plan``, or a dotted module that sits on a
-#: different floor than its folder (``io.files``: the atomic-write primitives every writer
-#: uses).
+#: later one (ARCHITECTURE.md draws the same order). Keys are subpackages or top-level modules
+#: of ``rfsw_plan``, or a dotted module that sits on a different floor than its folder. ``io/``
+#: is at the edges of each stage: its primitives (atomic writes, the CSV table reader) are on
+#: the ground floor, the readers and writers of measurement and process files sit right above
+#: the data types they produce (MeasurementSet, ForceSeries, WeldTrack), and the plan files
+#: right above the planner (PlanResult).
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "io.files", "tomlreader"),
+    ("exceptions", "progress", "tomlreader", "io.files", "io.table"),
     ("robot",),
     ("elastostatics",),
     ("process",),
+    ("io",),
     ("timing",),
     ("planning",),
+    ("io.waypoints",),
     ("realtime",),
     ("placement",),
     ("validation",),
-    ("io",),
     ("export",),
     ("cli",),
 )
