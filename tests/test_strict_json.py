@@ -50,15 +50,6 @@ def test_every_json_output_of_every_command_is_strict(tmp_path: Path, capsys) ->
     assert isinstance(rec, dict) and rec["branches"]
 
 
-def test_infeasible_plan_json_is_strict(tmp_path: Path, capsys) -> None:
-    out = tmp_path / "o"
-    assert main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out), "--set",
-                 "robust_hard=true"]) == 3
-    rec = _strict((out / "plan.json").read_text())
-    assert isinstance(rec, dict) and rec["status"] == "infeasible"
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1
-
-
 @pytest.mark.parametrize("where", ["start-up", "run"])
 def test_ctrl_c_is_one_line(monkeypatch, capsys, where) -> None:
     import rfsw_plan.cli.main as cli
