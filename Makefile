@@ -24,15 +24,15 @@ test: $(STAMP)
 	$(BIN)/python -m pytest
 
 lint: $(STAMP)
-	$(BIN)/ruff check rfsw_plan tests examples
+	$(BIN)/ruff check rfsw_plan tests examples benchmarks
 	$(BIN)/mypy
 
 # Benchmarks print figures; they are never part of the tests.
 bench: $(STAMP)
-	$(BIN)/python examples/benchmark_foundation.py
-	$(BIN)/python examples/benchmark_planner.py
-	$(BIN)/python examples/benchmark_validate.py
-	$(BIN)/python examples/benchmark_compare.py
+	$(BIN)/python benchmarks/benchmark_foundation.py
+	$(BIN)/python benchmarks/benchmark_planner.py
+	$(BIN)/python benchmarks/benchmark_validate.py
+	$(BIN)/python benchmarks/benchmark_compare.py
 
 clean:
 	rm -rf $(VENV) out

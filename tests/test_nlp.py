@@ -55,7 +55,7 @@ def setup():
 def test_build_is_inspectable_without_solving(setup):
     _, task, _, mirror, nlp = setup
     K, n = len(task), 6
-    assert nlp.x0.shape == (K * (n + 4) + 1,)
+    assert nlp.x0.shape == (K * (n + 5) + 1,)
     assert len(nlp.constraint_names()) == nlp.lbg.shape[0] == nlp.ubg.shape[0]
     assert nlp.constraint_names()[6] == "window[0]"
     parts = nlp.unpack(nlp.x0)
@@ -88,7 +88,7 @@ def test_point_derivatives_match_finite_differences(robot_name):
     pf = point_functions(model, compile_c=False)
     rng = np.random.default_rng(4)
     n = model.robot.nq
-    w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 3), rng.uniform(0, 1, 1)])
+    w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 3), rng.uniform(0, 1, 2)])
     q = w[:n]
     R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
     wrench = np.concatenate([rng.normal(0, 2e3, 3), rng.normal(0, 50, 3)])

@@ -345,12 +345,14 @@ def no_compensation(robot: Robot, task: PlanTask, q_seed: FloatArray,
 
     With ``q_near`` (K, n) [rad], a nearby path on the wanted branch (e.g. a coarse taught
     path interpolated), the path is found by batched Newton steps from it
-    (:func:`refine_path`), else by IK continuation from ``q_seed`` (:func:`ik_path`)."""
+    (:func:`refine_path`), else by batched IK from ``q_seed`` (:func:`ik_paths`)."""
     off = np.zeros((len(task), 3))
     poses = commanded_poses(task, off, rotation)
     if q_near is not None:
         return BaselinePlan("none", refine_path(robot, poses, q_near, s=task.s), off)
-    q = ik_path(robot, poses, q_seed, s=task.s)
+    (q,) = ik_paths(robot, poses[None], np.asarray(q_seed, dtype=float)[None], s=task.s)
+    if isinstance(q, UnreachableError):
+        raise q
     return BaselinePlan("none", q, off)
 
 

@@ -131,7 +131,10 @@ def interpolate_offsets(task: PlanTask, idx: IntArray, o_coarse: FloatArray,
         dd = do - dm
         mu = np.clip(dd / max(rate * S, 1e-300), -1.0, 1.0)
         safe = np.where(np.abs(dm) > 1e-300, dm, 1.0)
-        lam = np.where(np.abs(dd) <= rate * S, 1.0, (do - mu * rate * S) / safe)
+        # Within the rows' own slack (1e-6 mm) and IPOPT's tolerance, lambda = 1.
+        linear = np.abs(dd) <= rate * S + 2e-9
+        mu = np.where(linear, dd / max(rate * S, 1e-300), mu)
+        lam = np.where(linear, 1.0, (do - mu * rate * S) / safe)
         out[k] = (o_coarse[np.searchsorted(idx, a)] + lam * (o_mirror[k] - o_mirror[a])
                   + (mu * rate * S) * frac[:, None])
     return out
@@ -208,7 +211,7 @@ def project_fine(
         q, ok = _newton_ik(model, target, R, q)
         if not ok:
             break
-        W = np.column_stack([q, off * 1e3, np.zeros(len(q))])  # sigma: not in these rows
+        W = np.column_stack([q, off * 1e3, np.zeros((len(q), 2))])  # sigma, rho: not here
         g, terms, _ = fine.point_values(np.append(W.reshape(-1), 0.0))
         along = g[:, POINT_CONSTRAINTS.index("along_track")]  # [mm]
         if float(np.max(np.abs(along))) > ROW_TOL * 1e-2:

@@ -1,6 +1,6 @@
 """The planning NLP: joint values and fake-target offsets along the seam (CasADi + IPOPT).
 
-Decision variables per waypoint k (one column of W, shape (n + 4, K)):
+Decision variables per waypoint k (one column of W, shape (n + 5, K)):
 
 * ``q_k`` [rad] (n): the robot configuration. The TCP position is fixed by the constraints,
   and of the orientation only the tool axis: the rotation of the axisymmetric tool about its
@@ -9,6 +9,7 @@ Decision variables per waypoint k (one column of W, shape (n + 4, K)):
   along-track (along t).
 * ``sigma_k`` [mm]: how far the worst case leaves the window (exact L1 penalty; fixed to 0 with
   ``robust_hard``).
+* ``rho_k``: the share of the requested force uncertainty the window holds (all equal).
 
 Per waypoint, with p_k the nominal target, F_k the wrench (base frame) and C_X the Cartesian
 compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11, seed 002 eq. 2):
@@ -30,6 +31,10 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
   under a tool rotation made IPOPT hit its iteration cap on kr600_curved_seam; auxiliary
   variables with +-x <= a were exact too but their degenerate rows at zero force slowed
   IPOPT down several times);
+* tolerated uncertainty: e_k - rho r_k >= lower and e_k + rho r_k <= upper, rho in [0, 1] the
+  share of the requested uncertainty u that the window holds at every waypoint (one value for
+  the plan: a copy per waypoint, kept equal by link rows, so the KKT matrix stays banded);
+  rho u is the tolerated force uncertainty of the plan in the NLP's model;
 * sign_k det(J_n(q_k)) >= floor_k (J_n: J with its translational rows divided by a length
   scale), a smooth stand-in for the kappa_f bound of seed 000 eq. 5;
 * at weld waypoints l^T C_tt(q_k) l <= c_max: c_max is one global epigraph variable (the last
@@ -42,7 +47,8 @@ the traverse-force ramp, which the load step allows).
 
 Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
 w_stiffness share c_max / ref plus the mean over waypoints of
-w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw + w_robust sigma_k / hw
+w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw
++ w_robust (sigma_k / hw + 1 - rho)
 + w_centre ((e_k - centre) / hw)^2 + w_depth (normal error / 1 mm)^2
 + w_proximity |q_k - q_warm,k|^2 (keeps the null space, e.g. an unused tool rotation, at the
 warm start), plus mean over links of
@@ -82,6 +88,7 @@ log = logging.getLogger(__name__)
 POINT_CONSTRAINTS = (
     "position_x", "position_y", "position_z", "axis_t", "axis_l", "axis_n",
     "window", "robust_lower", "robust_upper", "along_track", "singularity", "stiffness_cap",
+    "tolerated_lower", "tolerated_upper",
 )
 #: Names of the terms returned by the point function, in order.
 POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error",
@@ -89,6 +96,7 @@ POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "no
 #: Offset components per waypoint (lateral, normal, along-track).
 N_OFF = 3
 _NG = len(POINT_CONSTRAINTS)
+_CAP = POINT_CONSTRAINTS.index("stiffness_cap")  # the row that - c_max joins
 #: Smoothing of |x| in the worst case [mm]: sqrt(x^2 + eps^2) over-estimates |x| by at most eps.
 ABS_EPS = 1e-2
 
@@ -176,8 +184,14 @@ N_GLOB = GLOBALS.size
 
 
 def variable_layout(n: int) -> Layout:
-    """Variables per waypoint: q [rad] (n), offsets [mm] (3), sigma [mm]."""
-    return Layout((("q", n), ("offsets", N_OFF), ("sigma", 1)))
+    """Variables per waypoint: q [rad] (n), offsets [mm] (3), sigma [mm], and rho, the share
+    of the requested force uncertainty the window holds at every waypoint (one value for the
+    whole plan, kept equal by the link rows so the KKT matrix stays banded)."""
+    return Layout((("q", n), ("offsets", N_OFF), ("sigma", 1), ("tolerated", 1)))
+
+
+#: Variables tied between neighbours by the link rows: joint steps, offset rates, rho equal.
+LINK_ROWS = ("q", "offsets", "tolerated")
 
 
 def problem_layout(n: int, K: int) -> Layout:
@@ -254,7 +268,7 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     par = ca.SX.sym("par", pl.size)
     glob = ca.SX.sym("glob", N_GLOB)
     v, pp, gl = vl.split(w), pl.split(par), GLOBALS.split(glob)
-    q, o, sigma = v["q"], v["offsets"], v["sigma"]
+    q, o, sigma, rho = v["q"], v["offsets"], v["sigma"], v["tolerated"]
     target, t, l, nn = pp["target"], pp["t"], pp["l"], pp["n"]
     F, uf, corr = pp["wrench"], pp["force_spread"], pp["correction"]
     det_sign, det_floor, det0 = pp["det_sign"], pp["det_floor"], pp["det_value"]
@@ -277,11 +291,13 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
         e - r + sigma, e + r - sigma, along,
         det_sign * (det0 + ca.dot(ddet, q - q_lin)) - det_floor,
         weld_flag * cll,  # - c_max (the global epigraph variable) is added in the NLP
+        e - rho * r, e + rho * r,
     )
     terms = ca.vertcat(cll, r, sigma, e, dep, along)
     cref, centre, hw = gl["compliance_ref"], gl["centre"], gl["half_width"]
     phi = gl["inv_k"] * (gl["w_stiffness"] * gl["mean_share"] * cll / cref
-                         + gl["w_worst"] * r / hw + gl["w_robust"] * sigma / hw
+                         + gl["w_worst"] * r / hw
+                         + gl["w_robust"] * (sigma / hw + (1 - rho))
                          + gl["w_centre"] * ((e - centre) / hw) ** 2 + gl["w_depth"] * dep ** 2
                          + gl["w_proximity"] * ca.sumsqr(q - q_lin))
     lam_f = ca.SX.sym("lam_f")
@@ -357,8 +373,8 @@ class PlanNLP:
 
     @property
     def n_w(self) -> int:
-        """Variables per waypoint, n + 4."""
-        return self.n_joints + N_OFF + 1
+        """Variables per waypoint, n + 5 (:func:`variable_layout`)."""
+        return variable_layout(self.n_joints).size
 
     @property
     def layout(self) -> Layout:
@@ -392,7 +408,7 @@ class PlanNLP:
         K, n = self.n_waypoints, self.n_joints
         names = [f"{c}[{k}]" for k in range(K) for c in POINT_CONSTRAINTS]
         link = [f"joint_step_q{j + 1}" for j in range(n)] + [
-            "offset_rate_lat", "offset_rate_norm", "offset_rate_along"]
+            "offset_rate_lat", "offset_rate_norm", "offset_rate_along", "tolerated_link"]
         names += [f"{c}[{k}]" for k in range(K - 1) for c in link]
         return names
 
@@ -403,7 +419,7 @@ class PlanNLP:
         x = np.asarray(x, dtype=float)
         W = x[:-1].reshape(self.n_waypoints, self.n_w)
         return {"q": W[:, :n], "offsets": W[:, n:n + N_OFF] * 1e-3, "sigma": W[:, n + N_OFF],
-                "c_max": x[-1:]}
+                "tolerated": W[:, n + N_OFF + 1], "c_max": x[-1:]}
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Per-waypoint (g (K, 12), terms (K, 6), dX (K, 6)) at x (the NLP's own model)."""
@@ -424,6 +440,9 @@ class PlanNLP:
         e, r = terms[:, 3], terms[:, 1]
         lo, hi = self.p[self.layout["lower"]][0], self.p[self.layout["upper"]][0]  # [mm]
         W[:, n + N_OFF] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rho_k = np.minimum((e - lo) / r, (hi - e) / r)  # r >= ABS_EPS > 0
+        W[:, n + N_OFF + 1] = float(np.clip(np.min(rho_k), 0.0, 1.0))
         c_max = float(np.max(terms[:, 0] * self.point_parameter("weld")[:, 0]))
         return np.append(W.reshape(-1), c_max)
 
@@ -492,15 +511,15 @@ def _expressions(pf: PointFunctions, K: int, n: int) -> _Expressions:
     # The weakest waypoint's share of the stiffness term: w_stiffness (1 - share) c_max / cref.
     f = ca.sum2(phi) + gl["w_stiffness"] * (1 - gl["mean_share"]) * c_max / gl["compliance_ref"]
     cap = np.zeros(_NG)
-    cap[_NG - 1] = 1.0
+    cap[_CAP] = 1.0
     g_parts = [ca.vec(G) - ca.repmat(ca.DM(cap), K, 1) * c_max]
     fs = ca.MX(0)
     if K > 1:
         dW = W[:, 1:] - W[:, :-1]
-        dq, do = dW[:n, :], dW[n:n + N_OFF, :]
+        dq, do, drho = dW[:n, :], dW[n:n + N_OFF, :], dW[n + N_OFF + 1, :]
         fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
               + wo * ca.sumsqr(1e-3 * do[:2, :] * ca.repmat(hinv, 2, 1))) / (K - 1)
-        g_parts.append(ca.vec(ca.vertcat(dq, do)))
+        g_parts.append(ca.vec(ca.vertcat(dq, do, drho)))
     return _Expressions(X, P, W, PAR, GLOB, glob, c_max, f + fs, ca.vertcat(*g_parts), fs)
 
 
@@ -522,7 +541,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     X, P, W, PAR, GLOB, glob = ex.X, ex.P, ex.W, ex.PAR, ex.GLOB, ex.glob
     gl = GLOBALS.split(glob)
     f, g, fs = ex.f, ex.g, ex.fs
-    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_NG - 1, _NG * K, _NG)),
+    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_CAP, _NG * K, _NG)),
                                         [0] * K), -1.0)
 
     def mapped(fn: ca.Function) -> ca.Function:
@@ -536,7 +555,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     Jb = mapped(pf.jac)(W, PAR)
     J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool))), cap_col)
     if K > 1:
-        J_link = _link_jacobian(K, n, nw)
+        J_link = _link_jacobian(K, _link_columns(n), nw)
         J = ca.vertcat(J_pts, J_link)
     else:
         J = J_pts
@@ -568,11 +587,17 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     return ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
 
 
-def _link_jacobian(K: int, n: int, nw: int) -> ca.DM:
-    """The constant Jacobian of the link rows (w_{k+1} - w_k)[:n + 3] with respect to x."""
-    m = n + N_OFF
+def _link_columns(n: int) -> NDArray[np.int_]:
+    """Positions in a waypoint's variables of the link rows' variables (:data:`LINK_ROWS`)."""
+    vl = variable_layout(n)
+    return np.concatenate([np.arange(vl[name].start, vl[name].stop) for name in LINK_ROWS])
+
+
+def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int) -> ca.DM:
+    """The constant Jacobian of the link rows (w_{k+1} - w_k)[cols_w] with respect to x."""
+    m = len(cols_w)
     rows = np.arange(m * (K - 1))
-    cols = (rows // m) * nw + rows % m
+    cols = (rows // m) * nw + cols_w[rows % m]
     r = np.concatenate([rows, rows]).tolist()
     c = np.concatenate([cols, cols + nw]).tolist()
     v = np.concatenate([-np.ones(rows.size), np.ones(rows.size)])
@@ -690,9 +715,9 @@ def build_plan_nlp(
     })[0]
 
     d = robot.description
-    lbw = np.concatenate([d.lower, np.full(N_OFF, -np.inf), [0]])
+    lbw = np.concatenate([d.lower, np.full(N_OFF, -np.inf), [0.0, 0.0]])
     ubw = np.concatenate([d.upper, np.full(N_OFF, np.inf),
-                          [0.0 if opts.robust_hard else np.inf]])
+                          [0.0 if opts.robust_hard else np.inf, 1.0]])
     lbx, ubx = np.append(np.tile(lbw, K), 0.0), np.append(np.tile(ubw, K), np.inf)
     lo, hi = window.lower * 1e3, window.upper * 1e3
     m = opts.margin * 1e3
@@ -702,6 +727,7 @@ def build_plan_nlp(
         "window": (lo + m, hi - m), "robust_lower": (lo, np.inf), "robust_upper": (-np.inf, hi),
         "along_track": (0.0, 0.0), "singularity": (0.0, np.inf),
         "stiffness_cap": (-np.inf, 0.0),
+        "tolerated_lower": (lo, np.inf), "tolerated_upper": (-np.inf, hi),
     }
     lbp = np.array([bounds[c][0] for c in POINT_CONSTRAINTS])
     ubp = np.array([bounds[c][1] for c in POINT_CONSTRAINTS])
@@ -714,13 +740,15 @@ def build_plan_nlp(
                                                    * dt, 0.0)) * 1e3 + 1e-6
         extra = (np.zeros((K - 1, N_OFF)) if load_steps is None or offset_reference is not None
                  else np.abs(offsets3(load_steps)) * 1e3)
-        centre = (np.zeros((K - 1, n + N_OFF)) if offset_reference is None else np.column_stack(
-            [np.zeros((K - 1, n)), np.diff(offsets3(offset_reference), axis=0) * 1e3]))
+        centre = np.zeros((K - 1, n + N_OFF + 1))
+        if offset_reference is not None:
+            centre[:, n:n + N_OFF] = np.diff(offsets3(offset_reference), axis=0) * 1e3
         link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
-                                   o_step[:, None] + extra])
+                                   o_step[:, None] + extra, np.zeros(K - 1)])
         lbg_parts.append((centre - link_hi).reshape(-1))
         ubg_parts.append((centre + link_hi).reshape(-1))
-    nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros((n + N_OFF + 1) * K + 1),
+    nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n,
+                  np.zeros(variable_layout(n).size * K + 1),
                   lbx, ubx,
                   np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))

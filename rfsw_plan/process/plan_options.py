@@ -18,7 +18,10 @@ the same thing for 100 and for 4000 waypoints):
     window half width.
 ``w_robust``
     Exact (L1) penalty on the part of the worst case that leaves the window, sigma_k / half
-    width. Large: the robust window holds wherever it can.
+    width, plus 1 - rho, rho the share of the requested force uncertainty that the window holds
+    at every waypoint (rho <= 1). Large: the robust window holds wherever it can, and where the
+    requested uncertainty cannot be held everywhere, the plan maximises the uncertainty it
+    tolerates.
 ``w_centre``
     ((e_k - centre) / half width)^2: keeps the nominal error in the middle of the window.
 ``w_depth``

@@ -4,7 +4,7 @@
    (seed 001 §2.3: 8.5 h of FEA). Time of the virtual weld per strategy at a 4 ms cycle.
 2. ``compare`` on zk500_table6_seam and fanuc_butt_1700mm: the tables and timings.
 
-Run: ``.venv/bin/python examples/benchmark_compare.py [--no-plan]``.
+Run: ``.venv/bin/python benchmarks/benchmark_compare.py [--no-plan]``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Benchmark of the foundation (issue 2 §10): prediction latency, batch throughput, identification.
 
-Run: ``.venv/bin/python examples/benchmark_foundation.py``
+Run: ``.venv/bin/python benchmarks/benchmark_foundation.py``
 
 Prints, in one run:
     * single-pose prediction latency (``ElastostaticModel.deflection``), compared with the

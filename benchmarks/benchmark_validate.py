@@ -6,7 +6,7 @@ validation itself (noise floor, cross-validation of the model, residual analysis
 every candidate effect on every joint) and the report (plots, HTML, JSON). Prints the figures;
 asserts nothing (the issue's goal is <= 30 s for the validation on this machine).
 
-Run: ``.venv/bin/python examples/benchmark_validate.py [--samples N] [--folds K]``
+Run: ``.venv/bin/python benchmarks/benchmark_validate.py [--samples N] [--folds K]``
 """
 
 from __future__ import annotations

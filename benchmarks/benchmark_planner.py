@@ -1,0 +1,161 @@
+"""Benchmark of the planner: time, peak memory, ratio to the mirror baseline, objective gap.
+
+Run: ``.venv/bin/python benchmarks/benchmark_planner.py [--sizes 100 1000 4000 16000]
+[--problem zk500_table6_seam] [--repeats 3] [--no-gap]``
+
+For each size the problem is planned with the waypoint spacing that gives that many weld
+waypoints (plus the stationary plunge/dwell waypoints and the refined force ramp). Each size
+runs in its own process, so the peak memory (``ru_maxrss``) is that size's. Printed per size:
+
+* ``plan s``: :func:`rfsw_plan.planning.api.plan` with the default solver (coarse NLP and exact
+  fine projection), the minimum over ``--repeats`` runs after one warm-up;
+* ``mirror s``: the mirror baseline pipeline on the same task in the same process, run
+  alternately with the plan (taught path, mirror fixed point, verification, timing), minimum
+  over the same repeats, and ``ratio`` = plan / mirror;
+* ``peak MB``: peak resident memory of that process;
+* ``gap %``: the objective of the plan on the fine NLP against the optimum of the full NLP
+  (``solver = "full"``, the NLP on every waypoint), solved in a separate process;
+* ``method``: how the fine plan was obtained (``coarse``, or ``coarse+full`` if the fine
+  projection failed a row and the full NLP was solved);
+* the growth exponent d log t / d log n between successive sizes.
+
+The machine is shared: figures are minima of repeats, and plan and baseline are measured side
+by side so their ratio is fair. Nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import resource
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+
+def _task(problem: Any, spacing: float) -> Any:
+    from rfsw_plan.planning.api import options_from_problem
+    from rfsw_plan.process.task import task_from_schedule
+
+    opts = options_from_problem(problem)
+    frames = problem.seam.frames(spacing)
+    return task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
+                              opts.max_start_waypoints, problem.seam_reference)
+
+
+def mirror_pipeline(problem: Any, spacing: float) -> None:
+    """The mirror baseline, verified and timed like a plan."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planning.api import options_from_problem
+    from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
+    from rfsw_plan.planning.verify import verify_plan
+    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+
+    opts = options_from_problem(problem)
+    model = ElastostaticModel(load_robot(problem.robot))
+    task = _task(problem, spacing)
+    q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
+    taught = no_compensation(model.robot, task, q_seed, opts.tool_rotation)
+    mir = mirror_compensation(model, task, taught.q, opts.tool_rotation)
+    verify_plan(model, task, problem.window, mir.q, mir.offsets, opts.force_uncertainty)
+    time_parameterise(model.robot, task, mir.q, mir.offsets,
+                      TimingLimits(plunge_speed=problem.process.plunge_speed))
+
+
+def one_size(problem_name: str, n: int, solver: str, repeats: int) -> dict[str, Any]:
+    """Measure one size in this process (called in a child process)."""
+    import rfsw_plan.planning.api as api
+    from rfsw_plan.process.problem import load_problem
+
+    solved: list[Any] = []
+    inner = api.solve_plan
+
+    def recording(*args: Any, **kwargs: Any) -> Any:
+        out = inner(*args, **kwargs)
+        solved.append(out)
+        return out
+
+    api.solve_plan = recording  # type: ignore[assignment]
+    problem = load_problem(problem_name)
+    spacing = problem.seam.length / (n - 1)
+    opts = replace(api.options_from_problem(problem), solver=solver)
+    api.plan(problem, opts, spacing=spacing)  # warm-up (loads or compiles the C functions)
+    t_plan, t_mirror = [], []
+    for _ in range(repeats if solver == "coarse" else 0):
+        t0 = time.perf_counter()
+        api.plan(problem, opts, spacing=spacing)
+        t_plan.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        mirror_pipeline(problem, spacing)
+        t_mirror.append(time.perf_counter() - t0)
+    last = solved[-1]
+    return {
+        "n": n, "K": len(last.q), "objective": last.objective, "method": last.method,
+        "plan_s": min(t_plan) if t_plan else math.nan,
+        "mirror_s": min(t_mirror) if t_mirror else math.nan,
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "iterations": last.iterations,
+    }
+
+
+def _child(problem: str, n: int, solver: str, repeats: int) -> dict[str, Any]:
+    out = subprocess.run(
+        [sys.executable, __file__, "--one", str(n), "--solver", solver, "--problem", problem,
+         "--repeats", str(repeats)], capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        tail = (out.stderr.strip().splitlines() or ["?"])[-1]
+        return {"n": n, "error": tail}
+    return dict(json.loads(out.stdout.strip().splitlines()[-1]))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 16000])
+    ap.add_argument("--problem", default="zk500_table6_seam")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--no-gap", action="store_true", help="skip the full NLP")
+    ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--solver", default="coarse", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.one is not None:
+        print(json.dumps(one_size(args.problem, args.one, args.solver, args.repeats)))
+        return
+    print(f"{args.problem}: minimum of {args.repeats} runs per size, plan and mirror baseline "
+          f"side by side; one process per size")
+    print(f"{'weld wps':>8} {'K':>6} {'plan s':>8} {'mirror s':>9} {'ratio':>6} {'peak MB':>8} "
+          f"{'gap %':>8} {'full s':>7} {'method':>11} {'growth':>7}")
+    prev: tuple[int, float] | None = None
+    rows = []
+    for n in args.sizes:
+        r = _child(args.problem, n, "coarse", args.repeats)
+        if "error" in r:
+            print(f"{n:>8} failed: {r['error']}")
+            continue
+        gap, t_full = math.nan, math.nan
+        if not args.no_gap:
+            t0 = time.perf_counter()
+            f = _child(args.problem, n, "full", 0)
+            t_full = time.perf_counter() - t0
+            if "error" not in f:
+                gap = 100.0 * (r["objective"] - f["objective"]) / abs(f["objective"])
+        growth = (math.log(r["plan_s"] / prev[1]) / math.log(n / prev[0])) if prev else math.nan
+        prev = (n, r["plan_s"])
+        rows.append(r)
+        print(f"{n:>8} {r['K']:>6} {r['plan_s']:>8.3f} {r['mirror_s']:>9.3f} "
+              f"{r['plan_s'] / r['mirror_s']:>6.2f} {r['peak_mb']:>8.0f} {gap:>8.3f} "
+              f"{t_full:>7.1f} {r['method']:>11} {growth:>7.2f}", flush=True)
+    if len(rows) >= 2:
+        a, b = rows[0], rows[-1]
+        print(f"t({b['n']}) / t({a['n']}) = {b['plan_s'] / a['plan_s']:.1f}; overall growth "
+              f"exponent {math.log(b['plan_s'] / a['plan_s']) / math.log(b['n'] / a['n']):.2f} "
+              f"('full s': wall time of the full NLP's process, including its warm-up)")
+
+
+if __name__ == "__main__":
+    main()
