@@ -12,6 +12,7 @@ import pkgutil
 import re
 import signal
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -132,12 +133,18 @@ def _terminated(signum: int, frame: Any) -> NoReturn:
 
 
 def _main(argv: Sequence[str] | None = None) -> int:
+    """The CLI without the signal handling. The parsed namespace also carries ``argv`` (the
+    words given, for reports that print the next command) and ``started``
+    (``time.perf_counter()`` at the start, for wall times)."""
+    started = time.perf_counter()
     words = list(sys.argv[1:] if argv is None else argv)
     parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
         args = parser.parse_args(words)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
+    args.argv = words
+    args.started = started
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
