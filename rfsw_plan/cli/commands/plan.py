@@ -26,6 +26,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
+    from rfsw_plan.cli.commands.export import add_export_arguments
+
+    add_export_arguments(parser, "--export")
     from rfsw_plan.cli import plan_forces as force_log_cli
 
     force_log_cli.register(parser)
@@ -62,6 +65,7 @@ def _overrides(items: list[str], base: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
+    from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
         mark_outputs_stale,
@@ -75,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.process.plan_options import options_from_table
     from rfsw_plan.process.problem import load_problem
 
+    check_export_arguments(args)
     problem = load_problem(args.problem)
     problem, flog = force_log_cli.prepare(problem, args)
     opts = _overrides(args.set, problem.planning)
@@ -105,9 +110,14 @@ def run(args: argparse.Namespace) -> int:
             write_plan_json(out / "plan.json", record)
             raise
         summary = result.summary()
+        summary["robot_file"] = str(problem.robot.path)
         written = [write_waypoints_csv(out / "waypoints.csv", result),
                    plot_lateral_error(out / "lateral_error.png", result),
                    plot_lateral_error_time(out / "lateral_error_time.png", result)]
+        exported = export_plan_result(args, result, out, summary)
+        if exported is not None:
+            written += list(exported.files)
+            summary["export"] = exported.to_dict()
         summary.update(force_log_cli.plan_json(problem, args, flog, check))
         summary["files"] = [str(p) for p in written]
         write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
