@@ -296,6 +296,7 @@ MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
 MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
 MAX_TRAVEL_MM = 1e5          # prismatic joint limits: at most 100 m
 MAX_VELOCITY_DEG_S = 1e4
+MIN_RATE = 0.01              # smallest velocity/acceleration/jerk limit (deg or mm per s^k)
 MAX_ACCELERATION_DEG_S2 = 1e6
 MAX_JERK_DEG_S3 = 1e8
 STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)  # prismatic joints: the same range in N/m
@@ -486,9 +487,10 @@ def _joint_limits(path: Path | str, joints: Table, prismatic: NDArray[np.bool_],
     def per_joint(key: str, hi_deg: float, hi_mm: float, default: FloatArray | None = None,
                   positive: bool = True) -> FloatArray:
         rev, pri = key.replace("*", "deg"), key.replace("*", "mm")
-        lo_d, lo_m = (0.0, 0.0) if positive else (-hi_deg, -hi_mm)
+        # Rates: at least MIN_RATE (1e-320 deg/s would make every motion last forever).
+        lo_d, lo_m = (MIN_RATE, MIN_RATE) if positive else (-hi_deg, -hi_mm)
         return _per_joint(joints, prismatic, (rev, deg, lo_d, hi_deg), (pri, mm, lo_m, hi_mm),
-                          default=default, ge_inclusive=not positive)
+                          default=default, ge_inclusive=True)
 
     lower = per_joint("lower_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_lo), False)
     upper = per_joint("upper_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_hi), False)
