@@ -55,8 +55,9 @@ from __future__ import annotations
 import csv
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import MISSING, dataclass, fields, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -322,63 +323,72 @@ def _value(tab: Table | None, k: str, prior: float | None, scale: float = 1.0, *
     return prior
 
 
+#: ``[process.forces]`` numbers: key -> (field, file-to-SI factor, valid range in file units).
+FORCE_NUMBERS: dict[str, tuple[str, float, dict[str, float]]] = {
+    "axial_N": ("axial", 1.0, {"ge": 0.0, "le": MAX_FORCE_N}),
+    "lateral_N": ("lateral", 1.0, {"ge": 0.0, "le": MAX_FORCE_N}),
+    "traverse_N": ("traverse", 1.0, {"ge": 0.0, "le": MAX_FORCE_N}),
+    "dwell_lateral_fraction": ("dwell_lateral_fraction", 1.0, {"ge": 0.0, "le": 2.0}),
+    "dwell_tau_s": ("dwell_tau", 1.0, {"gt": 0.0, "le": 3600.0}),
+    "ramp_length_mm": ("ramp_length", 1e-3, {"gt": 0.0, "le": 1e4}),
+    "spindle_torque_Nm": ("spindle_torque", 1.0, {"ge": -MAX_TORQUE_NM, "le": MAX_TORQUE_NM}),
+}
+#: ``[process]`` numbers: key -> (field, file-to-SI factor, valid range in file units).
+PHASE_NUMBERS: dict[str, tuple[str, float, dict[str, float]]] = {
+    "travel_speed_mm_s": ("travel_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
+    "plunge_speed_mm_s": ("plunge_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
+    "plunge_depth_mm": ("plunge_depth", 1e-3, {"gt": 0.0, "le": 100.0}),
+    "dwell_s": ("dwell_time", 1.0, {"ge": 0.0, "le": 3600.0}),
+    "retract_speed_mm_s": ("retract_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
+    "approach_height_mm": ("approach_height", 1e-3, {"ge": 0.0, "le": 1e4}),
+    "approach_speed_mm_s": ("approach_speed", 1e-3, {"gt": 0.0, "le": 1e4}),
+    "rotation_speed_rpm": ("rotation_speed_rpm", 1.0, {"ge": 0.0, "le": 1e5}),
+    "thickness_mm": ("thickness", 1e-3, {"ge": 0.0, "le": 1e3}),
+}
+
+
+def _prior(base: Any, cls: type, name: str) -> Any:
+    """The preset's value of field ``name``, else the dataclass default (None if required)."""
+    if base is not None:
+        return getattr(base, name)
+    default = {f.name: f.default for f in fields(cls)}[name]
+    return None if default is MISSING else default
+
+
+def _numbers(tab: Table | None, spec: dict[str, tuple[str, float, dict[str, float]]],
+             base: Any, cls: type) -> dict[str, Any]:
+    """Every number of ``spec`` from ``tab`` (range-checked) or from the preset / default."""
+    return {field: _value(tab, key, _prior(base, cls, field), scale, **rng)
+            for key, (field, scale, rng) in spec.items()}
+
+
 def _forces(path: Path, ftab: Table | None, base: ProcessForces | None) -> ProcessForces:
     """``[process.forces]`` over the preset's forces (every key optional with a preset)."""
-    b = base
-    f_max = MAX_FORCE_N
-    peak = b.plunge_peak_axial if b is not None else None
-    if ftab is not None and ftab.has("plunge_peak_axial_N"):
-        peak = ftab.num("plunge_peak_axial_N", ge=0.0, le=f_max)
-    sign = b.lateral_sign if b is not None else 1.0
-    if ftab is not None and ftab.has("lateral_sign"):
-        sign = ftab.num("lateral_sign", ge=-1.0, le=1.0)
+    peak = _prior(base, ProcessForces, "plunge_peak_axial")
+    sign = _prior(base, ProcessForces, "lateral_sign")
+    source = _prior(base, ProcessForces, "source") or str(path)
+    if ftab is not None:
+        if ftab.has("plunge_peak_axial_N"):
+            peak = ftab.num("plunge_peak_axial_N", ge=0.0, le=MAX_FORCE_N)
+        sign = ftab.num("lateral_sign", sign, ge=-1.0, le=1.0)
         if sign not in (1.0, -1.0):
             raise ftab.error("lateral_sign", f"got {sign:g}",
                              "+1 (toward the advancing side) or -1")
-    source = ftab.str_("source", "") if ftab is not None else ""
-    return ProcessForces(
-        axial=_value(ftab, "axial_N", b.axial if b else None, ge=0.0, le=f_max),
-        lateral=_value(ftab, "lateral_N", b.lateral if b else None, ge=0.0, le=f_max),
-        traverse=_value(ftab, "traverse_N", b.traverse if b else None, ge=0.0, le=f_max),
-        lateral_sign=sign,
-        plunge_peak_axial=peak,
-        dwell_lateral_fraction=_value(ftab, "dwell_lateral_fraction",
-                                      b.dwell_lateral_fraction if b else 0.5, ge=0.0, le=2.0),
-        dwell_tau=_value(ftab, "dwell_tau_s", b.dwell_tau if b else 2.0, gt=0.0, le=3600.0),
-        ramp_length=_value(ftab, "ramp_length_mm", b.ramp_length if b else 1e-3, 1e-3,
-                           gt=0.0, le=1e4),
-        spindle_torque=_value(ftab, "spindle_torque_Nm", b.spindle_torque if b else 0.0,
-                              ge=-MAX_TORQUE_NM, le=MAX_TORQUE_NM),
-        source=source or (b.source if b else str(path)),
-    )
+        source = ftab.str_("source", "") or source
+    return ProcessForces(**_numbers(ftab, FORCE_NUMBERS, base, ProcessForces),
+                         lateral_sign=sign, plunge_peak_axial=peak, source=source)
 
 
 def _phases(path: Path, tab: Table, forces: ProcessForces,
             base: ProcessModel | None) -> ProcessModel:
     """The phase kinematics of ``[process]`` over the preset's."""
-    b = base
-    mm = 1e-3
+    texts: dict[str, Any] = {k: tab.str_(k, _prior(base, ProcessModel, k))
+                             for k in ("name", "material")}
     return ProcessModel(
         forces=forces,
-        travel_speed=_value(tab, "travel_speed_mm_s", b.travel_speed if b else None, mm,
-                            gt=0.0, le=1e3),
-        plunge_speed=_value(tab, "plunge_speed_mm_s", b.plunge_speed if b else None, mm,
-                            gt=0.0, le=1e3),
-        plunge_depth=_value(tab, "plunge_depth_mm", b.plunge_depth if b else None, mm,
-                            gt=0.0, le=100.0),
-        dwell_time=_value(tab, "dwell_s", b.dwell_time if b else 5.0, ge=0.0, le=3600.0),
-        retract_speed=_value(tab, "retract_speed_mm_s", b.retract_speed if b else 5e-3, mm,
-                             gt=0.0, le=1e3),
-        approach_height=_value(tab, "approach_height_mm", b.approach_height if b else 0.0, mm,
-                               ge=0.0, le=1e4),
-        approach_speed=_value(tab, "approach_speed_mm_s", b.approach_speed if b else 10e-3, mm,
-                              gt=0.0, le=1e4),
-        rotation_speed_rpm=_value(tab, "rotation_speed_rpm",
-                                  b.rotation_speed_rpm if b else 0.0, ge=0.0, le=1e5),
-        name=tab.str_("name", b.name if b else ""),
-        material=tab.str_("material", b.material if b else ""),
-        thickness=_value(tab, "thickness_mm", b.thickness if b else 0.0, mm, ge=0.0, le=1e3),
-        source=tab.str_("source", b.source if b else str(path)),
+        **_numbers(tab, PHASE_NUMBERS, base, ProcessModel),
+        **texts,
+        source=tab.str_("source", _prior(base, ProcessModel, "source") or str(path)),
     )
 
 
