@@ -100,11 +100,22 @@ def run(args: argparse.Namespace) -> int:
             write_plan_json(out / "plan.json", record)
             raise
         summary = result.summary()
-        written = [write_waypoints_csv(out / "waypoints.csv", result),
-                   plot_lateral_error(out / "lateral_error.png", result),
-                   plot_lateral_error_time(out / "lateral_error_time.png", result)]
+        # The data first, committed by plan.json; the plots after, without blocking that
+        # success: plan.json is rewritten to vouch for each plot that was written.
+        written = [write_waypoints_csv(out / "waypoints.csv", result)]
         summary["files"] = [str(p) for p in written]
-        write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
+        write_plan_json(out / "plan.json", summary, vouches_for=written)  # the commit
+        plots = [(plot_lateral_error, "lateral_error.png"),
+                 (plot_lateral_error_time, "lateral_error_time.png")]
+        for plot_fn, name in plots:
+            try:
+                written.append(plot_fn(out / name, result))
+            except (OSError, ValueError, RuntimeError, MemoryError) as exc:
+                print(f"rfsw-plan plan: warning: {name} not written ({exc}); the data files "
+                      f"are complete", file=sys.stderr)
+        if len(written) > 1:
+            summary["files"] = [str(p) for p in written]
+            write_plan_json(out / "plan.json", summary, vouches_for=written)
     if result.robust_warning():
         print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
     if args.json:
