@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from rfsw_plan.exceptions import IdentificationError, InputError
@@ -225,3 +226,179 @@ def fit_process_forces(
         torque_rms=torque_rms,
         notes=tuple(notes),
     )
+
+
+#: Coverage of the derived force uncertainty: +- this many standard deviations of the
+#: residual spread (on top of the drift).
+COVERAGE_SIGMA = 3.0
+#: Length of the running mean that separates the slow drift from the spread, as a fraction
+#: of each phase's samples (10 % of the weld length during the weld).
+DRIFT_WINDOW = 0.10
+#: A log the force model describes: R^2 of the axial component at least this (where the log
+#: spans the plunge, i.e. the axial force varies) or an axial RMS residual below
+#: ``MAX_AXIAL_RMS_SHARE`` of the steady axial force.
+MIN_R2 = 0.5
+MAX_AXIAL_RMS_SHARE = 0.10
+#: Fewest weld-phase samples a log needs to inform the planned forces.
+MIN_WELD_SAMPLES = 10
+#: Phases whose uncertainty is derived (the pin is in the material).
+LOADED_PHASES = ("plunge", "dwell", "weld")
+
+
+@dataclass(frozen=True)
+class ForceUncertainty:
+    """Force uncertainty derived from a fitted log, per phase and seam-frame component.
+
+    For every phase the fit's residual r_k = f_meas(t_k) - f_model(t_k) (seam frame
+    (t, l, n)) is split into a slow part, the drift d_k (running mean over
+    :data:`DRIFT_WINDOW` of the phase; along the seam during the weld), and the spread
+    r_k - d_k with standard deviation sigma. The bound per component is::
+
+        delta_i = max_k |d_k,i| + c sigma_i      (c = coverage, e.g. 3 for +-3 sigma) [N]
+
+    The spread includes the sensor noise; the bound is therefore conservative for a noisy log.
+
+    Attributes:
+        coverage: c [-].
+        bound: Phase -> delta (t, l, n) [N], shape (3,).
+        sigma: Phase -> sigma (t, l, n) [N], shape (3,).
+        drift: Phase -> max |d| (t, l, n) [N], shape (3,).
+        samples: Phase -> number of log samples in that phase.
+        steady: Steady fitted weld force (f_t, f_l, f_n) [N], shape (3,).
+        usable: The force model describes the log (see :func:`derive_force_uncertainty`).
+        reason: Why not (empty if usable).
+    """
+
+    coverage: float
+    bound: dict[str, FloatArray]
+    sigma: dict[str, FloatArray]
+    drift: dict[str, FloatArray]
+    samples: dict[str, int]
+    steady: FloatArray
+    usable: bool
+    reason: str = ""
+
+    @property
+    def weld_relative(self) -> FloatArray:
+        """Weld bound relative to the steady fitted force per component [-], shape (3,)
+        (inf where the steady component is zero)."""
+        if "weld" not in self.bound:
+            return np.full(3, np.inf)
+        return np.where(np.abs(self.steady) > 0,
+                        self.bound["weld"] / np.maximum(np.abs(self.steady), 1e-300), np.inf)
+
+    def box(self, phase: NDArray[np.str_]) -> FloatArray:
+        """Bound of each sample's phase [N], shape (N, 3) (the weld bound where the log has
+        no sample of a phase, e.g. the accelerate/decelerate samples of a timed plan)."""
+        out = np.tile(self.bound.get("weld", np.zeros(3)), (len(phase), 1))
+        for ph, b in self.bound.items():
+            out[np.asarray(phase) == ph] = b
+        return out
+
+    def summary(self) -> str:
+        """Text block: the bound per phase and component."""
+        lines = [f"force uncertainty from the log (seam frame, max |drift| + "
+                 f"{self.coverage:g} sigma):"]
+        for ph in LOADED_PHASES:
+            if ph not in self.bound:
+                continue
+            b, s, d = self.bound[ph], self.sigma[ph], self.drift[ph]
+            lines.append(
+                f"  {ph:<6} ({self.samples[ph]:>5} samples)  f_t +-{b[0]:7.1f} N  "
+                f"f_l +-{b[1]:7.1f} N  f_n +-{b[2]:7.1f} N   (sigma {s[0]:.1f}/{s[1]:.1f}/"
+                f"{s[2]:.1f} N, drift {d[0]:.1f}/{d[1]:.1f}/{d[2]:.1f} N)")
+        if "weld" in self.bound:
+            rel = self.weld_relative
+            lines.append("  weld, relative to the fitted steady force: " + ", ".join(
+                f"{n} {100 * r:.1f} %" if np.isfinite(r) else f"{n} -"
+                for n, r in zip(("f_t", "f_l", "f_n"), rel, strict=True)))
+        if not self.usable:
+            lines.append(f"  NOT USED: {self.reason}")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict[str, object]:
+        """JSON-ready form (N, file units)."""
+        def vec(d: dict[str, FloatArray]) -> dict[str, list[float]]:
+            return {k: [float(x) for x in v] for k, v in d.items()}
+
+        return {
+            "frame": "seam (t, l, n)", "coverage_sigma": self.coverage,
+            "definition": "max |running mean of the fit residual| + coverage * std of the rest",
+            "bound_N": vec(self.bound), "sigma_N": vec(self.sigma), "drift_N": vec(self.drift),
+            "samples": dict(self.samples), "steady_weld_force_N": [float(x) for x in self.steady],
+            "weld_relative": [float(x) if np.isfinite(x) else None for x in self.weld_relative],
+            "usable": self.usable, "reason": self.reason,
+        }
+
+
+def _running_mean(x: FloatArray, n: int) -> FloatArray:
+    """Centred running mean of each column of x (N, 3) over n samples (shrinking at the
+    ends), shape (N, 3)."""
+    n = max(1, min(n, x.shape[0]))
+    c = np.vstack([np.zeros((1, x.shape[1])), np.cumsum(x, axis=0)])
+    k = np.arange(x.shape[0])
+    lo = np.clip(k - n // 2, 0, x.shape[0])
+    hi = np.clip(k + n - n // 2, 0, x.shape[0])
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def fit_residual(
+    fit: ForceFit, frames: SeamFrames, series: ForceSeries, tool_rotation: float = 0.0
+) -> tuple[NDArray[np.str_], FloatArray, FloatArray]:
+    """Phase per sample, measured force and residual measured - fitted, seam frame [N].
+
+    Returns:
+        phase (N,), f_meas (N, 3) (t, l, n) [N], residual (N, 3) [N].
+    """
+    sched = fit.process.evaluate(frames, series.t)
+    f_meas, _ = series_in_seam_frame(series, sched, tool_rotation)
+    return np.asarray(sched.phase), f_meas, f_meas - sched.force_seam
+
+
+def derive_force_uncertainty(
+    fit: ForceFit, frames: SeamFrames, series: ForceSeries, tool_rotation: float = 0.0,
+    coverage: float = COVERAGE_SIGMA,
+) -> ForceUncertainty:
+    """Force uncertainty per phase and seam component from a fit's residual (see
+    :class:`ForceUncertainty`), and whether the force model describes the log at all.
+
+    The log is *not usable* when it has fewer than :data:`MIN_WELD_SAMPLES` weld samples (the
+    phases are not found: the log does not match the problem's timing), or when the fitted
+    axial force leaves R^2 < :data:`MIN_R2` and an RMS residual above
+    :data:`MAX_AXIAL_RMS_SHARE` of the steady axial force.
+
+    Raises:
+        InputError: coverage not positive.
+    """
+    if not (np.isfinite(coverage) and coverage > 0):
+        raise InputError("force uncertainty", "coverage", f"got {coverage:g}", "> 0")
+    phase, _, res = fit_residual(fit, frames, series, tool_rotation)
+    bound: dict[str, FloatArray] = {}
+    sigma: dict[str, FloatArray] = {}
+    drift: dict[str, FloatArray] = {}
+    samples: dict[str, int] = {}
+    for ph in LOADED_PHASES:
+        m = phase == ph
+        n = int(np.sum(m))
+        if n < 2:
+            continue
+        r = res[m]
+        d = _running_mean(r, round(DRIFT_WINDOW * n) | 1)
+        sd = np.std(r - d, axis=0, ddof=1)
+        dmax = np.max(np.abs(d), axis=0)
+        bound[ph], sigma[ph], drift[ph], samples[ph] = dmax + coverage * sd, sd, dmax, n
+    steady = fit.process.forces.steady_seam
+    reason = ""
+    n_weld = samples.get("weld", 0)
+    if n_weld < MIN_WELD_SAMPLES:
+        reason = (f"the log has {n_weld} samples in the weld phase of this problem's timing "
+                  f"(need {MIN_WELD_SAMPLES}): the phases are not found")
+    else:
+        r2n = float(fit.r2[2])
+        share = float(fit.rms[2]) / max(abs(float(steady[2])), 1e-9)
+        if not (np.isfinite(r2n) and r2n >= MIN_R2) and share > MAX_AXIAL_RMS_SHARE:
+            reason = (f"the force model does not describe the log: axial R^2 {r2n:.2f} < "
+                      f"{MIN_R2:g} and RMS {fit.rms[2]:.0f} N = {100 * share:.0f} % of the "
+                      f"axial force")
+    return ForceUncertainty(coverage=coverage, bound=bound, sigma=sigma, drift=drift,
+                            samples=samples, steady=steady, usable=not reason, reason=reason)

@@ -6,6 +6,7 @@ import argparse
 import csv
 import logging
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -150,8 +151,10 @@ def _write_time_csv(path: Path, res: DeviationResult) -> None:
 
 
 def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:
-    """PNG: lateral deviation along the seam with the weld-window band, and the deviation
-    over time through the phases (matplotlib, Agg backend, imported here)."""
+    """PNG: lateral deviation along the seam with the weld-window band (the window applies to
+    the lateral direction only), axial and along-track deviation in their own panels, and the
+    lateral deviation over time with the phases shaded (matplotlib, Agg backend, imported here).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -159,35 +162,68 @@ def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:
 
     mm = 1e3
     w = res.window
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(8, 7), constrained_layout=True)
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8), constrained_layout=True)
+    (a_lat, a_time), (a_ax, a_al) = axes
     s = res.frames.s * mm
-    a1.axhspan(w.lower * mm, w.upper * mm, color="tab:green", alpha=0.2, label="weld window")
-    a1.axhline(w.target * mm, color="tab:green", ls=":", lw=0.8)
-    a1.axhline(-w.target * mm, color="tab:green", ls=":", lw=0.8, label="+-target")
-    a1.plot(s, res.lateral * mm, "o-", ms=3, label="lateral (+ advancing)")
-    a1.plot(s, res.axial * mm, "s-", ms=2, label="axial (+ up)")
-    a1.plot(s, res.along * mm, "^-", ms=2, label="along-track")
-    a1.set_xlabel("arc length s [mm]")
-    a1.set_ylabel("deviation [mm]")
-    a1.set_title(f"{title}\nuncompensated deviation at the waypoints (steady weld force)")
-    a1.legend(fontsize=8)
-    a1.grid(alpha=0.3)
+    a_lat.axhspan(w.lower * mm, w.upper * mm, color="tab:green", alpha=0.2,
+                  label=f"weld window [{w.lower * mm:+.2f}, {w.upper * mm:+.2f}] mm")
+    a_lat.plot(s, res.lateral * mm, "o-", ms=3, color="tab:red",
+               label="lateral, uncompensated (+ advancing side)")
+    a_lat.set_xlabel("arc length s [mm]")
+    a_lat.set_ylabel("lateral deviation [mm]")
+    a_lat.set_title("lateral deviation at the waypoints (steady weld force)")
+    a_lat.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.15), ncol=2)
+    a_lat.grid(alpha=0.3)
+    a_ax.plot(s, res.axial * mm, "s-", ms=2, color="tab:blue", label="axial (+ up)")
+    a_ax.plot(s, res.along * mm, "^-", ms=2, color="tab:purple", label="along-track")
+    a_ax.set_xlabel("arc length s [mm]")
+    a_ax.set_ylabel("deviation [mm]")
+    a_ax.set_title("axial and along-track deviation (no window applies)")
+    a_ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.15), ncol=2)
+    a_ax.grid(alpha=0.3)
     sch = res.schedule
-    a2.axhspan(w.lower * mm, w.upper * mm, color="tab:green", alpha=0.2)
-    a2.plot(sch.t, res.lateral_t * mm, label="lateral")
-    a2.plot(sch.t, res.axial_t * mm, label="axial")
-    a2.plot(sch.t, res.along_t * mm, label="along-track")
-    for ph in ("plunge", "dwell", "weld", "retract"):
-        m = sch.mask(ph)
-        if m.any():
-            t0 = float(sch.t[m][0])
-            a2.axvline(t0, color="k", lw=0.5, ls="--")
-            a2.text(t0, a2.get_ylim()[1], ph, fontsize=7, va="top")
-    a2.set_xlabel("time [s]")
-    a2.set_ylabel("deviation [mm]")
-    a2.set_title("over time (plunge, dwell, weld, retract)")
-    a2.legend(fontsize=8)
-    a2.grid(alpha=0.3)
-    fig.savefig(path, dpi=110)
+    a_time.axhspan(w.lower * mm, w.upper * mm, color="tab:green", alpha=0.2,
+                   label="weld window (lateral)")
+    a_time.plot(sch.t, res.lateral_t * mm, color="tab:red", label="lateral")
+    _shade_phases(a_time, sch)
+    a_time.set_xlabel("time [s]")
+    a_time.set_ylabel("lateral deviation [mm]")
+    a_time.set_title("lateral deviation over time (phases shaded)")
+    a_time.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.15), ncol=2)
+    a_time.grid(alpha=0.3)
+    a_al.plot(sch.t, res.axial_t * mm, color="tab:blue", label="axial")
+    a_al.plot(sch.t, res.along_t * mm, color="tab:purple", label="along-track")
+    _shade_phases(a_al, sch)
+    a_al.set_xlabel("time [s]")
+    a_al.set_ylabel("deviation [mm]")
+    a_al.set_title("axial and along-track deviation over time")
+    a_al.legend(fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.15), ncol=2)
+    a_al.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.savefig(path, dpi=100, format="png")
     plt.close(fig)
     return path
+
+
+_PHASE_COLOURS = {"approach": "0.9", "plunge": "tab:orange", "dwell": "tab:olive",
+                  "accelerate": "tab:cyan", "weld": "white", "decelerate": "tab:cyan",
+                  "retract": "0.9"}
+
+
+def _shade_phases(ax: Any, sch: Any) -> None:
+    """Shade each phase's time span and name it once at the bottom, inside its span; spans too
+    short to hold their name stay unnamed (no overlapping labels)."""
+    t = sch.t
+    t_range = float(t[-1] - t[0]) or 1.0
+    for ph, colour in _PHASE_COLOURS.items():
+        m = sch.mask(ph)
+        if not m.any():
+            continue
+        t0, t1 = float(t[m][0]), float(t[m][-1])
+        if colour != "white":
+            ax.axvspan(t0, t1, color=colour, alpha=0.15, lw=0)
+        if (t1 - t0) / t_range > 0.04:
+            ax.text(0.5 * (t0 + t1), 0.02, ph, transform=ax.get_xaxis_transform(),
+                    fontsize=8, ha="center", va="bottom",
+                    bbox={"facecolor": "white", "alpha": 0.7, "lw": 0, "pad": 1})

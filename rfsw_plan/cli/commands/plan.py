@@ -26,6 +26,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
+    from rfsw_plan.cli import plan_forces as force_log_cli
+
+    force_log_cli.register(parser)
 
 
 def _overrides(items: list[str], base: Any) -> Any:
@@ -58,6 +61,7 @@ def _overrides(items: list[str], base: Any) -> Any:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
         mark_outputs_stale,
@@ -72,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.process.problem import load_problem
 
     problem = load_problem(args.problem)
+    problem, flog = force_log_cli.prepare(problem, args)
     opts = _overrides(args.set, problem.planning)
     if args.force_uncertainty is not None:
         opts = options_from_table({"force_uncertainty": args.force_uncertainty},
@@ -86,8 +91,8 @@ def run(args: argparse.Namespace) -> int:
         # plan.json (the commit record) first becomes "incomplete", the other outputs go.
         mark_outputs_stale(out, problem.name, _OUTPUTS)
         try:
-            result = plan(problem, opts, spacing=None if args.spacing_mm is None
-                          else args.spacing_mm * 1e-3)
+            result, check = force_log_cli.plan(problem, flog, opts, None if args.spacing_mm
+                                               is None else args.spacing_mm * 1e-3, plan)
         except RfswError as exc:
             record: dict[str, Any] = {"status": "failed", "problem": problem.name,
                                       "message": str(exc)}
@@ -100,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
             write_plan_json(out / "plan.json", record)
             raise
         summary = result.summary()
+        summary.update(force_log_cli.plan_json(problem, args, flog, check))
         # The data first, committed by plan.json; the plots after, without blocking that
         # success: plan.json is rewritten to vouch for each plot that was written.
         written = [write_waypoints_csv(out / "waypoints.csv", result)]
@@ -116,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
         if len(written) > 1:
             summary["files"] = [str(p) for p in written]
             write_plan_json(out / "plan.json", summary, vouches_for=written)
+    force_log_cli.print_text(flog, check, result, quiet=args.json)
     if result.robust_warning():
         print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
     if args.json:

@@ -1,0 +1,154 @@
+"""Measured weld tracks (CSV): where the weld actually went.
+
+Two forms, told apart by the header (one row per measured point, units in the names):
+
+* ``s_mm, e_lat_mm[, e_norm_mm]``: the offset of the weld centreline from the joint line at
+  arc length s from the seam start, seam frame: ``e_lat`` toward the advancing side positive
+  (the sign of the weld window), ``e_norm`` along the tool axis n (up) positive. This is what
+  seed 000's measurement of the lateral offset gives (Figs. 15-17, Delta y = D1 - D2), or a
+  laser line scan of the bead already referred to the joint line.
+* ``x_mm, y_mm, z_mm``: the weld centreline in the robot base frame (a laser scan registered
+  to the robot); it is projected onto the seam by the validation (lateral offset only: a
+  surface scan does not see the pin depth).
+
+Empty cells are gaps (scanner drop-outs) and are skipped; rows need not be sorted. Anything
+else (unknown or duplicated columns, text, inf) is a one-line :class:`InputError`.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+
+FloatArray = NDArray[np.float64]
+
+SEAM_FORM = ("s_mm", "e_lat_mm")
+SEAM_OPTIONAL = ("e_norm_mm",)
+BASE_FORM = ("x_mm", "y_mm", "z_mm")
+_EXPECTED = "s_mm, e_lat_mm[, e_norm_mm] (seam frame) or x_mm, y_mm, z_mm (base frame)"
+
+
+@dataclass(frozen=True)
+class WeldTrack:
+    """A measured weld track (SI units).
+
+    Attributes:
+        form: ``seam`` (s, e_lat[, e_norm]) or ``base`` (x, y, z).
+        s: Arc length from the seam start [m], shape (N,) (``seam`` form; None for ``base``).
+        e_lat: Lateral offset, + toward the advancing side [m], shape (N,) (``seam``).
+        e_norm: Offset along the tool axis n [m], shape (N,), or None.
+        xyz: Centreline points, base frame [m], shape (N, 3) (``base`` form; else None).
+        source: File the track came from.
+        n_gaps: Rows skipped because a cell was empty.
+    """
+
+    form: str
+    s: FloatArray | None
+    e_lat: FloatArray | None
+    e_norm: FloatArray | None
+    xyz: FloatArray | None
+    source: str = "<memory>"
+    n_gaps: int = 0
+
+    def __len__(self) -> int:
+        return int(self.xyz.shape[0] if self.xyz is not None else self.s.shape[0])  # type: ignore[union-attr]
+
+
+def read_weld_track(path: str | Path) -> WeldTrack:
+    """Read a weld-track CSV (format in the module docstring).
+
+    Raises:
+        InputError: Unreadable file, unknown/duplicated/missing columns, a cell that is not a
+            number, fewer than 3 complete rows; the message names the file, row and column.
+    """
+    path = Path(path)
+    try:
+        with path.open(newline="") as fh:
+            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, "", f"cannot read file: {exc}") from None
+    if not rows:
+        raise InputError(path, "", "empty file", _EXPECTED)
+    header = [h.strip() for h in rows[0]]
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise InputError(path, "header", f"duplicated column(s) {', '.join(dup)}", _EXPECTED)
+    if set(SEAM_FORM) <= set(header):
+        form, cols = "seam", [*SEAM_FORM, *(c for c in SEAM_OPTIONAL if c in header)]
+    elif set(BASE_FORM) <= set(header):
+        form, cols = "base", list(BASE_FORM)
+    else:
+        raise InputError(path, "header", f"columns {', '.join(header)}", _EXPECTED)
+    unknown = [h for h in header if h not in cols]
+    if unknown:
+        raise InputError(path, "header", f"unknown column(s) {', '.join(unknown)} in a "
+                         f"{form}-frame track", ", ".join(cols))
+    col = {h: i for i, h in enumerate(header)}
+    data: list[list[float]] = []
+    gaps = 0
+    for r, row in enumerate(rows[1:], start=2):
+        vals: list[float] = []
+        gap = False
+        for name in cols:
+            i = col[name]
+            cell = row[i].strip() if i < len(row) else ""
+            if cell == "" or cell.lower() == "nan":
+                gap = True
+                continue
+            try:
+                v = float(cell)
+            except ValueError:
+                raise InputError(path, f"row {r}, column {name}", f"'{cell}' is not a number",
+                                 "a number in mm, or an empty cell for a gap") from None
+            if not math.isfinite(v):
+                raise InputError(path, f"row {r}, column {name}", f"'{cell}'",
+                                 "a finite number in mm")
+            vals.append(v)
+        if gap:
+            gaps += 1
+        else:
+            data.append(vals)
+    if len(data) < 3:
+        raise InputError(path, "", f"{len(data)} complete row(s)", "at least 3 measured points")
+    a = np.asarray(data, dtype=float) * 1e-3
+    if form == "base":
+        return WeldTrack("base", None, None, None, a, str(path), gaps)
+    order = np.argsort(a[:, 0], kind="stable")
+    a = a[order]
+    e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
+    return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(path), gaps)
+
+
+def write_weld_track(path: str | Path, track: WeldTrack) -> Path:
+    """Write a track in the format :func:`read_weld_track` reads (atomically); NaN = gap."""
+    from rfsw_plan.io.files import atomic_path
+
+    path = Path(path)
+
+    def cell(v: float) -> str:
+        return "" if not np.isfinite(v) else f"{v * 1e3:.5f}"
+
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        if track.form == "base":
+            assert track.xyz is not None
+            w.writerow(BASE_FORM)
+            for p in track.xyz:
+                w.writerow([cell(v) for v in p])
+        else:
+            assert track.s is not None and track.e_lat is not None
+            norm = track.e_norm is not None
+            w.writerow([*SEAM_FORM, *(SEAM_OPTIONAL if norm else ())])
+            for k in range(len(track.s)):
+                row = [cell(track.s[k]), cell(track.e_lat[k])]
+                if track.e_norm is not None:
+                    row.append(cell(track.e_norm[k]))
+                w.writerow(row)
+    return path
