@@ -33,6 +33,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/benchmark_planner.py
 	$(BIN)/python benchmarks/benchmark_validate.py
 	$(BIN)/python benchmarks/benchmark_compare.py
+	$(BIN)/python benchmarks/benchmark_placement.py
 
 clean:
 	rm -rf $(VENV) out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -307,3 +308,31 @@ def test_reader_fuzz_long(tmp_path_factory: pytest.TempPathFactory,
 
 def test_mutated_values_stay_finite() -> None:
     assert math.isfinite(float("1e300"))  # the reader, not float(), must reject it
+
+
+def test_orientation_makes_joint_6_identifiable(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """Seed 000's 6-D measurements: with the tool orientation, joint 6's stiffness (whose axis
+    passes through the TCP) is identified; from positions alone it is not."""
+    from scipy.spatial.transform import Rotation
+
+    model = load_model("zk500")
+    d = _campaign(40, seed=3)
+    w = d.wrench.copy()
+    w[:, 3:] = np.random.default_rng(5).normal(scale=300.0, size=(len(d), 3))  # loads joint 6
+    d = MeasurementSet(d.q, w, model.predict_position(d.q, w), pose_id=d.pose_id)
+    batch = model.batch(d.q)
+    dX = model.deflection_batch(batch, d.wrench)
+    R = Rotation.from_rotvec(dX[:, 3:]).as_matrix() @ batch.T[:, :3, :3]
+    rv = Rotation.from_matrix(R).as_rotvec()
+    p = write_measurements(tmp_path / "six.csv", MeasurementSet(
+        d.q, d.wrench, d.position, pose_id=d.pose_id, rotation=rv))
+    pos_only = write_measurements(tmp_path / "three.csv", d)
+    for path, ident in ((pos_only, False), (p, True)):
+        assert main(["identify", "--robot", "zk500", "--data", str(path), "--json"]) == 0
+        rep = json.loads(capsys.readouterr().out)
+        j6 = rep["joints"][5]
+        assert j6["identified"] is ident, j6
+        if ident:
+            k6 = load_model("zk500").stiffness[5]
+            assert j6["stiffness_Nm_per_rad"] == pytest.approx(k6, rel=1e-3)

@@ -121,3 +121,25 @@ def test_bad_problem_one_line_error_via_cli(
     assert err.count("\n") == 1 and "Traceback" not in err
     assert match in err
     assert str(p) in err or "unknown robot" in err
+
+
+def test_every_plan_option_has_one_file_key() -> None:
+    """[planning] and --set cover every PlanOptions field, each by exactly one key."""
+    from dataclasses import fields
+
+    from rfsw_plan.process.plan_options import OPTION_KEYS, PlanOptions
+
+    by_field = [spec.field for spec in OPTION_KEYS.values()]
+    assert sorted(by_field) == sorted(f.name for f in fields(PlanOptions))
+
+
+def test_set_unknown_option_did_you_mean(capsys: pytest.CaptureFixture[str],
+                                         tmp_path: Path) -> None:
+    code = main(["plan", "zk500_table6_seam", "-o", str(tmp_path / "o"),
+                 "--set", "w_stifness=2"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "--set: unknown option 'w_stifness'; did you mean 'w_stiffness'?" in err
+    code = main(["plan", "zk500_table6_seam", "-o", str(tmp_path / "o"), "--set", "margin_mm=nan"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--set: margin_mm: got nan" in err, err

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -141,15 +141,25 @@ def axis_variances(res: FloatArray) -> FloatArray:
 
 
 def position_jacobian(
-    model: ElastostaticModel, batch: PoseBatch, wrench: FloatArray, effects: Sequence[Effect]
+    model: ElastostaticModel, batch: PoseBatch, wrench: FloatArray, effects: Sequence[Effect],
+    rows: int = 3,
 ) -> FloatArray:
-    """Stacked d(position)/d(theta) for the given effects, shape (m, 3, P): each effect's
+    """Stacked d(position)/d(theta) for the given effects, shape (m, rows, P): each effect's
     :meth:`~rfsw_plan.elastostatics.effects.base.Effect.pose_regressor` (wrench effects chain
-    through the model's compliance, computed once)."""
+    through the model's compliance, computed once). ``rows=6`` adds the rotation rows."""
     F_true = model.true_wrench(batch, wrench)
     through = model.wrench_to_pose()
-    blocks = [e.pose_regressor(batch, wrench, F_true, through)[:, :3, :] for e in effects]
+    blocks = [e.pose_regressor(batch, wrench, F_true, through)[:, :rows, :] for e in effects]
     return np.concatenate(blocks, axis=2)
+
+
+def rotation_error(measured: FloatArray, nominal: FloatArray) -> FloatArray:
+    """Rotation vector of R_meas R_nom^T [rad], shape (m, 3): measured rotation vectors
+    (m, 3) against nominal rotation matrices (m, 3, 3), both in the base frame."""
+    from scipy.spatial.transform import Rotation
+
+    Rm = Rotation.from_rotvec(np.asarray(measured, dtype=float)).as_matrix()
+    return np.asarray(Rotation.from_matrix(Rm @ np.swapaxes(nominal, 1, 2)).as_rotvec())
 
 
 def _set_theta(effects: Sequence[Effect], theta: FloatArray) -> None:
@@ -171,14 +181,18 @@ class IdentificationProblem:
         prior: Parameter values before identification, shape (P,).
         data: The samples.
         batch: Kinematics of ``data.q``.
-        mask: Measured position axes, shape (m, 3).
-        y: Measured positions with unmeasured axes zeroed [m], shape (m, 3).
+        mask: Measured values, shape (m, 3), or (m, 6) with orientation rows.
+        y: Measured positions with unmeasured axes zeroed [m], shape (m, 3); with orientation
+            (m, 6), the rotation rows holding log(R_meas R_fk^T) [rad].
         free: Parameters the data can identify (the others keep their prior), shape (P,).
         notes: Why a parameter is not free (empty if free), shape (P,).
         scale: Parameter scales for the step tolerance [SI], shape (P,).
         linear: True if the positions are linear in the free parameters (one step solves).
         method: ``ols`` or ``wls``.
-        rms_before: RMS residual of the prior model [m].
+        rms_before: RMS position residual of the prior model [m].
+        row_scale: Weight of each observation row, shape (mask.shape[1],): 1 for positions and
+            sigma_position / sigma_rotation [m/rad] for orientation rows (their own noise
+            level, estimated from the prior model's residual of each block).
     """
 
     model: ElastostaticModel
@@ -195,25 +209,39 @@ class IdentificationProblem:
     linear: bool
     method: str
     rms_before: float
+    row_scale: FloatArray = field(default_factory=lambda: np.ones(3))
+
+    @property
+    def rows(self) -> int:
+        """3 (positions) or 6 (positions and orientations)."""
+        return int(self.mask.shape[1])
 
     @property
     def n_obs(self) -> int:
         """Number of measured scalar values."""
         return int(self.mask.sum())
 
+    def predicted(self) -> FloatArray:
+        """Predictions with the current parameters, shape (m, rows): TCP position [m] and,
+        with orientation rows, the deflection's rotation [rad]."""
+        dX = self.model.deflection_batch(self.batch, self.data.wrench)
+        out = dX[:, : self.rows].copy()
+        out[:, :3] += self.batch.T[:, :3, 3]
+        return out
+
     def positions(self) -> FloatArray:
         """Predicted positions with the current parameters [m], shape (m, 3)."""
-        return self.batch.T[:, :3, 3] + self.model.deflection_batch(
-            self.batch, self.data.wrench)[:, :3]
+        return self.predicted()[:, :3]
 
     def residual(self) -> FloatArray:
-        """Measured minus predicted, measured axes only [m], shape (n_obs,)."""
-        return (self.y - self.positions())[self.mask]
+        """Measured minus predicted, measured values only, weighted rows [m], (n_obs,)."""
+        return ((self.y - self.predicted()) * self.row_scale)[self.mask]
 
     def jacobian(self) -> FloatArray:
-        """d(position)/d(theta) of the measured axes, all parameters, shape (n_obs, P)."""
-        return position_jacobian(self.model, self.batch, self.data.wrench,
-                                 self.effects)[self.mask]
+        """d(prediction)/d(theta) of the measured values, weighted rows, shape (n_obs, P)."""
+        A = position_jacobian(self.model, self.batch, self.data.wrench, self.effects,
+                              self.rows)
+        return (A * self.row_scale[None, :, None])[self.mask]
 
     def theta(self) -> FloatArray:
         """Current parameter vector, shape (P,)."""
@@ -259,6 +287,27 @@ def _mark_collinear(prob: IdentificationProblem, A0: FloatArray) -> None:
         why = ("a free device registration absorbs it" if any(setup[idx[j]] for j in order)
                else "cannot be told apart in this data")
         prob.notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
+
+
+def _add_orientation(prob: IdentificationProblem) -> None:
+    """Extend the problem with the measured tool orientation (issue 12 §1).
+
+    The rotation rows compare log(R_meas R_fk^T) with the predicted deflection rotation; they
+    are weighted by sigma_position / sigma_rotation, both estimated from the prior model's
+    residual of each block (each block with its own noise level).
+    """
+    data = prob.data
+    assert data.rotation is not None
+    y_rot = rotation_error(data.rotation, prob.batch.T[:, :3, :3])
+    pos_mask = prob.mask
+    prob.mask = np.concatenate([pos_mask, np.isfinite(y_rot)], axis=1)
+    prob.y = np.concatenate([prob.y, np.where(np.isfinite(y_rot), y_rot, 0.0)], axis=1)
+    prob.row_scale = np.ones(6)
+    r0 = prob.y - prob.predicted()
+    s_pos = float(np.sqrt(np.mean(r0[:, :3][pos_mask] ** 2))) if pos_mask.any() else 0.0
+    s_rot = float(np.sqrt(np.mean(r0[:, 3:][prob.mask[:, 3:]] ** 2)))
+    if s_pos > 0 and s_rot > 0:
+        prob.row_scale[3:] = s_pos / s_rot
 
 
 def build_identification(
@@ -314,6 +363,8 @@ def build_identification(
         linear=linear, method=method, rms_before=float("nan"),
     )
     prob.rms_before = rms(np.where(mask, data.position - prob.positions(), np.nan))
+    if data.rotation is not None:
+        _add_orientation(prob)
     A0 = prob.jacobian()
     if not np.all(np.isfinite(A0)):
         raise IdentificationError(f"{data.source}: the regressor is not finite (values out "
@@ -362,10 +413,11 @@ def solve_identification(
     n_obs = prob.n_obs
     w = np.ones(n_obs)
     if prob.method == "wls" and data.sigma is not None:
-        w = (1.0 / data.sigma[:, None] ** 2 * np.ones((1, 3)))[mask]
+        w = (1.0 / data.sigma[:, None] ** 2 * np.ones((1, prob.rows)))[mask]
     iterations, converged = _gauss_newton(prob, w, max_iter, tol)
     if prob.method == "wls" and data.sigma is None:
-        var_axis = axis_variances(np.where(mask, data.position - prob.positions(), np.nan))
+        res0 = (prob.y - prob.predicted()) * prob.row_scale
+        var_axis = axis_variances(np.where(mask, res0, np.nan))
         w = (np.ones((len(data), 1)) / var_axis[None, :])[mask]
         iterations, converged = _gauss_newton(prob, w, max_iter, tol)
 
@@ -437,7 +489,7 @@ def solve_identification(
         joint_identified=identified_j,
         condition_number=cond,
         rms_before=prob.rms_before,
-        rms_after=rms(np.where(mask, data.position - prob.positions(), np.nan)),
+        rms_after=rms(np.where(mask[:, :3], data.position - prob.positions(), np.nan)),
         sigma=sigma,
         n_samples=len(data),
         n_observations=n_obs,

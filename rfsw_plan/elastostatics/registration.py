@@ -158,8 +158,16 @@ class DeviceSetup:
         return ElastostaticModel(robot, effects)
 
     def data(self, data: MeasurementSet) -> MeasurementSet:
-        """The samples with positions in the base frame (current registration)."""
-        return data.with_position(self.frame.to_base(data.position), "base")
+        """The samples with positions (and orientations) in the base frame (current
+        registration): p_b = R^T (p_d - t), R_tool,b = R^T R_tool,d."""
+        out = data.with_position(self.frame.to_base(data.position), "base")
+        if data.rotation is None:
+            return out
+        from scipy.spatial.transform import Rotation
+
+        Rd = Rotation.from_rotvec(data.rotation).as_matrix()
+        Rb = np.einsum("ba,mbc->mac", self.frame.rotation, Rd)
+        return replace(out, rotation=np.asarray(Rotation.from_matrix(Rb).as_rotvec()))
 
     def fold(
         self, fitted: ElastostaticModel, estimates: tuple[ParameterEstimate, ...] = ()

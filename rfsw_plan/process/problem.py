@@ -240,16 +240,7 @@ def _csv_rows(path: Path, where: str) -> list[tuple[int, list[str]]]:
 
 def _seam_columns(path: Path, header: list[str]) -> list[str]:
     """The columns to read: x, y, z and, if all three are there, nx, ny, nz."""
-    if len(header) == 1 and any(d in header[0] for d in ";\t "):
-        raise InputError(path, "header", f"'{header[0][:60]}' is one column",
-                         "comma-separated columns x_mm,y_mm,z_mm[,nx,ny,nz]")
-    seen: set[str] = set()
-    for h in header:
-        if h in seen:
-            raise InputError(path, "header", f"column '{h}' appears twice", "each column once")
-        seen.add(h)
-        if h not in SEAM_CSV_COLUMNS:
-            raise unknown_name_error(path, "header", h, SEAM_CSV_COLUMNS, "column")
+    _check_header_names(path, header)
     missing = [c for c in ("x_mm", "y_mm", "z_mm") if c not in header]
     if missing:
         raise InputError(path, "header", f"missing column(s) {', '.join(missing)}",
@@ -260,6 +251,19 @@ def _seam_columns(path: Path, header: list[str]) -> list[str]:
         raise InputError(path, "header", f"has {', '.join(normals)} but not {', '.join(absent)}",
                          "all of nx, ny, nz or none")
     return ["x_mm", "y_mm", "z_mm", *normals]
+
+
+def _check_header_names(path: Path, header: list[str]) -> None:
+    """One delimiter (commas), each column once, and only the seam CSV's columns."""
+    if len(header) == 1 and any(d in header[0] for d in ";\t "):
+        raise InputError(path, "header", f"'{header[0][:60]}' is one column",
+                         "comma-separated columns x_mm,y_mm,z_mm[,nx,ny,nz]")
+    twice = next((h for i, h in enumerate(header) if h in header[:i]), None)
+    if twice is not None:
+        raise InputError(path, "header", f"column '{twice}' appears twice", "each column once")
+    unknown = next((h for h in header if h not in SEAM_CSV_COLUMNS), None)
+    if unknown is not None:
+        raise unknown_name_error(path, "header", unknown, SEAM_CSV_COLUMNS, "column")
 
 
 def _surface_normal(tab: Table) -> FloatArray:

@@ -26,6 +26,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
+    from rfsw_plan.cli.commands.export import add_export_arguments
+
+    add_export_arguments(parser, "--export")
     from rfsw_plan.cli import plan_forces as force_log_cli
 
     force_log_cli.register(parser)
@@ -62,6 +65,7 @@ def _overrides(items: list[str], base: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
+    from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
         mark_outputs_stale,
@@ -75,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.process.plan_options import options_from_table
     from rfsw_plan.process.problem import load_problem
 
+    check_export_arguments(args)
     problem = load_problem(args.problem)
     problem, flog = force_log_cli.prepare(problem, args)
     opts = _overrides(args.set, problem.planning)
@@ -105,10 +110,15 @@ def run(args: argparse.Namespace) -> int:
             write_plan_json(out / "plan.json", record)
             raise
         summary = result.summary()
-        summary.update(force_log_cli.plan_json(problem, args, flog, check))
-        # The data first, committed by plan.json; the plots after, without blocking that
-        # success: plan.json is rewritten to vouch for each plot that was written.
+        summary["robot_file"] = str(problem.robot.path)
+        # The data first (waypoints, controller programs), committed by plan.json; the plots
+        # after, without blocking that success: plan.json is rewritten to vouch for each plot.
         written = [write_waypoints_csv(out / "waypoints.csv", result)]
+        exported = export_plan_result(args, result, out, summary)
+        if exported is not None:
+            written += list(exported.files)
+            summary["export"] = exported.to_dict()
+        summary.update(force_log_cli.plan_json(problem, args, flog, check))
         summary["files"] = [str(p) for p in written]
         write_plan_json(out / "plan.json", summary, vouches_for=written)  # the commit
         plots = [(plot_lateral_error, "lateral_error.png"),
@@ -119,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
             except (OSError, ValueError, RuntimeError, MemoryError) as exc:
                 print(f"rfsw-plan plan: warning: {name} not written ({exc}); the data files "
                       f"are complete", file=sys.stderr)
-        if len(written) > 1:
+        if any(str(p).endswith(".png") for p in written):
             summary["files"] = [str(p) for p in written]
             write_plan_json(out / "plan.json", summary, vouches_for=written)
     force_log_cli.print_text(flog, check, result, quiet=args.json)

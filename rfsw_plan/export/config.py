@@ -1,0 +1,185 @@
+"""Arm configuration (posture) of a joint vector, in the three vendors' encodings, and IK back.
+
+A Cartesian point in a robot program needs its posture to be unambiguous. Geometric flags,
+from the chain's joint frames at the controller joint values q:
+
+* ``front``: the wrist centre (chain joint 5 origin) lies in front of the axis-1 line, i.e.
+  on the side of the shoulder (joint 2 axis) offset;
+* ``elbow_up``: the wrist centre is on the same side of the line through the joint 2 and
+  joint 3 axes as in the reference posture (upper arm vertical, forearm horizontal: chain
+  angles theta = 0), i.e. the elbow is above the shoulder-wrist line;
+* ``wrist_negative``: the fifth controller axis value is negative.
+
+Encodings (the conventions of the vendors' manuals as this module reads them; the round trip
+in ``tests/test_export.py`` checks writer and reader agree on every bundled robot):
+
+* KUKA ``S`` (Status): bit 0 = 1 if the wrist centre is overhead (behind axis 1, not
+  ``front``), bit 1 = 1 if A3 is on the elbow-up side of its stretched angle (``elbow_up``),
+  bit 2 = 1 if A5 < 0. ``T`` (Turn): bit i = 1 if axis i+1 < 0.
+* FANUC ``CONFIG``: ``'F|N U|D T|B, t1, t4, t6'``: N (no flip) if J5 >= 0 else F; U if
+  ``elbow_up`` else D; T (top/front) if ``front`` else B; turn numbers of J1, J4, J6: 0 for
+  -180 < J <= 180 deg, +1 for 180 < J <= 540, -1 for -540 < J <= -180.
+* ABB ``confdata [cf1, cf4, cf6, cfx]``: quadrants floor(q / 90 deg) of axes 1, 4, 6 and
+  cfx = 4 (not front) + 2 (not elbow_up) + (axis 5 < 0).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.ik import solve_ik
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Posture:
+    """Geometric configuration flags (see the module docstring)."""
+
+    front: bool
+    elbow_up: bool
+    wrist_negative: bool
+
+
+def _reference_q(robot: Robot) -> FloatArray:
+    """Controller values of the chain pose theta = 0 (q = G^-1 (0 - offset))."""
+    conv = robot.description.convention
+    return np.asarray(np.linalg.solve(robot.coupling, -conv.offset))
+
+
+def _elbow_side(robot: Robot, q: FloatArray) -> float:
+    F = robot.joint_frames(q)
+    o2, o3, wc = F[1, :3, 3], F[2, :3, 3], F[4, :3, 3]
+    return float(np.cross(o3 - o2, wc - o2) @ F[1, :3, 2])
+
+
+def posture(robot: Robot, q: FloatArray) -> Posture:
+    """Posture flags of controller joint values q [rad], shape (6,)."""
+    if robot.nq != 6:
+        raise InputError(robot.name, "", f"{robot.nq} joints", "a 6-axis arm for a program")
+    F = robot.joint_frames(q)
+    o1, z1, o2, wc = F[0, :3, 3], F[0, :3, 2], F[1, :3, 3], F[4, :3, 3]
+    fwd = (o2 - o1) - z1 * ((o2 - o1) @ z1)
+    if np.linalg.norm(fwd) < 1e-9:  # no shoulder offset: the joint-1 frame's x axis
+        fwd = F[0, :3, 0]
+    front = bool((wc - o1) @ fwd >= 0.0)
+    ref = _elbow_side(robot, _reference_q(robot))
+    elbow_up = bool(_elbow_side(robot, q) * ref > 0.0)
+    return Posture(front, elbow_up, bool(q[4] < 0.0))
+
+
+# --------------------------------------------------------------------------------------------
+# Vendor encodings
+
+
+def kuka_status_turn(robot: Robot, q: FloatArray) -> tuple[int, int]:
+    """KUKA (S, T) of controller values q [rad]."""
+    p = posture(robot, q)
+    s = (0 if p.front else 1) | (2 if p.elbow_up else 0) | (4 if p.wrist_negative else 0)
+    t = sum(1 << i for i in range(6) if q[i] < 0.0)
+    return s, t
+
+
+def _turn(a: float) -> int:
+    return math.ceil((math.degrees(a) - 180.0) / 360.0 - 1e-12)
+
+
+def fanuc_config(robot: Robot, q: FloatArray) -> str:
+    """FANUC CONFIG string of controller values q [rad], e.g. ``'N U T, 0, 0, 0'``."""
+    p = posture(robot, q)
+    return (f"{'F' if p.wrist_negative else 'N'} {'U' if p.elbow_up else 'D'} "
+            f"{'T' if p.front else 'B'}, {_turn(q[0])}, {_turn(q[3])}, {_turn(q[5])}")
+
+
+def abb_confdata(robot: Robot, q: FloatArray) -> tuple[int, int, int, int]:
+    """ABB confdata (cf1, cf4, cf6, cfx) of controller values q [rad]."""
+    p = posture(robot, q)
+    quad = [math.floor(q[j] / (math.pi / 2) + 1e-12) for j in (0, 3, 5)]
+    cfx = 4 * (not p.front) + 2 * (not p.elbow_up) + int(p.wrist_negative)
+    return quad[0], quad[1], quad[2], cfx
+
+
+def configs_near(encode: object, robot: Robot, q: FloatArray, eps: float = 1e-6) -> list[object]:
+    """The encodings of q and of q with every joint that sits within ``eps`` [rad] of a
+    boundary (a multiple of 90 deg, where a sign, quadrant or turn changes) nudged to either
+    side: a point written at A4 = 0.0 may come back at -1e-12. The written configuration
+    must be one of them."""
+    assert callable(encode)
+    q = np.asarray(q, dtype=float)
+    step = math.pi / 2
+    near = [j for j in range(len(q)) if abs(q[j] - step * round(q[j] / step)) < eps][:4]
+    out = [encode(robot, q)]
+    for mask in range(1, 3 ** len(near)):
+        d = np.zeros_like(q)
+        m = mask
+        for j in near:
+            d[j] = (m % 3 - 1) * 2 * eps
+            m //= 3
+        out.append(encode(robot, q + d))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Back to joint values
+
+
+def ik_on_branch(
+    robot: Robot, target: FloatArray, matches: object, seed: FloatArray | None,
+) -> FloatArray:
+    """Joint values [rad] that reach ``target`` (TCP, base frame, (4, 4)) in a given posture.
+
+    Args:
+        robot: The robot.
+        target: TCP pose in the description's base frame [m].
+        matches: Callable ``q -> bool``: does q have the program's configuration (posture and
+            turns)? Solutions are shifted by whole turns within the joint limits first.
+        seed: The previous point's joint values (continuation), or None (multi-start over the
+            configuration branches).
+
+    Raises:
+        InputError: No solution with that configuration.
+    """
+    from rfsw_plan.planning.baselines import branch_seeds
+
+    assert callable(matches)
+    d = robot.description
+    seeds: list[FloatArray] = [] if seed is None else [np.asarray(seed, dtype=float)]
+    base = seed if seed is not None else 0.5 * (d.lower + d.upper)
+    seeds += [s for _, s in branch_seeds(robot, np.asarray(base, dtype=float))]
+    if seed is None:
+        rng = np.random.default_rng(0)
+        seeds += list(rng.uniform(np.maximum(d.lower, -math.pi), np.minimum(d.upper, math.pi),
+                                  size=(24, robot.nq)))
+    for s in seeds:
+        res = solve_ik(robot, target, s, tol_pos=1e-10, tol_rot=1e-10, max_iter=300)
+        if not res.converged and (res.position_error > 1e-8 or res.rotation_error > 1e-8):
+            continue
+        for q in _turn_variants(robot, res.q, s):
+            if matches(q):
+                return q
+    raise InputError("program", "", "a point has no joint solution in its configuration",
+                     "a reachable pose with its posture and turns")
+
+
+def _turn_variants(robot: Robot, q: FloatArray, near: FloatArray) -> list[FloatArray]:
+    """q with every joint shifted by whole turns within the limits, nearest to ``near`` first."""
+    d = robot.description
+    options = []
+    for j in range(robot.nq):
+        ks = [k for k in range(-2, 3) if d.lower[j] - 1e-9 <= q[j] + 2 * math.pi * k
+              <= d.upper[j] + 1e-9]
+        vals = sorted((q[j] + 2 * math.pi * k for k in ks), key=lambda v: abs(v - near[j]))
+        options.append(vals or [q[j]])
+    out = [np.array([o[0] for o in options])]
+    for j in range(robot.nq):  # single-joint alternatives (turn numbers of one axis)
+        for v in options[j][1:]:
+            alt = out[0].copy()
+            alt[j] = v
+            out.append(alt)
+    return out

@@ -1,0 +1,74 @@
+"""Stream file for real-time interfaces (KUKA RSI, ABB EGM): one row per controller cycle.
+
+The rows are the plan's trajectory timed at the controller cycle (default 4 ms, RSI's and
+EGM's fastest cycle) by the planner's own time parameterisation (``plan --export stream``
+re-times the verified plan with ``dt`` = the cycle), never an interpolation of the 10 ms
+samples: resampling 10 ms samples at 4 ms makes a new trajectory whose finite-difference jerk
+breaks the joint limits (measured on zk500_table6_seam: 1866 deg/s^3 against 1800 with PCHIP).
+The rows pass the planner's sample check before the file is written (the caller's ``check``);
+the pose is the forward kinematics of the joint values.
+
+Each piece of the plan (approach, plunge, dwell, ramps, weld, retract) is sampled with the
+whole number of cycles that covers it, so a piece whose duration is not a multiple of the
+cycle is stretched by less than one cycle when the rows are sent one per cycle (slower, so
+every velocity, acceleration and jerk limit checked on the planned times still holds):
+``t_s`` is the stream clock (row k at k cycles), ``t_plan_s`` the planned time of the row.
+
+Columns: ``t_s, t_plan_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the commanded TCP, i.e. the
+fake target, in the controller's base frame: KUKA ROBROOT, FANUC world, ABB base), the maker's
+Euler angles where the robot has them (``A_deg, B_deg, C_deg`` or ``W_deg, P_deg, R_deg``),
+then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from rfsw_plan.export.program import Samples
+from rfsw_plan.io.files import atomic_path
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+
+#: Default controller cycle [s].
+DEFAULT_CYCLE = 0.004
+
+
+def samples_of(trajectory: object, seam: FloatArray) -> Samples:
+    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``) and its seam points
+    [m], (N, 3)."""
+    tr = trajectory
+    return Samples(np.asarray(tr.t), np.asarray(tr.phase).astype(str),  # type: ignore[attr-defined]
+                   np.asarray(tr.s), np.asarray(tr.q), np.asarray(tr.wrench),  # type: ignore[attr-defined]
+                   np.asarray(seam, dtype=float))
+
+
+def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
+    """Write the stream CSV atomically (columns in the module docstring)."""
+    from rfsw_plan.io.waypoints import EULER_COLUMNS, maker_euler
+
+    conv = robot.description.convention
+    T = robot.batch_fk_jacobian(stream.q)[0]
+    T = np.linalg.inv(conv.base)[None] @ T
+    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()
+    header = ["t_s", "t_plan_s", "phase", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
+    clock = stream.t[0] + cycle * np.arange(len(stream))
+    cols = [clock, stream.t, stream.phase, *(T[:, :3, 3] * 1e3).T, quat[:, 3], *quat[:, :3].T]
+    euler = robot.description.euler
+    if euler in EULER_COLUMNS:
+        header += list(EULER_COLUMNS[euler])
+        cols += list(np.degrees(maker_euler(T[:, :3, :3], euler)).T)
+    header += conv.column_names()
+    cols += list(np.degrees(stream.q).T)
+    p = Path(path)
+    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for k in range(len(stream)):
+            w.writerow([c[k] if isinstance(c[k], str) else f"{float(c[k]):.6f}" for c in cols])
+    return p
