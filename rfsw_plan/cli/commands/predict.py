@@ -24,7 +24,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", required=True, metavar="NAME|PATH",
                         help="bundled robot name (see 'rfsw-plan robots') or robot TOML file")
     parser.add_argument("--q-deg", required=True, metavar="Q1,...,Qn",
-                        help="controller joint values [deg], comma separated")
+                        help="controller joint values [deg] as on the pendant (KUKA A1..A6, FANUC "
+                             "J1..J6; the robot file's [controller] axes), comma separated")
     parser.add_argument("--wrench", required=True, metavar="FX,FY,FZ[,MX,MY,MZ]",
                         help="wrench the environment applies to the tool at the TCP, robot "
                         "base frame [N, N m]; moments default to 0")
