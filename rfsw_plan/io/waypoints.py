@@ -169,6 +169,8 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
     for name in outputs:
         if name != "plan.json":
             (folder / name).unlink(missing_ok=True)
+        for tmp in folder.glob(f".{name}.*.tmp*"):  # left by a killed (SIGKILL) writer
+            tmp.unlink(missing_ok=True)
 
 
 def check_plan_folder(folder: str | Path) -> dict[str, Any]:

@@ -7,13 +7,13 @@ robot file (e.g. tilting compliance) apply on top of joint compliance (seed 000 
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, NotWithinLimitsError
+from rfsw_plan.io.files import strict_json
 from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "predict"
@@ -76,14 +76,14 @@ def run(args: argparse.Namespace) -> int:
     trans_mm = dX[:3] * 1e3
     rot_mrad = dX[3:] * 1e3
     if args.json:
-        print(json.dumps({
+        print(strict_json({
             "robot": robot.name,
             "q_deg": [float(v) for v in np.degrees(q)],
             "wrench_N_Nm": [float(v) for v in wrench],
             "effects": model.labels,
             "translation_mm": [float(v) for v in trans_mm],
             "rotation_mrad": [float(v) for v in rot_mrad],
-        }))
+        }, indent=None), end="")
         return 0
     print(f"robot {robot.name}; effects: {', '.join(model.labels)}")
     print("TCP deflection in the base frame:")

@@ -92,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     files = None
     if out is not None:
         with OutputLock(out):
-            files = write_report(result, out)
+            files = write_report(result, out, argv=getattr(args, "argv", None),
+                                 started=getattr(args, "started", None))
     saved = save_extended_robot(result, args.save_robot) if args.save_robot else None
     if args.json:
         print(result_json(result))

@@ -38,6 +38,7 @@ class JointBacklash(ComplianceEffect):
 
     #: Lost motion [rad]: >= 0, at most 0.1 rad (5.7 deg).
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"b": (0.0, 0.1)}
+    param_units: ClassVar[Mapping[str, str]] = {"b": "rad"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("b",)
