@@ -12,8 +12,6 @@ from rfsw_plan.exceptions import InfeasibleError, InputError, RfswError
 NAME = "plan"
 HELP = "plan poses and fake-target offsets, verify them, time them and write waypoint files"
 
-_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
-
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("problem", help="bundled problem name (e.g. zk500_table6_seam) or file")
@@ -68,11 +66,10 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
+        PLAN_OUTPUTS,
         mark_outputs_stale,
-        plot_lateral_error,
-        plot_lateral_error_time,
+        write_plan_data,
         write_plan_json,
-        write_waypoints_csv,
     )
     from rfsw_plan.planning.api import plan
     from rfsw_plan.planning.options import check_well_posed
@@ -94,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     with OutputLock(out):
         # An earlier run's files must never sit beside this run's as if they were its own:
         # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-        mark_outputs_stale(out, problem.name, _OUTPUTS)
+        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
         try:
             result, check = force_log_cli.plan(problem, flog, opts, None if args.spacing_mm
                                                is None else args.spacing_mm * 1e-3, plan)
@@ -111,27 +108,14 @@ def run(args: argparse.Namespace) -> int:
             raise
         summary = result.summary()
         summary["robot_file"] = str(problem.robot.path)
-        # The data first (waypoints, controller programs), committed by plan.json; the plots
-        # after, without blocking that success: plan.json is rewritten to vouch for each plot.
-        written = [write_waypoints_csv(out / "waypoints.csv", result)]
+        written = write_plan_data(out, result)
         exported = export_plan_result(args, result, out, summary)
         if exported is not None:
             written += list(exported.files)
             summary["export"] = exported.to_dict()
         summary.update(force_log_cli.plan_json(problem, args, flog, check))
         summary["files"] = [str(p) for p in written]
-        write_plan_json(out / "plan.json", summary, vouches_for=written)  # the commit
-        plots = [(plot_lateral_error, "lateral_error.png"),
-                 (plot_lateral_error_time, "lateral_error_time.png")]
-        for plot_fn, name in plots:
-            try:
-                written.append(plot_fn(out / name, result))
-            except (OSError, ValueError, RuntimeError, MemoryError) as exc:
-                print(f"rfsw-plan plan: warning: {name} not written ({exc}); the data files "
-                      f"are complete", file=sys.stderr)
-        if any(str(p).endswith(".png") for p in written):
-            summary["files"] = [str(p) for p in written]
-            write_plan_json(out / "plan.json", summary, vouches_for=written)
+        write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
     force_log_cli.print_text(flog, check, result, quiet=args.json)
     if result.robust_warning():
         print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
