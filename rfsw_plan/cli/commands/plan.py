@@ -125,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
           f"{result.iterations} IPOPT iterations, branch {result.branch})")
+    print(f"robot {problem.robot.name} from {problem.robot.path}")
     u = result.options.force_uncertainty
     print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
           f"{'worst margin mm':>16} {'k_lat N/mm':>11}  {'force uncertainty held':<22}")
