@@ -57,6 +57,7 @@ from rfsw_plan.elastostatics.identification import (
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
+from rfsw_plan.progress import progress
 from rfsw_plan.validation.residuals import (
     FeatureCorrelation,
     NoiseFloor,
@@ -399,7 +400,8 @@ def evaluate_candidates(
     F_true = model.true_wrench(batch, data.wrench)
     done: list[tuple[str, CrossValidation]] = []
     skipped: list[Skipped] = []
-    for label in labels:
+    for label in progress(labels, desc="diagnosis: candidates", total=len(labels),
+                          unit="candidate"):
         eff = make_effect(model.robot, label)
         reason = eff.identifiable(batch, F_true)
         if reason:
