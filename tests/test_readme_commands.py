@@ -46,7 +46,7 @@ SLOW = ("rfsw-plan validate --robot zk500 --data campaign.csv", "D=../shared/dat
         "rfsw-plan compare zk500_table6_seam")
 #: Files a block reads that an earlier block writes: run that block first.
 NEEDS = {"rfsw-plan validate --robot zk500 --data campaign.csv":
-         "rfsw-plan simulate-campaign --robot zk500 --hidden payload_gravity=m:150,m_rz:-37.5"}
+         "rfsw-plan simulate-campaign --robot zk500 --hidden payload_gravity"}
 
 
 def _cases() -> list[object]:
