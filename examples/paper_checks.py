@@ -125,8 +125,8 @@ def main() -> None:
     print("    5 kN / 200 N m wrench bends the wrist by ~0.1-0.3 rad (|dX| ~ 0.2 m), so Kc,")
     print("    which grows with F, is ~10-40 % of the wrist stiffness and nu_p reaches ~0.36.")
     print("    With the identified Table 2 stiffness nu_p stays near the paper's bound.")
-    print("    The model's lengths are the M-900iB/360's (~8 % longer reach) and the tool length")
-    print("    is assumed, which also shifts nu_p.")
+    print("    The model's lengths are the public M-900iB/700's (no public S-900iB/400 lengths)")
+    print("    and the tool length is assumed, which also shifts nu_p.")
 
 
 if __name__ == "__main__":

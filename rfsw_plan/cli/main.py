@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import argparse
 import ast
+import contextlib
 import importlib
 import logging
 import os
 import pkgutil
 import re
+import signal
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
@@ -106,13 +109,42 @@ def _command_word(argv: Sequence[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible)."""
+    """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible, 130
+    interrupted). Ctrl-C at any point, start-up (parser, lazy imports) included, ends with
+    one line and exit 130, never a traceback."""
+    # SIGTERM unwinds like Ctrl-C, so atomic writers remove their temporaries (a file is
+    # either the complete new one or not there).
+    previous: Any = None
+    with contextlib.suppress(ValueError):  # not in the main thread: keep the default
+        previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:
+        with contextlib.suppress(Exception):
+            print("rfsw-plan: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _terminated(signum: int, frame: Any) -> NoReturn:
+    raise KeyboardInterrupt
+
+
+def _main(argv: Sequence[str] | None = None) -> int:
+    """The CLI without the signal handling. The parsed namespace also carries ``argv`` (the
+    words given, for reports that print the next command) and ``started``
+    (``time.perf_counter()`` at the start, for wall times)."""
+    started = time.perf_counter()
     words = list(sys.argv[1:] if argv is None else argv)
     parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
         args = parser.parse_args(words)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
+    args.argv = words
+    args.started = started
     logging.basicConfig(
         level=logging.INFO if args.verbose else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",

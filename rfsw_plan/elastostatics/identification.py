@@ -253,10 +253,12 @@ def _mark_invisible(prob: IdentificationProblem, A0: FloatArray) -> None:
     sens = np.sqrt(np.mean((A0 * prob.scale) ** 2, axis=0))
     for k in np.flatnonzero(sens < SENSITIVITY_FLOOR_M):
         prob.free[k] = False
+        moved = ("not at all (below 1e-6 nm, rounding only)" if sens[k] < 1e-15
+                 else f"{sens[k] * 1e9:.2g} nm RMS")
         prob.notes[k] = (
-            f"does not move the measured TCP (a 100 % change moves it {sens[k] * 1e9:.2g} nm "
-            "RMS); e.g. a joint whose axis passes through the TCP is invisible to "
-            "position-only data; prior kept"
+            f"does not move the measured TCP (a 100 % change moves it {moved}, below "
+            f"{SENSITIVITY_FLOOR_M * 1e9:.3g} nm); e.g. a joint whose axis passes through the "
+            "TCP is invisible to position-only data; prior kept"
         )
 
 

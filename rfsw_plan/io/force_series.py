@@ -12,12 +12,14 @@ Format: header row, one sample per row.
   ``tool`` (commanded TCP frame: z into the workpiece, x along travel at tool rotation 0). A
   ``frame`` option given by the caller overrides a missing column; if both are given they must
   agree.
+
+The data type, :class:`~rfsw_plan.process.force_series.ForceSeries`, lives in ``process/``
+(the force fit uses it); it is re-exported here.
 """
 
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,35 +27,12 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.table import Quantity, read_table
+from rfsw_plan.process.force_series import FORCE_FRAMES, ForceSeries
 
 FloatArray = NDArray[np.float64]
 
-#: Frames a force series may be given in.
-FORCE_FRAMES = ("base", "seam", "tool")
 REQUIRED = ("t_s", "fx_N", "fy_N", "fz_N")
 MOMENTS = ("mx_Nm", "my_Nm", "mz_Nm")
-
-
-@dataclass(frozen=True)
-class ForceSeries:
-    """A measured force series (SI units).
-
-    Attributes:
-        t: Time [s], shape (N,), strictly increasing.
-        force: Force on the tool at the TCP, in ``frame`` [N], shape (N, 3).
-        moment: Moment on the tool at the TCP, in ``frame`` [N m], shape (N, 3), or None.
-        frame: 'base', 'seam' or 'tool'.
-        source: File the series came from.
-    """
-
-    t: FloatArray
-    force: FloatArray
-    moment: FloatArray | None
-    frame: str
-    source: str = "<memory>"
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
 
 
 def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries:
@@ -130,3 +109,6 @@ def write_force_series(path: str | Path, series: ForceSeries) -> Path:
                 row += [f"{v:.6f}" for v in series.moment[k]]
             w.writerow([*row, series.frame])
     return path
+
+
+__all__ = ["FORCE_FRAMES", "ForceSeries", "read_force_series", "write_force_series"]

@@ -31,6 +31,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.measurement_set import (
     MEASUREMENT_FRAMES,
@@ -254,69 +255,90 @@ def read_measurements(
     mapping = columns if isinstance(columns, ColumnMap) or columns is None else (
         load_column_map(columns))
     tab = read_table(path, mapping)
-    p = tab.path
     q = _joints(tab, n_joints, prismatic)
-    m = len(tab)
-    wrench = np.zeros((m, 6))
+    wf = _wrench_frame(tab, mapping, wrench_frame)
+    wrench = _to_base(tab, _logged_wrench(tab), q, wf, sensor_pose, tool_rotation)
+    position = _positions(tab)
+    t, sigma, pose_id, load_step = _optional(tab)
+    quantities = [joint_quantity(j + 1, None) for j in range(q.shape[1])]
+    quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
+    quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME]
+    names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
+    return MeasurementSet(
+        q, wrench, position, t, pose_id, sigma, _extras(tab, set(names.values())),
+        str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),
+        load_step=load_step, dialect=tab.dialect, columns=names,
+    )
+
+
+def _logged_wrench(tab: Table) -> FloatArray:
+    """Forces and moments as logged [N, N m], shape (m, 6); zeros without force columns."""
+    wrench = np.zeros((len(tab), 6))
     f = _vector(tab, FORCES, "the force")
     if f is None:
         named = [h for h in tab.header if h.strip().lower().split("_")[0] in ("fx", "fy", "fz")]
         if named or any(tab.find(x) for x in MOMENTS):
             raise tab.missing(FORCES[0])  # a force under another name: never read it as 0
-    if f is not None:
-        wrench[:, :3] = f
-        mom = _vector(tab, MOMENTS, "the moment")
-        if mom is not None:
-            wrench[:, 3:] = mom
+        return wrench
+    wrench[:, :3] = f
+    mom = _vector(tab, MOMENTS, "the moment")
+    if mom is not None:
+        wrench[:, 3:] = mom
+    return wrench
+
+
+def _wrench_frame(tab: Table, mapping: ColumnMap | None, wrench_frame: str | None) -> str:
+    """The wrench frame from the option and the mapping file (they must agree)."""
     wf = wrench_frame
     if mapping is not None and "wrench_frame" in mapping.options:
         wf_map = _choice(mapping.options["wrench_frame"], WRENCH_FRAMES, mapping.source,
                          "wrench_frame")
         if wf is not None and wf != wf_map:
-            raise InputError(p, "wrench frame", f"{mapping.source} says {wf_map}, "
+            raise InputError(tab.path, "wrench frame", f"{mapping.source} says {wf_map}, "
                              f"--wrench-frame says {wf}", "one frame")
         wf = wf_map
-    wf = _choice(wf or "base", WRENCH_FRAMES, "--wrench-frame", "")
-    wrench = _to_base(tab, wrench, q, wf, sensor_pose, tool_rotation)
+    return _choice(wf or "base", WRENCH_FRAMES, "--wrench-frame", "")
 
+
+def _positions(tab: Table) -> FloatArray:
+    """Measured positions [m], shape (m, 3); NaN where not measured."""
     hits = [tab.find(x) for x in POSITIONS]
     if not any(hits):
-        raise InputError(p, "columns x_mm, y_mm, z_mm", "no measured TCP axis in the file",
-                         "at least one of x_mm, y_mm, z_mm (or _m)")
-    position = np.full((m, 3), math.nan)
+        raise InputError(tab.path, "columns x_mm, y_mm, z_mm", "no measured TCP axis in the "
+                         "file", "at least one of x_mm, y_mm, z_mm (or _m)")
+    position = np.full((len(tab), 3), math.nan)
     for k, h in enumerate(hits):
         if h is not None:
             position[:, k] = tab.numbers(h[0], h[1], allow_blank=True)
     if not np.any(np.isfinite(position)):
-        raise InputError(p, "columns x_mm, y_mm, z_mm", "every position cell is blank",
+        raise InputError(tab.path, "columns x_mm, y_mm, z_mm", "every position cell is blank",
                          "at least one measured value")
-    rotation = _orientation(tab)
-    used = {h[0] for h in hits if h is not None}
-    t_hit = tab.find(TIME)
+    return position
+
+
+def _optional(tab: Table) -> tuple[FloatArray | None, FloatArray | None,
+                                   NDArray[np.str_] | None, NDArray[np.int_] | None]:
+    """Time [s], sigma [m] (> 0), pose ids and integer load steps, each None if absent."""
+    t_hit, s_hit, id_hit = tab.find(TIME), tab.find(SIGMA), tab.find(POSE_ID)
     t = None if t_hit is None else tab.numbers(*t_hit)
-    s_hit = tab.find(SIGMA)
     sigma = None if s_hit is None else tab.numbers(*s_hit)
-    if sigma is not None and np.any(sigma <= 0):
+    if s_hit is not None and sigma is not None and np.any(sigma <= 0):
         r = tab.row_numbers[int(np.nonzero(sigma <= 0)[0][0])]
-        raise InputError(p, f"row {r}, column '{s_hit[0] if s_hit else ''}'", "must be > 0")
-    id_hit = tab.find(POSE_ID)
+        raise InputError(tab.path, f"row {r}, column '{s_hit[0]}'", "must be > 0")
     pose_id = None if id_hit is None else tab.texts(id_hit[0])
     step_hit = tab.find(LOAD_STEP)
-    load_step = None
-    if step_hit is not None:
-        steps = tab.numbers(step_hit[0])
-        if np.any(steps != np.round(steps)):
-            r = tab.row_numbers[int(np.flatnonzero(steps != np.round(steps))[0])]
-            raise InputError(p, f"row {r}, column '{step_hit[0]}'", "not an integer",
-                             "an integer load-step label")
-        load_step = steps.astype(np.int_)
-    frame_out = _frame(tab, frame, mapping)
-    for hit in (t_hit, s_hit, id_hit, step_hit, tab.find(FRAME)):
-        if hit is not None:
-            used.add(hit[0])
-    quantities = [joint_quantity(j + 1, None) for j in range(q.shape[1])]
-    quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION]
-    used |= {h[0] for x in quantities if (h := tab.find(x)) is not None}
+    if step_hit is None:
+        return t, sigma, pose_id, None
+    steps = tab.numbers(step_hit[0])
+    bad = np.flatnonzero(steps != np.round(steps))
+    if bad.size:
+        raise InputError(tab.path, f"row {tab.row_numbers[int(bad[0])]}, column "
+                         f"'{step_hit[0]}'", "not an integer", "an integer load-step label")
+    return t, sigma, pose_id, steps.astype(np.int_)
+
+
+def _extras(tab: Table, used: set[str]) -> dict[str, FloatArray]:
+    """Every other numeric column, by name (text columns are ignored, as documented)."""
     extra: dict[str, FloatArray] = {}
     for name in tab.header:
         if name in used:
@@ -324,12 +346,8 @@ def read_measurements(
         try:
             extra[name] = tab.numbers(name)
         except InputError:
-            continue  # non-numeric extra columns are ignored, as documented
-    names = {x.key: h[0] for x in (*quantities, *POSITIONS) if (h := tab.find(x)) is not None}
-    return MeasurementSet(
-        q, wrench, position, t, pose_id, sigma, extra, str(p), frame=frame_out,
-        rotation=rotation, load_step=load_step, dialect=tab.dialect, columns=names,
-    )
+            continue
+    return extra
 
 
 def rotvec_to_matrix(rv: FloatArray) -> FloatArray:

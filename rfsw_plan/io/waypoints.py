@@ -157,6 +157,59 @@ def write_plan_json(path: str | Path, summary: dict[str, Any],
     return write_json(path, record)
 
 
+#: The files a plan folder holds (``plan.json``, the commit record, is written last).
+PLAN_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
+
+
+def write_plan_data(folder: str | Path, result: PlanResult) -> list[Path]:
+    """Write a plan's data files into ``folder``: ``waypoints.csv`` and the two plots.
+
+    Each file is written atomically; ``plan.json`` (the commit record that vouches for them) is
+    not written here: the caller adds its own files and then calls :func:`write_plan_json`.
+    Shared by ``rfsw-plan plan`` and :meth:`PlanResult.write`.
+
+    Returns:
+        The written paths, in the order ``waypoints.csv``, ``lateral_error.png``,
+        ``lateral_error_time.png``.
+    """
+    out = Path(folder)
+    return [write_waypoints_csv(out / "waypoints.csv", result),
+            plot_lateral_error(out / "lateral_error.png", result),
+            plot_lateral_error_time(out / "lateral_error_time.png", result)]
+
+
+def write_plan_folder(folder: str | Path, result: PlanResult,
+                      robot_file: str | Path | None = None) -> Path:
+    """Write a verified plan as the CLI does: ``waypoints.csv``, the plots, then ``plan.json``.
+
+    The folder is checked and locked first; an earlier run's outputs are marked stale, and
+    ``plan.json`` (with the SHA-256 of every file beside it) is written last, so a reader can
+    tell a whole plan from a partial one (:func:`check_plan_folder`).
+
+    Args:
+        folder: Output folder (created if needed).
+        result: A plan from :func:`rfsw_plan.planning.api.plan`.
+        robot_file: The robot description file the plan used (recorded as ``robot_file``).
+
+    Returns:
+        The path of ``plan.json``.
+
+    Raises:
+        OutputPathError: The folder cannot be written or another writer holds it.
+    """
+    from rfsw_plan.io.files import OutputLock, prepare_output_dir
+
+    out = prepare_output_dir(folder, "folder")
+    with OutputLock(out, "folder"):
+        mark_outputs_stale(out, result.problem_name, PLAN_OUTPUTS)
+        summary = result.summary()
+        if robot_file is not None:
+            summary["robot_file"] = str(robot_file)
+        written = write_plan_data(out, result)
+        summary["files"] = [str(p) for p in written]
+        return write_plan_json(out / "plan.json", summary, vouches_for=written)
+
+
 def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:
     """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
     so an earlier success record never sits beside removed or new data), then the other
@@ -169,6 +222,8 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
     for name in outputs:
         if name != "plan.json":
             (folder / name).unlink(missing_ok=True)
+        for tmp in folder.glob(f".{name}.*.tmp*"):  # left by a killed (SIGKILL) writer
+            tmp.unlink(missing_ok=True)
 
 
 def check_plan_folder(folder: str | Path) -> dict[str, Any]:

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from rfsw_plan.exceptions import IdentificationError, InputError
-from rfsw_plan.io.force_series import ForceSeries
+from rfsw_plan.process.force_series import ForceSeries
 from rfsw_plan.process.forces import FIT_PARAMS, ProcessModel
 from rfsw_plan.process.frames import FloatArray, LoadSchedule, SeamFrames, tcp_orientation
 

@@ -293,6 +293,7 @@ def _seam(path: Path, tab: Table) -> tuple[Seam, float]:
             raise tab.error("surface_normal", "the seam CSV already has normals",
                             "normals in one place")
         normals = _surface_normal(tab)
+    tab.str_("source", "")  # free text, but text
     seam = Seam(
         points=pts,
         interpolation=tab.str_("interpolation", "linear", choices=INTERPOLATIONS),  # type: ignore[arg-type]
@@ -333,19 +334,19 @@ FORCE_NUMBERS: dict[str, tuple[str, float, dict[str, float]]] = {
     "lateral_N": ("lateral", 1.0, {"ge": 0.0, "le": MAX_FORCE_N}),
     "traverse_N": ("traverse", 1.0, {"ge": 0.0, "le": MAX_FORCE_N}),
     "dwell_lateral_fraction": ("dwell_lateral_fraction", 1.0, {"ge": 0.0, "le": 2.0}),
-    "dwell_tau_s": ("dwell_tau", 1.0, {"gt": 0.0, "le": 3600.0}),
-    "ramp_length_mm": ("ramp_length", 1e-3, {"gt": 0.0, "le": 1e4}),
+    "dwell_tau_s": ("dwell_tau", 1.0, {"ge": 1e-3, "le": 3600.0}),
+    "ramp_length_mm": ("ramp_length", 1e-3, {"ge": 1e-3, "le": 1e4}),
     "spindle_torque_Nm": ("spindle_torque", 1.0, {"ge": -MAX_TORQUE_NM, "le": MAX_TORQUE_NM}),
 }
 #: ``[process]`` numbers: key -> (field, file-to-SI factor, valid range in file units).
 PHASE_NUMBERS: dict[str, tuple[str, float, dict[str, float]]] = {
-    "travel_speed_mm_s": ("travel_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
-    "plunge_speed_mm_s": ("plunge_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
-    "plunge_depth_mm": ("plunge_depth", 1e-3, {"gt": 0.0, "le": 100.0}),
+    "travel_speed_mm_s": ("travel_speed", 1e-3, {"ge": 0.01, "le": 1e3}),
+    "plunge_speed_mm_s": ("plunge_speed", 1e-3, {"ge": 0.01, "le": 1e3}),
+    "plunge_depth_mm": ("plunge_depth", 1e-3, {"ge": 1e-3, "le": 100.0}),
     "dwell_s": ("dwell_time", 1.0, {"ge": 0.0, "le": 3600.0}),
-    "retract_speed_mm_s": ("retract_speed", 1e-3, {"gt": 0.0, "le": 1e3}),
+    "retract_speed_mm_s": ("retract_speed", 1e-3, {"ge": 0.01, "le": 1e3}),
     "approach_height_mm": ("approach_height", 1e-3, {"ge": 0.0, "le": 1e4}),
-    "approach_speed_mm_s": ("approach_speed", 1e-3, {"gt": 0.0, "le": 1e4}),
+    "approach_speed_mm_s": ("approach_speed", 1e-3, {"ge": 0.01, "le": 1e4}),
     "rotation_speed_rpm": ("rotation_speed_rpm", 1.0, {"ge": 0.0, "le": 1e5}),
     "thickness_mm": ("thickness", 1e-3, {"ge": 0.0, "le": 1e3}),
 }
@@ -401,12 +402,13 @@ def _coupling(ctab: Table | None, proc: ProcessModel) -> Coupling | None:
     if ctab is None:
         return None
     law = PenetrationLaw(
-        stiffness=ctab.num("penetration_stiffness_N_per_mm", gt=0.0, le=1e9) * 1e3,
+        stiffness=ctab.num("penetration_stiffness_N_per_mm", ge=1.0, le=1e9) * 1e3,
         ref_penetration=ctab.num("reference_penetration_mm", proc.plunge_depth * 1e3,
                                  ge=-100.0, le=100.0) * 1e-3,
         ref_force=ctab.num("reference_force_N", proc.forces.axial, ge=0.0, le=MAX_FORCE_N),
     )
-    depth = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3, gt=0.0, le=100.0) * 1e-3
+    ctab.str_("source", "")
+    depth = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3, ge=1e-3, le=100.0) * 1e-3
     return Coupling(law=law, commanded_depth=depth)
 
 
@@ -429,10 +431,11 @@ def _process(path: Path, tab: Table) -> tuple[ProcessModel, Coupling | None]:
 def _window(wtab: Table | None) -> WeldWindow:
     if wtab is None:
         return WeldWindow()
+    wtab.str_("source", "")
     return WeldWindow(
         lower=wtab.num("lower_mm", -1.25, ge=-100.0, le=100.0) * 1e-3,
         upper=wtab.num("upper_mm", 0.7, ge=-100.0, le=100.0) * 1e-3,
-        target=wtab.num("target_mm", 1.0, gt=0.0, le=100.0) * 1e-3,
+        target=wtab.num("target_mm", 1.0, ge=1e-3, le=100.0) * 1e-3,
     )
 
 
@@ -507,6 +510,7 @@ def load_problem(name_or_path: str | Path) -> Problem:
         window = _window(top.table("window", WINDOW_KEYS))
     planning = _planning(path, top, robot)
     reference = seam_tab.str_("reference", "taught", choices=("taught", "absolute"))
+    top.str_("source", "")
     return Problem(
         name=top.str_("name", path.stem),
         robot=robot,

@@ -34,6 +34,7 @@ from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
 from rfsw_plan.process.taught import taught_path
 from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.progress import Bar
 from rfsw_plan.realtime.base import FloatArray, NoCompensation, Strategy
 from rfsw_plan.realtime.hybrid import HybridResidual
 from rfsw_plan.realtime.metrics import WeldMetrics, weld_metrics
@@ -363,12 +364,17 @@ def _run_scenario(
     paths: dict[str, NominalPath],
     options: CompareOptions,
     window: WeldWindow,
+    bar: Bar | None = None,
 ) -> Scenario:
     runs: dict[str, WeldRun] = {}
     inputs = {k: weld.controller_inputs(p) for k, p in paths.items()}
     for s in options.strategies:
         key = "plan" if s in PLANNED else "taught"
+        if bar is not None:
+            bar.set_description(f"compare {name}: {s}")
         runs[s] = weld.run(options.make_strategy(s), paths[key], label=s, inputs=inputs[key])
+        if bar is not None:
+            bar.update(1)
     metrics = {k: weld_metrics(r, window) for k, r in runs.items()}
     return Scenario(name, description, metrics, runs)
 
@@ -451,36 +457,10 @@ def compare(
         opts.truth_stiffness_scale == 1.0 and not opts.truth_effects) else (
         f"truth stiffness x{opts.truth_stiffness_scale:g}"
         + "".join(f" + {e[0]}" for e in opts.truth_effects))
-    main = _run_scenario("main", desc, weld_main, paths, opts, problem.window)
-    scenarios: list[Scenario] = []
-    if opts.sensitivity:
-        k = opts.sensitivity_stiffness_scale
-        t_soft = truth_model(model, k * opts.truth_stiffness_scale, opts.truth_effects)
-        scenarios.append(_run_scenario(
-            f"stiffness_{(k - 1) * 100:+.0f}%", f"truth joint stiffness x{k:g} of the model",
-            VirtualWeld(schedule, model, t_soft, cfg, problem.seam_reference), paths, opts,
-            problem.window))
-        mid = len(frames) // 2
-        weld_idx = np.flatnonzero(schedule.mask("weld"))
-        i_mid = weld_idx[np.argmin(np.abs(schedule.s[weld_idx] - (frames.s[mid] - frames.s[0])))]
-        wmid = schedule.wrench_base[i_mid]
-        hidden = opts.hidden_effect or pick_hidden_effect(
-            model, q_taught[mid], wmid, frames.l[mid])
-        if truth_main.has(hidden[0]):
-            notes.append(f"hidden effect {hidden[0]} is already in the main truth; skipped")
-        else:
-            t_hid = truth_model(model, opts.truth_stiffness_scale,
-                                (*opts.truth_effects, hidden))
-            scenarios.append(_run_scenario(
-                f"hidden_{hidden[0]}", f"truth has {hidden[0]} (model does not)",
-                VirtualWeld(schedule, model, t_hid, cfg, problem.seam_reference), paths, opts,
-            problem.window))
-        f = opts.noise_factor
-        cfg_noise = replace(cfg, sensor=opts.sensor.scaled_noise(f))
-        scenarios.append(_run_scenario(
-            f"noise_x{f:g}", f"sensor noise x{f:g}",
-            VirtualWeld(schedule, model, truth_main, cfg_noise, problem.seam_reference), paths,
-            opts, problem.window))
+    n_scenarios = 4 if opts.sensitivity else 1  # main, stiffness, hidden effect, noise
+    with Bar(len(opts.strategies) * n_scenarios, "compare", unit="weld") as bar:
+        main, scenarios = _run_scenarios(problem, opts, model, truth_main, frames, q_taught,
+                                         schedule, cfg, weld_main, paths, desc, notes, bar)
     sim_time = time.perf_counter() - tic
     cons = consistency_check(problem, model, frames, q_taught, schedule, opts.cycle_s)
     return CompareResult(
@@ -489,6 +469,48 @@ def compare(
         plan_time_s=wp.solve_time_s if wp is not None else 0.0, sim_time_s=sim_time,
         weld_duration_s=weld_duration, n_cycles=len(weld_main.t), notes=tuple(notes),
     )
+
+
+def _run_scenarios(
+    problem: Problem, opts: CompareOptions, model: ElastostaticModel,
+    truth_main: ElastostaticModel, frames: Any, q_taught: FloatArray, schedule: Any,
+    cfg: SimConfig, weld_main: VirtualWeld, paths: dict[str, NominalPath], desc: str,
+    notes: list[str], bar: Bar,
+) -> tuple[Scenario, list[Scenario]]:
+    """The main scenario and, with ``opts.sensitivity``, the stiffness, hidden-effect and
+    noise reruns (each runs every strategy; ``bar`` advances by one per weld)."""
+    main = _run_scenario("main", desc, weld_main, paths, opts, problem.window, bar)
+    scenarios: list[Scenario] = []
+    if not opts.sensitivity:
+        return main, scenarios
+    k = opts.sensitivity_stiffness_scale
+    t_soft = truth_model(model, k * opts.truth_stiffness_scale, opts.truth_effects)
+    scenarios.append(_run_scenario(
+        f"stiffness_{(k - 1) * 100:+.0f}%", f"truth joint stiffness x{k:g} of the model",
+        VirtualWeld(schedule, model, t_soft, cfg, problem.seam_reference), paths, opts,
+        problem.window, bar))
+    mid = len(frames) // 2
+    weld_idx = np.flatnonzero(schedule.mask("weld"))
+    i_mid = weld_idx[np.argmin(np.abs(schedule.s[weld_idx] - (frames.s[mid] - frames.s[0])))]
+    wmid = schedule.wrench_base[i_mid]
+    hidden = opts.hidden_effect or pick_hidden_effect(
+        model, q_taught[mid], wmid, frames.l[mid])
+    if truth_main.has(hidden[0]):
+        notes.append(f"hidden effect {hidden[0]} is already in the main truth; skipped")
+    else:
+        t_hid = truth_model(model, opts.truth_stiffness_scale,
+                            (*opts.truth_effects, hidden))
+        scenarios.append(_run_scenario(
+            f"hidden_{hidden[0]}", f"truth has {hidden[0]} (model does not)",
+            VirtualWeld(schedule, model, t_hid, cfg, problem.seam_reference), paths, opts,
+            problem.window, bar))
+    f = opts.noise_factor
+    cfg_noise = replace(cfg, sensor=opts.sensor.scaled_noise(f))
+    scenarios.append(_run_scenario(
+        f"noise_x{f:g}", f"sensor noise x{f:g}",
+        VirtualWeld(schedule, model, truth_main, cfg_noise, problem.seam_reference), paths,
+        opts, problem.window, bar))
+    return main, scenarios
 
 
 # -- presentation ---------------------------------------------------------------------------

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field, replace
+from datetime import UTC
 from pathlib import Path
 from typing import Any
 
@@ -189,6 +190,9 @@ class RobotDescription:
             m, m/s, ..., N/m), shape (n,); None = all revolute.
         device_frame: Registration of a measuring device (laser tracker, motion capture) and
             the tracked marker's offset, identified by ``validate --frame device``, or None.
+        provenance: Where a derived (re-identified) description came from: ``parent`` (robot
+            file), ``data`` and ``data_sha256`` (the measurement file), ``created`` (UTC date)
+            and ``command``; empty for a hand-written file. The ``[provenance]`` table.
     """
 
     name: str
@@ -209,6 +213,7 @@ class RobotDescription:
     controller: ControllerConvention | None = None
     prismatic: NDArray[np.bool_] | None = None
     device_frame: DeviceFrame | None = None
+    provenance: dict[str, str] = field(default_factory=dict)
 
     @property
     def convention(self) -> ControllerConvention:
@@ -267,7 +272,8 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
 # Keys of every table of a robot file. A new key is declared here and read below.
 TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
-            "effects", "device_frame")
+            "effects", "device_frame", "provenance")
+PROVENANCE_KEYS = ("parent", "data", "data_sha256", "created", "command")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
 URDF_KEYS = ("urdf", "tip_link", "source")
 KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
@@ -290,6 +296,7 @@ MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
 MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
 MAX_TRAVEL_MM = 1e5          # prismatic joint limits: at most 100 m
 MAX_VELOCITY_DEG_S = 1e4
+MIN_RATE = 0.01              # smallest velocity/acceleration/jerk limit (deg or mm per s^k)
 MAX_ACCELERATION_DEG_S2 = 1e6
 MAX_JERK_DEG_S3 = 1e8
 STIFFNESS_RANGE_NM_PER_RAD = (1.0, 1e12)  # prismatic joints: the same range in N/m
@@ -377,7 +384,52 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         controller=controller,
         prismatic=prismatic if prismatic.any() else None,
         device_frame=_device_frame(r, sources),
+        provenance=_provenance(r),
     )
+
+
+def _provenance(r: Table) -> dict[str, str]:
+    """The optional ``[provenance]`` table (strings only)."""
+    t = r.table("provenance", PROVENANCE_KEYS)
+    if t is None:
+        return {}
+    return {k: t.str_(k) for k in PROVENANCE_KEYS if t.has(k)}
+
+
+def derived_description(desc: RobotDescription, *, name: str | None, parent: Path | None,
+                        data: str | Path | None, command: str,
+                        added: tuple[str, ...] = ()) -> RobotDescription:
+    """A re-identified description with a new name and its provenance.
+
+    Args:
+        desc: The re-identified description.
+        name: The new robot name; None makes ``<parent name>+<added effects>`` (e.g.
+            ``zk500+payload_gravity``), or ``<parent name>+identified`` when nothing was added.
+        parent: The robot file it was derived from.
+        data: The measurement file it was identified on (its SHA-256 is recorded).
+        command: The command that made it (``rfsw-plan validate``).
+        added: Effect labels new in this description.
+    """
+    from datetime import datetime
+
+    from rfsw_plan.io.files import sha256_file
+
+    if name is None:
+        base = desc.name.split("+", 1)[0] if "+" in desc.name else desc.name
+        old = desc.name.split("+")[1:]
+        name = "+".join([base, *old, *added]) if added else f"{base}+identified"
+    if not name.strip():
+        raise InputError("--name", "", "is empty", "a robot name")
+    prov = {"created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
+            "command": command}
+    if parent is not None:
+        prov["parent"] = str(parent)
+    if data is not None:
+        prov["data"] = str(data)
+        if Path(data).is_file():
+            prov["data_sha256"] = sha256_file(data)
+    return replace(desc, name=name, title=f"{desc.title} (re-identified)"
+                   if "re-identified" not in desc.title else desc.title, provenance=prov)
 
 
 def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, UrdfSerialChain | None]:
@@ -435,9 +487,10 @@ def _joint_limits(path: Path | str, joints: Table, prismatic: NDArray[np.bool_],
     def per_joint(key: str, hi_deg: float, hi_mm: float, default: FloatArray | None = None,
                   positive: bool = True) -> FloatArray:
         rev, pri = key.replace("*", "deg"), key.replace("*", "mm")
-        lo_d, lo_m = (0.0, 0.0) if positive else (-hi_deg, -hi_mm)
+        # Rates: at least MIN_RATE (1e-320 deg/s would make every motion last forever).
+        lo_d, lo_m = (MIN_RATE, MIN_RATE) if positive else (-hi_deg, -hi_mm)
         return _per_joint(joints, prismatic, (rev, deg, lo_d, hi_deg), (pri, mm, lo_m, hi_mm),
-                          default=default, ge_inclusive=not positive)
+                          default=default, ge_inclusive=True)
 
     lower = per_joint("lower_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_lo), False)
     upper = per_joint("upper_*", MAX_JOINT_DEG, MAX_TRAVEL_MM, _finite_or_none(urdf_hi), False)
@@ -715,6 +768,8 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
             "std": {k: float(f"{v:.6g}") for k, v in dfr.std.items()},
             "source": desc.sources.get("device_frame", "not stated"),
         }
+    if desc.provenance:
+        out["provenance"] = dict(desc.provenance)
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:
@@ -727,14 +782,91 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
 
 
 def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
-    """Write a description as TOML; returns the path written."""
-    import tomli_w
+    """Write a description as compact TOML (atomically); returns the path written.
+
+    One line per key: lists on one line, the joint coupling matrix as one row per line, effect
+    parameters as an inline table. The text is parsed back and compared with what was meant
+    before the file exists.
+    """
+    import tomllib
 
     from rfsw_plan.io.files import write_text
 
+    d = robot_description_to_toml_dict(desc)
+    text = dumps_compact_toml(d)
+    if tomllib.loads(text) != d:  # pragma: no cover - a bug in the emitter, never a user error
+        raise RuntimeError("robot TOML emitter does not round-trip")
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    return write_text(p, tomli_w.dumps(robot_description_to_toml_dict(desc)))
+    return write_text(p, text)
+
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def _toml_key(k: str) -> str:
+    return k if _BARE_KEY.match(k) else _toml_str(k)
+
+
+def _toml_str(v: str) -> str:
+    out = []
+    for ch in v:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_scalar(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise ValueError(f"non-finite number {v} in a robot file")
+        return repr(v)
+    if isinstance(v, str):
+        return _toml_str(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_scalar(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_scalar(x)}" for k, x in v.items()) \
+            + " }" if v else "{}"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def _toml_lines(table: dict[str, Any]) -> list[str]:
+    lines = []
+    for k, v in table.items():
+        if isinstance(v, list) and v and all(isinstance(r, list) for r in v):
+            lines.append(f"{_toml_key(k)} = [")
+            lines += [f"    {_toml_scalar(r)}," for r in v]
+            lines.append("]")
+        else:
+            lines.append(f"{_toml_key(k)} = {_toml_scalar(v)}")
+    return lines
+
+
+def dumps_compact_toml(d: dict[str, Any]) -> str:
+    """TOML for a robot-file dict: scalars first, then ``[table]`` s and ``[[array]]`` s.
+
+    Nested dicts inside a table (effect ``params``, ``std``) become inline tables; a list of
+    lists (the coupling matrix) is one row per line.
+    """
+    top = {k: v for k, v in d.items() if not isinstance(v, dict)
+           and not (isinstance(v, list) and v and all(isinstance(x, dict) for x in v))}
+    lines = _toml_lines(top)
+    for k, v in d.items():
+        if isinstance(v, dict):
+            lines += ["", f"[{_toml_key(k)}]", *_toml_lines(v)]
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            for item in v:
+                lines += ["", f"[[{_toml_key(k)}]]", *_toml_lines(item)]
+    return "\n".join(lines) + "\n"
 
 
 def _r(arr: FloatArray) -> list[float]:

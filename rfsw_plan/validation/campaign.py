@@ -34,6 +34,7 @@ from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TAU_REF_N
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, UnknownNameError, UnreachableError
+from rfsw_plan.progress import progress
 from rfsw_plan.robot.description import RobotDescription
 from rfsw_plan.robot.kinematics import Robot, load_robot
 
@@ -329,7 +330,8 @@ def run_campaign(
     visible_mm = max(VISIBILITY_FACTOR * noise_mm, MIN_VISIBLE_MM)
 
     used: dict[str, dict[str, float]] = {}
-    for lab, params in specs:
+    for lab, params in progress(specs, desc="campaign: hidden effects", total=len(specs),
+                                unit="effect"):
         if lab == THERMAL_DRIFT:
             used[lab] = _drift_params(params, rng)
             continue

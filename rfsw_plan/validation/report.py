@@ -10,6 +10,8 @@ import base64
 import html
 import json
 import math
+import shlex
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +23,9 @@ from rfsw_plan.validation.workbench import ValidationResult
 
 #: At most this many points are drawn per scatter plot (a seeded random subset).
 MAX_POINTS = 4000
+#: Width of every PNG plot [px].
+PNG_WIDTH_PX = 1200
+_OUTSIDE = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "borderaxespad": 0.0}
 _AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")
 
 
@@ -102,14 +107,15 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
 
     def save(fig: Any, name: str) -> None:
         path = out_dir / f"{name}.png"
-        fig.tight_layout()
+        # Figures use constrained layout, which keeps the outside legends in the figure in one
+        # drawing pass (bbox_inches="tight" draws twice); PNG_WIDTH_PX wide whatever the size.
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=90)
+            fig.savefig(tmp, dpi=PNG_WIDTH_PX / fig.get_figwidth(), format="png")
         plt.close(fig)
         plots[name] = path
 
     # Histogram per axis.
-    fig, ax = plt.subplots(figsize=(6, 3.5))
+    fig, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
     for a in range(3):
         v = res_mm[:, a][np.isfinite(res_mm[:, a])]
         if v.size:
@@ -120,20 +126,21 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     ax.set_xlabel("residual measured - predicted [mm]")
     ax.set_ylabel("samples")
     ax.set_title("Residual distribution (dashed: +-1 sigma noise floor)")
-    ax.legend()
+    ax.legend(**_OUTSIDE)
     save(fig, "residual_histogram")
 
     # Against time (or sample order) and extra columns.
     seq = [k for k in ("time", "sample_order") if k in an.features]
     extra = [k for k in an.features if k in result_extra_names(result)]
     cols = seq + extra
-    fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.6 * len(cols)), squeeze=False)
+    fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.6 * len(cols)), squeeze=False,
+                             layout="constrained")
     for ax, name in zip(axes[:, 0], cols, strict=True):
         x = np.asarray(an.features[name], dtype=float)
         _scatter_axes(ax, x, res_mm, idx)
         ax.set_xlabel("t [s]" if name == "time" else name)
         ax.set_ylabel("residual [mm]")
-    axes[0, 0].legend(loc="upper right", markerscale=3)
+    axes[0, 0].legend(markerscale=3, **_OUTSIDE)
     axes[0, 0].set_title("Residual against time and extra columns")
     save(fig, "residual_vs_time")
 
@@ -141,7 +148,8 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     n = an.tau.shape[1]
     ncol = 3
     nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.8 * nrow), squeeze=False)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.8 * nrow), squeeze=False,
+                             layout="constrained")
     for j in range(nrow * ncol):
         ax = axes[j // ncol, j % ncol]
         if j >= n:
@@ -150,12 +158,12 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
         _scatter_axes(ax, an.tau[:, j] / 1e3, res_mm, idx)
         ax.set_xlabel(f"joint {j + 1} torque [kN m]")
         ax.set_ylabel("residual [mm]")
-    axes[0, 0].legend(loc="upper right", markerscale=3)
+    axes[0, ncol - 1].legend(markerscale=3, **_OUTSIDE)
     fig.suptitle("Residual against each joint torque J^T F")
     save(fig, "residual_vs_torque")
 
     # Against force magnitude and direction.
-    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.5), layout="constrained")
     f = np.asarray(an.features["force_magnitude"], dtype=float)
     u = np.asarray(an.features["force_direction"], dtype=float)
     elev = np.degrees(np.arcsin(np.clip(u[:, 2], -1, 1)))
@@ -164,14 +172,14 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     axes[0].set_ylabel("residual [mm]")
     _scatter_axes(axes[1], elev, res_mm, idx)
     axes[1].set_xlabel("force elevation above the base xy plane [deg]")
-    axes[0].legend(loc="upper right", markerscale=3)
+    axes[1].legend(markerscale=3, **_OUTSIDE)
     fig.suptitle("Residual against force magnitude and direction")
     save(fig, "residual_vs_force")
 
     # Workspace map.
     norm = np.sqrt(np.nansum(res_mm**2, axis=1))
     tcp = an.tcp
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), layout="constrained")
     for ax, (a, b, la, lb) in zip(axes, ((0, 1, "x", "y"), (0, 2, "x", "z")), strict=True):
         sc = ax.scatter(tcp[idx, a], tcp[idx, b], c=norm[idx], s=8, cmap="viridis",
                         rasterized=True)
@@ -185,7 +193,7 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     # Candidates.
     cands = dg.candidates[:15]
     if cands:
-        fig, ax = plt.subplots(figsize=(7, 0.35 * len(cands) + 1.5))
+        fig, ax = plt.subplots(figsize=(7, 0.35 * len(cands) + 1.5), layout="constrained")
         y = np.arange(len(cands))
         colors = ["tab:green" if c.significant else "tab:gray" for c in cands]
         ax.barh(y, [c.rms_after * 1e3 for c in cands], color=colors)
@@ -196,13 +204,13 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
             ax.axvline(noise_mm, color="k", ls="--", label="noise floor")
         ax.set_xlabel("held-out RMS with the effect added [mm]")
         ax.set_title("Candidate effects (green: significant)")
-        ax.legend(loc="lower right")
+        ax.legend(**_OUTSIDE)
         save(fig, "candidates")
 
     # Correlations.
     corr = dg.correlations[:12]
     if corr:
-        fig, ax = plt.subplots(figsize=(7, 0.35 * len(corr) + 1.5))
+        fig, ax = plt.subplots(figsize=(7, 0.35 * len(corr) + 1.5), layout="constrained")
         y = np.arange(len(corr))
         ax.barh(y, [c.r2 for c in corr],
                 color=["tab:orange" if c.significant else "tab:gray" for c in corr])
@@ -216,15 +224,23 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     # Before / after adding effects.
     if result.add is not None:
         ad = result.add
-        fig, ax = plt.subplots(figsize=(6, 3.5))
+        fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
         labels = ["before", "after\n+" + "\n+".join(ad.added) if ad.added else "after"]
         vals = [ad.before.heldout_rms * 1e3, ad.after.heldout_rms * 1e3]
-        ax.bar(labels, vals, color=["tab:red", "tab:green"])
+        bars = ax.bar(labels, vals, color=["tab:red", "tab:green"])
+        ax.bar_label(bars, labels=[f"{v:.4g} mm" for v in vals], padding=2)
+        # Log scale: the error typically falls by orders of magnitude, and the noise-floor
+        # lines (1x and 1.5x) would sit on top of each other near zero on a linear axis.
+        ax.set_yscale("log")
         if noise_mm:
-            ax.axhline(noise_mm, color="k", ls="--", label="noise floor")
-            ax.axhline(1.5 * noise_mm, color="k", ls=":", label="1.5 x noise floor")
-            ax.legend()
-        ax.set_ylabel("held-out RMS [mm]")
+            ax.axhline(noise_mm, color="k", ls="--", lw=1.2,
+                       label=f"noise floor {noise_mm:.3g} mm")
+            ax.axhline(1.5 * noise_mm, color="tab:blue", ls=":", lw=1.6,
+                       label=f"1.5 x noise floor {1.5 * noise_mm:.3g} mm (adequate below)")
+        lo = min([*vals, noise_mm or min(vals)])
+        ax.set_ylim(lo / 3.0, max(vals) * 3.0)
+        ax.legend(**_OUTSIDE)
+        ax.set_ylabel("held-out RMS [mm] (log scale)")
         ax.set_title("Adding effects: error on data the fit did not see")
         save(fig, "before_after")
     return plots
@@ -243,9 +259,66 @@ def result_extra_names(result: ValidationResult) -> list[str]:
 
 
 def _f(v: float | None, scale: float = 1e3, digits: int = 4) -> str:
+    """A length [m] in mm with ``digits`` decimals (0.1 um resolution): fixed point, so a
+    vanishing residual reads 0.0000, not 5.6e-13."""
     if v is None or not math.isfinite(v):
         return "-"
-    return f"{v * scale:.{digits}g}"
+    return f"{v * scale:.{digits}f}"
+
+
+def _num(v: float) -> str:
+    """A parameter value: plain decimals between 1e-3 and 1e6, else scientific."""
+    if not math.isfinite(v):
+        return "-"
+    if v == 0.0 or 1e-3 <= abs(v) < 1e6:
+        return f"{v:.5g}"
+    return f"{v:.4e}"
+
+
+def engineering(value: float, unit: str) -> str:
+    """The engineering reading of an SI parameter value, or "" when SI is what users read.
+
+    A compliance c [rad/(N m)] reads as the stiffness k = 1/c in N m/rad and kN m/deg; an
+    angle [rad] in mrad and degrees; a length [m] in mm.
+    """
+    if not math.isfinite(value):
+        return ""
+    if unit == "rad/(N m)":
+        if value <= 0.0:
+            return "rigid"
+        k = 1.0 / value
+        return f"k = {k:.4g} N m/rad = {k * math.pi / 180.0 / 1e3:.4g} kN m/deg"
+    if unit == "rad":
+        return f"{value * 1e3:.4g} mrad = {math.degrees(value):.4g} deg"
+    if unit == "m":
+        return f"{value * 1e3:.4g} mm"
+    return ""
+
+
+def next_command(result: ValidationResult, argv: list[str] | None) -> str:
+    """The command to run next, ready to copy, from the command line that made ``result``.
+
+    ``missing``: the same command with ``--add`` for the named effects and ``--save-robot``;
+    ``undetermined``: the same command with ``--noise-mm`` (the measuring device's 1-sigma);
+    ``adequate``: nothing to add; ``unexplained``: no library effect helps (see the
+    correlations). Returns "" when the command line is unknown (API use).
+    """
+    if not argv:
+        return ""
+    dg = result.diagnosis
+    base = [a for a in argv if a not in ("--json",)]
+    if dg.verdict == "missing":
+        labels = [st.label for st in dg.chain] or [dg.candidates[0].label]
+        extra: list[str] = []
+        for lab in labels:
+            extra += ["--add", lab]
+        stem = result.robot.replace("/", "_").removesuffix(".toml")
+        extra += ["--save-robot", f"{stem}+{'+'.join(labels)}.toml"]
+        return "rfsw-plan " + " ".join(shlex.quote(a) for a in [*base, *extra])
+    if dg.verdict == "undetermined":
+        return ("rfsw-plan " + " ".join(shlex.quote(a) for a in base)
+                + " --noise-mm SIGMA   # your measuring device's 1-sigma noise [mm]")
+    return ""
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -264,7 +337,8 @@ def _img(path: Path, alt: str) -> str:
 _CSS = """
 body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1em}
-td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em}
+td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;white-space:nowrap}
+pre{background:#f4f4f4;padding:0.6em;overflow-x:auto}
 th{background:#eee}td:first-child{text-align:left}
 .verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
 .adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
@@ -272,8 +346,18 @@ img{max-width:100%}figure{margin:0.5em 0}
 """
 
 
-def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
-    """The report as one self-contained HTML string (plots inline)."""
+def render_html(result: ValidationResult, plots: dict[str, Path],
+                argv: list[str] | None = None, wall_seconds: float | None = None) -> str:
+    """The report as one self-contained HTML string (plots inline).
+
+    Args:
+        result: The validation result.
+        plots: PNG plots by name (:func:`make_plots`).
+        argv: The command line (without the program name) that made ``result``, to print the
+            next command ready to copy; None for API use.
+        wall_seconds: Wall time of the whole command up to writing the report [s]; None: the
+            validation's own time.
+    """
     dg = result.diagnosis
     an = result.analysis
     noise = dg.noise
@@ -288,6 +372,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
         "grouped by pose.</p>",
         f"<p class='verdict {dg.verdict}'><b>{dg.verdict.upper()}</b>: "
         f"{html.escape(dg.message.removeprefix(f'{dg.verdict}: '))}</p>",
+        *_next_step_html(result, argv),
         "<h2>Summary</h2>",
         _table(
             ["quantity", "value [mm]"],
@@ -304,6 +389,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
     ]
     if result.add is not None:
         ad = result.add
+        units = _param_units(result)
         parts += [
             "<h2>Adding effects and re-identifying</h2>",
             _table(
@@ -318,9 +404,11 @@ def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
             parts.append("<p>Not fitted: " + html.escape(
                 "; ".join(f"{s.label}: {s.reason}" for s in ad.not_added)) + "</p>")
         parts.append(_table(
-            ["effect", "parameter", "value [SI]", "std error", "prior", "note"],
-            [[e.effect, e.name, f"{e.value:.5g}", f"{e.std_error:.2g}", f"{e.prior:.5g}",
-              e.note] for e in ad.after.fit.estimates],
+            ["effect", "parameter", "value [SI]", "unit", "engineering", "std error",
+             "prior [SI]", "note"],
+            [[e.effect, e.name, _num(e.value), units.get((e.effect, e.name), ""),
+              engineering(e.value, units.get((e.effect, e.name), "")),
+              _num(e.std_error), _num(e.prior), e.note] for e in ad.after.fit.estimates],
         ))
         if "before_after" in plots:
             parts.append(_img(plots["before_after"], "held-out RMS before and after"))
@@ -389,17 +477,55 @@ def render_html(result: ValidationResult, plots: dict[str, Path]) -> str:
     ):
         if name in plots:
             parts.append(_img(plots[name], alt))
-    parts.append(f"<p><small>Computed in {result.seconds:.1f} s.</small></p></body></html>")
+    secs = result.seconds if wall_seconds is None else wall_seconds
+    what = "validation" if wall_seconds is None else "whole command, up to this report"
+    parts.append(f"<p><small>Wall time: {secs:.1f} s ({what}).</small></p></body></html>")
     return "\n".join(parts)
 
 
-def write_report(result: ValidationResult, out_dir: str | Path) -> ReportFiles:
-    """Write report.html, validate.json and the PNG plots into ``out_dir``."""
+def _next_step_html(result: ValidationResult, argv: list[str] | None) -> list[str]:
+    cmd = next_command(result, argv)
+    dg = result.diagnosis
+    if cmd:
+        return ["<h2>Next step</h2>", "<p>Run, ready to copy:</p>",
+                f"<pre>{html.escape(cmd)}</pre>"]
+    if dg.verdict == "adequate":
+        return ["<h2>Next step</h2>", "<p>None needed: the model explains the data to its "
+                "noise floor. Plan with this robot description.</p>"]
+    if dg.verdict == "unexplained":
+        return ["<h2>Next step</h2>", "<p>No effect in the library explains the residual; "
+                "see what it correlates with below (time, a pose region, a joint torque, an "
+                "extra column) for the physics the model lacks.</p>"]
+    return []
+
+
+def _param_units(result: ValidationResult) -> dict[tuple[str, str], str]:
+    """(effect label, parameter name) -> SI unit, from the effects of the evaluated model."""
+    out: dict[tuple[str, str], str] = {}
+    for eff in getattr(result.model, "effects", ()):
+        for name in eff.param_names():
+            out[(eff.label, name)] = eff.param_unit(name)
+    return out
+
+
+def write_report(result: ValidationResult, out_dir: str | Path,
+                 argv: list[str] | None = None,
+                 started: float | None = None) -> ReportFiles:
+    """Write report.html, validate.json and the PNG plots into ``out_dir``.
+
+    Args:
+        result: The validation result.
+        out_dir: Output folder (created if needed).
+        argv: The command line that made ``result`` (the report prints the next command).
+        started: ``time.perf_counter()`` at the start of the command: the report states the
+            wall time of the whole command up to writing it (None: the validation's own time).
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots = make_plots(result, out)
     json_path = out / "validate.json"
     write_text(json_path, result_json(result) + "\n")
     html_path = out / "report.html"
-    write_text(html_path, render_html(result, plots))
+    wall = None if started is None else time.perf_counter() - started
+    write_text(html_path, render_html(result, plots, argv=argv, wall_seconds=wall))
     return ReportFiles(html=html_path, json=json_path, plots=plots)

@@ -329,8 +329,9 @@ def track_on_seam(track: WeldTrack, problem: Problem) -> TrackOnSeam:
     if track.form == "base":
         assert track.xyz is not None
         dense = problem.seam.frames(min(0.5e-3, length / 50))
-        d = track.xyz[:, None, :] - dense.p[None, :, :]
-        k = np.argmin(np.einsum("mki,mki->mk", d, d), axis=1)
+        from scipy.spatial import cKDTree
+
+        k = np.asarray(cKDTree(dense.p).query(track.xyz)[1], dtype=int)
         dk = track.xyz - dense.p[k]
         s = dense.s[k] - dense.s[0] + np.einsum("ki,ki->k", dk, dense.t[k])
         e_lat = np.einsum("ki,ki->k", dk, dense.l[k])

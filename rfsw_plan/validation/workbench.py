@@ -24,7 +24,12 @@ from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.robot.description import DeviceFrame, save_robot_description
+from rfsw_plan.robot.description import (
+    DeviceFrame,
+    RobotDescription,
+    derived_description,
+    save_robot_description,
+)
 from rfsw_plan.validation.diagnosis import (
     DEFAULT_FOLDS,
     CrossValidation,
@@ -317,11 +322,15 @@ def validate(
     )
 
 
-def save_extended_robot(result: ValidationResult, path: str | Path) -> Path:
+def save_extended_robot(result: ValidationResult, path: str | Path,
+                        name: str | None = None) -> Path:
     """Write the re-identified model (stiffness and effects) as a robot description TOML.
 
-    The file keeps the robot's kinematics, limits and name; ``predict`` and the planner load
-    its ``[[effects]]`` through :class:`~rfsw_plan.elastostatics.model.ElastostaticModel`.
+    The file keeps the robot's kinematics and limits; it gets a new name (``name``, or the
+    parent's name plus the added effects, e.g. ``zk500+payload_gravity``) and a
+    ``[provenance]`` table: the parent robot file, the data file and its SHA-256, the date.
+    ``predict`` and the planner load its ``[[effects]]`` through
+    :class:`~rfsw_plan.elastostatics.model.ElastostaticModel`.
     """
     fit = result.identification
     note = (
@@ -329,12 +338,22 @@ def save_extended_robot(result: ValidationResult, path: str | Path) -> Path:
         f"({fit.n_samples} samples, RMS {fit.rms_after * 1e3:.4g} mm, effects: "
         f"{', '.join(fit.model.labels)})"
     )
+    parent = result.model.robot.description
+    before = {e.name for e in parent.effects}
+    added = tuple(e.label for e in fit.model.effects[1:]
+                  if not e.setup and e.label not in before)
+
+    def derive(desc: RobotDescription) -> RobotDescription:
+        return derived_description(desc, name=name, parent=parent.path,
+                                   data=result.data_source, command="rfsw-plan validate",
+                                   added=added)
+
     if result.setup is None:
-        return save_robot_description(fit.model.to_description(note), path)
+        return save_robot_description(derive(fit.model.to_description(note)), path)
     model, frame = result.setup.fold(fit.model, fit.estimates)
     desc = model.to_description(note)
     if result.setup.fit_registration or result.setup.fit_marker:
         desc.sources["device_frame"] = (
             f"identified by rfsw-plan validate --frame device from {result.data_source} "
             f"({fit.n_samples} samples), jointly with {', '.join(model.labels)}")
-    return save_robot_description(replace(desc, device_frame=frame), path)
+    return save_robot_description(derive(replace(desc, device_frame=frame)), path)

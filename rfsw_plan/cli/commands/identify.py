@@ -16,7 +16,7 @@ from rfsw_plan.cli import measurement_args
 from rfsw_plan.elastostatics.identification import IdentificationResult, identify
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, UnknownNameError
-from rfsw_plan.robot.description import save_robot_description
+from rfsw_plan.robot.description import derived_description, save_robot_description
 from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "identify"
@@ -35,6 +35,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="effects to identify (default: joint_compliance; the robot file's "
                         "other effects keep their values); 'all' frees every effect")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--name", metavar="NAME", default=None,
+                        help="robot name in the -o file (default: the robot's name + "
+                             "'identified' or the added effects)")
     parser.add_argument("-o", "--output", metavar="NEW_ROBOT_FILE",
                         help="write the robot description with the identified values (TOML)")
     measurement_args.register(parser)
@@ -113,6 +116,11 @@ def run(args: argparse.Namespace) -> int:
         else:
             base_model, frame = setup.fold(res.model, res.estimates)
             desc = replace(base_model.to_description(note), device_frame=frame)
+        before = {e.name for e in robot.description.effects}
+        added = tuple(e.label for e in res.model.effects[1:]
+                      if not e.setup and e.label not in before)
+        desc = derived_description(desc, name=args.name, parent=robot.description.path,
+                                   data=args.data, command="rfsw-plan identify", added=added)
         output = save_robot_description(desc, args.output)
     rep = _report(res, robot.name, output)
     if args.json:
@@ -122,17 +130,17 @@ def run(args: argparse.Namespace) -> int:
           f"method {res.method}")
     print(f"{'joint':>5}  {'stiffness [N m/rad]':>20}  {'std error':>10}  status")
     for j in rep["joints"]:
-        std = "-" if j["std_error_Nm_per_rad"] is None else f"{j['std_error_Nm_per_rad']:.3g}"
+        std = "-" if j["std_error_Nm_per_rad"] is None else f"{j['std_error_Nm_per_rad']:.3e}"
         status = "identified" if j["identified"] else "NOT identified"
         if j["note"]:
             status += f": {j['note']}"
-        print(f"{j['joint']:>5}  {j['stiffness_Nm_per_rad']:>20.6g}  {std:>10}  {status}")
+        print(f"{j['joint']:>5}  {j['stiffness_Nm_per_rad']:>20.4e}  {std:>10}  {status}")
     for e in rep["effects"]:
-        std = "-" if e["std_error"] is None else f"{e['std_error']:.3g}"
+        std = "-" if e["std_error"] is None else f"{e['std_error']:.3e}"
         status = "identified" if e["identified"] else "NOT identified"
         if e["note"]:
             status += f": {e['note']}"
-        print(f"  {e['effect']}.{e['param']} = {e['value']:.6g} (std {std}) {status}")
+        print(f"  {e['effect']}.{e['param']} = {e['value']:.4e} (std {std}) {status}")
     cond = rep["condition_number"]
     print(f"condition number (column-normalised regressor): "
           f"{'n/a' if cond is None else f'{cond:.4g}'}")

@@ -12,8 +12,6 @@ from rfsw_plan.exceptions import InfeasibleError, InputError, RfswError
 NAME = "plan"
 HELP = "plan poses and fake-target offsets, verify them, time them and write waypoint files"
 
-_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
-
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("problem", help="bundled problem name (e.g. zk500_table6_seam) or file")
@@ -68,11 +66,10 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
+        PLAN_OUTPUTS,
         mark_outputs_stale,
-        plot_lateral_error,
-        plot_lateral_error_time,
+        write_plan_data,
         write_plan_json,
-        write_waypoints_csv,
     )
     from rfsw_plan.planning.api import plan
     from rfsw_plan.planning.options import check_well_posed
@@ -94,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     with OutputLock(out):
         # An earlier run's files must never sit beside this run's as if they were its own:
         # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-        mark_outputs_stale(out, problem.name, _OUTPUTS)
+        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
         try:
             result, check = force_log_cli.plan(problem, flog, opts, None if args.spacing_mm
                                                is None else args.spacing_mm * 1e-3, plan)
@@ -111,9 +108,7 @@ def run(args: argparse.Namespace) -> int:
             raise
         summary = result.summary()
         summary["robot_file"] = str(problem.robot.path)
-        written = [write_waypoints_csv(out / "waypoints.csv", result),
-                   plot_lateral_error(out / "lateral_error.png", result),
-                   plot_lateral_error_time(out / "lateral_error_time.png", result)]
+        written = write_plan_data(out, result)
         exported = export_plan_result(args, result, out, summary)
         if exported is not None:
             written += list(exported.files)
@@ -130,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
           f"{result.iterations} IPOPT iterations, branch {result.branch})")
+    print(f"robot {problem.robot.name} from {problem.robot.path}")
     u = result.options.force_uncertainty
     print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
           f"{'worst margin mm':>16} {'k_lat N/mm':>11}  {'force uncertainty held':<22}")

@@ -7,13 +7,13 @@ robot file (e.g. tilting compliance) apply on top of joint compliance (seed 000 
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, NotWithinLimitsError
+from rfsw_plan.io.files import strict_json
 from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "predict"
@@ -24,7 +24,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", required=True, metavar="NAME|PATH",
                         help="bundled robot name (see 'rfsw-plan robots') or robot TOML file")
     parser.add_argument("--q-deg", required=True, metavar="Q1,...,Qn",
-                        help="controller joint values [deg], comma separated")
+                        help="controller joint values [deg] as on the pendant (KUKA A1..A6, FANUC "
+                             "J1..J6; the robot file's [controller] axes), comma separated")
     parser.add_argument("--wrench", required=True, metavar="FX,FY,FZ[,MX,MY,MZ]",
                         help="wrench the environment applies to the tool at the TCP, robot "
                         "base frame [N, N m]; moments default to 0")
@@ -75,14 +76,14 @@ def run(args: argparse.Namespace) -> int:
     trans_mm = dX[:3] * 1e3
     rot_mrad = dX[3:] * 1e3
     if args.json:
-        print(json.dumps({
+        print(strict_json({
             "robot": robot.name,
             "q_deg": [float(v) for v in np.degrees(q)],
             "wrench_N_Nm": [float(v) for v in wrench],
             "effects": model.labels,
             "translation_mm": [float(v) for v in trans_mm],
             "rotation_mrad": [float(v) for v in rot_mrad],
-        }))
+        }, indent=None), end="")
         return 0
     print(f"robot {robot.name}; effects: {', '.join(model.labels)}")
     print("TCP deflection in the base frame:")

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 import numpy as np
 
+from rfsw_plan.io.files import strict_json
 from rfsw_plan.robot.description import bundled_robot_names, load_robot_description
 
 NAME = "robots"
@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
             }
             for d in descriptions
         ]
-        print(json.dumps({"robots": rows}, indent=2))
+        print(strict_json({"robots": rows}), end="")
         return 0
     for d in descriptions:
         k = ", ".join(f"{v:.3g}" for v in np.asarray(d.stiffness, dtype=float))

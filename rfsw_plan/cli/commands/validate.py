@@ -52,6 +52,9 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="add an effect and re-identify all parameters (repeatable)")
     parser.add_argument("--save-robot", metavar="NEW_FILE.toml",
                         help="write the re-identified (extended) robot description")
+    parser.add_argument("--name", metavar="NAME", default=None,
+                        help="robot name in the --save-robot file (default: the robot's name "
+                             "plus the added effects, e.g. zk500+payload_gravity)")
     parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fold split (default 0)")
     parser.add_argument("--no-report", action="store_true",
@@ -92,8 +95,10 @@ def run(args: argparse.Namespace) -> int:
     files = None
     if out is not None:
         with OutputLock(out):
-            files = write_report(result, out)
-    saved = save_extended_robot(result, args.save_robot) if args.save_robot else None
+            files = write_report(result, out, argv=getattr(args, "argv", None),
+                                 started=getattr(args, "started", None))
+    saved = (save_extended_robot(result, args.save_robot, name=args.name) if args.save_robot
+             else None)
     if args.json:
         print(result_json(result))
         return 0

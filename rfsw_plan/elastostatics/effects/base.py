@@ -120,6 +120,9 @@ class Effect(abc.ABC):
     #: not listed only have to be finite and within +-PARAM_LIMIT. Checked by
     #: :meth:`check_params` on effects read from a robot file.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    #: SI unit of each parameter, keyed like :attr:`param_ranges` (``"rad/(N m)"`` for a
+    #: compliance); reports use it to show engineering units beside the SI value.
+    param_units: ClassVar[Mapping[str, str]] = {}
     #: True if the effect distorts what the force sensor logs, not the physics (sensor
     #: misalignment, sensor bias): it applies to logged wrenches only, never to a wrench that
     #: comes from the process model (planning, deviation, the truth of a virtual weld).
@@ -183,6 +186,10 @@ class Effect(abc.ABC):
         """Physically possible range (lo, hi) of parameter ``name`` [SI]."""
         return tuple(self.param_ranges.get(name.rstrip("0123456789"),  # type: ignore[return-value]
                                            (-PARAM_LIMIT, PARAM_LIMIT)))
+
+    def param_unit(self, name: str) -> str:
+        """SI unit of parameter ``name`` (empty if dimensionless or not declared)."""
+        return self.param_units.get(name, self.param_units.get(name.rstrip("0123456789"), ""))
 
     @property
     def label(self) -> str:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import ClassVar
+
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch
@@ -28,6 +31,8 @@ class DeviceRegistration(GeometricEffect):
         "measured point is off by the same small rotation and translation."
     )
     setup = True
+    param_units: ClassVar[Mapping[str, str]] = (
+        {"wx": "rad", "wy": "rad", "wz": "rad", "tx": "m", "ty": "m", "tz": "m"})
 
     def param_names(self) -> tuple[str, ...]:
         return ("wx", "wy", "wz", "tx", "ty", "tz")
@@ -62,6 +67,8 @@ class MarkerOffset(GeometricEffect):
         "fixed in the tool frame."
     )
     setup = True
+
+    param_units: ClassVar[Mapping[str, str]] = {"dx": "m", "dy": "m", "dz": "m"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("dx", "dy", "dz")

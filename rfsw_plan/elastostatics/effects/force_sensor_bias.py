@@ -32,6 +32,8 @@ class ForceSensorBias(WrenchEffect):
     #: Offsets [N, N m]: at most 100 kN / 100 kN m (beyond any FSW force sensor).
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
         {k: (-1e5, 1e5) for k in ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")})
+    param_units: ClassVar[Mapping[str, str]] = (
+        {"b_fx": "N", "b_fy": "N", "b_fz": "N", "b_mx": "N m", "b_my": "N m", "b_mz": "N m"})
 
     def param_names(self) -> tuple[str, ...]:
         return ("b_fx", "b_fy", "b_fz", "b_mx", "b_my", "b_mz")

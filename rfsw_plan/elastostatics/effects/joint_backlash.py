@@ -18,11 +18,15 @@ MIN_SAMPLES_PER_SIGN = 3
 class JointBacklash(ComplianceEffect):
     """Joint N sits at +b/2 or -b/2 inside its gear play depending on the sign of its torque.
 
-        dq_N = (b / 2) tanh(tau_N / TAU_EPS_NM),   tau_N = (J^T F)_N,   dX = J_N dq_N
+        dq_N = (b / 2) tanh(tau_N / TAU_EPS_NM),   tau_N = (J^T F + tau_g)_N,   dX = J_N dq_N
 
-    (base frame [m, rad]); b [rad] is the total lost motion. The tanh is a smooth sign so the
-    model stays differentiable; it is linear in b. With the torque always of one sign the
-    effect is a constant joint offset, so :meth:`identifiable` asks for both signs.
+    (base frame [m, rad]); b [rad] is the total lost motion, tau_g the links' own weight when
+    the robot description gives link masses (zero otherwise). The tanh is a smooth sign so the
+    model stays differentiable; it is linear in b. Near zero torque (|tau| within TAU_EPS_NM,
+    the order of a force sensor's noise times the lever arm) the side of the play is undefined
+    and the model predicts less than the full offset, zero at zero torque. With the torque
+    always of one sign the effect is a constant joint offset, so :meth:`identifiable` asks for
+    both signs.
     """
 
     name = "joint_backlash"
@@ -34,6 +38,7 @@ class JointBacklash(ComplianceEffect):
 
     #: Lost motion [rad]: >= 0, at most 0.1 rad (5.7 deg).
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"b": (0.0, 0.1)}
+    param_units: ClassVar[Mapping[str, str]] = {"b": "rad"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("b",)
@@ -42,10 +47,15 @@ class JointBacklash(ComplianceEffect):
         return np.zeros(1)
 
     def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
-        """tau_N = (J^T F)_N [N m], shape (m,)."""
+        """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
         assert self.joint is not None
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-        return np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
+        tau = np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
+        if batch.robot.has_link_masses:
+            if "link_gravity" not in batch.cache:
+                batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
+            tau = tau + batch.cache["link_gravity"][:, self.joint]
+        return tau
 
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray

@@ -39,6 +39,7 @@ class JointCompliance(ComplianceEffect):
 
     #: Compliance 1/k [rad/(N m)]: >= 0 (0 = rigid), at most that of a 1 N m/rad joint.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c": (0.0, 1.0)}
+    param_units: ClassVar[Mapping[str, str]] = {"c": "rad/(N m)"}
 
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"c{j + 1}" for j in range(self.robot.nq))

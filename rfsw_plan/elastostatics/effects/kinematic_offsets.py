@@ -30,6 +30,7 @@ class KinematicOffsets(GeometricEffect):
     #: Joint zero offsets [rad] at most 0.5 rad; TCP offsets [m] at most 1 m.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
         {"dq": (-0.5, 0.5), "dt_x": (-1.0, 1.0), "dt_y": (-1.0, 1.0), "dt_z": (-1.0, 1.0)})
+    param_units: ClassVar[Mapping[str, str]] = {"dq": "rad", "dt_x": "m", "dt_y": "m", "dt_z": "m"}
 
     def param_names(self) -> tuple[str, ...]:
         return (*(f"dq{j + 1}" for j in range(self.robot.nq)), "dt_x", "dt_y", "dt_z")

@@ -43,6 +43,8 @@ class PayloadGravity(WrenchEffect):
     #: Mass [kg] >= 0 up to 10 t; first moments m r [kg m] of at most 10 t at 1 m.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
         {"m": (0.0, 1e4), "m_rx": (-1e4, 1e4), "m_ry": (-1e4, 1e4), "m_rz": (-1e4, 1e4)})
+    param_units: ClassVar[Mapping[str, str]] = (
+        {"m": "kg", "m_rx": "kg m", "m_ry": "kg m", "m_rz": "kg m"})
 
     def param_names(self) -> tuple[str, ...]:
         return ("m", "m_rx", "m_ry", "m_rz")

@@ -65,6 +65,7 @@ class SensorMisalignment(WrenchEffect):
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
         {"phi_x": (-math.pi, math.pi), "phi_y": (-math.pi, math.pi),
          "phi_z": (-math.pi, math.pi)})
+    param_units: ClassVar[Mapping[str, str]] = {"phi_x": "rad", "phi_y": "rad", "phi_z": "rad"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("phi_x", "phi_y", "phi_z")

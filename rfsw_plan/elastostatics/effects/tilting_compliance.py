@@ -39,6 +39,7 @@ class TiltingCompliance(ComplianceEffect):
 
     #: Tilting compliance [rad/(N m)]: >= 0 (0 = rigid bearing); 1e-3 is 1 rad per kN m.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c_t": (0.0, 1e-3)}
+    param_units: ClassVar[Mapping[str, str]] = {"c_t": "rad/(N m)"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("c_t1", "c_t2")

@@ -36,6 +36,7 @@ class TorqueDependentStiffness(ComplianceEffect):
     #: Extra deflection at 10 kN m [rad]; wrist joints never carry 10 kN m, so their fitted
     #: d is an extrapolation and can be large (1 rad) while the real deflection is small.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"d": (-1e3, 1e3)}
+    param_units: ClassVar[Mapping[str, str]] = {"d": "rad"}
 
     def param_names(self) -> tuple[str, ...]:
         return ("d2", "d3")

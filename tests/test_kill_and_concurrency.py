@@ -1,0 +1,132 @@
+"""Killed and concurrent plans never leave a lie on disk (issue 9 §4-5).
+
+A child process plans into a folder that holds an earlier successful plan. It is killed
+(SIGTERM, SIGKILL, SIGINT) at the write of ``waypoints.csv``: in the middle of its rows and
+just before the rename. Afterwards the folder never holds a complete-looking truncated file,
+and never the old success record beside new (or removed) data. Two writers on one folder: the
+second is refused with one line while the first writes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rfsw_plan.cli.main import main
+from rfsw_plan.io.waypoints import check_plan_folder
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBLEM = "zk500_table6_seam"
+
+# The child plans with a hook at the write: ``row`` signals itself after 200 rows of
+# waypoints.csv were formatted (mid-write), ``rename`` just before the temporary file replaces
+# waypoints.csv, ``pause`` waits there for a flag file (concurrency test).
+CHILD = r"""
+import os, signal, sys, time
+import rfsw_plan.io.files as files
+import rfsw_plan.io.waypoints as wp
+from rfsw_plan.cli.main import main
+
+mode, sig, flag = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+if mode == "row":
+    orig_fmt, n = wp._fmt, [0]
+    def fmt(v):
+        n[0] += 1
+        if n[0] == 200 * 30:
+            os.kill(os.getpid(), sig)
+            time.sleep(5)
+        return orig_fmt(v)
+    wp._fmt = fmt
+else:
+    orig_replace = os.replace
+    def replace(src, dst):
+        if str(dst).endswith("waypoints.csv"):
+            if mode == "rename":
+                os.kill(os.getpid(), sig)
+                time.sleep(5)
+            else:
+                open(flag, "w").close()
+                while os.path.exists(flag):
+                    time.sleep(0.05)
+        return orig_replace(src, dst)
+    files.os.replace = replace
+sys.exit(main(["-q", "plan", sys.argv[4], "-o", sys.argv[5]]))
+"""
+
+
+def _child(mode: str, sig: int, flag: Path, out: Path, problem: str = PROBLEM
+           ) -> subprocess.Popen[bytes]:
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    return subprocess.Popen([sys.executable, "-c", CHILD, mode, str(int(sig)), str(flag),
+                             problem, str(out)], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+
+
+def _assert_honest(out: Path) -> None:
+    """No complete-looking truncated file; no success record beside other data."""
+    rec = json.loads((out / "plan.json").read_text())
+    visible = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    if rec["status"] in ("incomplete", "infeasible", "failed"):
+        assert visible == ["plan.json"], visible
+    else:
+        check_plan_folder(out)  # every file it vouches for is there, byte for byte
+
+
+@pytest.fixture(scope="module")
+def old_plan(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("old")
+    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
+    return out
+
+
+@pytest.mark.parametrize("mode", ["row", "rename"])
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL, signal.SIGINT])
+def test_killed_at_the_write_leaves_no_lie(tmp_path, old_plan, mode, sig) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    for p in old_plan.iterdir():  # an earlier successful plan in the folder
+        (out / p.name).write_bytes(p.read_bytes())
+    assert json.loads((out / "plan.json").read_text())["status"].startswith("optimal")
+    proc = _child(mode, sig, tmp_path / "flag", out)
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode != 0
+    if sig != signal.SIGKILL:
+        assert proc.returncode == 130, err.decode()
+        assert b"Traceback" not in err
+        assert not [p for p in out.iterdir() if ".tmp" in p.name]  # temporaries removed
+    assert not (out / "waypoints.csv").exists()
+    assert json.loads((out / "plan.json").read_text())["status"] == "incomplete"
+    _assert_honest(out)
+    # The next run into the folder cleans up and writes a whole, vouched plan.
+    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
+    check_plan_folder(out)
+    assert not [p for p in out.iterdir() if ".tmp" in p.name]
+
+
+def test_two_writers_on_one_folder(tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    flag = tmp_path / "flag"
+    first = _child("pause", 0, flag, out)
+    t_end = time.monotonic() + 300
+    while not flag.exists():  # the first writer is at its write, holding the folder
+        assert first.poll() is None, first.communicate()[1].decode()
+        assert time.monotonic() < t_end
+        time.sleep(0.05)
+    code = main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1 and "another rfsw-plan process" in err
+    flag.unlink()
+    _, err1 = first.communicate(timeout=300)
+    assert first.returncode == 0, err1.decode()
+    rec = check_plan_folder(out)
+    assert rec["problem"] == PROBLEM  # one seam only, never a mix
+    text = (out / "waypoints.csv").read_text()
+    assert len(text.splitlines()) == rec["samples"]["n"] + 1
