@@ -92,5 +92,5 @@ def test_readme_block_runs(block: str, tmp_path: Path) -> None:
         pytest.skip("../shared (the real measurement data) is not beside the repository")
     need = NEEDS.get(next((k for k in NEEDS if _key(block).startswith(k)), ""))
     if need:
-        _run_block(next(b for b in readme_blocks() if _key(b).startswith(need)), work)
+        _run_block(next(b for b in readme_blocks() if b.strip().startswith(need)), work)
     _run_block(block, work)
