@@ -43,7 +43,7 @@ NOT_RUN = {
 }
 #: Blocks too slow for the default run (tens of seconds each on a loaded machine).
 SLOW = ("rfsw-plan validate --robot zk500 --data campaign.csv", "D=../shared/data/figaroh_tiago",
-        "rfsw-plan compare zk500_table6_seam")
+        "rfsw-plan compare zk500_table6_seam", "rfsw-plan map")
 #: Files a block reads that an earlier block writes: run that block first.
 NEEDS = {"rfsw-plan validate --robot zk500 --data campaign.csv":
          "rfsw-plan simulate-campaign --robot zk500 --hidden payload_gravity"}
