@@ -100,33 +100,95 @@ def fanuc_nu_p_maps(n_points: int = 41) -> dict[str, IndexMap]:
     }
 
 
-def main() -> None:
+@dataclass(frozen=True)
+class Check:
+    """One row of the table: a paper's number, ours, and whether it is reproduced.
+
+    Attributes:
+        paper: Seed, where in it, and the paper's number.
+        project: The number this project measures (or "not measured").
+        reproduced: True only when our number matches the paper's within the stated tolerance.
+        why: How it was measured, and the reason when it is not reproduced.
+    """
+
+    paper: str
+    project: str
+    reproduced: bool
+    why: str
+
+
+def checks(n_points: int = 41) -> list[Check]:
+    """Every paper number of issue 15 with the project's measured number and honest status."""
     s = zk500_seam_check()
-    print("(a) ZK-500, seed 001, Table 6 seam start, tool straight down")
-    fmt = {"float_kind": lambda v: f"{v:.2f}"}
-    print(f"    IK configuration [deg]: {np.array2string(s.q_deg + 0.0, formatter=fmt)}")
-    print(f"    wrench [N]: {np.array2string(s.wrench[:3], precision=1)}")
-    print(f"    deflection [mm] base frame: {np.array2string(s.deflection_mm, precision=3)}")
+    maps = fanuc_nu_p_maps(n_points)
+    eq10 = maps["eq. 10 Kq (k6 = 1e4 assumed)"].percentiles((50.0,))
+    tab2 = maps["Table 2 (identified)"].percentiles((50.0,))
     err = (s.lateral_mm - MEASURED_MM) / MEASURED_MM * 100
-    print(f"    lateral {s.lateral_mm:.2f} mm (measured {MEASURED_MM} mm: {err:+.1f} %; "
-          f"co-simulation {COSIM_MM} mm), travel {s.travel_mm:.2f} mm, "
-          f"axial {s.axial_mm:.2f} mm")
-    print()
-    print("(b) FANUC S-900iB/400, seed 000 eq. 9-10: nu_p over the Fig. 13 plane "
-          "(q1 = 0, q4 = q5 = q6 = 45 deg, q2 x q3 grid over the joint limits)")
-    print(f"    F = {EQ10_WRENCH.tolist()} N, N m")
-    for name, mp in fanuc_nu_p_maps().items():
-        p = mp.percentiles((50.0, 90.0, 99.0))
-        k = mp.kappa_f[np.isfinite(mp.kappa_f)]
-        print(f"    {name:<30} nu_p median {p['p50']:.4f}, p90 {p['p90']:.4f}, "
-              f"p99 {p['p99']:.4f}, max {p['max']:.4f}; |dX| median "
-              f"{np.median(mp.dx) * 1e3:.2f} mm; kappa_f median {np.median(k):.2f}")
-    print("    Seed 000 reports nu_p <= 0.03. With eq. 10's wrist stiffness (1e4 N m/rad) the")
-    print("    5 kN / 200 N m wrench bends the wrist by ~0.1-0.3 rad (|dX| ~ 0.2 m), so Kc,")
-    print("    which grows with F, is ~10-40 % of the wrist stiffness and nu_p reaches ~0.36.")
-    print("    With the identified Table 2 stiffness nu_p stays near the paper's bound.")
-    print("    The model's lengths are the public M-900iB/700's (no public S-900iB/400 lengths)")
-    print("    and the tool length is assumed, which also shifts nu_p.")
+    return [
+        Check(
+            "001 §4: lateral deflection 4.9 mm (measured)",
+            f"{s.lateral_mm:.2f} mm ({err:+.1f} %)",
+            abs(err) <= 10.0,
+            "elastostatic model, Table 6 seam start, §3 forces; tolerance 10 %",
+        ),
+        Check(
+            "001 Fig. 10/11: co-simulated 5.24 mm, 5-7 mm plunge",
+            f"{s.lateral_mm:.2f} mm (elastostatic)",
+            False,
+            "penetration law not calibrated to Fig. 10 by least squares; 7/9 mm plunge "
+            "problems not bundled (not done by the deadline)",
+        ),
+        Check(
+            "001 Table 3: stiffness identified from 5 Table 2 poses",
+            "not measured",
+            False,
+            "campaign simulation (5 poses, cable loads, 50 samples / 5 s) not done by the deadline",
+        ),
+        Check(
+            "000 eq. 8-10 / Fig. 13: nu_p <= 0.03",
+            f"eq. 10 Kq (k6 = 1e4): median {eq10['p50']:.3f}, max {eq10['max']:.3f}",
+            False,
+            "a 1e4 N m/rad wrist under eq. 10's wrench bends "
+            "~0.3 m, so Kc is not negligible; wrist 1e5 gives max 0.033; no reading gives <= 0.03",
+        ),
+        Check(
+            "000 Table 2 stiffness: nu_p <= 0.03",
+            f"median {tab2['p50']:.4f}, max {tab2['max']:.4f}",
+            tab2["p50"] <= 0.03 and tab2["max"] <= 0.035,
+            "reproduced to within 0.005 at the worst pose (M-900iB/700 lengths, assumed tool)",
+        ),
+        Check(
+            "000 §5: ~7 mm lateral deviation at 1700 mm",
+            "+4.84 ... +5.21 mm (rfsw-plan deviation fanuc_butt_1700mm)",
+            False,
+            "M-900iB/700 lengths stand in for the "
+            "S-900iB/400 (none public) and the forces are assumed (Fn 3100 N, Ft/Fl 1000 N); "
+            "not re-analysed which assumption dominates (not done by the deadline)",
+        ),
+        Check(
+            "000 Fig. 16: 1400 mm, deviation lower along y+ than y-",
+            "not measured",
+            False,
+            "1400 mm y+/y- problems not bundled (not done by the deadline)",
+        ),
+        Check(
+            "002 Table 3: MAE 0.43 mm uncompensated, ~0.2 mm compensated",
+            "not measured",
+            False,
+            "normal-MAE metric not added to compare; KR600 torque-stiffness file not written "
+            "(not done by the deadline)",
+        ),
+    ]
+
+
+def main() -> None:
+    rows = checks()
+    w1 = max(len(r.paper) for r in rows)
+    w2 = max(len(r.project) for r in rows)
+    print(f"{'paper':<{w1}}  {'project':<{w2}}  status")
+    for r in rows:
+        status = "reproduced" if r.reproduced else "NOT reproduced"
+        print(f"{r.paper:<{w1}}  {r.project:<{w2}}  {status}: {r.why}")
 
 
 if __name__ == "__main__":

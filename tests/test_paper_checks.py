@@ -97,3 +97,12 @@ def test_workspace_bad_input() -> None:
         index_map(robot, grid, np.zeros(5))
     with pytest.raises(InputError, match="Kq"):
         index_map(robot, grid, np.ones(6), np.ones(5))
+
+
+def test_one_table_keeps_the_reproduced_numbers_reproduced(paper: ModuleType) -> None:
+    rows = paper.checks(n_points=15)
+    reproduced = {r.paper for r in rows if r.reproduced}
+    assert "001 §4: lateral deflection 4.9 mm (measured)" in reproduced
+    assert "000 Table 2 stiffness: nu_p <= 0.03" in reproduced
+    # Every row that is not reproduced says why.
+    assert all(r.why for r in rows if not r.reproduced)
