@@ -128,7 +128,7 @@ def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
     ver = verify_plan(model, res.task, res.window, res.q, res.offsets,
                       res.options.force_uncertainty)
     assert ver.feasible
-    e, inside = sample_errors(model, res.task, res.trajectory)
+    e, inside = sample_errors(model, res.task, res.trajectory, res.window)
     assert inside.sum() > 10
     assert np.all(e[inside] >= res.window.lower - 1e-6)
     assert np.all(e[inside] <= res.window.upper + 1e-6)

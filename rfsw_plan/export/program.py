@@ -52,14 +52,13 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.planning.verify import CONTACT_PHASES
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
 #: Phases in which blending is allowed (the pin travels along the seam).
 WELD_PHASES = ("accelerate", "weld", "decelerate")
-#: Phases in which the pin is in the material.
-CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
 #: Phase names in program order.
 PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
 #: Below these a segment does not move [m], [rad]: it is a wait.

@@ -49,6 +49,7 @@ from scipy.spatial.transform import Rotation
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.files import atomic_path, sha256_file, write_json
 from rfsw_plan.planning.result import PlanResult
+from rfsw_plan.planning.verify import CONTACT_PHASES
 
 FloatArray = NDArray[np.float64]
 
@@ -56,8 +57,6 @@ FloatArray = NDArray[np.float64]
 EULER_COLUMNS = {"kuka_abc": ("A_deg", "B_deg", "C_deg"), "fanuc_wpr": ("W_deg", "P_deg", "R_deg")}
 #: Rounding of the joint values in ``waypoints.csv`` [rad] (6 decimals of a degree, half a unit).
 Q_RESOLUTION = float(np.deg2rad(0.5e-6))
-#: Phases in which the pin is in the material.
-CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
 
 
 def maker_euler(R: FloatArray, convention: str) -> FloatArray:

@@ -35,14 +35,12 @@ from rfsw_plan.exceptions import InputError, RfswError
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap, compliance_shares
 from rfsw_plan.planning.options import PlanOptions
-from rfsw_plan.planning.verify import predict
+from rfsw_plan.planning.verify import predict, verify_samples
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 
 FloatArray = NDArray[np.float64]
 
-#: Phases in which the pin is in the material (checked sample by sample).
-IN_MATERIAL = ("plunge", "dwell", "accelerate", "weld", "decelerate")
 
 
 def tolerated_uncertainty(model: ElastostaticModel, task: PlanTask, q: FloatArray,
@@ -187,7 +185,7 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
     sl = res.task.weld
     pred = res.verification.prediction
     shares = compliance_shares(model, res.task, res.q, k)
-    e, inside = sample_errors(model, res.task, res.trajectory)
+    e, inside = sample_errors(model, res.task, res.trajectory, res.window)
     margin = np.minimum(e - res.window.lower, res.window.upper - e)[inside]
     sample_margin = float(np.min(margin)) if margin.size else float("nan")
     status, msg = res.status, ""
@@ -329,28 +327,15 @@ def place(problem: Any, m: PlacementMap, options: PlanOptions, n_candidates: int
                        time.perf_counter() - t0)
 
 
-def sample_errors(model: ElastostaticModel, task: PlanTask, traj: Any) -> tuple[FloatArray,
-                                                                              NDArray[np.bool_]]:
+def sample_errors(model: ElastostaticModel, task: PlanTask, traj: Any,
+                  window: WeldWindow) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Predicted lateral pin error at every sample of a timed trajectory [m], (N,), and which
-    samples have the pin in the material (:data:`IN_MATERIAL`).
-
-    e_i = l(s_i) . (FK_p(q_i) + dX_p(q_i, F_i) - p(s_i)), the seam point and frame interpolated
-    in the sample's arc length s_i, dX the process deflection with the task's seam reference.
+    samples have the pin in the material, as the planner's independent sample check
+    (:func:`rfsw_plan.planning.verify.verify_samples`) computes them:
+    e_i = l(s_i) . (FK_p(q_i) + dX_p(q_i, F_i) - p(s_i)).
     """
-    m0 = task.n_start
-    fr = task.frames
-    sw = fr.s[m0:]
-
-    def at_s(a: FloatArray) -> FloatArray:
-        return np.stack([np.interp(traj.s, sw, a[m0:, i]) for i in range(3)], axis=1)
-
-    batch = model.batch(traj.q)
-    dX = model.process_deflection_batch(batch, traj.wrench, task.reference)
-    lat = at_s(fr.l)
-    lat /= np.linalg.norm(lat, axis=1, keepdims=True)
-    pin = batch.T[:, :3, 3] + dX[:, :3]
-    e = np.einsum("ki,ki->k", lat, pin - at_s(fr.p))
-    return np.asarray(e), np.isin(traj.phase, IN_MATERIAL)
+    v = verify_samples(model, task, window, traj)
+    return v.e_lat, v.contact
 
 
 def results_table(res: PlaceResult, anchor: FloatArray) -> list[dict[str, Any]]:
