@@ -86,6 +86,10 @@ def test_no_bar_with_quiet_or_without_a_terminal(campaign: Path, tmp_path: Path)
     rc, out, err = _run(_validate(campaign, tmp_path, "-q"), tty=True)
     assert rc == 0 and "candidates" not in err
     json.loads(out)
+    # -q after the subcommand works the same as before it
+    rc, out, err = _run([*_validate(campaign, tmp_path), "-q"], tty=True)
+    assert rc == 0 and "candidates" not in err, err
+    json.loads(out)
     rc, out, err = _run(_validate(campaign, tmp_path), tty=False)
     assert rc == 0 and "candidates" not in err and "it/s" not in err
     json.loads(out)
@@ -103,3 +107,14 @@ def test_compare_bar_counts_welds(tmp_path: Path) -> None:
     assert rc == 0, err
     assert "compare" in err and "weld" in err
     assert json.loads(out)["problem"] == "my_weld"
+
+
+def test_plan_stage_bar_and_quiet_after_the_subcommand(tmp_path: Path) -> None:
+    problem = str(ROOT / "problems" / "zk500_table6_seam.toml")
+    rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "a"), "--json"], tty=True)
+    assert rc == 0, err
+    assert "plan: branches" in err and "plan: NLP" in err  # the stage bar, on stderr
+    json.loads(out)
+    rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "b"), "--json", "-q"], tty=True)
+    assert rc == 0 and "plan: NLP" not in err and "plan: branches" not in err
+    json.loads(out)

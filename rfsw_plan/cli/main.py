@@ -87,19 +87,28 @@ def build_parser(only: str | None = None, lazy: bool = False
         description="Offline planning of robotic friction stir welding around the robot's "
         "own elasticity.",
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress to stderr")
-    parser.add_argument("-q", "--quiet", action="store_true",
-                        help="no progress bars (they are shown only on a terminal anyway)")
+    _add_global_options(parser, False)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     commands: dict[str, ModuleType] = {}
     for name, help_, modname in _command_specs():
         p = sub.add_parser(name, help=help_, description=help_)
+        # The same options after the subcommand (``rfsw-plan plan P -q``); SUPPRESS keeps the
+        # value set before the subcommand when they are not repeated after it.
+        _add_global_options(p, argparse.SUPPRESS)
         if not lazy or name == only:
             mod = importlib.import_module(modname)
             mod.register(p)
             commands[name] = mod
     return parser, commands
+
+
+def _add_global_options(parser: argparse.ArgumentParser, default: Any) -> None:
+    """``-v/--verbose`` and ``-q/--quiet``, accepted before and after the subcommand."""
+    parser.add_argument("-v", "--verbose", action="store_true", default=default,
+                        help="log progress to stderr")
+    parser.add_argument("-q", "--quiet", action="store_true", default=default,
+                        help="no progress bars (they are shown only on a terminal anyway)")
 
 
 def _command_word(argv: Sequence[str]) -> str | None:
