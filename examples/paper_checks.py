@@ -3,7 +3,9 @@
 Run: ``.venv/bin/python examples/paper_checks.py``
 
 (a) ZK-500, seed 001: lateral TCP deflection at the start of the Table 6 seam under the
-    measured welding forces, compared with the 4.9 mm measured and 5.24 mm co-simulated.
+    measured welding forces, compared with the 4.9 mm measured; the Fig. 10 co-simulation of
+    the 7 / 8 / 9 mm plunge problems (penetration law fitted to Fig. 10 by least squares on
+    each run) compared with the 5.24 mm and 5-7 mm co-simulated and 4842.58 N measured.
 (b) FANUC S-900iB/400, seed 000: the influence index nu_p of the complementary stiffness Kc
     (eq. 9) over the vertical workspace plane of Fig. 13 (q1 = 0, wrist joints at 45 deg) with
     the wrench and joint stiffness of eq. 10.
@@ -20,6 +22,8 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import load_model
 from rfsw_plan.elastostatics.workspace import IndexMap, index_map, sample_joint_grid
+from rfsw_plan.process.deviation import DeviationResult, problem_deviation
+from rfsw_plan.process.problem import load_problem
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import load_robot
 
@@ -31,6 +35,10 @@ POSE1_DEG = np.array([-96.24, 3.91, 25.45, -2.10, 57.17, 2.90])
 #: Seed 001 §3 welding forces [N]: axial (down force), traverse, lateral.
 FD_N, FR_N, FL_N = 4842.58, 899.80, 1350.87
 MEASURED_MM, COSIM_MM = 4.9, 5.24
+#: Seed 001 Fig. 10: the three virtual welds (commanded plunge [mm] -> bundled problem).
+PLUNGE_CASES = {7.0: "zk500_plunge7mm", 8.0: "zk500_table6_seam", 9.0: "zk500_plunge9mm"}
+#: Seed 001 Fig. 10d-f: lateral deviation of every virtual weld [mm].
+COSIM_RANGE_MM = (5.0, 7.0)
 
 #: Seed 000 eq. 10: wrench [N, N m] and joint stiffness [N m/rad] (k6 assumed = k5).
 EQ10_WRENCH = np.array([1000.0, -3000.0, -4000.0, -200.0, 200.0, -200.0])
@@ -87,6 +95,48 @@ def zk500_seam_check() -> SeamCheck:
     return SeamCheck(np.degrees(ik.q), wrench, d, float(d @ lat), float(d @ t), float(d @ up))
 
 
+@dataclass(frozen=True)
+class PlungeCase:
+    """One seed 001 Fig. 10 virtual weld co-simulated with the project's robot model.
+
+    Attributes:
+        commanded_mm: Commanded plunge after contact [mm].
+        result: Deviation with the co-simulation (law fitted to Fig. 10 on each run).
+        penetration_mm: Penetration over the steady weld (min, max) [mm].
+        force_N: Axial force over the steady weld (min, max) [N].
+        lateral_mm: Lateral deviation over the steady weld (min, max) [mm].
+        last10_lateral_mm: Mean lateral deviation of the last ten weld samples [mm] (seed 001
+            §4 averages the final ten iterations).
+    """
+
+    commanded_mm: float
+    result: DeviationResult
+    penetration_mm: tuple[float, float]
+    force_N: tuple[float, float]
+    lateral_mm: tuple[float, float]
+    last10_lateral_mm: float
+
+
+def zk500_plunge_cases() -> list[PlungeCase]:
+    """Seed 001 Fig. 10: the 7 / 8 / 9 mm plunge problems through ``deviation --cosim``."""
+    out = []
+    for depth, name in PLUNGE_CASES.items():
+        res = problem_deviation(load_problem(name), cosim=True)
+        c = res.cosim
+        if c is None or not c.all_converged:
+            raise RuntimeError(f"{name}: the co-simulation did not converge")
+        m = res.steady_weld
+        last = np.flatnonzero(res.schedule.mask("weld"))[-10:]
+        out.append(PlungeCase(
+            depth, res,
+            (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
+            (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
+            (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
+            float(res.lateral_t[last].mean() * 1e3),
+        ))
+    return out
+
+
 def fanuc_nu_p_maps(n_points: int = 41) -> dict[str, IndexMap]:
     """nu_p and kappa_f over the seed 000 Fig. 13 plane for three stiffness sets."""
     robot = load_robot("fanuc_s900ib_400")
@@ -118,9 +168,22 @@ class Check:
 
 
 def _seed001_rows() -> list[Check]:
-    """Seed 001 (ZK-500) rows."""
+    """Seed 001 (ZK-500): measured deflection, Fig. 10 co-simulation, Table 3 stiffness."""
     s = zk500_seam_check()
     err = (s.lateral_mm - MEASURED_MM) / MEASURED_MM * 100
+    cases = zk500_plunge_cases()
+    fit = cases[0].result.penetration_fit
+    if fit is None:
+        raise RuntimeError(f"{PLUNGE_CASES[7.0]}: no penetration-law calibration")
+    eight = next(c for c in cases if c.commanded_mm == 8.0)
+    implied = (8.0 - 4.8) / FD_N * 1e3  # [mm/kN]: 3.2 mm taken up by the robot at Fd
+    pen = ", ".join(f"{o.commanded_mm:g} -> {o.penetration_mm[0]:.2f}-{o.penetration_mm[1]:.2f}"
+                    for o in cases)
+    lat = ", ".join(f"{o.commanded_mm:g}: {o.lateral_mm[0]:.2f}-{o.lateral_mm[1]:.2f}"
+                    for o in cases)
+    lo = min(o.lateral_mm[0] for o in cases)
+    hi = max(o.lateral_mm[1] for o in cases)
+    cos_err = (eight.last10_lateral_mm - COSIM_MM) / COSIM_MM * 100
     return [
         Check(
             "001 §4: lateral deflection 4.9 mm (measured)",
@@ -129,17 +192,46 @@ def _seed001_rows() -> list[Check]:
             "elastostatic model, Table 6 seam start, §3 forces; tolerance 10 %",
         ),
         Check(
-            "001 Fig. 10/11: co-simulated 5.24 mm, 5-7 mm plunge",
-            f"{s.lateral_mm:.2f} mm (elastostatic)",
-            False,
-            "penetration law not calibrated to Fig. 10 by least squares; 7/9 mm plunge "
-            "problems not bundled (not done by the deadline)",
+            "001 Fig. 10a-c: penetration ~4.2 / ~4.8 / >5 mm for 7 / 8 / 9 mm plunge",
+            "settled (fit): " + ", ".join(
+                f"{o.commanded_depth * 1e3:g} -> {p * 1e3:.2f}"
+                for o, p in zip(fit.observations, fit.predicted, strict=True))
+            + f" mm, RMS residual {fit.rms_residual * 1e3:.3f} mm; steady weld: {pen} mm",
+            fit.rms_residual <= 0.05e-3 and fit.predicted[2] > 5.0e-3,
+            f"calibrated, not predicted: the law through zero (1 parameter, k_p "
+            f"{fit.law.stiffness * 1e-3:.0f} N/mm) fitted by least squares to the 3 points "
+            "(the >5 mm one as a bound), like eq. 15's f*; tolerance 0.05 mm RMS",
+        ),
+        Check(
+            "001 §3: axial force 4842.58 N (measured, 8 mm plunge)",
+            f"{eight.force_N[0]:.0f}-{eight.force_N[1]:.0f} N (co-simulated steady weld)",
+            abs(eight.force_N[1] / FD_N - 1) <= 0.1,
+            f"Fig. 10's 3.2 mm taken up at 8 mm needs {implied:.3f} mm/kN along the tool "
+            f"axis; Table 3 stiffness gives {fit.axial_compliance * 1e6:.3f} mm/kN, so the "
+            "law must push harder; a compliance missing from the robot model (spindle, "
+            "sensor, fixture, link bending) would explain both",
+        ),
+        Check(
+            "001 §4: co-simulated lateral 5.24 mm (8 mm, mean of the final 10 iterations)",
+            f"{eight.last10_lateral_mm:.2f} mm ({cos_err:+.1f} %)",
+            abs(cos_err) <= 10.0,
+            "mean of the last 10 weld samples of deviation --cosim; the higher co-simulated "
+            "axial force lowers the lateral deviation (Fl, Fr held at §3's values); "
+            "tolerance 10 %",
+        ),
+        Check(
+            "001 Fig. 10d-f: lateral 5-7 mm in every virtual weld",
+            f"{lat} mm (steady weld)",
+            lo >= COSIM_RANGE_MM[0] - 0.5 and hi <= COSIM_RANGE_MM[1] + 0.5,
+            f"all cases {lo:.2f}-{hi:.2f} mm, below 5 mm: the elastostatic model gives "
+            f"{s.lateral_mm:.2f} mm at the measured forces and the co-simulation's extra axial "
+            "force lowers it; tolerance 0.5 mm",
         ),
         Check(
             "001 Table 3: stiffness identified from 5 Table 2 poses",
             "not measured",
             False,
-            "campaign simulation (5 poses, cable loads, 50 samples / 5 s) not done by the deadline",
+            "campaign simulation (5 poses, cable loads, 50 samples / 5 s) not done yet",
         ),
     ]
 

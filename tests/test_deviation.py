@@ -100,3 +100,19 @@ def test_cli_unknown_problem(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["deviation", "nope"]) == 2
     err = capsys.readouterr().err
     assert "unknown problem 'nope'" in err and "zk500_table6_seam" in err
+
+
+def test_cli_cosim_fits_the_penetration_law(tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    """The 7 mm case fits the law to seed 001 Fig. 10 and settles near 4.2 mm of penetration."""
+    assert main(["deviation", "zk500_plunge7mm", "-o", str(tmp_path), "--no-plot",
+                 "--cosim"]) == 0
+    out = capsys.readouterr().out
+    assert "penetration law fitted by least squares" in out
+    assert "co-simulated steady weld" in out
+    data = json.loads((tmp_path / "deviation.json").read_text())
+    fit = data["cosim"]["penetration_fit"]
+    assert fit["commanded_depth_mm"] == [7.0, 8.0, 9.0]
+    assert fit["predicted_penetration_mm"][0] == pytest.approx(4.2, abs=0.01)
+    assert fit["rms_residual_mm"] < 0.01
+    assert data["cosim"]["all_converged"]

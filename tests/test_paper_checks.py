@@ -103,6 +103,23 @@ def test_one_table_keeps_the_reproduced_numbers_reproduced(paper: ModuleType) ->
     rows = paper.checks(n_points=15)
     reproduced = {r.paper for r in rows if r.reproduced}
     assert "001 §4: lateral deflection 4.9 mm (measured)" in reproduced
+    assert "001 Fig. 10a-c: penetration ~4.2 / ~4.8 / >5 mm for 7 / 8 / 9 mm plunge" in reproduced
     assert "000 Table 2 stiffness: nu_p <= 0.03" in reproduced
     # Every row that is not reproduced says why.
     assert all(r.why for r in rows if not r.reproduced)
+
+
+def test_seed001_cosim_cases_keep_their_finding(paper: ModuleType) -> None:
+    """Fig. 10's plunges order the penetration; the fitted law needs far more than the
+    measured axial force and the lateral deviation stays below the paper's 5-7 mm."""
+    cases = paper.zk500_plunge_cases()
+    assert [c.commanded_mm for c in cases] == [7.0, 8.0, 9.0]
+    pen = [c.penetration_mm for c in cases]
+    assert pen[0][1] < pen[1][1] < pen[2][1]
+    assert 4.0 < pen[1][1] < 5.0 and pen[2][1] > 5.0  # 8 mm ~4.8 mm, 9 mm beyond the plate
+    eight = cases[1]
+    assert eight.force_N[0] > 1.5 * paper.FD_N
+    assert all(c.lateral_mm[1] < paper.COSIM_RANGE_MM[0] for c in cases)
+    assert 3.5 < eight.last10_lateral_mm < paper.COSIM_MM
+    rows = {r.paper: r for r in paper._seed001_rows()}
+    assert not rows["001 §3: axial force 4842.58 N (measured, 8 mm plunge)"].reproduced

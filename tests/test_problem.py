@@ -9,7 +9,7 @@ import pytest
 
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InputError, UnknownNameError
-from rfsw_plan.process.problem import bundled_problem_names, load_problem
+from rfsw_plan.process.problem import BUNDLED_PROBLEMS_DIR, bundled_problem_names, load_problem
 
 GOOD = """
 robot = "zk500"
@@ -143,3 +143,23 @@ def test_set_unknown_option_did_you_mean(capsys: pytest.CaptureFixture[str],
     code = main(["plan", "zk500_table6_seam", "-o", str(tmp_path / "o"), "--set", "margin_mm=nan"])
     err = capsys.readouterr().err
     assert code == 2 and "--set: margin_mm: got nan" in err, err
+
+
+def test_coupling_calibration_and_plunge_cases(tmp_path: Path) -> None:
+    """The three seed 001 Fig. 10 cases are bundled; a calibration names observed plunges."""
+    for name, depth in (("zk500_plunge7mm", 7e-3), ("zk500_table6_seam", 8e-3),
+                        ("zk500_plunge9mm", 9e-3)):
+        p = load_problem(name)
+        assert p.coupling is not None and p.coupling.law is None
+        assert p.coupling.calibration_name == "seed001_fig10"
+        assert p.coupling.commanded_depth == pytest.approx(depth)
+        assert [o.commanded_depth for o in p.coupling.calibration] == [7e-3, 8e-3, 9e-3]
+    text = (BUNDLED_PROBLEMS_DIR / "zk500_table6_seam.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('calibration = "seed001_fig10"', 'calibration = "fig11"'))
+    with pytest.raises(InputError, match=r"unknown calibration 'fig11'.*seed001_fig10"):
+        load_problem(bad)
+    bad.write_text(text.replace('calibration = "seed001_fig10"', 'calibration = "seed001_fig10"'
+                                "\npenetration_stiffness_N_per_mm = 1000"))
+    with pytest.raises(InputError, match="together with 'calibration'"):
+        load_problem(bad)

@@ -162,3 +162,176 @@ def cosimulate(
         axial_force=f, force_seam=F, deflection=dX, iterations=iters,
         residual=np.abs(g - f), converged=np.abs(g - f) < tol,
     )
+
+
+# -- calibration of the penetration law (seed 001 Fig. 10, like eq. 15 for f*) -----------------
+@dataclass(frozen=True)
+class PenetrationObservation:
+    """One commanded plunge and the penetration it gave (seed 001 Fig. 10a-c).
+
+    Attributes:
+        commanded_depth: Plunge commanded after surface contact [m].
+        penetration: Penetration of the tool when it settled [m].
+        at_least: True if the paper gives only a lower bound (``more than``): the fit then
+            penalises a predicted penetration below it and nothing above it.
+    """
+
+    commanded_depth: float
+    penetration: float
+    at_least: bool = False
+
+
+@dataclass(frozen=True)
+class PenetrationFit:
+    """A penetration law fitted to observed plunges through the robot's compliance.
+
+    Attributes:
+        law: The fitted law.
+        observations: The observations fitted, shape (k,).
+        predicted: Co-simulated penetration for each commanded depth [m], shape (k,).
+        axial_force: Co-simulated axial force at each commanded depth [N], shape (k,).
+        residual: Predicted minus observed penetration [m], shape (k,); for a lower bound
+            only the part below it (0 when the bound holds).
+        rms_residual: RMS of ``residual`` [m] (the square root of the mean eq. 15-style loss).
+        axial_compliance: The robot's deflection up the tool axis per newton of axial force at
+            the calibration sample [m/N].
+        sample: Index of the schedule sample the law was fitted at.
+        intercept: True if the force at zero penetration was a free parameter.
+    """
+
+    law: PenetrationLaw
+    observations: tuple[PenetrationObservation, ...]
+    predicted: FloatArray
+    axial_force: FloatArray
+    residual: FloatArray
+    rms_residual: float
+    axial_compliance: float
+    sample: int
+    intercept: bool
+
+    def summary(self) -> str:
+        """One line: the law, the residual and the robot's axial compliance."""
+        obs = ", ".join(
+            f"{o.commanded_depth * 1e3:g} mm -> {p * 1e3:.2f} mm "
+            f"({'>=' if o.at_least else ''}{o.penetration * 1e3:g})"
+            for o, p in zip(self.observations, self.predicted, strict=True))
+        return (f"penetration law fitted by least squares: k_p "
+                f"{self.law.stiffness * 1e-3:.1f} N/mm, {self.law.ref_force:.0f} N at "
+                f"{self.law.ref_penetration * 1e3:g} mm; {obs}; RMS residual "
+                f"{self.rms_residual * 1e3:.3f} mm; robot axial compliance "
+                f"{self.axial_compliance * 1e6:.3f} mm/kN")
+
+
+def _rows(schedule: LoadSchedule, idx: NDArray[np.int_]) -> LoadSchedule:
+    fr = schedule.frames
+    return LoadSchedule(
+        t=schedule.t[idx], phase=schedule.phase[idx], s=schedule.s[idx],
+        depth=schedule.depth[idx],
+        frames=type(fr)(s=fr.s[idx], p=fr.p[idx], t=fr.t[idx], l=fr.l[idx], n=fr.n[idx]),
+        force_seam=schedule.force_seam[idx], moment_base=schedule.moment_base[idx],
+    )
+
+
+def settled_sample(schedule: LoadSchedule) -> int:
+    """Index of the last dwell sample: the tool has settled before travel starts (seed 001
+    Fig. 10a-c reads the penetration there, at 12-16 s)."""
+    dwell = np.flatnonzero(schedule.mask("dwell"))
+    if dwell.size == 0:
+        raise InputError("cosim", "schedule", "has no dwell phase",
+                         "a process with dwell_s > 0 to calibrate the penetration law")
+    return int(dwell[-1])
+
+
+def fit_penetration_law(
+    model: ElastostaticModel,
+    q: FloatArray,
+    schedule: LoadSchedule,
+    observations: tuple[PenetrationObservation, ...],
+    sample: int | None = None,
+    intercept: bool = False,
+    reference: SeamReference = "taught",
+) -> PenetrationFit:
+    """Fit the penetration law to observed plunges by least squares through the co-simulation.
+
+    For each observation the co-simulation (:func:`cosimulate`, same robot model and wrench
+    as the weld) is solved at one schedule sample with the observation's commanded depth; the
+    law's parameters minimise the squared penetration error, as seed 001 eq. 15 chooses f*::
+
+        min_theta  sum_i r_i^2,  r_i = p_i(theta) - p_i^obs   (r_i = min(0, .) for a bound)
+        law        f_n = max(0, f_0 + k_p p)      theta = (k_p) with f_0 = 0, or (k_p, f_0)
+
+    With ``intercept=False`` the law goes through zero (one parameter for three points, like
+    eq. 15's one f* for three forces), so the residual measures how well one compliance
+    explains all the plunges.
+
+    Args:
+        model: Elastostatic model of the robot.
+        q: Taught joint values per schedule sample [rad], shape (N, n).
+        schedule: The process's load schedule (traverse/lateral forces and moments held).
+        observations: Commanded depth and observed penetration, e.g.
+            :data:`rfsw_plan.process.presets.SEED001_FIG10`.
+        sample: Schedule sample to fit at; default :func:`settled_sample`.
+        intercept: Also fit the force at zero penetration.
+        reference: How the seam was obtained; see
+            :meth:`ElastostaticModel.process_deflection`.
+
+    Returns:
+        The fitted law, per-observation predictions and residuals, RMS residual [m].
+
+    Raises:
+        InputError: Fewer observations than parameters, non-positive depths, no dwell phase.
+    """
+    from scipy.optimize import least_squares
+
+    obs = tuple(observations)
+    n_par = 2 if intercept else 1
+    if len(obs) < n_par:
+        raise InputError("cosim", "calibration", f"{len(obs)} observation(s)",
+                         f"at least {n_par} to fit {n_par} parameter(s)")
+    if any(not (o.commanded_depth > 0 and o.penetration > 0) for o in obs):
+        raise InputError("cosim", "calibration", "a depth or penetration <= 0", "> 0 m")
+    i = settled_sample(schedule) if sample is None else int(sample)
+    rows = _rows(schedule, np.full(len(obs), i))
+    Q = np.repeat(np.asarray(q, dtype=float)[i : i + 1], len(obs), axis=0)
+    d_c = np.array([o.commanded_depth for o in obs])
+    p_obs = np.array([o.penetration for o in obs])
+    bound = np.array([o.at_least for o in obs])
+    # Robot axial compliance at the sample (finite difference of the deflection, 1 kN).
+    batch = model.batch(Q[:1])
+    fr1 = _rows(schedule, np.array([i]))
+
+    def delta_n(fn: float) -> float:
+        F = fr1.force_seam.copy()
+        F[:, 2] = fn
+        W = np.hstack([fr1.frames.to_base(F), fr1.moment_base])
+        return float(model.process_deflection_batch(batch, W, reference)[0, :3] @ fr1.frames.n[0])
+
+    f_ref = float(schedule.force_seam[i, 2])
+    compliance = (delta_n(f_ref + 500.0) - delta_n(f_ref - 500.0)) / 1000.0
+    p_ref = float(np.max(p_obs[~bound])) if (~bound).any() else float(np.max(p_obs))
+
+    def law_of(x: FloatArray) -> PenetrationLaw:
+        k = 1e6 * float(np.exp(x[0]))
+        f0 = 1e3 * float(x[1]) if intercept else 0.0
+        return PenetrationLaw(stiffness=k, ref_penetration=p_ref, ref_force=f0 + k * p_ref)
+
+    def solve(x: FloatArray) -> CosimResult:
+        law = law_of(x)
+        omega = min(1.0, 1.0 / (1.0 + law.stiffness * max(compliance, 0.0)))
+        return cosimulate(model, Q, rows, law, commanded_depth=d_c, relaxation=omega,
+                          tol=1e-6, max_iter=500, reference=reference)
+
+    def residual(x: FloatArray) -> FloatArray:
+        r = solve(x).penetration - p_obs
+        return np.where(bound, np.minimum(r, 0.0), r) * 1e3  # [mm]: well scaled
+
+    x0 = np.array([0.0, 0.0]) if intercept else np.array([0.0])
+    sol = least_squares(residual, x0, method="trf", x_scale=1.0, xtol=1e-12, ftol=1e-12)
+    best = solve(sol.x)
+    r = best.penetration - p_obs
+    r = np.where(bound, np.minimum(r, 0.0), r)
+    return PenetrationFit(
+        law=law_of(sol.x), observations=obs, predicted=best.penetration,
+        axial_force=best.axial_force, residual=r, rms_residual=float(np.sqrt(np.mean(r**2))),
+        axial_compliance=compliance, sample=i, intercept=intercept,
+    )

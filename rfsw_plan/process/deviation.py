@@ -24,7 +24,12 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.process.cosim import CosimResult, cosimulate
+from rfsw_plan.process.cosim import (
+    CosimResult,
+    PenetrationFit,
+    cosimulate,
+    fit_penetration_law,
+)
 from rfsw_plan.process.forces import ProcessModel
 from rfsw_plan.process.frames import FloatArray, LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Coupling, Problem
@@ -52,6 +57,8 @@ class DeviationResult:
         along_t: Along-track deviation over time [m], shape (N,).
         window: Weld window.
         cosim: Co-simulation result over time, or None.
+        penetration_fit: The penetration law fitted to the coupling's calibration (seed 001
+            Fig. 10), or None if the law was given.
     """
 
     frames: SeamFrames
@@ -68,6 +75,32 @@ class DeviationResult:
     along_t: FloatArray
     window: WeldWindow
     cosim: CosimResult | None = None
+    penetration_fit: PenetrationFit | None = None
+
+    @property
+    def steady_weld(self) -> NDArray[np.bool_]:
+        """Weld samples whose traverse and lateral forces have reached their steady values
+        (after the start-of-weld ramp), shape (N,)."""
+        sch = self.schedule
+        steady = self.force_seam[0, :2]
+        return sch.mask("weld") & np.all(
+            np.abs(sch.force_seam[:, :2] - steady) <= 1e-6 * np.abs(steady).max(), axis=1)
+
+    def cosim_summary(self) -> str:
+        """One line on the co-simulated weld: penetration, axial force and lateral deviation
+        over the steady weld, and the mean lateral deviation of the last ten samples (seed 001
+        §4 reports the mean of the final ten iterations). Empty without a co-simulation."""
+        c = self.cosim
+        m = self.steady_weld
+        if c is None or not m.any():
+            return ""
+        mm = 1e3
+        last = np.flatnonzero(self.schedule.mask("weld"))[-10:]
+        return (f"co-simulated steady weld: penetration {c.penetration[m].min() * mm:.2f}"
+                f"-{c.penetration[m].max() * mm:.2f} mm, axial force "
+                f"{c.axial_force[m].min():.0f}-{c.axial_force[m].max():.0f} N, lateral "
+                f"{self.lateral_t[m].min() * mm:.2f}-{self.lateral_t[m].max() * mm:.2f} mm; "
+                f"mean lateral of the last 10 samples {self.lateral_t[last].mean() * mm:.2f} mm")
 
     @property
     def max_abs_lateral(self) -> float:
@@ -135,6 +168,21 @@ class DeviationResult:
                 "penetration_mm": _r(c.penetration * mm),
                 "iterations": [int(i) for i in c.iterations],
             }
+            fit = self.penetration_fit
+            if fit is not None:
+                out["cosim"]["penetration_fit"] = {
+                    "stiffness_N_per_mm": fit.law.stiffness * 1e-3,
+                    "reference_penetration_mm": fit.law.ref_penetration * mm,
+                    "reference_force_N": fit.law.ref_force,
+                    "commanded_depth_mm": [o.commanded_depth * mm for o in fit.observations],
+                    "observed_penetration_mm": [o.penetration * mm for o in fit.observations],
+                    "observed_is_lower_bound": [o.at_least for o in fit.observations],
+                    "predicted_penetration_mm": _r(fit.predicted * mm),
+                    "axial_force_N": _r(fit.axial_force),
+                    "rms_residual_mm": fit.rms_residual * mm,
+                    "axial_compliance_mm_per_kN": fit.axial_compliance * 1e6,
+                    "time_s": float(sch.t[fit.sample]),
+                }
         return out
 
 
@@ -177,7 +225,9 @@ def predict_deviation(
         window: Weld window (default seed 000's).
         dt: Time step of the schedule [s] (seed 001 Table 6: 0.1 s).
         coupling: Optional co-simulation settings (penetration law, commanded depth); the
-            time series then uses the converged axial force.
+            time series then uses the converged axial force. A coupling with a calibration
+            instead of a law has its law fitted first, at the last dwell sample
+            (:func:`~rfsw_plan.process.cosim.fit_penetration_law`).
         reference: How the seam was obtained (``taught`` or ``absolute``); see
             :meth:`ElastostaticModel.process_deflection`.
     """
@@ -193,16 +243,21 @@ def predict_deviation(
     Qt = schedule_joints(sch, frames, Q)
     dXt = model.process_deflection(Qt, sch.wrench_base, reference)
     cos = None
+    fit = None
     if coupling is not None:
+        law = coupling.law
+        if law is None:
+            fit = fit_penetration_law(model, Qt, sch, coupling.calibration,
+                                      reference=reference)
+            law = fit.law
         d_c = sch.depth * (coupling.commanded_depth / process.plunge_depth)
-        cos = cosimulate(model, Qt, sch, coupling.law, commanded_depth=d_c,
-                         reference=reference)
+        cos = cosimulate(model, Qt, sch, law, commanded_depth=d_c, reference=reference)
         dXt = cos.deflection
     lat_t, ax_t, al_t = _components(dXt, sch.frames)
     return DeviationResult(
         frames=frames, q=Q, force_seam=F, deflection=dX, lateral=lat, axial=ax, along=al,
         schedule=sch, deflection_t=dXt, lateral_t=lat_t, axial_t=ax_t, along_t=al_t,
-        window=window, cosim=cos,
+        window=window, cosim=cos, penetration_fit=fit,
     )
 
 

@@ -7,6 +7,7 @@ thickness and can be overridden in the problem file or fitted to a measured forc
 from __future__ import annotations
 
 from rfsw_plan.exceptions import UnknownNameError
+from rfsw_plan.process.cosim import PenetrationObservation
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 
 _SEED001 = ProcessModel(
@@ -53,3 +54,31 @@ def process_preset(name: str) -> ProcessModel:
         return PROCESS_PRESETS[name]
     except KeyError:
         raise UnknownNameError("process preset", name, PROCESS_PRESETS) from None
+
+
+#: Seed 001 §4 and Fig. 10a-c: commanded plunge 7 / 8 / 9 mm (after surface contact) for the
+#: 4.8 mm pin settled at about 4.2 mm, about 4.8 mm and "exceeded the thickness of the base
+#: material" (5 mm plate), read as a lower bound of 5.0 mm.
+SEED001_FIG10 = (
+    PenetrationObservation(commanded_depth=7e-3, penetration=4.2e-3),
+    PenetrationObservation(commanded_depth=8e-3, penetration=4.8e-3),
+    PenetrationObservation(commanded_depth=9e-3, penetration=5.0e-3, at_least=True),
+)
+
+#: Observed plunges a ``[process.coupling] calibration`` can name.
+PENETRATION_CALIBRATIONS: dict[str, tuple[PenetrationObservation, ...]] = {
+    "seed001_fig10": SEED001_FIG10,
+}
+
+
+def penetration_calibration(name: str) -> tuple[PenetrationObservation, ...]:
+    """Observed plunges of a bundled calibration by name.
+
+    Raises:
+        UnknownNameError: Lists the bundled calibration names.
+    """
+    try:
+        return PENETRATION_CALIBRATIONS[name]
+    except KeyError:
+        raise UnknownNameError("penetration calibration", name, PENETRATION_CALIBRATIONS
+                               ) from None

@@ -30,7 +30,8 @@ Units are in the key names (mm, deg, s, N, N m); SI inside. Layout::
 
     [process.coupling]                  # optional: co-simulation penetration law
     penetration_stiffness_N_per_mm, reference_penetration_mm, reference_force_N,
-    commanded_depth_mm
+    commanded_depth_mm                  # or calibration = "seed001_fig10" (law fitted to
+                                        # observed plunges, see fit_penetration_law)
 
     [window]
     lower_mm = -1.25                    # retreating side
@@ -63,11 +64,15 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError, UnknownNameError
-from rfsw_plan.process.cosim import PenetrationLaw
+from rfsw_plan.process.cosim import PenetrationLaw, PenetrationObservation
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 from rfsw_plan.process.frames import FloatArray, SeamFrames
 from rfsw_plan.process.plan_options import PlanOptions, options_from_table
-from rfsw_plan.process.presets import process_preset
+from rfsw_plan.process.presets import (
+    PENETRATION_CALIBRATIONS,
+    penetration_calibration,
+    process_preset,
+)
 from rfsw_plan.process.seam import INTERPOLATIONS, MAX_TILT_DEG, ROTATIONS, Seam
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
@@ -92,7 +97,9 @@ FORCE_KEYS = ("axial_N", "lateral_N", "traverse_N", "lateral_sign", "plunge_peak
               "dwell_lateral_fraction", "dwell_tau_s", "ramp_length_mm", "spindle_torque_Nm",
               "source")
 COUPLING_KEYS = ("penetration_stiffness_N_per_mm", "reference_penetration_mm",
-                 "reference_force_N", "commanded_depth_mm", "source")
+                 "reference_force_N", "commanded_depth_mm", "calibration", "source")
+#: Keys of an explicit penetration law (not allowed together with ``calibration``).
+LAW_KEYS = ("penetration_stiffness_N_per_mm", "reference_penetration_mm", "reference_force_N")
 WINDOW_KEYS = ("lower_mm", "upper_mm", "target_mm", "source")
 
 #: Largest |coordinate| of a seam point [mm] (100 m: beyond any robot cell).
@@ -111,13 +118,19 @@ class Coupling:
     """Co-simulation settings of a problem.
 
     Attributes:
-        law: Penetration law of the axial force.
+        law: Penetration law of the axial force, or None when it is fitted to
+            ``calibration`` at run time (it depends on the robot's compliance at the taught
+            seam start; see :func:`~rfsw_plan.process.cosim.fit_penetration_law`).
         commanded_depth: Commanded plunge depth [m] (seed 001: 8 mm for a 4.8 mm pin,
             the rest taken up by the robot's axial deflection).
+        calibration: Observed plunges the law is fitted to (empty with an explicit law).
+        calibration_name: Name of the bundled calibration (``seed001_fig10``), or "".
     """
 
-    law: PenetrationLaw
+    law: PenetrationLaw | None
     commanded_depth: float
+    calibration: tuple[PenetrationObservation, ...] = ()
+    calibration_name: str = ""
 
 
 @dataclass(frozen=True)
@@ -401,6 +414,19 @@ def _coupling(ctab: Table | None, proc: ProcessModel) -> Coupling | None:
     """``[process.coupling]``: the co-simulation penetration law, or None."""
     if ctab is None:
         return None
+    depth = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3, ge=1e-3, le=100.0) * 1e-3
+    if ctab.has("calibration"):
+        given = [k for k in LAW_KEYS if ctab.has(k)]
+        if given:
+            raise ctab.error(given[0], "given together with 'calibration'",
+                             "either calibration or an explicit law, not both")
+        name = ctab.str_("calibration")
+        if name not in PENETRATION_CALIBRATIONS:
+            raise ctab.error("calibration", f"unknown calibration '{name}'",
+                             ", ".join(PENETRATION_CALIBRATIONS))
+        ctab.str_("source", "")
+        return Coupling(law=None, commanded_depth=depth,
+                        calibration=penetration_calibration(name), calibration_name=name)
     law = PenetrationLaw(
         stiffness=ctab.num("penetration_stiffness_N_per_mm", ge=1.0, le=1e9) * 1e3,
         ref_penetration=ctab.num("reference_penetration_mm", proc.plunge_depth * 1e3,
@@ -408,7 +434,6 @@ def _coupling(ctab: Table | None, proc: ProcessModel) -> Coupling | None:
         ref_force=ctab.num("reference_force_N", proc.forces.axial, ge=0.0, le=MAX_FORCE_N),
     )
     ctab.str_("source", "")
-    depth = ctab.num("commanded_depth_mm", proc.plunge_depth * 1e3, ge=1e-3, le=100.0) * 1e-3
     return Coupling(law=law, commanded_depth=depth)
 
 

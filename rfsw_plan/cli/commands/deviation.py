@@ -79,8 +79,11 @@ def run(args: argparse.Namespace) -> int:
     print(_summary(problem, res))
     if fit_text:
         print(fit_text)
+    if res.penetration_fit is not None:
+        print(res.penetration_fit.summary())
     if res.cosim is not None:
         print(res.cosim.summary())
+        print(res.cosim_summary())
     print(f"wrote {', '.join(files)} to {out}")
     return 0
 
