@@ -31,7 +31,7 @@ from rfsw_plan.export.config import configs_near, fanuc_config, kuka_status_turn
 from rfsw_plan.export.fanuc_tp import read_tp, write_tp
 from rfsw_plan.export.krl import read_krl, write_krl
 from rfsw_plan.export.program import ProgramHeader, Samples, build_program
-from rfsw_plan.export.rapid import read_rapid
+from rfsw_plan.export.rapid import read_rapid, write_rapid
 from rfsw_plan.export.readback import ANG_TOL, POS_TOL, round_trip
 from rfsw_plan.robot.kinematics import load_robot
 
@@ -264,14 +264,18 @@ def _synthetic() -> tuple[object, Samples, ProgramHeader]:
     return robot, samples, header
 
 
-@pytest.mark.parametrize("name", ["rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls"])
+@pytest.mark.parametrize("name", ["rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls",
+                                  "rfsw_golden.mod"])
 def test_golden_files(tmp_path: Path, name: str) -> None:
-    """KRL and TP text of a fixed synthetic path equals the reviewed golden file."""
+    """KRL, TP and RAPID text of a fixed synthetic path equals the reviewed golden file, byte
+    for byte (the writers share the header, name and phase-comment helpers of
+    :mod:`rfsw_plan.export.program`)."""
     robot, samples, header = _synthetic()
     program = build_program(robot, samples, header)  # type: ignore[arg-type]
     write_krl(program, tmp_path)
     write_tp(program, tmp_path, stamp=datetime(2026, 1, 1, tzinfo=UTC))
-    assert (tmp_path / name).read_text() == (GOLDEN / name).read_text()
+    write_rapid(program, tmp_path)
+    assert (tmp_path / name).read_bytes() == (GOLDEN / name).read_bytes()
 
 
 def test_golden_round_trip_and_waits(tmp_path: Path) -> None:

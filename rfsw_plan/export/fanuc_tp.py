@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import fanuc_config
-from rfsw_plan.export.program import Program
+from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.io.files import write_text
 
@@ -40,6 +40,9 @@ UFRAME = 1
 UTOOL = 1
 #: Joint speed of the move to the approach point [%].
 J_PERCENT = 10
+#: Spindle placeholders (remarks) before the plunge and at the retract.
+SPINDLE_START = ("SPINDLE START placeholder:", " e.g. DO[1]=ON and WAIT DI[1]=ON")
+SPINDLE_STOP = ("SPINDLE STOP placeholder:", " e.g. DO[1]=OFF")
 
 
 def frame_to_xyzwpr(T: FloatArray) -> FloatArray:
@@ -69,10 +72,7 @@ def unwrap_wpr(wpr: FloatArray) -> FloatArray:
 
 def tp_name(name: str) -> str:
     """A valid TP program name (upper-case letters, digits, underscore; starts with a letter)."""
-    n = re.sub(r"[^A-Z0-9_]", "_", name.upper())
-    if not n[:1].isalpha():
-        n = "P" + n
-    return n[:36]
+    return controller_name(name, max_len=36, prefix="P", upper=True)
 
 
 def _speed(speed: float, duration: float) -> str:
@@ -93,8 +93,7 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     uf = frame_to_xyzwpr(program.work)
     ut = frame_to_xyzwpr(program.tool)
 
-    mn: list[str] = [f"! {line if len(line) <= 60 else '...' + line[-57:]}"
-                     for line in program.header.lines()]
+    mn = program.header.comments("! ", max_len=60)
     mn += [f"! UFRAME {UFRAME} = seam work object in world:",
            "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", uf, strict=True)),
            f"! UTOOL {UTOOL} = TCP in faceplate:",
@@ -103,11 +102,7 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
         if i in marks:
-            mn.append(f"! ---- phase: {marks[i]}")
-            if marks[i] == "plunge":
-                mn += ["! SPINDLE START placeholder:", "!  e.g. DO[1]=ON and WAIT DI[1]=ON"]
-            if marks[i] == "retract":
-                mn += ["! SPINDLE STOP placeholder:", "!  e.g. DO[1]=OFF"]
+            mn += phase_comments(marks[i], "!", SPINDLE_START, SPINDLE_STOP)
         p = f"P[{m.point + 1}]"
         if m.kind == "ptp":
             mn.append(f"J {p} {J_PERCENT}% FINE")

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import kuka_status_turn
-from rfsw_plan.export.program import Program
+from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.io.files import write_text
 
@@ -32,6 +32,12 @@ FloatArray = NDArray[np.float64]
 
 #: PTP axis speed and acceleration for the move to the approach point [%].
 PTP_PERCENT = 10
+#: Spindle placeholders (comments) before the plunge and at the retract.
+SPINDLE_START = ("SPINDLE START (placeholder): switch the spindle on and wait until it",
+                 "runs at the process speed before the plunge, e.g. $OUT[1] = TRUE",
+                 "WAIT FOR $IN[1]")
+SPINDLE_STOP = ("SPINDLE STOP (placeholder): after the pin has left the material,",
+                "e.g. $OUT[1] = FALSE")
 
 
 def frame_to_xyzabc(T: FloatArray) -> tuple[float, ...]:
@@ -70,10 +76,7 @@ def _frame(v: tuple[float, ...]) -> str:
 
 def krl_name(name: str) -> str:
     """A valid KRL module name (letters, digits, underscore; max 24; starts with a letter)."""
-    n = re.sub(r"[^A-Za-z0-9_]", "_", name)
-    if not n[:1].isalpha():
-        n = "P" + n
-    return n[:24]
+    return controller_name(name, max_len=24, prefix="P")
 
 
 def write_krl(program: Program, folder: str | Path) -> list[Path]:
@@ -82,7 +85,7 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
     folder = Path(folder)
     robot = program.robot
     dat = [f"&ACCESS RVP\n&REL 1\nDEFDAT {name} PUBLIC"]
-    dat += [f"; {line}" for line in program.header.lines()]
+    dat += program.header.comments("; ")
     for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
         s, t = kuka_status_turn(robot, q)
         v = frame_to_xyzabc(pose)
@@ -93,7 +96,7 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
     dat.append("ENDDAT")
 
     src = [f"&ACCESS RVP\n&REL 1\nDEF {name}( )", "  DECL INT I"]
-    src += [f"  ; {line}" for line in program.header.lines()]
+    src += program.header.comments("  ; ")
     src += [f"  $TOOL = {_frame(frame_to_xyzabc(program.tool))}  ; TCP in FLANGE",
             f"  $BASE = {_frame(frame_to_xyzabc(program.work))}  ; seam work object in ROBROOT",
             "  FOR I = 1 TO 6",
@@ -107,14 +110,7 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
     cdis: float | None = None
     for i, m in enumerate(program.motions):
         if i in marks:
-            src.append(f"  ; ---- phase: {marks[i]}")
-            if marks[i] == "plunge":
-                src += ["  ; SPINDLE START (placeholder): switch the spindle on and wait until it",
-                        "  ; runs at the process speed before the plunge, e.g. $OUT[1] = TRUE",
-                        "  ; WAIT FOR $IN[1]"]
-            if marks[i] == "retract":
-                src += ["  ; SPINDLE STOP (placeholder): after the pin has left the material,",
-                        "  ; e.g. $OUT[1] = FALSE"]
+            src += phase_comments(marks[i], "  ;", SPINDLE_START, SPINDLE_STOP)
         p = f"XP{m.point + 1}"
         if m.kind == "ptp":
             src.append(f"  PTP {p}  ; approach point, joint move")

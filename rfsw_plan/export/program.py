@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -139,6 +140,61 @@ class ProgramHeader:
             f"path within {self.path_tol * 1e3:.3g} mm of every verified sample",
             "lengths mm, angles deg, joints = controller axes",
         ]
+
+    def comments(self, marker: str, max_len: int | None = None) -> list[str]:
+        """The header as comment lines of a vendor language.
+
+        Args:
+            marker: Text before each line, e.g. ``"; "`` (KRL), ``"  ! "`` (RAPID).
+            max_len: Longest line text (without the marker); a longer one keeps its end,
+                prefixed with ``...`` (FANUC TP remarks). None: no limit.
+        """
+        out = []
+        for line in self.lines():
+            if max_len is not None and len(line) > max_len:
+                line = "..." + line[3 - max_len:]
+            out.append(marker + line)
+        return out
+
+
+def controller_name(name: str, *, max_len: int, prefix: str, upper: bool = False) -> str:
+    """A program or module name a controller accepts.
+
+    Every character other than a letter, digit or underscore becomes ``_``; a name that does
+    not start with a letter gets ``prefix``; the result is cut to ``max_len`` characters.
+
+    Args:
+        name: The requested name.
+        max_len: The vendor's longest name (KRL 24, RAPID 32, FANUC TP 36).
+        prefix: Prepended when the name does not start with a letter.
+        upper: Upper-case only (FANUC TP).
+    """
+    n = re.sub(r"[^A-Z0-9_]" if upper else r"[^A-Za-z0-9_]", "_",
+               name.upper() if upper else name)
+    if not n[:1].isalpha():
+        n = prefix + n
+    return n[:max_len]
+
+
+def phase_comments(phase: str, marker: str, spindle_start: tuple[str, ...],
+                   spindle_stop: tuple[str, ...]) -> list[str]:
+    """Comment lines that open a phase in a program.
+
+    The phase mark, then before the plunge the spindle start placeholder and at the retract the
+    spindle stop placeholder (vendor text, one comment line each).
+
+    Args:
+        phase: The phase that starts.
+        marker: Comment marker with its indentation, e.g. ``"  ;"`` (KRL).
+        spindle_start: Placeholder text lines before the plunge.
+        spindle_stop: Placeholder text lines at the retract.
+    """
+    out = [f"{marker} ---- phase: {phase}"]
+    if phase == "plunge":
+        out += [f"{marker} {t}" for t in spindle_start]
+    if phase == "retract":
+        out += [f"{marker} {t}" for t in spindle_stop]
+    return out
 
 
 @dataclass(frozen=True)

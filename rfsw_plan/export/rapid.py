@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import abb_confdata
-from rfsw_plan.export.program import Program
+from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.io.files import write_text
 
@@ -34,6 +34,10 @@ FloatArray = NDArray[np.float64]
 
 #: Joint-move speed to the approach point.
 MOVEJ_SPEED = "v100"
+#: Spindle placeholders (comments) before the plunge and at the retract.
+SPINDLE_START = ("SPINDLE START placeholder: e.g. SetDO doSpindle, 1;",
+                 "WaitDI diSpindleAtSpeed, 1;")
+SPINDLE_STOP = ("SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;",)
 
 
 def quat_wxyz(R: FloatArray) -> FloatArray:
@@ -52,10 +56,7 @@ def _pose(T: FloatArray) -> str:
 
 def rapid_name(name: str) -> str:
     """A valid RAPID identifier (letters, digits, underscore; max 32; starts with a letter)."""
-    n = re.sub(r"[^A-Za-z0-9_]", "_", name)
-    if not n[:1].isalpha():
-        n = "m" + n
-    return n[:32]
+    return controller_name(name, max_len=32, prefix="m")
 
 
 def write_rapid(program: Program, folder: str | Path) -> list[Path]:
@@ -63,7 +64,7 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
     name = rapid_name(program.header.name)
     robot = program.robot
     out = ["%%%", "  VERSION:1", "  LANGUAGE:ENGLISH", "%%%", "", f"MODULE {name}"]
-    out += [f"  ! {line}" for line in program.header.lines()]
+    out += program.header.comments("  ! ")
     out += [f"  PERS tooldata tFSW := [TRUE,{_pose(program.tool)},"
             "[1,[0,0,1],[1,0,0,0],0,0,0]];  ! load data: placeholder, enter the spindle's",
             f"  PERS wobjdata wSeam := [FALSE,TRUE,\"\",{_pose(program.work)},"
@@ -92,12 +93,7 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
         if i in marks:
-            out.append(f"    ! ---- phase: {marks[i]}")
-            if marks[i] == "plunge":
-                out += ["    ! SPINDLE START placeholder: e.g. SetDO doSpindle, 1;",
-                        "    ! WaitDI diSpindleAtSpeed, 1;"]
-            if marks[i] == "retract":
-                out.append("    ! SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;")
+            out += phase_comments(marks[i], "    !", SPINDLE_START, SPINDLE_STOP)
         p = f"p{m.point + 1}"
         if m.kind == "ptp":
             out.append(f"    MoveJ {p},{MOVEJ_SPEED},fine,tFSW\\WObj:=wSeam;")

@@ -6,7 +6,6 @@ browser without network. Matplotlib is imported lazily (Agg backend).
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 import math
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.io.files import atomic_path, write_text
+from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
 
 #: At most this many points are drawn per scatter plot (a seeded random subset).
@@ -321,31 +321,6 @@ def next_command(result: ValidationResult, argv: list[str] | None) -> str:
     return ""
 
 
-def _table(header: list[str], rows: list[list[str]]) -> str:
-    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
-    body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows
-    )
-    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def _img(path: Path, alt: str) -> str:
-    data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}"></figure>'
-
-
-_CSS = """
-body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
-table{border-collapse:collapse;margin:0.5em 0 1em}
-td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;white-space:nowrap}
-pre{background:#f4f4f4;padding:0.6em;overflow-x:auto}
-th{background:#eee}td:first-child{text-align:left}
-.verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
-.adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
-img{max-width:100%}figure{margin:0.5em 0}
-"""
-
-
 def render_html(result: ValidationResult, plots: dict[str, Path],
                 argv: list[str] | None = None, wall_seconds: float | None = None) -> str:
     """The report as one self-contained HTML string (plots inline).
@@ -362,9 +337,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
     an = result.analysis
     noise = dg.noise
     parts: list[str] = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
-        f"<title>rfsw-plan validate: {html.escape(result.robot)}</title>",
-        f"<style>{_CSS}</style></head><body>",
+        *page_head(f"rfsw-plan validate: {result.robot}"),
         f"<h1>Model against measurement: {html.escape(result.robot)}</h1>",
         f"<p>Data: {html.escape(result.data_source)} ({an.n_samples} samples, "
         f"{an.n_observations} measured values). Model effects: "
@@ -374,7 +347,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         f"{html.escape(dg.message.removeprefix(f'{dg.verdict}: '))}</p>",
         *_next_step_html(result, argv),
         "<h2>Summary</h2>",
-        _table(
+        table(
             ["quantity", "value [mm]"],
             [
                 ["RMS residual of the model (all samples)", _f(result.rms)],
@@ -392,7 +365,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         units = _param_units(result)
         parts += [
             "<h2>Adding effects and re-identifying</h2>",
-            _table(
+            table(
                 ["model", "held-out RMS [mm]", "RMS all samples [mm]"],
                 [
                     [", ".join(ad.before.labels), _f(ad.before.heldout_rms), _f(ad.rms_before)],
@@ -403,7 +376,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         if ad.not_added:
             parts.append("<p>Not fitted: " + html.escape(
                 "; ".join(f"{s.label}: {s.reason}" for s in ad.not_added)) + "</p>")
-        parts.append(_table(
+        parts.append(table(
             ["effect", "parameter", "value [SI]", "unit", "engineering", "std error",
              "prior [SI]", "note"],
             [[e.effect, e.name, _num(e.value), units.get((e.effect, e.name), ""),
@@ -411,13 +384,13 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
               _num(e.std_error), _num(e.prior), e.note] for e in ad.after.fit.estimates],
         ))
         if "before_after" in plots:
-            parts.append(_img(plots["before_after"], "held-out RMS before and after"))
+            parts.append(figure(plots["before_after"], "held-out RMS before and after"))
     parts += [
         "<h2>Diagnosis: candidate effects</h2>",
         "<p>Each effect is added to the current model, all parameters are re-identified on "
         "the training folds and the model is scored on the held-out fold. Significant = the "
         "held-out improvement passes an F test at the strict level (noise alone does not).</p>",
-        _table(
+        table(
             ["effect", "joint", "held-out RMS after [mm]", "explained fraction", "p-value",
              "significant", "note"],
             [[c.effect, "-" if c.joint is None else str(c.joint), _f(c.rms_after),
@@ -428,39 +401,39 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         ),
     ]
     if "candidates" in plots:
-        parts.append(_img(plots["candidates"], "candidates"))
+        parts.append(figure(plots["candidates"], "candidates"))
     if dg.chain:
-        parts.append(_table(
+        parts.append(table(
             ["step", "effect added", "held-out RMS before [mm]", "after [mm]"],
             [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after)]
              for i, s in enumerate(dg.chain)],
         ))
     if dg.skipped:
         parts += ["<h3>Not identifiable from this data (not fitted)</h3>",
-                  _table(["effect", "reason"], [[s.label, s.reason] for s in dg.skipped])]
+                  table(["effect", "reason"], [[s.label, s.reason] for s in dg.skipped])]
     parts += [
         "<h2>What the residual correlates with</h2>",
         "<p>Share of the held-out residual explained by each feature (cubic fit for a "
         "scalar, quadratic for a vector). A strong feature outside the library (time, "
         "temperature) points at physics the model lacks.</p>",
-        _table(
+        table(
             ["feature", "R^2", "adjusted R^2", "p-value", "significant", "what"],
             [[c.feature, f"{c.r2:.3f}", f"{c.adj_r2:.3f}", f"{c.p_value:.2g}",
               "yes" if c.significant else "no", c.description] for c in dg.correlations],
         ),
     ]
     if "correlations" in plots:
-        parts.append(_img(plots["correlations"], "correlations"))
+        parts.append(figure(plots["correlations"], "correlations"))
     parts += [
         "<h2>Where the model fails</h2>",
         "<h3>Per axis and per direction</h3>",
-        _table(
+        table(
             ["axis", "n", "RMS [mm]", "mean [mm]", "max |r| [mm]"],
             [[a.name, str(a.n), _f(a.rms), _f(a.mean), _f(a.max_abs)]
              for a in (*an.per_axis, *an.per_direction)],
         ),
         "<h3>Per joint</h3>",
-        _table(
+        table(
             ["joint", "torque range [kN m]", "R^2 torque", "R^2 angle", "R^2 joint motion",
              "RMS tau>0 [mm]", "RMS tau<0 [mm]"],
             [[str(j.joint), f"{j.tau_min / 1e3:.3g} .. {j.tau_max / 1e3:.3g}",
@@ -476,10 +449,10 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         ("residual_vs_time", "residual against time"),
     ):
         if name in plots:
-            parts.append(_img(plots[name], alt))
+            parts.append(figure(plots[name], alt))
     secs = result.seconds if wall_seconds is None else wall_seconds
     what = "validation" if wall_seconds is None else "whole command, up to this report"
-    parts.append(f"<p><small>Wall time: {secs:.1f} s ({what}).</small></p></body></html>")
+    parts.append(f"<p><small>Wall time: {secs:.1f} s ({what}).</small></p>{PAGE_END}")
     return "\n".join(parts)
 
 

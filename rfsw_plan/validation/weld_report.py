@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.io.files import atomic_path, write_json, write_text
-from rfsw_plan.validation.report import _CSS, _img, _table
+from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.weld import PARAM_CHANGE, WeldValidation
 
 #: PNG size: 13 x 7.5 in at 110 dpi = 1430 x 825 px.
@@ -103,9 +103,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
     js = result.to_json()
     e = html.escape
     parts: list[str] = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'>",
-        f"<title>rfsw-plan validate-weld: {e(result.plan.problem.name)}</title>",
-        f"<style>{_CSS}</style></head><body>",
+        *page_head(f"rfsw-plan validate-weld: {result.plan.problem.name}"),
         f"<h1>Trial weld against the plan: {e(result.plan.problem.name)}</h1>",
         f"<p>Plan {e(str(result.plan.folder))}, robot {e(result.model.robot.name)} (effects "
         f"{e(', '.join(result.model.labels))}); forces: {e(result.forces_source)}; track: "
@@ -117,7 +115,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
         f"{e(dg.message.removeprefix(f'{dg.verdict}: '))}</p>",
         f"<p><b>Next:</b> <code>{e(next_cmd)}</code></p>",
         "<h2>Measured against predicted</h2>",
-        _table(["quantity", "value"], [
+        table(["quantity", "value"], [
             ["measured weld inside the window (share of the measured length)",
              f"{100 * js['measured_inside_window_fraction']:.1f} %"],
             ["predicted inside the window",
@@ -126,7 +124,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
             ["lateral residual max |.| [mm]", _mm(float(np.max(np.abs(result.residual_lat))))],
             ["noise floor (successive differences) [mm]", _mm(dg.sigma)],
         ]),
-        *(_img(p, k) for k, p in plots.items()),
+        *(figure(p, k) for k, p in plots.items()),
         "<h2>What this weld can identify</h2>",
         f"<p>{e(dg.identifiability.text()).replace(chr(10), '<br>')}</p>",
         "<p>A straight weld at one pose sees only a few directions of the compliance: the "
@@ -134,7 +132,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
         "second weld at another pose or direction, or a load campaign (<code>rfsw-plan "
         "validate</code>), separates them.</p>",
         "<h2>Candidates</h2>",
-        _table(["candidate", "held-out RMS [mm]", "RMS [mm]", "F", "significant",
+        table(["candidate", "held-out RMS [mm]", "RMS [mm]", "F", "significant",
                 "identifiable", "tells from best", "fitted"],
                [[c.label, _mm(c.heldout_rms), _mm(c.rms), f"{c.F:.3g}",
                  "yes" if c.significant else "no", "yes" if c.identifiable else "no",
@@ -148,7 +146,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
     ]
     if result.add is not None:
         a = result.add
-        parts += ["<h2>Re-identified (--add)</h2>", _table(
+        parts += ["<h2>Re-identified (--add)</h2>", table(
             ["quantity", "value"],
             [["added", ", ".join(a.labels)],
              ["RMS before / after [mm]", f"{_mm(a.rms_before)} / {_mm(a.rms_after)}"],
@@ -158,7 +156,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
     if result.notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{e(n)}</li>" for n in result.notes)
                      + "</ul>")
-    parts.append("</body></html>")
+    parts.append(PAGE_END)
     return "\n".join(parts)
 
 

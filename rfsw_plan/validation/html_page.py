@@ -1,0 +1,51 @@
+"""The self-contained HTML page the validation reports share (``validate``, ``validate-weld``).
+
+One stylesheet, one page head and foot, tables and inline PNG figures: every page opens in a
+browser without network (no external resource, plots as base64 data URIs).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+#: The reports' stylesheet (verdict classes: adequate, missing, unexplained, undetermined).
+CSS = """
+body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
+table{border-collapse:collapse;margin:0.5em 0 1em}
+td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;white-space:nowrap}
+pre{background:#f4f4f4;padding:0.6em;overflow-x:auto}
+th{background:#eee}td:first-child{text-align:left}
+.verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
+.adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
+img{max-width:100%}figure{margin:0.5em 0}
+"""
+
+#: Closes the page opened by :func:`page_head`.
+PAGE_END = "</body></html>"
+
+
+def page_head(title: str) -> list[str]:
+    """The page's opening lines up to and including ``<body>`` (``title`` is escaped)."""
+    return ["<!DOCTYPE html><html><head><meta charset='utf-8'>",
+            f"<title>{html.escape(title)}</title>",
+            f"<style>{CSS}</style></head><body>"]
+
+
+def table(header: list[str], rows: list[list[str]]) -> str:
+    """An HTML table; every header and cell text is escaped."""
+    head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows
+    )
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def figure(path: Path, alt: str) -> str:
+    """A figure with the PNG at ``path`` inline (base64 data URI)."""
+    data = base64.b64encode(path.read_bytes()).decode("ascii")
+    return f'<figure><img alt="{html.escape(alt)}" src="data:image/png;base64,{data}"></figure>'
+
+
+__all__ = ["CSS", "PAGE_END", "figure", "page_head", "table"]
