@@ -34,8 +34,9 @@
   Shape preservation is what keeps the pin in place: between two stationary waypoints every
   offset and force component stays between the two waypoints' values (no overshoot). A
   clamped cubic spline through the same knots (what this module used first) overshoots
-  between knots with very different spacing and swung the commanded TCP of fanuc_butt_1700mm by 15 mm in x and 25 mm in y during a 3.1 kN dwell (296 samples outside the
-  window), while the planned dwell waypoints moved q1 by 0.005 deg.
+  between knots with very different spacing and swung the commanded TCP of fanuc_butt_1700mm
+  by 15 mm in x and 25 mm in y during a 3.1 kN dwell (296 samples outside the window),
+  while the planned dwell waypoints moved q1 by 0.005 deg.
 
 Every sample is then checked against the joint velocity, acceleration and jerk limits
 (derivatives by finite differences on the sampled joint path).
