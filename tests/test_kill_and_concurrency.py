@@ -35,6 +35,9 @@ import rfsw_plan.io.waypoints as wp
 from rfsw_plan.cli.main import main
 
 mode, sig, flag = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+# A child started from a background job inherits SIGINT ignored (POSIX shells without job
+# control); a user's foreground Ctrl-C reaches Python's default handler, so restore it.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 if mode == "row":
     orig_fmt, n = wp._fmt, [0]
     def fmt(v):
