@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.elastostatics.effects import EFFECTS
+from rfsw_plan.elastostatics.effects import EFFECTS, PoseBatch
 from rfsw_plan.elastostatics.identification import identify, residuals, rms
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, UnknownNameError
@@ -18,6 +18,7 @@ from rfsw_plan.validation.campaign import (
     LIMIT_MARGIN_DEG,
     THERMAL_DRIFT,
     TOOL_DOWN_DEG,
+    campaign_poses,
     campaign_wrenches,
     parse_hidden,
     run_campaign,
@@ -120,6 +121,41 @@ def test_randomised_hidden_effect_is_visible_and_identifiable(label: str) -> Non
     rms_after = rms(residuals(after, data.subset(~train))) * 1e3
     assert rms_after <= 1.2 * noise, (rms_before, rms_after)
     assert rms_before >= 1.5 * noise, (rms_before, rms_after)
+
+
+@pytest.mark.parametrize("robot_name", ["zk500", "fanuc_s900ib_400", "kuka_kr600_r2830"])
+def test_every_effect_draws_complete_finite_in_range_non_zero_plausible_params(
+    robot_name: str
+) -> None:
+    """The effect contract's plausible_params, for every registered effect on every joint:
+    all parameters, finite, physically possible, and an effect that is not a no-op on the
+    campaign (a hidden effect of size zero would hide nothing)."""
+    robot = load_robot(robot_name)
+    rng = np.random.default_rng(3)
+    q = np.repeat(campaign_poses(robot, 12, rng), 4, axis=0)
+    wrench = campaign_wrenches(12, 4, rng)
+    batch = PoseBatch.from_q(robot, q)
+    for cls in EFFECTS.values():
+        for joint in range(robot.nq) if cls.per_joint else [None]:
+            eff = cls(robot, joint)
+            params = eff.plausible_params(batch, wrench, rng)
+            assert tuple(params) == eff.param_names(), eff.label
+            for k, v in params.items():
+                lo, hi = eff.param_range(k)
+                assert np.isfinite(v) and lo <= v <= hi, (eff.label, k, v, lo, hi)
+            theta = cls(robot, joint, params).params
+            assert np.any(theta != 0), eff.label
+            assert np.max(np.abs(eff.contribution(batch, wrench, theta))) > 0, eff.label
+
+
+@pytest.mark.parametrize("label", ["device_registration", "marker_offset"])
+def test_hidden_setup_effect_is_not_a_silent_no_op(label: str) -> None:
+    """A randomised hidden registration error or marker offset moves the measured points
+    (before the effect contract both had an all-zero prior and hid nothing)."""
+    noise = 0.01
+    res = run_campaign("zk500", [label], poses=20, loads_per_pose=4, noise_mm=noise, seed=4)
+    assert any(v != 0 for v in res.hidden[label].values())
+    assert res.contribution_rms_mm[label] >= 10 * noise * 0.99
 
 
 def test_complementary_stiffness_keeps_its_physical_gain() -> None:

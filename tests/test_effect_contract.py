@@ -49,6 +49,10 @@ def new_effects() -> Iterator[tuple[type[ComplianceEffect], type[WrenchEffect]]]
         def prior(self) -> FloatArray:
             return np.array([1e-7])
 
+        def plausible_params(self, batch: PoseBatch, wrench: FloatArray,
+                             rng: np.random.Generator) -> dict[str, float]:
+            return {"c_b": 1e-7 * rng.uniform(0.5, 2.0)}
+
         def joint_springs(self) -> FloatArray:
             return BEND_AXIS[None, :] / np.linalg.norm(BEND_AXIS)
 
@@ -83,6 +87,10 @@ def new_effects() -> Iterator[tuple[type[ComplianceEffect], type[WrenchEffect]]]
 
         def prior(self) -> FloatArray:
             return np.array([0.0])
+
+        def plausible_params(self, batch: PoseBatch, wrench: FloatArray,
+                             rng: np.random.Generator) -> dict[str, float]:
+            return {"f": rng.uniform(50.0, 300.0)}
 
         def wrench_regressor(self, batch: PoseBatch, wrench: FloatArray,
                              theta: FloatArray) -> FloatArray:
@@ -128,7 +136,7 @@ def test_the_bases_enforce_their_methods(robot: Robot) -> None:
                        theta: FloatArray) -> FloatArray:
             return np.zeros((len(batch), 6))
 
-    with pytest.raises(TypeError, match="deflection_regressor"):
+    with pytest.raises(TypeError, match="deflection_regressor, plausible_params"):
         Incomplete(robot)  # type: ignore[abstract]
     assert "Incomplete" not in {c.__name__ for c in EFFECTS.values()}
 

@@ -28,9 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.effects import EFFECTS, Effect, PoseBatch, parse_effect_label
+from rfsw_plan.elastostatics.effects import EFFECTS, PoseBatch, parse_effect_label
 from rfsw_plan.elastostatics.effects.base import FloatArray
-from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TAU_REF_NM
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, UnknownNameError, UnreachableError
@@ -211,50 +210,6 @@ def campaign_wrenches(
     return W.reshape(n_poses * M, 6)
 
 
-# -- plausible hidden parameters ----------------------------------------------------------------
-def _plausible_params(
-    eff: Effect, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
-) -> dict[str, float]:
-    """Random physically plausible parameters of a library effect (before visibility)."""
-    robot = eff.robot
-    j = eff.joint
-    name = eff.name
-    if name == "complementary_stiffness":
-        return {"gain": 1.0}  # the physics itself
-    if name == "tilting_compliance":
-        assert j is not None
-        c = 0.25 / float(robot.stiffness[j])
-        return {"c_t1": c * rng.uniform(0.5, 2.0), "c_t2": c * rng.uniform(0.5, 2.0)}
-    if name == "torque_dependent_stiffness":
-        assert j is not None
-        tau = np.einsum("ma,ma->m", batch.J[:, :, j], wrench)
-        s90 = max(float(np.percentile(np.abs(tau), 90)) / TAU_REF_NM, 1e-6)
-        linear = s90 * TAU_REF_NM / float(robot.stiffness[j])  # linear deflection at s90 [rad]
-        sign = rng.choice([-1.0, 1.0], size=2)
-        return {"d2": sign[0] * rng.uniform(0.1, 0.3) * linear / s90**2,
-                "d3": sign[1] * rng.uniform(0.1, 0.3) * linear / s90**3}
-    if name == "joint_backlash":
-        return {"b": float(np.radians(rng.uniform(0.5, 2.0) / 60.0))}  # 0.5-2 arcmin
-    if name == "payload_gravity":
-        m = rng.uniform(80.0, 200.0)
-        r = np.array([rng.normal(0, 0.02), rng.normal(0, 0.02), -rng.uniform(0.15, 0.35)])
-        return {"m": m, "m_rx": m * r[0], "m_ry": m * r[1], "m_rz": m * r[2]}
-    if name == "sensor_misalignment":
-        u = rng.normal(size=3)
-        phi = u / np.linalg.norm(u) * np.radians(rng.uniform(1.0, 3.0))
-        return dict(zip(eff.param_names(), phi.tolist(), strict=True))
-    if name == "force_sensor_bias":
-        b = np.concatenate([rng.normal(0, 150.0, 3), rng.normal(0, 15.0, 3)])
-        return dict(zip(eff.param_names(), b.tolist(), strict=True))
-    if name == "kinematic_offsets":
-        v = np.concatenate([rng.normal(0, np.radians(0.01), robot.nq), rng.normal(0, 3e-4, 3)])
-        return dict(zip(eff.param_names(), v.tolist(), strict=True))
-    # A library effect this module does not know: perturb its prior.
-    prior = eff.prior()
-    return dict(zip(eff.param_names(), (prior * rng.uniform(0.5, 2.0, prior.size)).tolist(),
-                    strict=True))
-
-
 def _positions(model: ElastostaticModel, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
     return batch.T[:, :3, 3] + model.deflection_batch(batch, wrench)[:, :3]
 
@@ -283,9 +238,11 @@ def run_campaign(
             truth is its elastostatic model (with the effects in its description) plus
             ``hidden``.
         hidden: Hidden effects as (label, params or None) or ``"label[=k:v,...]"`` strings;
-            None draws random plausible values (scaled up, if needed, to at least
-            :data:`VISIBILITY_FACTOR` x noise RMS; Kc keeps its physical gain 1). Given params
-            are SI; missing ones take the effect's prior.
+            None draws the effect's random plausible values
+            (:meth:`~rfsw_plan.elastostatics.effects.Effect.plausible_params`), scaled up, if
+            needed, to at least :data:`VISIBILITY_FACTOR` x noise RMS unless the physics fixes
+            their size (:attr:`~rfsw_plan.elastostatics.effects.Effect.fixed_size`: Kc keeps
+            its gain 1). Given params are SI; missing ones take the effect's prior.
         poses: Number of poses N.
         loads_per_pose: Samples per pose M (>= 1), see the module docstring.
         noise_mm: 1-sigma position noise per axis [mm].
@@ -339,9 +296,9 @@ def run_campaign(
         randomised = params is None
         eff = cls(robot, joint, params)
         if randomised:
-            eff = cls(robot, joint, _plausible_params(eff, batch, wrench, rng))
+            eff = cls(robot, joint, eff.plausible_params(batch, wrench, rng))
         truth = ElastostaticModel(robot, [*truth.effects, eff])
-        if randomised and cls.name != "complementary_stiffness":
+        if randomised and not cls.fixed_size:
             truth = _make_visible(truth, lab, batch, wrench, visible_mm)
         used[lab] = next(e for e in truth.effects if e.label == lab).param_dict()
 

@@ -97,8 +97,8 @@ class Effect(abc.ABC):
 
     Do not subclass :class:`Effect` directly: derive from :class:`ComplianceEffect`,
     :class:`WrenchEffect` or :class:`GeometricEffect`, set the class attributes and implement
-    :meth:`param_names`, :meth:`prior` and the abstract methods of that base. A concrete
-    subclass with a :attr:`name` registers itself in :data:`EFFECTS`.
+    :meth:`param_names`, :meth:`prior`, :meth:`plausible_params` and the abstract methods of that
+    base. A concrete subclass with a :attr:`name` registers itself in :data:`EFFECTS`.
 
     Args:
         robot: The robot the effect belongs to (for joint count and priors).
@@ -133,6 +133,10 @@ class Effect(abc.ABC):
     setup: ClassVar[bool] = False
     #: True if the effect moves the TCP at zero logged wrench (set by the three bases).
     load_independent: ClassVar[bool]
+    #: True if the physics fixes the effect's size (complementary stiffness: gain 1 is the
+    #: geometry of the loaded arm, not a parameter to be found): a simulated campaign keeps its
+    #: :meth:`plausible_params` as they are instead of scaling them up until visible.
+    fixed_size: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -203,6 +207,24 @@ class Effect(abc.ABC):
     @abc.abstractmethod
     def prior(self) -> FloatArray:
         """Prior (default) parameter values [SI], shape (p,)."""
+
+    @abc.abstractmethod
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """Random, physically plausible parameters of this effect on a real cell [SI].
+
+        What a simulated load campaign hides in its truth model when the user gives no values
+        (:func:`rfsw_plan.validation.campaign.run_campaign`). Every name of
+        :meth:`param_names` is present, every value is finite and inside :meth:`param_range`,
+        and the effect is not a no-op: a hidden effect of size zero would be a campaign that
+        silently hides nothing. Load-dependent effects may size themselves on the campaign.
+
+        Args:
+            batch: The campaign's poses.
+            wrench: The logged wrenches [N, N m], base frame, shape (m, 6).
+            rng: Random generator (the campaign's, so a seed reproduces the campaign).
+        """
 
     def param_dict(self, theta: FloatArray | None = None) -> dict[str, float]:
         """Parameters as a name -> value mapping (current values unless theta given)."""

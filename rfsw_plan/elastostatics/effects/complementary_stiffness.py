@@ -105,6 +105,7 @@ class ComplementaryStiffness(ComplianceEffect):
         "The loaded arm changes its geometry as the joints deflect, which changes the lever "
         "arms of the load (the complementary stiffness Kc of seed 000 eq. 6)."
     )
+    fixed_size = True
 
     #: Gain g [-]: 1 is the physics; identification may move it, never by an order.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"gain": (-10.0, 10.0)}
@@ -114,6 +115,12 @@ class ComplementaryStiffness(ComplianceEffect):
 
     def prior(self) -> FloatArray:
         return np.ones(1)
+
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """The physics itself, g = 1 (:attr:`fixed_size`: never scaled to be visible)."""
+        return {"gain": 1.0}
 
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray

@@ -10,6 +10,13 @@ import numpy as np
 from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch
 
 
+def _random_direction(rng: np.random.Generator) -> FloatArray:
+    """A unit vector in a uniformly random direction, shape (3,)."""
+    u = rng.normal(size=3)
+    out: FloatArray = u / np.linalg.norm(u)
+    return out
+
+
 class DeviceRegistration(GeometricEffect):
     """Small rigid motion of the measured points: the device->base registration's error.
 
@@ -31,6 +38,11 @@ class DeviceRegistration(GeometricEffect):
         "measured point is off by the same small rotation and translation."
     )
     setup = True
+    #: A small correction: rotations [rad] within +-0.5 rad (the first-order model omega x p
+    #: holds only for small angles), translations [m] within +-1 m.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {"wx": (-0.5, 0.5), "wy": (-0.5, 0.5), "wz": (-0.5, 0.5),
+         "tx": (-1.0, 1.0), "ty": (-1.0, 1.0), "tz": (-1.0, 1.0)})
     param_units: ClassVar[Mapping[str, str]] = (
         {"wx": "rad", "wy": "rad", "wz": "rad", "tx": "m", "ty": "m", "tz": "m"})
 
@@ -39,6 +51,15 @@ class DeviceRegistration(GeometricEffect):
 
     def prior(self) -> FloatArray:
         return np.zeros(6)
+
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """A registration off by 0.005-0.02 deg about a random axis and 0.05-0.3 mm along a
+        random direction (a laser tracker registered on a few reference nests)."""
+        return dict(zip(self.param_names(), [
+            *(_random_direction(rng) * np.radians(rng.uniform(0.005, 0.02))).tolist(),
+            *(_random_direction(rng) * rng.uniform(0.05e-3, 0.3e-3)).tolist()], strict=True))
 
     def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         p = batch.T[:, :3, 3]
@@ -68,6 +89,9 @@ class MarkerOffset(GeometricEffect):
     )
     setup = True
 
+    #: Marker offset [m]: within +-1 m of the TCP.
+    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
+        {"dx": (-1.0, 1.0), "dy": (-1.0, 1.0), "dz": (-1.0, 1.0)})
     param_units: ClassVar[Mapping[str, str]] = {"dx": "m", "dy": "m", "dz": "m"}
 
     def param_names(self) -> tuple[str, ...]:
@@ -75,6 +99,14 @@ class MarkerOffset(GeometricEffect):
 
     def prior(self) -> FloatArray:
         return np.zeros(3)
+
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """The marker 0.5-5 mm from where the set-up assumes it, in a random direction (a
+        reflector nest fixed on the spindle by hand, not measured)."""
+        dc = _random_direction(rng) * rng.uniform(0.5e-3, 5e-3)
+        return dict(zip(self.param_names(), dc.tolist(), strict=True))
 
     def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
         out = np.zeros((len(batch), 6, 3))

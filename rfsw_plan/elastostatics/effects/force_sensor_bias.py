@@ -41,6 +41,13 @@ class ForceSensorBias(WrenchEffect):
     def prior(self) -> FloatArray:
         return np.zeros(6)
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """Offsets of ~150 N and ~15 N m per axis (1-sigma; a bad tare of a large sensor)."""
+        b = np.concatenate([rng.normal(0, 150.0, 3), rng.normal(0, 15.0, 3)])
+        return dict(zip(self.param_names(), b.tolist(), strict=True))
+
     def wrench_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:

@@ -46,6 +46,12 @@ class JointBacklash(ComplianceEffect):
     def prior(self) -> FloatArray:
         return np.zeros(1)
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """Lost motion of 0.5-2 arcmin (a worn or loosely preloaded heavy-duty gear)."""
+        return {"b": float(np.radians(rng.uniform(0.5, 2.0) / 60.0))}
+
     def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
         assert self.joint is not None

@@ -47,6 +47,15 @@ class JointCompliance(ComplianceEffect):
     def prior(self) -> FloatArray:
         return 1.0 / np.asarray(self.robot.stiffness, dtype=float)
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """The catalogue compliances, each off by a factor 0.5-2 (measured joint stiffnesses
+        differ from the catalogue by tens of percent)."""
+        lo, hi = self.param_ranges["c"]
+        c = np.clip(self.prior() * rng.uniform(0.5, 2.0, self.robot.nq), lo, hi)
+        return dict(zip(self.param_names(), c.tolist(), strict=True))
+
     @staticmethod
     def torques(batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """Joint torques J^T F plus the links' own weight (:meth:`Robot.gravity_torque`,

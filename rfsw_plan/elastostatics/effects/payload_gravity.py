@@ -52,6 +52,15 @@ class PayloadGravity(WrenchEffect):
     def prior(self) -> FloatArray:
         return np.array([PRIOR_MASS_KG, *(PRIOR_MASS_KG * np.asarray(PRIOR_COM_M))])
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """An FSW spindle of 80-200 kg, its centre of mass 0.15-0.35 m behind the TCP on the
+        tool axis within ~2 cm (tool frame)."""
+        m = rng.uniform(80.0, 200.0)
+        r = np.array([rng.normal(0, 0.02), rng.normal(0, 0.02), -rng.uniform(0.15, 0.35)])
+        return {"m": m, "m_rx": m * r[0], "m_ry": m * r[1], "m_rz": m * r[2]}
+
     def wrench_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:

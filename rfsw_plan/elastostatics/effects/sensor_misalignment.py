@@ -73,6 +73,14 @@ class SensorMisalignment(WrenchEffect):
     def prior(self) -> FloatArray:
         return np.zeros(3)
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """A sensor turned by 1-3 deg about a random axis (a misindexed mounting flange)."""
+        u = rng.normal(size=3)
+        phi = u / np.linalg.norm(u) * np.radians(rng.uniform(1.0, 3.0))
+        return dict(zip(self.param_names(), phi.tolist(), strict=True))
+
     def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
         Rt = batch.T[:, :3, :3]

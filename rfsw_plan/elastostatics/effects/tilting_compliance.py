@@ -49,6 +49,14 @@ class TiltingCompliance(ComplianceEffect):
         assert self.joint is not None
         return np.full(2, 0.25 / float(self.robot.stiffness[self.joint]))
 
+    def plausible_params(
+        self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
+    ) -> dict[str, float]:
+        """Each tilting compliance 0.5-2 times the prior (1/4 of the joint's compliance)."""
+        lo, hi = self.param_ranges["c_t"]
+        c = np.clip(self.prior() * rng.uniform(0.5, 2.0, 2), lo, hi)
+        return dict(zip(self.param_names(), c.tolist(), strict=True))
+
     def tilt_twists(self, batch: PoseBatch) -> FloatArray:
         """TCP twists of unit tilts about t1 and t2, base frame, shape (m, 6, 2)."""
         assert self.joint is not None
