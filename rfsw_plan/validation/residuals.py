@@ -472,7 +472,7 @@ def _lstsq_sse(X: FloatArray, r: FloatArray) -> tuple[int, float]:
     if m <= p:
         coef, *_ = np.linalg.lstsq(X, r, rcond=None)
         return int(np.linalg.matrix_rank(X)), float(np.sum((r - X @ coef) ** 2))
-    R = np.linalg.qr(np.column_stack([X, r]), mode="r")
+    R = np.asarray(np.linalg.qr(np.column_stack([X, r]), mode="r"))
     U, sv, _ = np.linalg.svd(R[:p, :p])
     rank = int(np.sum(sv > sv[0] * max(m, p) * np.finfo(float).eps)) if sv.size else 0
     qr_ = R[:p, p]  # Q^T r on the span of X; R[p, p] is the part of r outside it
