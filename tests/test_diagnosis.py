@@ -12,6 +12,7 @@ from rfsw_plan.io.measurements import MeasurementSet
 from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign import run_campaign
 from rfsw_plan.validation.diagnosis import (
+    FIT_TOL,
     candidate_labels,
     cross_validate,
     diagnose,
@@ -177,3 +178,41 @@ def test_diagnosis_json_has_the_contract_fields(model: ElastostaticModel) -> Non
     for c in js["candidates"]:
         assert set(c) >= {"effect", "joint", "rms_after_mm", "explained_fraction"}
         assert c["joint"] is None or 1 <= c["joint"] <= 6
+
+
+@pytest.mark.parametrize("labels", [[], ["payload_gravity", "joint_backlash:j3"],
+                                    ["tilting_compliance:j2"]])
+def test_fit_in_blocks_is_the_fit_on_the_stacked_regressor(
+    model: ElastostaticModel, labels: list[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """cross_validate visits the samples in blocks (bounded memory on 10^6 samples): with
+    blocks of 37 samples (4 blocks here) it gives the stacked regressor's fit and score."""
+    import rfsw_plan.elastostatics.identification_blocks as ib
+    from rfsw_plan.validation.diagnosis import _cross_validate_stacked
+
+    monkeypatch.setattr(ib, "BLOCK_SAMPLES", 37)
+    d = _data(["payload_gravity", "joint_backlash:j3"], poses=30)
+    m = model
+    for label in labels:
+        m = m.with_effect(label)
+    folds = make_folds(d, 5)
+    batch = m.batch(d.q)
+    obs = np.broadcast_to(folds[:, None], d.measured.shape)[d.measured]
+    blocked = cross_validate(m, d, folds, batch)
+    assert len(ib.blocks(batch)) == 4
+    stacked = _cross_validate_stacked(m, d, folds, batch,
+                                      min(int(np.sum(obs != f)) for f in range(5)))
+    assert blocked.sse == pytest.approx(stacked.sse, rel=1e-10)
+    assert blocked.n_free == stacked.n_free and blocked.n_obs == stacked.n_obs
+    np.testing.assert_allclose(blocked.heldout_residual, stacked.heldout_residual, rtol=0,
+                               atol=1e-12)
+    for a, b in zip(blocked.fit.estimates, stacked.fit.estimates, strict=True):
+        assert (a.effect, a.name, a.identified, a.note) == (b.effect, b.name, b.identified,
+                                                             b.note)
+        # Both stop Gauss-Newton at the relative step FIT_TOL (1e-7) of a bilinear model.
+        assert a.value == pytest.approx(b.value, rel=FIT_TOL, abs=1e-15)
+        if a.identified:
+            assert a.std_error == pytest.approx(b.std_error, rel=1e-6)
+    assert blocked.fit.rms_after == pytest.approx(stacked.fit.rms_after, rel=1e-10)
+    assert blocked.fit.condition_number == pytest.approx(stacked.fit.condition_number,
+                                                          rel=1e-6)

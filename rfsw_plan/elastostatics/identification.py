@@ -162,7 +162,7 @@ def rotation_error(measured: FloatArray, nominal: FloatArray) -> FloatArray:
     return np.asarray(Rotation.from_matrix(Rm @ np.swapaxes(nominal, 1, 2)).as_rotvec())
 
 
-def _set_theta(effects: Sequence[Effect], theta: FloatArray) -> None:
+def set_theta(effects: Sequence[Effect], theta: FloatArray) -> None:
     i = 0
     for e in effects:
         p = e.params.size
@@ -248,31 +248,45 @@ class IdentificationProblem:
         return np.concatenate([e.params for e in self.effects])
 
 
-def _mark_invisible(prob: IdentificationProblem, A0: FloatArray) -> None:
-    """Parameters whose 100 % change does not move the measured point keep their prior."""
-    sens = np.sqrt(np.mean((A0 * prob.scale) ** 2, axis=0))
+def mark_invisible(
+    names: Sequence[tuple[str, str]], free: np.ndarray, notes: list[str], scale: FloatArray,
+    A0: FloatArray, n_rows: int,
+) -> None:
+    """Parameters whose 100 % change does not move the measured point keep their prior.
+
+    Args:
+        names: (effect label, parameter name) of every column.
+        free: Free flags, updated in place, shape (P,).
+        notes: Notes, updated in place.
+        scale: Parameter scales [SI], shape (P,).
+        A0: The regressor, or any matrix with the same column norms (its R factor).
+        n_rows: Rows of the regressor (the norms are turned into RMS over them).
+    """
+    sens = np.sqrt(np.sum((A0 * scale) ** 2, axis=0) / max(n_rows, 1))
     for k in np.flatnonzero(sens < SENSITIVITY_FLOOR_M):
-        prob.free[k] = False
+        free[k] = False
         moved = ("not at all (below 1e-6 nm, rounding only)" if sens[k] < 1e-15
                  else f"{sens[k] * 1e9:.2g} nm RMS")
-        prob.notes[k] = (
+        notes[k] = (
             f"does not move the measured TCP (a 100 % change moves it {moved}, below "
             f"{SENSITIVITY_FLOOR_M * 1e9:.3g} nm); e.g. a joint whose axis passes through the "
             "TCP is invisible to position-only data; prior kept"
         )
 
 
-def _mark_collinear(prob: IdentificationProblem, A0: FloatArray) -> None:
+def mark_collinear(
+    names: Sequence[tuple[str, str]], free: np.ndarray, notes: list[str], setup: np.ndarray,
+    A0: FloatArray,
+) -> None:
     """Drop parameters, one at a time, until the free columns are not collinear.
 
-    A measurement set-up parameter (:attr:`Effect.setup`: device registration, marker offset)
-    is never the one dropped: a joint offset that a free registration absorbs is named as
-    unidentifiable instead.
+    A measurement set-up parameter (``setup[k]``, :attr:`Effect.setup`: device registration,
+    marker offset) is never the one dropped: a joint offset that a free registration absorbs
+    is named as unidentifiable instead. ``A0`` is the regressor or any matrix with the same
+    Gram matrix (its R factor); ``free`` and ``notes`` are updated in place.
     """
-    setup = np.array([any(e.label == lab and e.setup for e in prob.effects)
-                      for lab, _ in prob.names], dtype=bool)
     while True:
-        idx = np.flatnonzero(prob.free)
+        idx = np.flatnonzero(free)
         if idx.size == 0:
             return
         An = A0[:, idx] / np.linalg.norm(A0[:, idx], axis=0)
@@ -284,11 +298,11 @@ def _mark_collinear(prob: IdentificationProblem, A0: FloatArray) -> None:
             weight = np.abs(Vt[-1])
         worst = idx[int(np.argmax(weight))]
         order = [j for j in np.argsort(-np.abs(Vt[-1])) if idx[j] != worst][:2]
-        partners = [f"{prob.names[idx[j]][0]}.{prob.names[idx[j]][1]}" for j in order]
-        prob.free[worst] = False
+        partners = [f"{names[idx[j]][0]}.{names[idx[j]][1]}" for j in order]
+        free[worst] = False
         why = ("a free device registration absorbs it" if any(setup[idx[j]] for j in order)
                else "cannot be told apart in this data")
-        prob.notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
+        notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
 
 
 def _add_orientation(prob: IdentificationProblem) -> None:
@@ -371,8 +385,10 @@ def build_identification(
     if not np.all(np.isfinite(A0)):
         raise IdentificationError(f"{data.source}: the regressor is not finite (values out "
                                   "of range in the data?)")
-    _mark_invisible(prob, A0)
-    _mark_collinear(prob, A0)
+    mark_invisible(prob.names, prob.free, prob.notes, prob.scale, A0, A0.shape[0])
+    setup = np.array([any(e.label == lab and e.setup for e in prob.effects)
+                      for lab, _ in prob.names], dtype=bool)
+    mark_collinear(prob.names, prob.free, prob.notes, setup, A0)
     return prob
 
 
@@ -394,7 +410,7 @@ def _gauss_newton(
             raise IdentificationError(f"{prob.data.source}: least squares failed ({exc})") from None
         step /= colscale
         theta[idx] += step
-        _set_theta(prob.effects, theta)
+        set_theta(prob.effects, theta)
         if prob.linear or np.all(
             np.abs(step) <= tol * np.maximum(np.abs(theta[idx]), prob.scale[idx])
         ):
@@ -438,7 +454,7 @@ def solve_identification(
                 prob.free[k] = False
                 prob.notes[k] = f"estimate {theta[k]:.3g} rad/(N m) is not positive; prior kept"
                 theta[k] = prob.prior[k]
-            _set_theta(prob.effects, theta)
+            set_theta(prob.effects, theta)
             iterations, converged = _gauss_newton(prob, w, max_iter, tol)
             theta = prob.theta()
     if not np.all(np.isfinite(theta)):
@@ -463,41 +479,65 @@ def solve_identification(
         cov_n = np.linalg.pinv(An.T @ An)
         std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * s2) / colscale
     sigma = float(np.sqrt(np.mean(res**2) * n_obs / dof))
-    setup = {e.label for e in prob.effects if e.setup}  # corrections about 0: no such note
+    return build_result(
+        model=prob.model, effects=prob.effects, names=prob.names, prior=prob.prior,
+        theta=theta, free=prob.free, notes=prob.notes, std=std, cond=cond,
+        rms_before=prob.rms_before,
+        rms_after=rms(np.where(mask[:, :3], data.position - prob.positions(), np.nan)),
+        sigma=sigma, n_samples=len(data), n_obs=n_obs, iterations=iterations,
+        converged=converged, method=prob.method,
+    )
+
+
+def build_result(
+    *, model: ElastostaticModel, effects: Sequence[Effect], names: Sequence[tuple[str, str]],
+    prior: FloatArray, theta: FloatArray, free: np.ndarray, notes: Sequence[str],
+    std: FloatArray, cond: float, rms_before: float, rms_after: float, sigma: float,
+    n_samples: int, n_obs: int, iterations: int, converged: bool, method: str,
+) -> IdentificationResult:
+    """The typed result of a solved identification (estimates, stiffness and its error).
+
+    Args:
+        std: 1-sigma standard error of every parameter [SI] (NaN if not identified), (P,).
+        Others: as in :class:`IdentificationResult` and :class:`IdentificationProblem`.
+    """
+    P = prior.size
+    setup = {e.label for e in effects if e.setup}  # corrections about 0: no such note
     estimates = tuple(
         ParameterEstimate(
-            effect=prob.names[k][0], name=prob.names[k][1], value=float(theta[k]),
-            prior=float(prob.prior[k]), std_error=float(std[k]), identified=bool(prob.free[k]),
-            note=prob.notes[k] or (
+            effect=names[k][0], name=names[k][1], value=float(theta[k]),
+            prior=float(prior[k]), std_error=float(std[k]), identified=bool(free[k]),
+            note=notes[k] or (
                 "poorly determined: standard error exceeds the value"
-                if prob.free[k] and std[k] > abs(theta[k]) and prob.names[k][0] not in setup
+                if free[k] and std[k] > abs(theta[k]) and names[k][0] not in setup
                 else ""
             ),
         )
         for k in range(P)
     )
+    jc = model.joint_compliance
     c = jc.params
     k_std = np.full(c.size, np.nan)
     identified_j = np.zeros(c.size, dtype=bool)
-    if jc in prob.effects:
-        off = sum(e.params.size for e in prob.effects[: prob.effects.index(jc)])
-        identified_j = prob.free[off: off + c.size].copy()
+    if jc in effects:
+        off = sum(e.params.size for e in effects[: list(effects).index(jc)])
+        identified_j = free[off: off + c.size].copy()
         k_std = std[off: off + c.size] / c**2
     return IdentificationResult(
-        model=prob.model,
+        model=model,
         estimates=estimates,
         stiffness=1.0 / c,
         stiffness_std=k_std,
         joint_identified=identified_j,
         condition_number=cond,
-        rms_before=prob.rms_before,
-        rms_after=rms(np.where(mask[:, :3], data.position - prob.positions(), np.nan)),
+        rms_before=rms_before,
+        rms_after=rms_after,
         sigma=sigma,
-        n_samples=len(data),
+        n_samples=n_samples,
         n_observations=n_obs,
         iterations=iterations,
         converged=converged,
-        method=prob.method,
+        method=method,
     )
 
 

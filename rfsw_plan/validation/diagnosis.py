@@ -54,6 +54,12 @@ from rfsw_plan.elastostatics.identification import (
     identify,
     position_jacobian,
 )
+from rfsw_plan.elastostatics.identification_blocks import (
+    forget_block_caches,
+    heldout_blocks,
+    heldout_steps,
+    identify_blocks,
+)
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
@@ -151,9 +157,7 @@ class CrossValidation:
     Attributes:
         labels: Effects of the model.
         fit: Identification on all samples (its model is the one to keep).
-        heldout_residual: Residual of every sample predicted by the fit of the other folds
-            [m], base frame, shape (m, 3); NaN = not measured.
-        heldout_rms: RMS of ``heldout_residual`` [m].
+        heldout_rms: RMS of :attr:`heldout_residual` [m].
         sse: Sum of squared held-out residuals [m^2].
         n_obs: Number of measured values.
         n_free: Number of identified parameters.
@@ -161,11 +165,21 @@ class CrossValidation:
 
     labels: tuple[str, ...]
     fit: IdentificationResult
-    heldout_residual: FloatArray = field(repr=False)
     heldout_rms: float
     sse: float
     n_obs: int
     n_free: int
+    residual_of: Callable[[], FloatArray] = field(repr=False, compare=False)
+    _cache: dict[str, FloatArray] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def heldout_residual(self) -> FloatArray:
+        """Residual of every sample predicted by the fit of the other folds [m], base frame,
+        shape (m, 3); NaN = not measured. Computed on first use (one more pass over the
+        samples: a candidate's score needs only :attr:`sse`)."""
+        if "r" not in self._cache:
+            self._cache["r"] = self.residual_of()
+        return self._cache["r"]
 
 
 def min_samples(n_params: int, data: MeasurementSet, k: int) -> int:
@@ -182,6 +196,11 @@ def cross_validate(
     batch: PoseBatch | None = None,
 ) -> CrossValidation:
     """Identify all effects of ``model`` and score them on held-out folds (see module doc).
+
+    Position-only data is fitted in blocks of samples
+    (:func:`~rfsw_plan.elastostatics.identification_blocks.identify_blocks`: one triangular
+    factor of [A | r] per fold, memory bounded whatever the number of samples); data with
+    orientation rows goes through :func:`identify` (weighted orientation rows).
 
     Args:
         model: Model form with prior parameters (not modified).
@@ -203,17 +222,66 @@ def cross_validate(
             f"of {', '.join(model.labels)} in {k} folds; need at least "
             f"{min_samples(n_par, data, k)} samples"
         )
-    fit = identify(model, data, tol=FIT_TOL)
-    ident = np.array([e.identified for e in fit.estimates], dtype=bool)
-    n_free = int(ident.sum())
+    if batch is None:
+        batch = model.batch(data.q)
+    if data.rotation is not None:
+        return _cross_validate_stacked(model, data, folds, batch, min_train)
+    try:
+        bf = identify_blocks(model, data, batch, folds, tol=FIT_TOL)
+    finally:
+        forget_block_caches(batch)
+    fit = bf.result
+    idx = np.flatnonzero([e.identified for e in fit.estimates])
+    _check_trainable(data, fit, idx.size, min_train, k)
+    steps, sse = heldout_steps(bf.factors, idx)
+    n_obs = int(mask.sum())
+
+    def residual_of() -> FloatArray:
+        full = np.full(mask.shape, np.nan)
+        try:
+            for s, held in heldout_blocks(fit.model, data, batch, folds, idx, steps):
+                view = full[s]
+                view[mask[s]] = held
+        finally:
+            forget_block_caches(batch)
+        return full
+
+    return CrossValidation(
+        labels=tuple(fit.model.labels),
+        fit=fit,
+        heldout_rms=float(np.sqrt(sse / n_obs)),
+        sse=sse,
+        n_obs=n_obs,
+        n_free=int(idx.size),
+        residual_of=residual_of,
+    )
+
+
+def _check_trainable(
+    data: MeasurementSet, fit: IdentificationResult, n_free: int, min_train: int, k: int
+) -> None:
+    """Raise if a training fold has no more observations than identified parameters."""
     if min_train <= n_free:
         raise IdentificationError(
             f"{data.source}: {len(data)} samples cannot cross-validate {n_free} parameters "
             f"({', '.join(fit.model.labels)}) in {k} folds; need at least "
             f"{min_samples(n_free, data, k)} samples"
         )
-    if batch is None:
-        batch = fit.model.batch(data.q)
+
+
+def _cross_validate_stacked(
+    model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_], batch: PoseBatch,
+    min_train: int,
+) -> CrossValidation:
+    """:func:`cross_validate` on the stacked regressor of all samples (data with orientation
+    rows: :func:`identify` weights them against the positions)."""
+    k = int(folds.max()) + 1
+    mask = data.measured
+    obs_fold = np.broadcast_to(folds[:, None], mask.shape)[mask]
+    fit = identify(model, data, tol=FIT_TOL)
+    ident = np.array([e.identified for e in fit.estimates], dtype=bool)
+    n_free = int(ident.sum())
+    _check_trainable(data, fit, n_free, min_train, k)
     m = fit.model
     pred = batch.T[:, :3, 3] + m.deflection_batch(batch, data.wrench)[:, :3]
     r = (data.position - pred)[mask]
@@ -243,11 +311,11 @@ def cross_validate(
     return CrossValidation(
         labels=tuple(m.labels),
         fit=fit,
-        heldout_residual=full,
         heldout_rms=float(np.sqrt(sse / held.size)),
         sse=sse,
         n_obs=int(held.size),
         n_free=n_free,
+        residual_of=lambda: full,
     )
 
 

@@ -1,0 +1,342 @@
+"""Identification in blocks of samples: the same least squares, with bounded memory.
+
+:func:`~rfsw_plan.elastostatics.identification.identify` stacks the regressor of every sample
+(3 m rows, P columns, plus the effects' intermediate arrays), which for a 1 kHz log of 17 min
+(10^6 samples) needs gigabytes. Least squares only needs the triangular factor R of the stacked
+matrix [A | r] (A the Jacobian, r the residual): for any x,
+
+    || A x - r ||^2 = || R [x; -1] ||^2,   [A | r] = Q R,
+
+and R of a stack is the R of the stacked R's of its parts (a tall-skinny QR in blocks). So the
+samples are visited in blocks of :data:`BLOCK_SAMPLES`, each block's rows are folded into one
+(P + 1) x (P + 1) factor per cross-validation fold, and every quantity of the fit comes from
+those factors: the Gauss-Newton step, the column norms (invisible parameters), the singular
+values (collinear parameters), the standard errors, the residual sums of squares, and the
+per-fold least-squares steps of the held-out score. A model linear in its parameters (pose
+affine in theta) needs one pass over the samples: at theta = theta0 + delta,
+[A | r0 - A delta] = [A | r0] [[I, -delta], [0, 1]], so its factor is R0 times that matrix.
+
+Only ordinary least squares on position rows is done here (what the diagnosis scores);
+:func:`identify` keeps orientation rows and weighted least squares.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.elastostatics.effects import Effect, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.elastostatics.identification import (
+    IdentificationResult,
+    build_result,
+    mark_collinear,
+    mark_invisible,
+    position_jacobian,
+    set_theta,
+)
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import IdentificationError
+
+#: Samples per block: large enough that numpy's per-call cost is small, small enough that a
+#: block's regressors and the effects' intermediate arrays stay in the tens of MB.
+BLOCK_SAMPLES = 32_768
+
+_CHUNKS_KEY = "_blocks"
+
+
+def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseBatch]]:
+    """The batch cut into views of at most ``size`` samples (default :data:`BLOCK_SAMPLES`),
+    kept in ``batch.cache``, so a block's own cache, e.g. an effect's pose basis, lives as long
+    as the batch."""
+    size = BLOCK_SAMPLES if size is None else size
+    key = f"{_CHUNKS_KEY}{size}"
+    got: list[tuple[slice, PoseBatch]] | None = batch.cache.get(key)
+    if got is None:
+        got = []
+        for a in range(0, len(batch), size):
+            s = slice(a, min(a + size, len(batch)))
+            got.append((s, PoseBatch(batch.robot, batch.q[s], batch.T[s], batch.J[s],
+                                     batch.frames[s])))
+        batch.cache[key] = got
+    return got
+
+
+def forget_block_caches(batch: PoseBatch) -> None:
+    """Drop what effects cached in the blocks of ``batch`` (a candidate effect's pose basis
+    is 1.7 KB per sample: kept for the passes of one fit, not for the whole diagnosis)."""
+    for key, value in list(batch.cache.items()):
+        if key.startswith(_CHUNKS_KEY):
+            for _, b in value:
+                b.cache.clear()
+
+
+def _qr_r(M: FloatArray, n: int) -> FloatArray:
+    """Upper-triangular R (n x n) of M (rows x n), zero-padded when M has fewer rows."""
+    R = np.asarray(np.linalg.qr(M, mode="r"))
+    if R.shape[0] < n:
+        R = np.vstack([R, np.zeros((n - R.shape[0], n))])
+    return R
+
+
+@dataclass(frozen=True)
+class FoldFactors:
+    """Triangular factors of [A | r] per fold at one parameter vector.
+
+    Attributes:
+        R: Factor of each fold, shape (k, P + 1, P + 1): columns 0..P-1 the Jacobian of the
+            position rows with respect to every parameter, column P the residual [m].
+        n_obs: Measured values of each fold, shape (k,).
+    """
+
+    R: FloatArray
+    n_obs: NDArray[np.int_]
+
+    @property
+    def total(self) -> FloatArray:
+        """Factor of all folds together, shape (P + 1, P + 1)."""
+        return _qr_r(self.R.reshape(-1, self.R.shape[2]), self.R.shape[2])
+
+    def shifted(self, delta: FloatArray) -> FoldFactors:
+        """Factors at theta + delta of a model linear in theta: r -> r - A delta."""
+        P = self.R.shape[2] - 1
+        M = np.eye(P + 1)
+        M[:P, P] = -delta
+        return FoldFactors(self.R @ M, self.n_obs)
+
+
+def _rows(
+    model: ElastostaticModel, effects: list[Effect], data: MeasurementSet, s: slice,
+    b: PoseBatch, jacobian: bool = True,
+) -> tuple[FloatArray | None, FloatArray]:
+    """Jacobian (n_meas, P) and residual (n_meas,) of the measured position rows of a block."""
+    wrench = data.wrench[s]
+    mask = data.measured[s]
+    pred = b.T[:, :3, 3] + model.deflection_batch(b, wrench)[:, :3]
+    r = (data.position[s] - pred)[mask]
+    if not jacobian:
+        return None, r
+    A = position_jacobian(model, b, wrench, effects)[mask]
+    return A, r
+
+
+def fold_factors(
+    model: ElastostaticModel, effects: list[Effect], data: MeasurementSet, batch: PoseBatch,
+    folds: NDArray[np.int_], k: int,
+) -> FoldFactors:
+    """One pass over the samples: the factor of [A | r] of each fold at the model's parameters.
+
+    Raises:
+        IdentificationError: The regressor is not finite (values out of range in the data).
+    """
+    P = sum(e.params.size for e in effects)
+    R = np.zeros((k, P + 1, P + 1))
+    n_obs = np.zeros(k, dtype=np.int_)
+    for s, b in blocks(batch):
+        A, r = _rows(model, effects, data, s, b)
+        assert A is not None
+        if not np.all(np.isfinite(A)):
+            raise IdentificationError(f"{data.source}: the regressor is not finite (values out "
+                                      "of range in the data?)")
+        fo = np.broadcast_to(folds[s][:, None], data.measured[s].shape)[data.measured[s]]
+        Ar = np.column_stack([A, r])
+        for f in range(k):
+            sel = fo == f
+            if sel.any():
+                R[f] = _qr_r(np.vstack([R[f], Ar[sel]]), P + 1)
+                n_obs[f] += int(sel.sum())
+    return FoldFactors(R, n_obs)
+
+
+@dataclass(frozen=True)
+class BlockFit:
+    """An identification done in blocks, with what the held-out score needs.
+
+    Attributes:
+        result: The identification (same fields as :func:`identify`'s).
+        factors: Factors of [A | r] per fold at the identified parameters (every parameter's
+            column; ``result.estimates`` says which are identified).
+    """
+
+    result: IdentificationResult
+    factors: FoldFactors
+
+
+def _step(R: FloatArray, idx: NDArray[np.int_]) -> FloatArray:
+    """Least-squares step of the columns ``idx`` from a factor of [A | r] (columns scaled to
+    unit norm first, as :func:`identify` does)."""
+    A = R[:, idx]
+    colscale = np.linalg.norm(A, axis=0)
+    colscale[colscale == 0] = 1.0
+    try:
+        step, *_ = np.linalg.lstsq(A / colscale, R[:, -1], rcond=None)
+    except np.linalg.LinAlgError as exc:
+        raise IdentificationError(f"least squares failed ({exc})") from None
+    return np.asarray(step / colscale)
+
+
+def identify_blocks(
+    model: ElastostaticModel,
+    data: MeasurementSet,
+    batch: PoseBatch,
+    folds: NDArray[np.int_],
+    max_iter: int = 30,
+    tol: float = 1e-10,
+) -> BlockFit:
+    """:func:`~rfsw_plan.elastostatics.identification.identify` (ordinary least squares,
+    position rows, every effect free) computed in blocks of samples.
+
+    Args:
+        model: Starting model; its parameters are the priors. Not modified.
+        data: Samples (position rows only: ``data.rotation`` is not used).
+        batch: Kinematics of ``data.q``.
+        folds: Fold index of every sample, shape (m,): the factors are kept per fold.
+        max_iter: Gauss-Newton iteration cap.
+        tol: Convergence tolerance on the relative parameter step.
+
+    Raises:
+        IdentificationError: Fewer observations than parameters, no measured axis, regressor
+            not finite, non-finite fit.
+    """
+    work = model.copy()
+    effects = list(work.effects)
+    names = [(e.label, n) for e in effects for n in e.param_names()]
+    prior = np.concatenate([e.params for e in effects])
+    P = prior.size
+    n_obs = int(data.measured.sum())
+    if n_obs == 0:
+        raise IdentificationError(f"{data.source}: no measured TCP axis in any sample")
+    if n_obs < P:
+        raise IdentificationError(
+            f"{data.source}: {n_obs} measured values cannot identify {P} parameters "
+            f"({', '.join(work.labels)}); need at least {P} (better {3 * P})"
+        )
+    k = int(folds.max()) + 1
+    linear = all(e.pose_linear_in_params() for e in effects)
+    free = np.ones(P, dtype=bool)
+    notes = [""] * P
+    scale = np.where(np.abs(prior) > 0, np.abs(prior), 1.0)
+
+    ff0 = fold_factors(work, effects, data, batch, folds, k)
+    R0 = ff0.total
+    rms_before = float(np.sqrt(np.sum(R0[:, P] ** 2) / n_obs))
+    setup = np.array([any(e.label == lab and e.setup for e in effects) for lab, _ in names],
+                     dtype=bool)
+    mark_invisible(names, free, notes, scale, R0[:, :P], n_obs)
+    mark_collinear(names, free, notes, setup, R0[:, :P])
+
+    ff = ff0
+
+    def at(theta: FloatArray) -> FoldFactors:
+        set_theta(effects, theta)
+        if linear:
+            return ff0.shifted(theta - prior)
+        return fold_factors(work, effects, data, batch, folds, k)
+
+    def gauss_newton(theta: FloatArray, ff: FoldFactors) -> tuple[FloatArray, FoldFactors,
+                                                                   int, bool]:
+        idx = np.flatnonzero(free)
+        it, conv = 0, False
+        for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
+            step = _step(ff.total, idx)
+            theta = theta.copy()
+            theta[idx] += step
+            ff = at(theta)
+            if linear or np.all(np.abs(step) <= tol * np.maximum(np.abs(theta[idx]),
+                                                                 scale[idx])):
+                conv = True
+                break
+        return theta, ff, it, conv
+
+    theta = prior.copy()
+    theta, ff, iterations, converged = gauss_newton(theta, ff)
+    jc = work.joint_compliance
+    off = sum(e.params.size for e in effects[: effects.index(jc)])
+    while True:  # compliances must stay positive (see solve_identification)
+        neg = [off + j for j in range(jc.params.size) if free[off + j] and theta[off + j] <= 0]
+        if not neg:
+            break
+        for i in neg:
+            free[i] = False
+            notes[i] = f"estimate {theta[i]:.3g} rad/(N m) is not positive; prior kept"
+            theta[i] = prior[i]
+        ff = at(theta)
+        theta, ff, iterations, converged = gauss_newton(theta, ff)
+    if not np.all(np.isfinite(theta)):
+        raise IdentificationError(f"{data.source}: the fit did not give finite parameters "
+                                  "(values out of range in the data?)")
+    set_theta(effects, theta)
+
+    R = ff.total
+    idx = np.flatnonzero(free)
+    sse = float(np.sum(R[:, P] ** 2))
+    dof = max(n_obs - idx.size, 1)
+    std = np.full(P, np.nan)
+    cond = float("nan")
+    if idx.size:
+        Aw = R[:, idx]
+        colscale = np.linalg.norm(Aw, axis=0)
+        colscale[colscale == 0] = 1.0
+        An = Aw / colscale
+        cond = float(np.linalg.cond(An))
+        cov_n = np.linalg.pinv(An.T @ An)
+        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * sse / dof) / colscale
+    result = build_result(
+        model=work, effects=effects, names=names, prior=prior, theta=theta, free=free,
+        notes=notes, std=std, cond=cond, rms_before=rms_before,
+        rms_after=float(np.sqrt(sse / n_obs)), sigma=float(np.sqrt(sse / dof)),
+        n_samples=len(data), n_obs=n_obs, iterations=iterations, converged=converged,
+        method="ols",
+    )
+    return BlockFit(result, ff)
+
+
+def heldout_blocks(
+    model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch, folds: NDArray[np.int_],
+    cols: NDArray[np.int_], steps: FloatArray,
+) -> Iterator[tuple[slice, FloatArray]]:
+    """Held-out residual block by block: r - A[:, cols] steps[fold] of the measured rows.
+
+    Args:
+        model: The identified model (its residual r and Jacobian A are evaluated).
+        steps: Per-fold parameter step (unscaled), shape (k, len(cols)).
+
+    Yields:
+        (block slice, residual of the measured values of that block, (n_meas,)) [m].
+    """
+    effects = list(model.effects)
+    for s, b in blocks(batch):
+        A, r = _rows(model, effects, data, s, b)
+        assert A is not None
+        fo = np.broadcast_to(folds[s][:, None], data.measured[s].shape)[data.measured[s]]
+        yield s, r - np.einsum("ip,ip->i", A[:, cols], steps[fo])
+
+
+def heldout_steps(factors: FoldFactors, idx: NDArray[np.int_]) -> tuple[FloatArray, float]:
+    """Per-fold least-squares steps of the columns ``idx`` and the held-out sum of squares.
+
+    For fold f the step d_f solves the other folds' least squares (their stacked factors), and
+    the held-out residual of fold f is r_f - A_f d_f, whose squared norm is
+    || R_f [-d_f; 1] || ^ 2 (``R_f`` restricted to the columns ``idx`` and the residual).
+
+    Args:
+        factors: Factors of [A | r] per fold at the identified parameters.
+        idx: Identified columns, shape (p,).
+
+    Returns:
+        Steps, shape (k, p) [SI], and the held-out sum of squared residuals [m^2].
+    """
+    R = factors.R
+    k, n, _ = R.shape
+    cols = np.append(idx, n - 1)
+    steps = np.zeros((k, idx.size))
+    sse = 0.0
+    for f in range(k):
+        train = R[np.arange(k) != f][:, :, cols].reshape(-1, cols.size)
+        steps[f] = _step(_qr_r(train, cols.size), np.arange(idx.size))
+        sse += float(np.sum((R[f][:, cols] @ np.append(-steps[f], 1.0)) ** 2))
+    return steps, sse
