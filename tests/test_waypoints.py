@@ -122,3 +122,24 @@ def test_plan_is_written_with_the_model_it_was_planned_with(tmp_path):
     weld = [r for r in rows if r["phase"] == "weld"]
     e = np.array([float(r["e_lat_mm"]) for r in weld])
     assert np.all(e > -1.25) and np.all(e < 0.7)
+
+
+def test_lateral_error_png_is_judged_alone(written):
+    """Issue 16: lateral_error.png is at least 1200 px wide and its title gives the plan's
+    nominal and worst-case error, the window and the force uncertainty it holds."""
+    import struct
+
+    from rfsw_plan.io.waypoints import _lateral_title
+
+    out, res, _ = written
+    head = (out / "lateral_error.png").read_bytes()[:24]
+    assert struct.unpack(">I", head[16:20])[0] >= 1200
+    title = _lateral_title(res)
+    nlp = res.baselines[-1]
+    assert nlp.name == "nlp"
+    assert f"max |e| {nlp.max_abs_lateral * 1e3:.3f} mm nominal" in title
+    assert f"{nlp.worst_case * 1e3:.3f} mm worst case under +-20 % force" in title
+    assert "window [-1.25, +0.7] mm" in title
+    tol = res.tolerated_force_uncertainty
+    assert f"holds up to +-{100 * tol:.3g} % force uncertainty (requested +-20 %" in title
+    assert title.endswith(": NOT held)") == (not res.robust_held)

@@ -314,9 +314,16 @@ def _reject_constant(c: str) -> float:
 
 
 def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
-    """``lateral_error.png``: predicted lateral error along the seam, before and after, with
-    the window band and the plan's worst case under the force uncertainty (weld waypoints;
-    the stationary start waypoints at s = 0 as markers)."""
+    """``lateral_error.png``: can the plan be trusted, at a glance (1500 x 650 px).
+
+    The title gives the nominal and worst-case error of the plan, the window and the force
+    uncertainty it tolerates. A narrow left panel shows the stationary start (plunge and dwell
+    at s = 0) against time; the main panel the weld against arc length. Both show the window
+    band, the plan's worst case under the force uncertainty (weld waypoints, verified
+    numerically: e +- r), the three strategies at the waypoints and the written samples of
+    ``waypoints.csv`` (the start panel on the samples' clock). The legend sits below the
+    panels, outside the data.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -325,44 +332,96 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     task = result.task
     m = task.n_start
     s = task.s * 1e3
+    t = task.time
     w = result.window
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    ax.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
-               label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:g}] mm")
-    # Worst case of the plan under the force uncertainty box: e +- r (verified numerically).
-    r = result.verification.prediction.worst
     u = result.options.force_uncertainty
-    if u > 0:
-        e = result.e_lat
-        ax.fill_between(s[m:], (e[m:] - r[m:]) * 1e3, (e[m:] + r[m:]) * 1e3, color="tab:blue",
-                        alpha=0.15, lw=0, label=f"planned, worst case under +-{u * 100:g} % force")
-        if m:
-            ax.errorbar(np.zeros(m), e[:m] * 1e3, yerr=r[:m] * 1e3, fmt="none",
-                        ecolor="tab:blue", alpha=0.3)
-    for e, lab, c in ((result.e_none, "no compensation", "tab:red"),
-                      (result.e_mirror, "mirror fake targets", "tab:orange"),
-                      (result.e_lat, "planned (NLP), waypoints", "tab:blue")):
-        ax.plot(s[m:], e[m:] * 1e3, color=c, label=lab)
-        if m:
-            ax.plot(np.zeros(m), e[:m] * 1e3, "o", color=c, ms=3)
+    r = result.verification.prediction.worst
     sv = result.samples
+    tr = result.trajectory
+    fig = plt.figure(figsize=(15, 6.5), dpi=100)
+    if m:
+        gs = fig.add_gridspec(1, 2, width_ratios=(1, 3.2), wspace=0.04)
+        a0 = fig.add_subplot(gs[0])
+        a1 = fig.add_subplot(gs[1], sharey=a0)
+        a1.tick_params(labelleft=False)
+        axes = [a0, a1]
+    else:
+        a0 = None
+        a1 = fig.add_subplot(1, 1, 1)
+        axes = [a1]
+    for ax in axes:
+        ax.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
+                   label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm")
+        ax.grid(True, alpha=0.3)
+    e = result.e_lat
+    start = np.zeros(0, bool)
+    if sv is not None:
+        start = sv.contact & np.isin(tr.phase, ("plunge", "dwell"))
+        # The written samples run on the trajectory's clock (approach first): shift the
+        # schedule's waypoint times onto it at the start of the plunge.
+        if start.any():
+            t = t - t[0] + float(tr.t[np.argmax(tr.phase == "plunge")])
+    if u > 0:
+        a1.fill_between(s[m:], (e[m:] - r[m:]) * 1e3, (e[m:] + r[m:]) * 1e3, color="tab:blue",
+                        alpha=0.15, lw=0, label=f"planned, worst case under +-{u * 100:g} % force")
+        if a0 is not None and sv is not None and start.any():
+            es, rs = sv.e_lat[start], u * sv.worst_per_unit[start]
+            a0.fill_between(tr.t[start], (es - rs) * 1e3, (es + rs) * 1e3, color="tab:blue",
+                            alpha=0.15, lw=0)
+        elif a0 is not None:
+            a0.fill_between(t[:m], (e[:m] - r[:m]) * 1e3, (e[:m] + r[:m]) * 1e3,
+                            color="tab:blue", alpha=0.15, lw=0)
+    for ek, lab, c in ((result.e_none, "no compensation", "tab:red"),
+                       (result.e_mirror, "mirror fake targets", "tab:orange"),
+                       (e, "planned (NLP), waypoints", "tab:blue")):
+        a1.plot(s[m:], ek[m:] * 1e3, color=c, label=lab)
+        if a0 is not None:
+            a0.plot(t[:m], ek[:m] * 1e3, "o-", color=c, ms=3, lw=1)
     if sv is not None:  # what waypoints.csv contains, verified sample by sample
-        tr = result.trajectory
-        inside = sv.contact
-        ax.plot(tr.s[inside] * 1e3, sv.e_lat[inside] * 1e3, ".", color="k", ms=1.5,
-                label=f"written samples ({int(inside.sum())}, waypoints.csv; plunge and dwell "
-                "at s = 0)")
-    ax.set_xlabel("arc length s [mm] (dots at s = 0: plunge and dwell)")
-    ax.set_ylabel("predicted lateral pin error [mm]")
-    ax.set_title(f"{result.problem_name}: predicted lateral error")
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=7)
-    fig.tight_layout()
+        contact = sv.contact
+        weld = contact & ~start
+        a1.plot(tr.s[weld] * 1e3, sv.e_lat[weld] * 1e3, ".", color="k", ms=1.5,
+                label=f"written samples in the material ({int(contact.sum())}, waypoints.csv)")
+        if a0 is not None:
+            a0.plot(tr.t[start], sv.e_lat[start] * 1e3, ".", color="k", ms=1.5)
+    if a0 is not None:
+        a0.set_xlabel("time t [s] (clock of waypoints.csv)")
+        a0.set_title("plunge and dwell (at s = 0)", fontsize=10)
+        a0.set_ylabel("predicted lateral pin error [mm] (+ advancing side)")
+        a1.set_title("weld", fontsize=10)
+    else:
+        a1.set_ylabel("predicted lateral pin error [mm] (+ advancing side)")
+    a1.set_xlabel("arc length s [mm]")
+    fig.suptitle(_lateral_title(result), fontsize=11)
+    handles, labels = a1.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False)
+    fig.subplots_adjust(left=0.06, right=0.99, bottom=0.2, top=0.86)
     p = Path(path)
     with atomic_path(p) as tmp:
-        fig.savefig(tmp, dpi=120)
+        fig.savefig(tmp, dpi=100)
     plt.close(fig)
     return p
+
+
+def _lateral_title(result: PlanResult) -> str:
+    """Two title lines: the plan's nominal and worst-case error, the window, the tolerated
+    force uncertainty (the numbers of the CLI's table, weld waypoints)."""
+    w = result.window
+    u = result.options.force_uncertainty
+    nlp = next((b for b in result.baselines if b.name == "nlp"), None)
+    line2 = f"window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm"
+    if nlp is not None:
+        line2 = f"planned: max |e| {nlp.max_abs_lateral * 1e3:.3f} mm nominal"
+        if u > 0:
+            line2 += f", {nlp.worst_case * 1e3:.3f} mm worst case under +-{u * 100:g} % force"
+        line2 += f"; window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm"
+    tol = result.tolerated_force_uncertainty
+    if tol == np.inf:
+        line2 += "; holds any force uncertainty"
+    elif np.isfinite(tol):
+        line2 += (f"; holds up to +-{100 * tol:.3g} % force uncertainty (requested "
+                  f"+-{u * 100:g} %{'' if result.robust_held else ': NOT held'})")
+    return f"{result.problem_name}: predicted lateral pin error\n{line2}"
 
 
 @dataclass(frozen=True)
