@@ -27,6 +27,7 @@ from numpy.typing import NDArray
 from scipy import stats
 
 from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.identification_blocks import predicted_positions
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
@@ -600,7 +601,7 @@ def analyze_residuals(
     if batch is None:
         batch = model.batch(data.q)
     if residual is None:
-        pred = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
+        pred = predicted_positions(model, batch, data.wrench)
         residual = data.position - pred
     residual = np.where(data.measured, residual, np.nan)
     if noise is None:
