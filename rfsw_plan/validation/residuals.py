@@ -456,10 +456,13 @@ def scalar_basis(x: FloatArray) -> FloatArray:
 def vector_basis(x: FloatArray) -> FloatArray:
     """Quadratic basis of a standardised vector feature (m, k): linear, squares, products."""
     z = _standardise(x)
-    cols = [z[:, i] for i in range(z.shape[1])]
     k = z.shape[1]
-    cols += [z[:, i] * z[:, j] for i in range(k) for j in range(i, k)]
-    return np.stack(cols, axis=1)
+    pairs = [(i, j) for i in range(k) for j in range(i, k)]
+    out = np.empty((z.shape[0], k + len(pairs)))  # filled in place: no list of columns
+    out[:, :k] = z
+    for c, (i, j) in enumerate(pairs):
+        np.multiply(z[:, i], z[:, j], out=out[:, k + c])
+    return out
 
 
 def _sse_from_factor(R: FloatArray, m: int) -> tuple[int, float]:
@@ -489,6 +492,10 @@ def _lstsq_sse(X: FloatArray, r: FloatArray) -> tuple[int, float]:
     return _sse_from_factor(np.asarray(np.linalg.qr(np.column_stack([X, r]), mode="r")), m)
 
 
+#: Rows per block of the feature fits (bounded memory on 10^6 samples).
+FIT_ROWS = 65_536
+
+
 def _axis_fits(residual: FloatArray, basis: FloatArray) -> list[tuple[FloatArray, int, float]]:
     """(measured residual, rank of [1, basis], SSE) of each axis with at least 3 values.
 
@@ -501,10 +508,14 @@ def _axis_fits(residual: FloatArray, basis: FloatArray) -> list[tuple[FloatArray
     if all(np.array_equal(oks[0], ok) for ok in oks) and oks[0].sum() > basis.shape[1] + 1:
         ok = oks[0]
         B = basis if ok.all() else basis[ok]
-        keep = np.std(B, axis=0) > 1e-12
+        keep = np.array([np.std(B[:, j]) > 1e-12 for j in range(B.shape[1])], dtype=bool)
         m, p = int(ok.sum()), int(keep.sum()) + 1
-        R = np.asarray(np.linalg.qr(np.column_stack([np.ones(m), B[:, keep], residual[ok]]),
-                                    mode="r"))
+        res = residual[ok]
+        R = np.zeros((0, p + res.shape[1]))
+        for a0 in range(0, m, FIT_ROWS):  # the factor of a stack is that of the stacked factors
+            rows = slice(a0, min(a0 + FIT_ROWS, m))
+            M = np.column_stack([np.ones(rows.stop - a0), B[rows][:, keep], res[rows]])
+            R = np.asarray(np.linalg.qr(np.vstack([R, M]), mode="r"))
         for a in range(residual.shape[1]):
             cols = [*range(p), p + a]
             Ra = np.asarray(np.linalg.qr(R[:, cols], mode="r"))
