@@ -98,3 +98,52 @@ def test_path_through_a_singularity_is_one_line_and_nonzero(tmp_path, capsys):
     assert "singularity at waypoint" in err and "kappa_f" in err and "> 1.2" in err
     assert not (out / "waypoints.csv").exists()
     assert json.loads((out / "plan.json").read_text())["constraint"] == "singularity"
+
+
+def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch):
+    """The plots are drawn after plan.json has committed waypoints.csv and the programs: a plot
+    that raises is one warning line, the plan folder checks out whole, exit 0 (README)."""
+    import rfsw_plan.io.waypoints as wp
+
+    def broken(path, result):
+        raise RuntimeError("matplotlib backend\nexploded")
+
+    monkeypatch.setattr(wp, "plot_lateral_error", broken)
+    out = tmp_path / "o"
+    assert main(["plan", "zk500_table6_seam", "-o", str(out), "--export", "krl"]) == 0
+    err = capsys.readouterr().err
+    warn = [ln for ln in err.splitlines() if "lateral_error.png" in ln]
+    assert warn == ["rfsw-plan plan: warning: lateral_error.png not written (RuntimeError: "
+                    "matplotlib backend exploded); the data files and plan.json are complete"]
+    assert "Traceback" not in err
+    rec = wp.check_plan_folder(out)  # every vouched file is there with its bytes
+    assert rec["status"] != "incomplete"
+    assert {"waypoints.csv", "lateral_error_time.png"} <= set(rec["sha256"])
+    assert any(name.endswith(".src") for name in rec["sha256"])  # the KRL program
+    assert "lateral_error.png" not in rec["sha256"] and not (out / "lateral_error.png").exists()
+    assert rec["plots"] == {"written": ["lateral_error_time.png"],
+                            "failed": [warn[0].split("warning: ")[1].split("; the data")[0]]}
+    assert len(wp.read_waypoints_csv(out / "waypoints.csv").t) > 100
+
+
+def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
+    """While the plots are drawn, plan.json already vouches for waypoints.csv (a killed or
+    hung plot leaves a whole plan without pictures); afterwards it vouches for both plots."""
+    import rfsw_plan.io.waypoints as wp
+    from rfsw_plan.planning.api import plan
+
+    seen = []
+    real = wp.plot_lateral_error
+
+    def spy(path, result):
+        seen.append(wp.check_plan_folder(path.parent))
+        return real(path, result)
+
+    monkeypatch.setattr(wp, "plot_lateral_error", spy)
+    res = plan("zk500_table6_seam")
+    path = wp.write_plan_folder(tmp_path / "p", res)
+    assert set(seen[0]["sha256"]) == {"waypoints.csv"}
+    assert seen[0]["plots"] == {"pending": list(wp.PLAN_PLOTS)}
+    rec = wp.check_plan_folder(path.parent)
+    assert set(rec["sha256"]) == {"waypoints.csv", *wp.PLAN_PLOTS}
+    assert rec["plots"] == {"written": list(wp.PLAN_PLOTS), "failed": []}

@@ -37,6 +37,7 @@ without ``[controller]``)
 from __future__ import annotations
 
 import csv
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,6 +51,8 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.files import atomic_path, sha256_file, write_json
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
+
+log = logging.getLogger(__name__)
 
 FloatArray = NDArray[np.float64]
 
@@ -158,32 +161,86 @@ def write_plan_json(path: str | Path, summary: dict[str, Any],
 
 #: The files a plan folder holds (``plan.json``, the commit record, is written last).
 PLAN_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
+#: The plots of a plan folder, drawn after ``plan.json`` has committed the data files.
+PLAN_PLOTS = ("lateral_error.png", "lateral_error_time.png")
 
 
 def write_plan_data(folder: str | Path, result: PlanResult) -> list[Path]:
-    """Write a plan's data files into ``folder``: ``waypoints.csv`` and the two plots.
+    """Write a plan's data file into ``folder``: ``waypoints.csv`` (atomically).
 
-    Each file is written atomically; ``plan.json`` (the commit record that vouches for them) is
-    not written here: the caller adds its own files and then calls :func:`write_plan_json`.
+    ``plan.json`` (the commit record that vouches for it) is not written here: the caller adds
+    its own files and then calls :func:`commit_plan`, which commits them and draws the plots.
     Shared by ``rfsw-plan plan`` and :meth:`PlanResult.write`.
 
     Returns:
-        The written paths, in the order ``waypoints.csv``, ``lateral_error.png``,
-        ``lateral_error_time.png``.
+        The written paths (``waypoints.csv``).
+    """
+    return [write_waypoints_csv(Path(folder) / "waypoints.csv", result)]
+
+
+def write_plan_plots(folder: str | Path, result: PlanResult) -> tuple[list[Path], list[str]]:
+    """Draw the plan's plots (:data:`PLAN_PLOTS`) into ``folder``, each atomically.
+
+    A plot that fails does not stop the others: it is reported, not raised (the data files are
+    already committed when the plots are drawn).
+
+    Returns:
+        The written paths, and one line per plot that was not written
+        (``lateral_error.png not written (RuntimeError: ...)``).
     """
     out = Path(folder)
-    return [write_waypoints_csv(out / "waypoints.csv", result),
-            plot_lateral_error(out / "lateral_error.png", result),
-            plot_lateral_error_time(out / "lateral_error_time.png", result)]
+    written: list[Path] = []
+    failed: list[str] = []
+    for name, draw in zip(PLAN_PLOTS, (plot_lateral_error, plot_lateral_error_time),
+                          strict=True):
+        try:
+            written.append(draw(out / name, result))
+        except Exception as exc:  # any plot failure is a warning, never a lost data file
+            why = " ".join(str(exc).split()) or "no message"
+            failed.append(f"{name} not written ({type(exc).__name__}: {why})")
+    return written, failed
+
+
+def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Path],
+                result: PlanResult) -> tuple[Path, list[str]]:
+    """Commit a plan's data files, then draw its plots and commit them too.
+
+    ``plan.json`` is written first vouching for ``data_files`` (``"plots": {"pending": ...}``),
+    so a plot that fails, hangs or is killed never costs the waypoints or the controller
+    programs; after the plots it is rewritten vouching for the data files and every plot that
+    was written (``"plots": {"written": [...], "failed": [...]}``). Both writes are atomic.
+
+    Args:
+        folder: The plan folder (already locked by the caller).
+        summary: The record (``result.summary()`` plus the caller's keys); ``files`` and
+            ``plots`` are set in it as committed last.
+        data_files: Files written before the commit (``waypoints.csv``, exported programs).
+        result: The plan (for the plots).
+
+    Returns:
+        The path of ``plan.json`` and one line per plot that was not written.
+    """
+    out = Path(folder)
+    record = summary
+    record["files"] = [str(p) for p in data_files]
+    record["plots"] = {"pending": list(PLAN_PLOTS)}
+    path = write_plan_json(out / "plan.json", record, vouches_for=data_files)
+    plots, failed = write_plan_plots(out, result)
+    record["files"] = [str(p) for p in [*data_files, *plots]]
+    record["plots"] = {"written": [p.name for p in plots], "failed": failed}
+    write_plan_json(path, record, vouches_for=[*data_files, *plots])
+    return path, failed
 
 
 def write_plan_folder(folder: str | Path, result: PlanResult,
                       robot_file: str | Path | None = None) -> Path:
-    """Write a verified plan as the CLI does: ``waypoints.csv``, the plots, then ``plan.json``.
+    """Write a verified plan as the CLI does: ``waypoints.csv``, ``plan.json``, the plots.
 
-    The folder is checked and locked first; an earlier run's outputs are marked stale, and
-    ``plan.json`` (with the SHA-256 of every file beside it) is written last, so a reader can
-    tell a whole plan from a partial one (:func:`check_plan_folder`).
+    The folder is checked and locked first; an earlier run's outputs are marked stale;
+    ``plan.json`` (with the SHA-256 of every file beside it) commits the data file before the
+    plots are drawn and is rewritten to vouch for them after (:func:`commit_plan`), so a reader
+    can tell a whole plan from a partial one (:func:`check_plan_folder`). A plot that fails is
+    logged as a warning and listed in ``plan.json`` (``plots.failed``); it is not raised.
 
     Args:
         folder: Output folder (created if needed).
@@ -204,9 +261,10 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
         summary = result.summary()
         if robot_file is not None:
             summary["robot_file"] = str(robot_file)
-        written = write_plan_data(out, result)
-        summary["files"] = [str(p) for p in written]
-        return write_plan_json(out / "plan.json", summary, vouches_for=written)
+        path, failed = commit_plan(out, summary, write_plan_data(out, result), result)
+    for line in failed:
+        log.warning("%s: %s", out, line)
+    return path
 
 
 def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:

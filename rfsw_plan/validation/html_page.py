@@ -15,7 +15,8 @@ CSS = """
 body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1em}
 td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;white-space:nowrap}
-pre{background:#f4f4f4;padding:0.6em;overflow-x:auto}
+pre{background:#f4f4f4;padding:0.6em;white-space:pre-wrap;overflow-wrap:anywhere}
+td.prose{white-space:normal;text-align:left;min-width:16em}
 th{background:#eee}td:first-child{text-align:left}
 .verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
 .adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
@@ -34,12 +35,26 @@ def page_head(title: str) -> list[str]:
 
 
 def table(header: list[str], rows: list[list[str]]) -> str:
-    """An HTML table; every header and cell text is escaped."""
+    """An HTML table; every header and cell text is escaped.
+
+    Numbers and short cells never wrap; a cell of prose (longer than :data:`PROSE_CHARS` with
+    spaces) wraps at its spaces so that the table fits the page.
+    """
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows
+        "<tr>" + "".join(_cell(c) for c in r) + "</tr>" for r in rows
     )
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+#: Longer cells with spaces are prose and wrap; shorter ones (numbers, labels) never do.
+PROSE_CHARS = 40
+
+
+def _cell(text: str) -> str:
+    if len(text) > PROSE_CHARS and " " in text.strip():
+        return f"<td class='prose'>{html.escape(text)}</td>"
+    return f"<td>{html.escape(text)}</td>"
 
 
 def figure(path: Path, alt: str) -> str:

@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.io.waypoints import (
         PLAN_OUTPUTS,
+        commit_plan,
         mark_outputs_stale,
         write_plan_data,
         write_plan_json,
@@ -114,8 +115,12 @@ def run(args: argparse.Namespace) -> int:
             written += list(exported.files)
             summary["export"] = exported.to_dict()
         summary.update(force_log_cli.plan_json(problem, args, flog, check))
-        summary["files"] = [str(p) for p in written]
-        write_plan_json(out / "plan.json", summary, vouches_for=written)  # last: the commit
+        # plan.json commits the data files first, then the plots are drawn and committed:
+        # a plot that fails or is killed never costs the waypoints or the programs.
+        _, failed_plots = commit_plan(out, summary, written, result)
+    for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
+        print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
+              file=sys.stderr)
     force_log_cli.print_text(flog, check, result, quiet=args.json)
     if result.robust_warning():
         print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
