@@ -294,21 +294,20 @@ def repeat_groups(data: MeasurementSet, force_tol_n: float = REPEAT_FORCE_TOL_N
     """
     m = len(data)
     order = np.argsort(data.t, kind="stable") if data.t is not None else np.arange(m)
+    if m == 0:
+        return np.empty(0, dtype=np.int_)
+    cur, prev = order[1:], order[:-1]  # every sample against the one before it in time
+    same = np.all(np.abs(data.q[cur] - data.q[prev]) <= REPEAT_Q_TOL_RAD, axis=1)
+    if data.pose_id is not None:
+        same &= np.asarray(data.pose_id)[cur] == np.asarray(data.pose_id)[prev]
+    if data.load_step is not None:
+        same &= np.asarray(data.load_step)[cur] == np.asarray(data.load_step)[prev]
+    else:
+        dw = np.abs(data.wrench[cur] - data.wrench[prev])
+        same &= np.all(dw[:, :3] <= force_tol_n, axis=1)
+        same &= np.all(dw[:, 3:] <= REPEAT_MOMENT_TOL_NM, axis=1)
     groups = np.empty(m, dtype=np.int_)
-    g = -1
-    prev: int | None = None
-    for i in order:
-        same = prev is not None and bool(
-            np.all(np.abs(data.q[i] - data.q[prev]) <= REPEAT_Q_TOL_RAD)
-            and (data.pose_id is None or data.pose_id[i] == data.pose_id[prev])
-            and (data.load_step[i] == data.load_step[prev] if data.load_step is not None else
-                 np.all(np.abs(data.wrench[i, :3] - data.wrench[prev, :3]) <= force_tol_n)
-                 and np.all(np.abs(data.wrench[i, 3:] - data.wrench[prev, 3:])
-                            <= REPEAT_MOMENT_TOL_NM)))
-        if not same:
-            g += 1
-        groups[i] = g
-        prev = int(i)
+    groups[order] = np.concatenate([[0], np.cumsum(~same)])
     return groups
 
 
@@ -462,6 +461,25 @@ def vector_basis(x: FloatArray) -> FloatArray:
     return np.stack(cols, axis=1)
 
 
+def _lstsq_sse(X: FloatArray, r: FloatArray) -> tuple[int, float]:
+    """Rank of X (m, p), m >= p, and the residual sum of squares of the least-squares fit of r.
+
+    The same numbers as ``np.linalg.lstsq(X, r)`` and ``np.linalg.matrix_rank(X)`` (singular
+    values below max(m, p) eps s_max dropped), from one QR of [X | r] and the SVD of its p x p
+    factor instead of two SVDs of the tall X (3-4 times faster on 10^6 rows).
+    """
+    m, p = X.shape
+    if m <= p:
+        coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+        return int(np.linalg.matrix_rank(X)), float(np.sum((r - X @ coef) ** 2))
+    R = np.asarray(np.linalg.qr(np.column_stack([X, r]), mode="r"))
+    U, sv, _ = np.linalg.svd(R[:p, :p])
+    rank = int(np.sum(sv > sv[0] * max(m, p) * np.finfo(float).eps)) if sv.size else 0
+    qr_ = R[:p, p]  # Q^T r on the span of X; R[p, p] is the part of r outside it
+    inside = U[:, :rank].T @ qr_
+    return rank, float(R[p, p] ** 2 + np.sum(qr_**2) - np.sum(inside**2))
+
+
 def explained_share(residual: FloatArray, basis: FloatArray) -> tuple[float, float, float]:
     """Fit each measured axis on [1, basis] and pool: (R^2, adjusted R^2, p-value).
 
@@ -479,9 +497,8 @@ def explained_share(residual: FloatArray, basis: FloatArray) -> tuple[float, flo
         B = basis[ok]
         B = B[:, np.std(B, axis=0) > 1e-12]
         X = np.concatenate([np.ones((r.size, 1)), B], axis=1)
-        coef, *_ = np.linalg.lstsq(X, r, rcond=None)
-        rank = np.linalg.matrix_rank(X)
-        sse += float(np.sum((r - X @ coef) ** 2))
+        rank, sse_a = _lstsq_sse(X, r)
+        sse += sse_a
         sst += float(np.sum((r - r.mean()) ** 2))
         n += r.size
         p_tot += rank - 1
