@@ -20,6 +20,7 @@ from rfsw_plan.planning.verify import predict
 from rfsw_plan.process.frames import SeamFrames
 from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import load_robot
 
 
@@ -77,6 +78,40 @@ def test_wrist_flip_seed_reaches_the_same_pose_on_another_branch(setup):
     b = no_compensation(model.robot, task, seeds["wrist_flip"])
     assert not np.allclose(a.q, b.q, atol=1e-3)
     np.testing.assert_allclose(model.robot.fk(a.q[0]), model.robot.fk(b.q[0]), atol=1e-6)
+
+
+# A pose per bundled 6R arm (controller values, deg) that both shoulder branches reach: the
+# wrist centre close to axis 1, so the arm can also reach it over its head.
+BOTH_SHOULDERS_DEG = {
+    "kuka_kr600_r2830": [20, -120, -90, 10, 60, 20],
+    "fanuc_s900ib_400": [20, -60, -120, 10, 30, 20],
+    "zk500": [20, -80, -120, 10, 30, 20],
+}
+
+
+@pytest.mark.parametrize("robot_name", sorted(BOTH_SHOULDERS_DEG))
+def test_shoulder_flip_seed_finds_both_shoulder_branches(robot_name):
+    """IK from the branch seeds reaches the pose with q1 and with q1 + pi, both inside the
+    joint limits and at the same TCP (the chain's FK is checked against the vendors'
+    descriptions in test_vendor_descriptions). On the KUKA the upper arm is mirrored about
+    A2 = -90 deg (vertical), not A2 = 0: the former seed q + (pi, -2 q2, 0, 0, 0, 0) put A2 at
+    +120 deg, outside -130..+20 deg."""
+    robot = load_robot(robot_name)
+    lo, hi = robot.description.lower, robot.description.upper
+    q = np.radians(BOTH_SHOULDERS_DEG[robot_name])
+    target = robot.fk(q)
+    shoulder = {}
+    for name, seed in branch_seeds(robot, q):
+        assert np.all(seed >= lo) and np.all(seed <= hi), name
+        res = solve_ik(robot, target, seed, max_iter=400)
+        if not res.converged:
+            continue
+        assert np.all(res.q >= lo) and np.all(res.q <= hi), name
+        np.testing.assert_allclose(robot.fk(res.q), target, atol=1e-9)
+        flipped = abs(np.angle(np.exp(1j * (res.q[0] - q[0])))) > np.pi - 0.1
+        shoulder.setdefault(flipped, name)
+    assert shoulder.get(False) == "seed"
+    assert shoulder.get(True, "").startswith("shoulder_"), shoulder
 
 
 def test_unreachable_seam_names_waypoint_and_distance():

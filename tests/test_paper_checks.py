@@ -105,6 +105,7 @@ def test_one_table_keeps_the_reproduced_numbers_reproduced(paper: ModuleType) ->
     assert "001 §4: lateral deflection 4.9 mm (measured)" in reproduced
     assert "001 Fig. 10a-c: penetration ~4.2 / ~4.8 / >5 mm for 7 / 8 / 9 mm plunge" in reproduced
     assert "000 Table 2 stiffness: nu_p <= 0.03" in reproduced
+    assert "000 Figs. 16-17: 1400 mm, lateral deviation lower along y+ than y-" in reproduced
     assert "001 Table 3: k1-k5 identified from the 5 Table 2 poses (cable at the TCP)" in reproduced
     # Every row that is not reproduced says why.
     assert all(r.why for r in rows if not r.reproduced)
@@ -126,12 +127,56 @@ def test_seed001_cosim_cases_keep_their_finding(paper: ModuleType) -> None:
     assert not rows["001 §3: axial force 4842.58 N (measured, 8 mm plunge)"].reproduced
 
 
+def test_seed000_direction_cases_keep_their_finding(paper: ModuleType) -> None:
+    """Seed 000 Figs. 16-17: at 1400 mm the deviation is lower along y+ than along y-; the
+    axial force's part reverses with the travel direction, the lateral force's part does not;
+    the splits by force and by joint add up to the deviation (the model is linear)."""
+    cases = {c.case: c for c in paper.fanuc_direction_cases()}
+    assert list(cases) == ["1400 mm y+", "1400 mm y-", "1700 mm y+", "1700 mm y-"]
+    for c in cases.values():
+        assert sum(c.by_force_mm.values()) == pytest.approx(c.lateral_mm[0], abs=1e-6)
+        assert sum(c.by_joint_mm) == pytest.approx(c.lateral_mm[0], abs=1e-6)
+        assert c.by_joint_mm[5] == pytest.approx(0.0, abs=1e-9)  # J6 is the tool axis
+        assert c.by_force_mm["lateral"] > 0  # toward the advancing side
+    for d in ("1400", "1700"):
+        yp, ym = cases[f"{d} mm y+"], cases[f"{d} mm y-"]
+        assert max(map(abs, yp.lateral_mm)) < min(map(abs, ym.lateral_mm))
+        assert yp.by_force_mm["axial"] == pytest.approx(-ym.by_force_mm["axial"], rel=1e-6)
+        assert yp.by_force_mm["lateral"] == pytest.approx(ym.by_force_mm["lateral"], rel=1e-6)
+        assert yp.by_force_mm["axial"] < -2.0
+        # Joint 5 (the wrist bending under the lateral force) carries the largest part.
+        assert int(np.argmax(np.abs(yp.by_joint_mm))) == 4
+    # Magnitudes measured on the bundled problems (1400 mm y+ 4.60-5.10, y- 11.89-11.39 mm).
+    assert 4.0 < cases["1400 mm y+"].lateral_mm[0] < 5.5 < 10.5 < cases["1400 mm y-"].lateral_mm[0]
+    p17 = cases["1700 mm y+"]
+    assert p17.lateral_force_for(p17.lateral_mm[0]) == pytest.approx(p17.lateral_force_N)
+    assert 1000.0 < p17.lateral_force_for(paper.PAPER_1700_MM) < 1500.0
+    rows = {r.paper: r for r in paper._fanuc_direction_rows()}
+    assert rows["000 Figs. 16-17: 1400 mm, lateral deviation lower along y+ than y-"].reproduced
+    assert not rows["000 §3.2.6: ~7 mm lateral deviation at 1700 mm (pin entering)"].reproduced
+
+
+def test_seed000_1700mm_sensitivity(paper: ModuleType) -> None:
+    """The spindle sense swaps the two travel directions; the lateral force and the wrist
+    stiffness move the 1700 mm deviation most, the coupling and seam height least."""
+    rows = paper.fanuc_1700_sensitivity()
+    by = {r.variant: r for r in rows}
+    base = rows[0]
+    assert base.assumption == "baseline"
+    ccw = by["spindle ccw (advancing side on the other side)"]
+    np.testing.assert_allclose(ccw.y_plus_mm, base.y_minus_mm, atol=1e-6)
+    np.testing.assert_allclose(ccw.y_minus_mm, base.y_plus_mm, atol=1e-6)
+    spread = paper.sensitivity_spread(rows)
+    assert set(spread) == {"force direction", "force magnitude", "stiffness", "coupling",
+                           "geometry", "seam placement"}
+    assert spread["force magnitude"] > 3.0 and spread["stiffness"] > 3.0
+    assert spread["coupling"] < 1.0 and spread["seam placement"] < 1.5
 def test_seed001_table3_rows_keep_their_finding(paper: ModuleType) -> None:
     """Five Table 2 poses with the cable at the TCP identify k1-k5 within their standard
     errors; k6 is not identifiable, 3-D or 6-D; off the tool axis with 6-D data it is."""
     from rfsw_plan.validation.seed001_campaign import seed001_cases
 
     rows = paper._seed001_table3_rows(seed001_cases())
-    assert [r.reproduced for r in rows] == [True, False]
+    assert [r.reproduced for r in rows] == [True, False, False]
     assert "not identifiable with the cable at the TCP" in rows[1].project
     assert "k6 not identified" in rows[1].why and "3-D: k6 not identified" in rows[1].why
