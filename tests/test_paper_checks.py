@@ -180,3 +180,26 @@ def test_seed001_table3_rows_keep_their_finding(paper: ModuleType) -> None:
     assert [r.reproduced for r in rows] == [True, False]
     assert "not identifiable with the cable at the TCP" in rows[1].project
     assert "k6 not identified" in rows[1].why and "3-D: k6 not identified" in rows[1].why
+
+
+def test_seed000_eq10_readings(paper: ModuleType) -> None:
+    """Seed 000 eq. 10 lists five stiffnesses: no plausible reading gives nu_p <= 0.03 over
+    the Fig. 13 plane; only kN m/rad (1000x Table 2) does. Table 2 is the reproduced one."""
+    rows = {r.reading: r for r in paper.eq10_readings(n_points=15)}
+    assert len(rows) == 8
+    for r in rows.values():
+        assert len(r.Kq) == 6 and 0.0 <= r.median <= r.max < 1.0
+    eq10 = [r for r in rows.values() if not r.reading.startswith("Table 2")]
+    assert [r.reading for r in eq10 if r.holds] == ["values in kN m/rad (x 1e3)"]
+    assert rows["k6 = k5 lost (wrist 1e4)"].median > 0.1
+    assert rows["wrist exponent misread (1e5)"].max > 0.03  # close, but not within
+    t2 = rows["Table 2 (identified)"]
+    assert t2.median <= 0.03 and t2.max <= 0.035
+    assert rows["Table 2, wrench in the tool frame"].holds
+    scale = paper.eq10_scale_for_limit(0.03, n_points=15)
+    assert 3.0 < scale < 30.0
+    robot = load_robot("fanuc_s900ib_400")
+    grid = sample_joint_grid(robot, np.radians(paper.FIG13_Q_DEG), n_points=(15, 15))
+    k = np.array([*paper.EQ10_FIVE, paper.EQ10_FIVE[-1]])
+    assert np.nanmax(index_map(robot, grid, paper.EQ10_WRENCH, scale * k).nu_p) <= 0.03
+    assert np.nanmax(index_map(robot, grid, paper.EQ10_WRENCH, 0.95 * scale * k).nu_p) > 0.03
