@@ -34,6 +34,7 @@ from rfsw_plan.elastostatics.workspace import (
 )
 from rfsw_plan.process.deviation import DeviationResult, problem_deviation
 from rfsw_plan.process.problem import Problem, load_problem
+from rfsw_plan.realtime.compare import CompareOptions, compare
 from rfsw_plan.robot.description import ModifiedDH
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot, load_robot
@@ -630,15 +631,73 @@ def _fanuc_direction_rows() -> list[Check]:
     ]
 
 
+#: Seed 002 §5.2 / Table 3: mean MAE along the surface normal of E13-E18 (formed, no
+#: compensation) [mm], and about 0.2 mm with the stiffness compensation (E19-E24, like the
+#: force-free runs E01-E06: "around 0.2 mm, typical for industrial robots of this size").
+SEED002_MAE_NONE_MM, SEED002_MAE_COMP_MM = 0.4277, 0.2
+#: The forming-like path on the torque-dependent KR600.
+FORMING = "kr600_forming_contour"
+
+
+@dataclass(frozen=True)
+class FormingCheck:
+    """Seed 002's metric on the forming-like path: MAE along the surface normal [mm].
+
+    Attributes:
+        mae_mm: (scenario, strategy) -> MAE along the normal [mm]; scenarios ``main`` (truth =
+            model), ``stiffness_-20%`` and ``noise_x3`` of ``compare`` (no hidden-effect
+            scenario: the robot file already has every tilting compliance).
+        max_mm: (scenario, strategy) -> max |error along the normal| [mm].
+        axial_N: Axial (forming) force of the problem [N].
+    """
+
+    mae_mm: dict[tuple[str, str], float]
+    max_mm: dict[tuple[str, str], float]
+    axial_N: float
+
+
+def kr600_forming_check() -> FormingCheck:
+    """``compare kr600_forming_contour`` with ``none`` and ``realtime_seed002``."""
+    problem = load_problem(FORMING)
+    res = compare(problem, CompareOptions(strategies=("none", "realtime_seed002")))
+    mae, mx = {}, {}
+    for sc in (res.main, *res.sensitivity):
+        for k, n in sc.normal.items():
+            mae[sc.name, k] = n.mae * 1e3
+            mx[sc.name, k] = n.max_abs * 1e3
+    return FormingCheck(mae, mx, problem.process.forces.axial)
+
+
 def _seed002_rows() -> list[Check]:
-    """Seed 002 (KUKA KR600) rows."""
+    """Seed 002 (KUKA KR600) rows: Table 3's MAE along the normal on a forming-like path."""
+    f = kr600_forming_check()
+    none, comp = f.mae_mm["main", "none"], f.mae_mm["main", "realtime_seed002"]
+    soft = next(k for k, _ in f.mae_mm if k.startswith("stiffness"))
+    err = (none - SEED002_MAE_NONE_MM) / SEED002_MAE_NONE_MM * 100
     return [
         Check(
-            "002 Table 3: MAE 0.43 mm uncompensated, ~0.2 mm compensated",
-            "not measured",
-            False,
-            "normal-MAE metric not added to compare; KR600 torque-stiffness file not written "
-            "(not done by the deadline)",
+            "002 Table 3: MAE along the normal 0.43 mm uncompensated (E13-E18)",
+            f"{none:.3f} mm ({err:+.0f} %), max {f.max_mm['main', 'none']:.2f} mm "
+            f"(compare {FORMING}, strategy none)",
+            abs(err) <= 20.0,
+            f"forming forces ASSUMED ({f.axial_N:g} N along the tool for 'over 1000 N', 300 N "
+            "lateral, 150 N traverse), a flat 120 mm contour for the 50 deg wall, tool and "
+            "placement ASSUMED; scaled linearly in the force, the paper's level "
+            f"needs about {f.axial_N * SEED002_MAE_NONE_MM / none:.0f} N; tolerance 20 %",
+        ),
+        Check(
+            "002 Table 3: compensation halves the MAE (0.43 -> ~0.2 mm, E19-E24)",
+            f"{none:.3f} -> {comp:.3f} mm (truth = model); truth 20 % softer "
+            f"{f.mae_mm[soft, 'none']:.3f} -> {f.mae_mm[soft, 'realtime_seed002']:.3f} mm; "
+            f"3x sensor noise {f.mae_mm['noise_x3', 'none']:.3f} -> "
+            f"{f.mae_mm['noise_x3', 'realtime_seed002']:.3f} mm",
+            comp <= 0.5 * none and f.mae_mm[soft, "realtime_seed002"] <= 0.5 * f.mae_mm[
+                soft, "none"],
+            "the reduction is reproduced; the level is not: the simulation has no error "
+            "besides the deflection, while the paper's robot had ~0.2 mm without any force "
+            "(E01-E06: controller at its computational limit, stops, LED plate load), which "
+            "no compensation of the stiffness removes; the simulated residual is the MAF/PID "
+            "lag at the corners and the model error",
         ),
     ]
 
