@@ -10,15 +10,20 @@ Example::
 
     for candidate in progress(candidates, desc="diagnosis", unit="candidate"):
         ...
+
+    with Stages("validate-weld", ("reading", "diagnosis", "report")) as stages:
+        ...                   # reading
+        stages.start("diagnosis")
+        ...
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from typing import Any, TypeVar
 
-__all__ = ["Bar", "enabled", "progress", "set_enabled"]
+__all__ = ["Bar", "Stages", "enabled", "progress", "set_enabled"]
 
 T = TypeVar("T")
 
@@ -76,3 +81,37 @@ class Bar:
     def __exit__(self, *exc: object) -> None:
         if self._bar is not None:
             self._bar.close()
+
+
+class Stages:
+    """A bar over the named stages of one command; its label names the running stage.
+
+    For commands whose steps are few and long (reading, diagnosis, plots): the user sees what
+    runs now and how many steps are left. A bar of an inner loop (e.g. the diagnosis
+    candidates) is drawn below it. A no-op when bars are disabled.
+
+    Args:
+        command: The label's prefix (the command's name, e.g. ``"validate-weld"``).
+        names: The stages in order; the first one starts at once.
+    """
+
+    def __init__(self, command: str, names: Sequence[str]) -> None:
+        if not names:
+            raise ValueError("Stages needs at least one stage")
+        self._command = command
+        self._names = list(names)
+        self._k = 0
+        self._bar = Bar(len(self._names), f"{command}: {self._names[0]}", unit="step")
+
+    def start(self, name: str) -> None:
+        """The running stage is done; stage ``name`` (a later one of ``names``) starts."""
+        k = self._names.index(name, self._k + 1)  # ValueError for an unknown or past stage
+        self._bar.update(k - self._k)
+        self._k = k
+        self._bar.set_description(f"{self._command}: {name}")
+
+    def __enter__(self) -> Stages:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._bar.__exit__(*exc)

@@ -114,7 +114,40 @@ def test_plan_stage_bar_and_quiet_after_the_subcommand(tmp_path: Path) -> None:
     rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "a"), "--json"], tty=True)
     assert rc == 0, err
     assert "plan: branches" in err and "plan: NLP" in err  # the stage bar, on stderr
+    assert "plan: plots" in err  # writing and plotting after the planner has its own bar
     json.loads(out)
     rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "b"), "--json", "-q"], tty=True)
     assert rc == 0 and "plan: NLP" not in err and "plan: branches" not in err
     json.loads(out)
+
+
+def test_validate_stages_from_the_first_step_to_the_report(campaign: Path,
+                                                          tmp_path: Path) -> None:
+    rc, out, err = _run(["validate", "--robot", "zk500", "--data", str(campaign), "--folds", "3",
+                         "-o", str(tmp_path / "v")], tty=True)
+    assert rc == 0, err
+    for stage in ("validate: reading the data", "validate: diagnosis",
+                  "validate: plots and report"):
+        assert stage in err, stage
+    assert "verdict: missing" in out and "validate:" not in out
+
+
+def test_deviation_stages(tmp_path: Path) -> None:
+    rc, out, err = _run(["deviation", "zk500_table6_seam", "--cosim", "-o", str(tmp_path / "d"),
+                         "--json"], tty=True)
+    assert rc == 0, err
+    assert "deviation: co-simulation" in err and "deviation: files and plot" in err
+    json.loads(out)
+
+
+def test_stages_are_named_in_order() -> None:
+    from rfsw_plan import progress
+
+    with progress.Stages("cmd", ("a", "b", "c")) as st:
+        st.start("c")  # a stage may be skipped
+        with pytest.raises(ValueError):
+            st.start("b")  # but never gone back to
+        with pytest.raises(ValueError):
+            st.start("nope")
+    with pytest.raises(ValueError):
+        progress.Stages("cmd", ())

@@ -60,7 +60,7 @@ from rfsw_plan.planning.verify import (
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.progress import Bar
+from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
 from rfsw_plan.tomlreader import unknown_name_error
@@ -284,9 +284,9 @@ def plan_task(
 ) -> PlanResult:
     """The pipeline of :func:`plan` on an explicit task (see there), with a progress bar over
     its stages on stderr (:mod:`rfsw_plan.progress`: only on a terminal, not with ``-q``)."""
-    with Bar(len(_STAGES), f"plan: {_STAGES[0]}", unit="step") as bar:
+    with Stages("plan", _STAGES) as stages:
         return _plan_task(model, task, window, q_seed, opts, name, compile_c, timing, t_start,
-                          bar)
+                          stages)
 
 
 # Stages of the planning pipeline, as the progress bar names them.
@@ -294,24 +294,17 @@ _STAGES = ("branches and tool rotations", "baselines", "NLP (first run compiles 
            "verification", "timing", "sample check")
 
 
-def _stage(bar: Bar, k: int) -> None:
-    """Stage ``k`` done: advance the bar and name the next stage."""
-    bar.update(1)
-    if k + 1 < len(_STAGES):
-        bar.set_description(f"plan: {_STAGES[k + 1]}")
-
-
 def _plan_task(
     model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_seed: FloatArray,
     opts: PlanOptions, name: str, compile_c: bool | None, timing: TimingLimits | None,
-    t_start: float | None, bar: Bar,
+    t_start: float | None, stages: Stages,
 ) -> PlanResult:
     t_all = t_start if t_start is not None else time.perf_counter()
     check_well_posed(opts, window)
     robot = model.robot
     start, branch, infos, rotation, q_taught0 = choose_branch(
         model, task, np.asarray(q_seed, float), opts, window)
-    _stage(bar, 0)
+    stages.start("baselines")
     warm = mirror_compensation(model, task, start.q, rotation)
     # Baselines 1 and 2 are what an engineer gets at the taught tool rotation on this branch;
     # the NLP may start elsewhere when the stiffness multi-start found a stiffer rotation.
@@ -323,19 +316,19 @@ def _plan_task(
             mirror = mirror_compensation(model, task, taught.q, opts.tool_rotation)
         except UnreachableError:
             log.info("taught rotation unreachable on branch %s; baselines use the start", branch)
-    _stage(bar, 1)
+    stages.start("NLP (first run compiles C)")
 
     t0 = time.perf_counter()
     sol = _solver_call(solve_plan, model, task, window, warm, opts, compile_c)
     solve_time = time.perf_counter() - t0
-    _stage(bar, 2)
+    stages.start("verification")
 
     t0 = time.perf_counter()
     ver = verify_plan(model, task, window, sol.q, sol.offsets, opts.force_uncertainty,
                       opts.robust_hard, opts.joint_step * (1 + 1e-6), opts.kappa_max,
                       opts.length_scale)
     verify_time = time.perf_counter() - t0
-    _stage(bar, 3)
+    stages.start("timing")
     if not ver.feasible:
         msg = ver.messages[0]
         if not sol.success:
@@ -346,11 +339,10 @@ def _plan_task(
     traj = time_parameterise(robot, task, sol.q, sol.offsets, timing)
     traj = replace(traj, s_pin=pin_track(model, task, traj))
     timing_time = time.perf_counter() - t0
-    _stage(bar, 4)
+    stages.start("sample check")
     # What is written is what is verified: every sample, independently of the timing.
     samples = verify_samples(model, task, window, traj, opts.margin, sol.q)
     samples.raise_if_failed()
-    _stage(bar, 5)
     tolerated = {
         "none": tolerated_uncertainty(predict(model, task, taught.q, 1.0), window, 1.0),
         "mirror": tolerated_uncertainty(predict(model, task, mirror.q, 1.0), window, 1.0),

@@ -273,7 +273,8 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 # Keys of every table of a robot file. A new key is declared here and read below.
 TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
             "effects", "device_frame", "provenance")
-PROVENANCE_KEYS = ("parent", "data", "data_sha256", "created", "command")
+PROVENANCE_KEYS = ("parent", "data", "data_sha256", "forces", "forces_sha256", "created",
+                   "command")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
 URDF_KEYS = ("urdf", "tip_link", "source")
 KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
@@ -396,28 +397,41 @@ def _provenance(r: Table) -> dict[str, str]:
     return {k: t.str_(k) for k in PROVENANCE_KEYS if t.has(k)}
 
 
+def derived_name(parent: str, added: tuple[str, ...] | list[str] = ()) -> str:
+    """The default name of a re-identified robot: ``<parent>+<added labels>``.
+
+    ``zk500`` + (``payload_gravity``,) -> ``zk500+payload_gravity``; a parent that is already
+    derived keeps its labels (``zk500+payload_gravity`` + (``tilting_compliance:j2``,) ->
+    ``zk500+payload_gravity+tilting_compliance:j2``); nothing added -> ``<base>+identified``.
+    """
+    base, *old = parent.split("+")
+    new = [a for a in added if a not in old]
+    return "+".join([base, *old, *new]) if added else f"{base}+identified"
+
+
 def derived_description(desc: RobotDescription, *, name: str | None, parent: Path | None,
                         data: str | Path | None, command: str,
-                        added: tuple[str, ...] = ()) -> RobotDescription:
+                        added: tuple[str, ...] = (),
+                        forces: str | Path | None = None) -> RobotDescription:
     """A re-identified description with a new name and its provenance.
 
     Args:
         desc: The re-identified description.
-        name: The new robot name; None makes ``<parent name>+<added effects>`` (e.g.
-            ``zk500+payload_gravity``), or ``<parent name>+identified`` when nothing was added.
+        name: The new robot name; None makes :func:`derived_name` (e.g.
+            ``zk500+payload_gravity``, or ``zk500+identified`` when nothing was added).
         parent: The robot file it was derived from.
         data: The measurement file it was identified on (its SHA-256 is recorded).
         command: The command that made it (``rfsw-plan validate``).
         added: Effect labels new in this description.
+        forces: The force log the data was measured under, when it is a file of its own
+            (``validate-weld``: the weld's force log; its SHA-256 is recorded).
     """
     from datetime import datetime
 
     from rfsw_plan.io.files import sha256_file
 
     if name is None:
-        base = desc.name.split("+", 1)[0] if "+" in desc.name else desc.name
-        old = desc.name.split("+")[1:]
-        name = "+".join([base, *old, *added]) if added else f"{base}+identified"
+        name = derived_name(desc.name, added)
     if not name.strip():
         raise InputError("--name", "", "is empty", "a robot name")
     prov = {"created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
@@ -428,6 +442,10 @@ def derived_description(desc: RobotDescription, *, name: str | None, parent: Pat
         prov["data"] = str(data)
         if Path(data).is_file():
             prov["data_sha256"] = sha256_file(data)
+    if forces is not None:
+        prov["forces"] = str(forces)
+        if Path(forces).is_file():
+            prov["forces_sha256"] = sha256_file(forces)
     return replace(desc, name=name, title=f"{desc.title} (re-identified)"
                    if "re-identified" not in desc.title else desc.title, provenance=prov)
 

@@ -6,7 +6,7 @@ import argparse
 import csv
 import logging
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -15,6 +15,9 @@ from rfsw_plan.process.problem import Problem, load_problem, with_process
 
 NAME = "deviation"
 HELP = "predict the uncompensated lateral/axial/along-track pin deviation of a problem"
+
+if TYPE_CHECKING:
+    from rfsw_plan.progress import Stages
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +42,16 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.progress import Stages
+
+    predict = "co-simulation" if args.cosim else "deviation"
+    names = ["reading the problem", *(["fitting the force log"] if args.forces else []),
+             predict, "files" if args.no_plot else "files and plot"]
+    with Stages(NAME, names) as stages:
+        return _run(args, stages, names)
+
+
+def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
     from rfsw_plan.exceptions import InputError
 
     if not (np.isfinite(args.dt) and args.dt > 0):
@@ -56,12 +69,15 @@ def run(args: argparse.Namespace) -> int:
     fit_text = ""
     fit_json = None
     if args.forces is not None:
+        stages.start("fitting the force log")
         problem, fit_text, fit_json = _fit(problem, args.forces, args.forces_frame)
+    stages.start(names[-2])
     res = problem_deviation(problem, dt=args.dt, cosim=args.cosim)
     data = {"problem": problem.name, "robot": problem.robot.name, **res.to_dict()}
     if fit_json is not None:
         data["force_fit"] = fit_json
     files = ["deviation.csv", "deviation_time.csv", "deviation.json"]
+    stages.start(names[-1])
     with OutputLock(out):
         with atomic_path(out / "deviation.csv") as tmp:
             _write_csv(tmp, res, problem.robot.convention.column_names())

@@ -76,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.planning.options import check_well_posed
     from rfsw_plan.process.plan_options import options_from_table
     from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.progress import Stages
 
     check_export_arguments(args)
     problem = load_problem(args.problem)
@@ -109,15 +110,18 @@ def run(args: argparse.Namespace) -> int:
             raise
         summary = result.summary()
         summary["robot_file"] = str(problem.robot.path)
-        written = write_plan_data(out, result)
-        exported = export_plan_result(args, result, out, summary)
-        if exported is not None:
-            written += list(exported.files)
-            summary["export"] = exported.to_dict()
-        summary.update(force_log_cli.plan_json(problem, args, flog, check))
-        # plan.json commits the data files first, then the plots are drawn and committed:
-        # a plot that fails or is killed never costs the waypoints or the programs.
-        _, failed_plots = commit_plan(out, summary, written, result)
+        # The planner's own bar has closed; writing and plotting gets a bar of its own.
+        with Stages("plan", ("files", "plots")) as stages:
+            written = write_plan_data(out, result)
+            exported = export_plan_result(args, result, out, summary)
+            if exported is not None:
+                written += list(exported.files)
+                summary["export"] = exported.to_dict()
+            summary.update(force_log_cli.plan_json(problem, args, flog, check))
+            stages.start("plots")
+            # plan.json commits the data files first, then the plots are drawn and committed:
+            # a plot that fails or is killed never costs the waypoints or the programs.
+            _, failed_plots = commit_plan(out, summary, written, result)
     for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
               file=sys.stderr)

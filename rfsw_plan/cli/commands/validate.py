@@ -14,6 +14,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.kinematics import load_robot
 
 if TYPE_CHECKING:
+    from rfsw_plan.progress import Stages
     from rfsw_plan.validation.diagnosis import Candidate
     from rfsw_plan.validation.report import ReportFiles
     from rfsw_plan.validation.workbench import ValidationResult
@@ -63,6 +64,18 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.progress import Stages
+
+    names = _STAGES if not args.no_report else _STAGES[:-1]
+    with Stages(NAME, names) as stages:
+        return _run(args, stages)
+
+
+#: The steps the progress bar names (the diagnosis draws its own bar over the candidates).
+_STAGES = ("reading the data", "diagnosis", "plots and report")
+
+
+def _run(args: argparse.Namespace, stages: Stages) -> int:
     from rfsw_plan.validation.report import result_json, write_report
     from rfsw_plan.validation.workbench import save_extended_robot, validate
 
@@ -86,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     setup = measurement_args.device_setup(args, model, data)
     if setup is not None:
         check_registered(setup.model(model), setup.data(data))
+    stages.start("diagnosis")
     result = validate(
         model, data,
         noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
@@ -94,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
     )
     files = None
     if out is not None:
+        stages.start("plots and report")
         with OutputLock(out):
             files = write_report(result, out, argv=getattr(args, "argv", None),
                                  started=getattr(args, "started", None))

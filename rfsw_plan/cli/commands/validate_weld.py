@@ -6,6 +6,10 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rfsw_plan.progress import Stages
 
 NAME = "validate-weld"
 HELP = ("compare a trial weld's measured track with the plan's predicted pin path, diagnose "
@@ -43,17 +47,31 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help="add a candidate and re-identify it from the weld (repeatable)")
     parser.add_argument("--save-robot", metavar="NEW.toml", default=None,
                         help="write the re-identified robot (needs --add)")
+    parser.add_argument("--name", metavar="NAME", default=None,
+                        help="robot name in the --save-robot file (default: the robot's name "
+                             "plus the added labels, e.g. zk500+joint_compliance:j1)")
     parser.add_argument("--blocks", type=int, default=5,
                         help="blocks of s for the cross-validation (default 5)")
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.progress import Stages
+
+    with Stages(NAME, _STAGES) as stages:
+        return _run(args, stages)
+
+
+#: The steps the progress bar names (the diagnosis draws its own bar over the candidates).
+_STAGES = ("reading the plan, track and forces", "diagnosis", "plots and report")
+
+
+def _run(args: argparse.Namespace, stages: Stages) -> int:
     from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.exceptions import InputError, OutputPathError
-    from rfsw_plan.io.files import OutputLock, atomic_path, prepare_output_dir
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.io.files import OutputLock, prepare_output_dir, prepare_output_file
     from rfsw_plan.io.force_series import read_force_series
     from rfsw_plan.io.weld_track import read_weld_track
-    from rfsw_plan.robot.description import save_robot_description
+    from rfsw_plan.robot.description import derived_description, save_robot_description
     from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation.weld import next_command, read_plan_dir, validate_weld
     from rfsw_plan.validation.weld_report import write_weld_report
@@ -65,9 +83,10 @@ def run(args: argparse.Namespace) -> int:
     if args.blocks < 2:
         raise InputError("--blocks", "", f"{args.blocks}", "at least 2")
     out = prepare_output_dir(args.output or Path(args.plan_dir) / "validate_weld")
-    save = Path(args.save_robot) if args.save_robot else None
-    if save is not None and (save.is_dir() or not save.parent.resolve().is_dir()):
-        raise OutputPathError("--save-robot", save, "is a folder or its folder does not exist")
+    if args.name is not None and not args.save_robot:
+        raise InputError("--name", args.name, "given without --save-robot",
+                         "--save-robot NEW.toml --name NAME")
+    save = prepare_output_file(args.save_robot, "--save-robot") if args.save_robot else None
     record = read_plan_dir(args.plan_dir, args.problem)
     track = read_weld_track(args.track)
     series = read_force_series(args.forces, args.forces_frame) if args.forces else None
@@ -75,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--forces-frame", "", "given without --forces", "--forces LOG.csv")
     model = ElastostaticModel(load_robot(args.robot or record.problem.robot))
     with OutputLock(out):
+        stages.start("diagnosis")
         result = validate_weld(record, track, series, model, add=args.add, blocks=args.blocks)
         saved = None
         if save is not None and result.add is not None:
@@ -82,10 +102,14 @@ def run(args: argparse.Namespace) -> int:
             note = (f"re-identified by rfsw-plan validate-weld from {args.track} (plan "
                     f"{args.plan_dir}): {', '.join(a.labels)}; lateral RMS "
                     f"{a.rms_before * 1e3:.4g} -> {a.rms_after * 1e3:.4g} mm")
-            with atomic_path(save) as tmp:
-                save_robot_description(a.model.to_description(note), tmp)
-            saved = save
+            # The same compact, provenance-carrying writer as validate --save-robot.
+            desc = derived_description(
+                a.model.to_description(note), name=args.name,
+                parent=model.robot.description.path, data=args.track,
+                command="rfsw-plan validate-weld", added=tuple(a.labels), forces=args.forces)
+            saved = save_robot_description(desc, save)
         nxt = next_command(result, args.plan_dir, args.track, args.forces, saved)
+        stages.start("plots and report")
         files = write_weld_report(result, out, nxt, {"saved_robot": str(saved) if saved else None})
     if args.json:
         data = json.loads(files.json.read_text())
