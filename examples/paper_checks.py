@@ -24,14 +24,22 @@ from typing import Any
 
 import numpy as np
 
+from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.model import load_model
-from rfsw_plan.elastostatics.workspace import IndexMap, index_map, sample_joint_grid
+from rfsw_plan.elastostatics.workspace import (
+    IndexMap,
+    JointGrid,
+    index_map,
+    sample_joint_grid,
+)
 from rfsw_plan.process.deviation import DeviationResult, problem_deviation
 from rfsw_plan.process.problem import Problem, load_problem
+from rfsw_plan.realtime.compare import CompareOptions, compare
 from rfsw_plan.robot.description import ModifiedDH
 from rfsw_plan.robot.ik import solve_ik
-from rfsw_plan.robot.kinematics import load_robot
+from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.validation.seed001_campaign import (
+    CABLE_COMPLIANCE_MM_PER_KN,
     OFF_AXIS_ATTACHMENT_MM,
     CampaignIdentification,
     seed001_cases,
@@ -334,6 +342,95 @@ def sensitivity_spread(rows: list[Sensitivity]) -> dict[str, float]:
     return out
 
 
+#: Seed 000 eq. 10 as extracted: five joint stiffnesses for six joints [N m/rad].
+EQ10_FIVE = (1e6, 4e5, 4e5, 1e4, 1e4)
+
+
+@dataclass(frozen=True)
+class Eq10Reading:
+    """nu_p over the Fig. 13 plane for one reading of the garbled eq. 10.
+
+    Attributes:
+        reading: How the five listed stiffnesses (and the wrench) are read.
+        Kq: The six joint stiffnesses [N m/rad], shape (6,).
+        wrench_frame: ``base`` (eq. 10's wrench in the base frame) or ``tool`` (in the TCP
+            frame, turned into the base frame at each pose).
+        median: Median nu_p over the plane [-].
+        max: Largest nu_p over the plane [-].
+    """
+
+    reading: str
+    Kq: tuple[float, ...]
+    wrench_frame: str
+    median: float
+    max: float
+
+    @property
+    def holds(self) -> bool:
+        """The paper's nu_p <= 0.03 over the whole plane."""
+        return self.max <= 0.03
+
+
+def _nu_p(robot: Robot, grid: JointGrid, Kq: FloatArray, frame: str) -> FloatArray:
+    if frame == "base":
+        return index_map(robot, grid, EQ10_WRENCH, Kq).nu_p
+    T, _ = robot.batch_fk_jacobian(grid.q)
+    out = np.empty(len(grid.q))
+    for i, Ti in enumerate(T):  # the wrench turns with the tool: one map per pose
+        R = Ti[:3, :3]
+        Fb = np.concatenate([R @ EQ10_WRENCH[:3], R @ EQ10_WRENCH[3:]])
+        one = JointGrid(grid.q[i:i + 1], grid.position[i:i + 1], grid.swept, grid.axes, (1, 1))
+        out[i] = index_map(robot, one, Fb, Kq).nu_p[0]
+    return out
+
+
+def eq10_readings(n_points: int = 41) -> list[Eq10Reading]:
+    """Every plausible reading of eq. 10's five stiffnesses, and Table 2 for reference.
+
+    The extracted list "1e6 4e5 4e5 1e4 1e4" lost one entry; a lost entry most likely repeats
+    a neighbour (k2 = k1, k4 = k3 or k6 = k5). Other readings: an exponent misread (wrist 1e5),
+    the values in kN m/rad, and the wrench given in the tool frame instead of the base frame.
+    """
+    robot = load_robot("fanuc_s900ib_400")
+    grid = sample_joint_grid(robot, np.radians(FIG13_Q_DEG), n_points=(n_points, n_points))
+    a, b, c, d, e = EQ10_FIVE
+    readings: list[tuple[str, tuple[float, ...], str]] = [
+        ("k6 = k5 lost (wrist 1e4)", (a, b, c, d, e, e), "base"),
+        ("k2 = k1 lost", (a, a, b, c, d, e), "base"),
+        ("k4 = k3 lost", (a, b, c, c, d, e), "base"),
+        ("wrist exponent misread (1e5)", (a, b, c, 10 * d, 10 * e, 10 * e), "base"),
+        ("values in kN m/rad (x 1e3)", tuple(1e3 * k for k in (a, b, c, d, e, e)), "base"),
+        ("k6 = k5, wrench in the tool frame", (a, b, c, d, e, e), "tool"),
+        ("Table 2 (identified)", tuple(float(k) for k in robot.stiffness), "base"),
+        ("Table 2, wrench in the tool frame", tuple(float(k) for k in robot.stiffness), "tool"),
+    ]
+    out = []
+    for name, k, frame in readings:
+        nu = _nu_p(robot, grid, np.array(k), frame)
+        v = nu[np.isfinite(nu)]
+        out.append(Eq10Reading(name, k, frame, float(np.median(v)), float(v.max())))
+    return out
+
+
+def eq10_scale_for_limit(limit: float = 0.03, n_points: int = 41) -> float:
+    """Smallest factor on eq. 10's stiffness (k6 = k5 reading) for which nu_p <= ``limit``
+    over the whole Fig. 13 plane (bisection in log scale; nu_p falls as Kq rises)."""
+    robot = load_robot("fanuc_s900ib_400")
+    grid = sample_joint_grid(robot, np.radians(FIG13_Q_DEG), n_points=(n_points, n_points))
+    k = np.array([*EQ10_FIVE, EQ10_FIVE[-1]])
+
+    def worst(f: float) -> float:
+        return float(np.nanmax(index_map(robot, grid, EQ10_WRENCH, f * k).nu_p))
+
+    lo, hi = 1.0, 1e4
+    if worst(hi) > limit:
+        raise RuntimeError(f"nu_p stays above {limit} with eq. 10's stiffness x {hi:g}")
+    for _ in range(20):
+        mid = float(np.sqrt(lo * hi))
+        lo, hi = (lo, mid) if worst(mid) <= limit else (mid, hi)
+    return hi
+
+
 @dataclass(frozen=True)
 class Check:
     """One row of the table: a paper's number, ours, and whether it is reproduced.
@@ -416,13 +513,14 @@ def _seed001_rows() -> list[Check]:
 
 
 def _pct(values: np.ndarray) -> str:
-    return " / ".join("-" if not np.isfinite(v) else f"{v * 100:.2g}" for v in values)
+    return " / ".join("-" if not np.isfinite(v) else f"{v * 100:+.2g}" for v in values)
 
 
 def _seed001_table3_rows(cases: list[CampaignIdentification]) -> list[Check]:
     """Seed 001 Table 2 -> Table 3: which joints the five poses identify, and k6."""
     tcp3, tcp6 = cases[0], cases[1]
     off3, off6, fine = cases[3], cases[4], cases[5]
+    rigid, stretch = cases[6], cases[7]
     vertical = cases[2]
     first5 = tcp3.identified[:5].all() and bool(np.all(
         np.abs(tcp3.relative_error[:5]) <= 3.0 * tcp3.relative_std[:5]))
@@ -457,27 +555,47 @@ def _seed001_table3_rows(cases: list[CampaignIdentification]) -> list[Check]:
             f"(3-D: k6 {'identified' if off3.identified[5] else 'not identified'}); "
             "the paper states no such attachment",
         ),
+        Check(
+            "001 §2.2.2 method: commanded move with the TCP held by the cable read as dX",
+            f"k1-k6 errors {_pct(rigid.relative_error)} % (rigid cable), "
+            f"{_pct(stretch.relative_error)} % ({CABLE_COMPLIANCE_MM_PER_KN:g} mm/kN cable); "
+            f"RMS residual {rigid.result.rms_after * 1e3:.2f} mm vs "
+            f"{cases[0].result.rms_after * 1e3:.3f} mm with the TCP measured",
+            False,
+            "same campaign, the paper's reading of it: a cable holds the TCP only along itself, "
+            "so the commanded move is the deflection along the cable (plus the cable's "
+            "stretch) and eq. 8's other rows read zero; '-' = not identified (estimate not "
+            "positive or invisible, prior kept); measure the TCP (tracker) instead",
+        ),
     ]
 
 
 def _seed000_rows(n_points: int = 41) -> list[Check]:
     """Seed 000 (FANUC S-900iB/400) rows, computed on each run."""
-    maps = fanuc_nu_p_maps(n_points)
-    eq10 = maps["eq. 10 Kq (k6 = 1e4 assumed)"].percentiles((50.0,))
-    tab2 = maps["Table 2 (identified)"].percentiles((50.0,))
+    readings = {r.reading: r for r in eq10_readings(n_points)}
+    tab2 = readings["Table 2 (identified)"]
+    tab2_tool = readings["Table 2, wrench in the tool frame"]
+    eq10 = [r for r in readings.values() if not r.reading.startswith("Table 2")]
+    holding = [r.reading for r in eq10 if r.holds]
+    scale = eq10_scale_for_limit(0.03, n_points)
+    listed = "; ".join(f"{r.reading}: {r.median:.3f} / {r.max:.3f}" for r in eq10)
     return [
         Check(
-            "000 eq. 8-10 / Fig. 13: nu_p <= 0.03",
-            f"eq. 10 Kq (k6 = 1e4): median {eq10['p50']:.3f}, max {eq10['max']:.3f}",
+            "000 eq. 8-10 / Fig. 13: nu_p <= 0.03 with eq. 10's Kq",
+            f"median / max nu_p: {listed}",
             False,
-            "a 1e4 N m/rad wrist under eq. 10's wrench bends "
-            "~0.3 m, so Kc is not negligible; wrist 1e5 gives max 0.033; no reading gives <= 0.03",
+            f"only {', '.join(holding) or 'no reading'} gives max <= 0.03, i.e. a Kq 100-1000x "
+            "Table 2's identified one (not plausible); with a 1e4 N m/rad wrist eq. 10's "
+            f"wrench bends the robot so far that Kc matters; eq. 10's Kq needs x {scale:.1f} "
+            "for max <= 0.03 (k6 = k5 reading)",
         ),
         Check(
             "000 Table 2 stiffness: nu_p <= 0.03",
-            f"median {tab2['p50']:.4f}, max {tab2['max']:.4f}",
-            tab2["p50"] <= 0.03 and tab2["max"] <= 0.035,
-            "reproduced to within 0.005 at the worst pose (M-900iB/700 lengths, assumed tool)",
+            f"median {tab2.median:.4f}, max {tab2.max:.4f} (wrench in the tool frame: "
+            f"{tab2_tool.median:.4f}, {tab2_tool.max:.4f})",
+            bool(tab2.median <= 0.03 and tab2.max <= 0.035),
+            "reproduced to within 0.005 at the worst pose with eq. 10's wrench in the base "
+            "frame, within 0.03 everywhere in the tool frame (M-900iB/700 lengths, assumed tool)",
         ),
         *_fanuc_direction_rows(),
     ]
@@ -527,15 +645,73 @@ def _fanuc_direction_rows() -> list[Check]:
     ]
 
 
+#: Seed 002 §5.2 / Table 3: mean MAE along the surface normal of E13-E18 (formed, no
+#: compensation) [mm], and about 0.2 mm with the stiffness compensation (E19-E24, like the
+#: force-free runs E01-E06: "around 0.2 mm, typical for industrial robots of this size").
+SEED002_MAE_NONE_MM, SEED002_MAE_COMP_MM = 0.4277, 0.2
+#: The forming-like path on the torque-dependent KR600.
+FORMING = "kr600_forming_contour"
+
+
+@dataclass(frozen=True)
+class FormingCheck:
+    """Seed 002's metric on the forming-like path: MAE along the surface normal [mm].
+
+    Attributes:
+        mae_mm: (scenario, strategy) -> MAE along the normal [mm]; scenarios ``main`` (truth =
+            model), ``stiffness_-20%`` and ``noise_x3`` of ``compare`` (no hidden-effect
+            scenario: the robot file already has every tilting compliance).
+        max_mm: (scenario, strategy) -> max |error along the normal| [mm].
+        axial_N: Axial (forming) force of the problem [N].
+    """
+
+    mae_mm: dict[tuple[str, str], float]
+    max_mm: dict[tuple[str, str], float]
+    axial_N: float
+
+
+def kr600_forming_check() -> FormingCheck:
+    """``compare kr600_forming_contour`` with ``none`` and ``realtime_seed002``."""
+    problem = load_problem(FORMING)
+    res = compare(problem, CompareOptions(strategies=("none", "realtime_seed002")))
+    mae, mx = {}, {}
+    for sc in (res.main, *res.sensitivity):
+        for k, n in sc.normal.items():
+            mae[sc.name, k] = n.mae * 1e3
+            mx[sc.name, k] = n.max_abs * 1e3
+    return FormingCheck(mae, mx, problem.process.forces.axial)
+
+
 def _seed002_rows() -> list[Check]:
-    """Seed 002 (KUKA KR600) rows."""
+    """Seed 002 (KUKA KR600) rows: Table 3's MAE along the normal on a forming-like path."""
+    f = kr600_forming_check()
+    none, comp = f.mae_mm["main", "none"], f.mae_mm["main", "realtime_seed002"]
+    soft = next(k for k, _ in f.mae_mm if k.startswith("stiffness"))
+    err = (none - SEED002_MAE_NONE_MM) / SEED002_MAE_NONE_MM * 100
     return [
         Check(
-            "002 Table 3: MAE 0.43 mm uncompensated, ~0.2 mm compensated",
-            "not measured",
-            False,
-            "normal-MAE metric not added to compare; KR600 torque-stiffness file not written "
-            "(not done by the deadline)",
+            "002 Table 3: MAE along the normal 0.43 mm uncompensated (E13-E18)",
+            f"{none:.3f} mm ({err:+.0f} %), max {f.max_mm['main', 'none']:.2f} mm "
+            f"(compare {FORMING}, strategy none)",
+            abs(err) <= 20.0,
+            f"forming forces ASSUMED ({f.axial_N:g} N along the tool for 'over 1000 N', 300 N "
+            "lateral, 150 N traverse), a flat 120 mm contour for the 50 deg wall, tool and "
+            "placement ASSUMED; scaled linearly in the force, the paper's level "
+            f"needs about {f.axial_N * SEED002_MAE_NONE_MM / none:.0f} N; tolerance 20 %",
+        ),
+        Check(
+            "002 Table 3: compensation halves the MAE (0.43 -> ~0.2 mm, E19-E24)",
+            f"{none:.3f} -> {comp:.3f} mm (truth = model); truth 20 % softer "
+            f"{f.mae_mm[soft, 'none']:.3f} -> {f.mae_mm[soft, 'realtime_seed002']:.3f} mm; "
+            f"3x sensor noise {f.mae_mm['noise_x3', 'none']:.3f} -> "
+            f"{f.mae_mm['noise_x3', 'realtime_seed002']:.3f} mm",
+            comp <= 0.5 * none and f.mae_mm[soft, "realtime_seed002"] <= 0.5 * f.mae_mm[
+                soft, "none"],
+            "the reduction is reproduced; the level is not: the simulation has no error "
+            "besides the deflection, while the paper's robot had ~0.2 mm without any force "
+            "(E01-E06: controller at its computational limit, stops, LED plate load), which "
+            "no compensation of the stiffness removes; the simulated residual is the MAF/PID "
+            "lag at the corners and the model error",
         ),
     ]
 

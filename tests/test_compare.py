@@ -175,3 +175,36 @@ def test_change_of_travel_direction_on_the_curved_seam() -> None:
     assert none is not None and rt is not None
     assert none.inside_window_fraction == 0.0
     assert rt.max_abs_lateral < none.max_abs_lateral
+
+
+def test_mae_along_the_normal_matches_the_deviation_command(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """Seed 002 Table 3's metric: with no force drift the open-loop error along the surface
+    normal is the ``deviation`` command's axial deviation; the CLI's JSON, compare.json and the
+    table carry it, and seed 002's compensation removes most of it."""
+    from rfsw_plan.process.deviation import problem_deviation
+
+    code, out, err = run_cli(
+        ["kr600_forming_contour", "-o", str(tmp_path), "--json", "--no-sensitivity",
+         "--no-plot", "--force-drift", "0", "--strategies", "none", "realtime_seed002"], capsys)
+    assert code == 0, err
+    data = json.loads(out)
+    for m in data["strategies"].values():
+        assert {"mae_normal_mm", "max_abs_normal_mm", "mean_normal_mm", "std_normal_mm"} <= set(m)
+        assert 0.0 <= m["mae_normal_mm"] <= m["max_abs_normal_mm"]
+    dev = problem_deviation(load_problem("kr600_forming_contour"))
+    weld = dev.schedule.mask("weld")
+    axial_mae = float(np.mean(np.abs(dev.axial_t[weld]))) * 1e3
+    none = data["strategies"]["none"]
+    assert none["mae_normal_mm"] == pytest.approx(axial_mae, rel=0.01)
+    assert none["mean_normal_mm"] == pytest.approx(float(np.mean(dev.axial_t[weld])) * 1e3,
+                                                   rel=0.01)
+    assert data["strategies"]["realtime_seed002"]["mae_normal_mm"] < 0.1 * none["mae_normal_mm"]
+    saved = json.loads((tmp_path / "compare.json").read_text())
+    assert saved["main"]["strategies"]["none"]["mae_normal_mm"] == none["mae_normal_mm"]
+    assert "MAE along the normal" in (tmp_path / "compare.md").read_text()
+    code, out, err = run_cli(["kr600_forming_contour", "-o", str(tmp_path / "t"),
+                              "--no-sensitivity", "--no-plot", "--strategies", "none"], capsys)
+    assert code == 0, err
+    assert "MAE_n mm" in out

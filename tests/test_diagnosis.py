@@ -216,3 +216,33 @@ def test_fit_in_blocks_is_the_fit_on_the_stacked_regressor(
     assert blocked.fit.rms_after == pytest.approx(stacked.fit.rms_after, rel=1e-10)
     assert blocked.fit.condition_number == pytest.approx(stacked.fit.condition_number,
                                                           rel=1e-6)
+
+
+def test_block_caches_stay_within_the_budget_and_do_not_change_the_fit(
+    model: ElastostaticModel, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Effect caches kept in the blocks (the complementary-stiffness pose basis, 1.7 KB per
+    sample) are bounded by CACHE_BUDGET_BYTES: beyond it they are recomputed, same fit."""
+    import rfsw_plan.elastostatics.identification_blocks as ib
+
+    monkeypatch.setattr(ib, "BLOCK_SAMPLES", 37)
+    d = _data(["payload_gravity"], poses=30)
+    m = model.with_effect("payload_gravity").with_effect("complementary_stiffness")
+    folds = make_folds(d, 5)
+    seen: list[int] = []
+    real = ib._bound_cache
+
+    def spy(b, used):  # type: ignore[no-untyped-def]
+        kept = real(b, used)
+        seen.append(kept)
+        return kept
+
+    monkeypatch.setattr(ib, "_bound_cache", spy)
+    cached = cross_validate(m, d, folds, m.batch(d.q))
+    assert max(seen) > 0  # the basis was kept
+    monkeypatch.setattr(ib, "CACHE_BUDGET_BYTES", 1000)
+    seen.clear()
+    bounded = cross_validate(m, d, folds, m.batch(d.q))
+    assert max(seen) <= 1000
+    assert bounded.sse == cached.sse
+    assert [e.value for e in bounded.fit.estimates] == [e.value for e in cached.fit.estimates]

@@ -20,12 +20,14 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from rfsw_plan import __version__
 from rfsw_plan.cli.main import main
 from rfsw_plan.export.config import configs_near, fanuc_config, kuka_status_turn
 from rfsw_plan.export.fanuc_tp import read_tp, write_tp
@@ -33,6 +35,7 @@ from rfsw_plan.export.krl import read_krl, write_krl
 from rfsw_plan.export.program import ProgramHeader, Samples, build_program
 from rfsw_plan.export.rapid import read_rapid, write_rapid
 from rfsw_plan.export.readback import ANG_TOL, POS_TOL, round_trip
+from rfsw_plan.io.files import sha256_file
 from rfsw_plan.robot.kinematics import load_robot
 
 GOLDEN = Path(__file__).parent / "data" / "export"
@@ -132,11 +135,21 @@ def test_blending_only_while_welding(planned) -> None:
 
 
 def test_headers_carry_plan_id_robot_file_and_tolerated_uncertainty(planned) -> None:
+    """Plan id, problem, rfsw-plan version, the robot file by name and SHA-256 (never the
+    folder it was read from: a controller file must not carry a local path), and the
+    tolerated uncertainty. FANUC TP remarks continue a long line on the next one."""
     out, robot, rec = planned
     files = _program_files(out)
     plan_id = rec["export"]["plan_id"]
+    path = robot.description.path
     for fmt in ("krl", "fanuc_tp", "rapid"):
         text = files[fmt].read_text()
+        joined = re.sub(r" ;\n\s*\d+:  !   ", "", text) if fmt == "fanuc_tp" else text
+        assert f"robot file: {path.name}" in text
+        assert f"robot file sha256: {sha256_file(path)}" in joined
+        assert str(path.parent) not in text and "robots/" not in text
+        assert f"rfsw-plan version: {__version__}" in text
+        assert f"problem: {rec['problem']}" in text
         assert plan_id in text or plan_id[:40] in text
         assert "verified tolerated force uncertainty" in text
         assert robot.name in text
@@ -260,7 +273,8 @@ def _synthetic() -> tuple[object, Samples, ProgramHeader]:
     s = np.maximum.accumulate(np.maximum(s, 0.0))
     samples = Samples(t, np.array(phases), s, q, np.zeros((n, 6)), T[:, :3, 3])
     header = ProgramHeader("rfsw_golden", "golden-000000000000", "golden", "zk500",
-                           "robots/zk500.toml", 0.2, 0.2, (-1.25, 0.7), 1e-5, 5e-3)
+                           "zk500.toml", "0123456789abcdef" * 4, "0.1.0", 0.2, 0.2,
+                           (-1.25, 0.7), 1e-5, 5e-3)
     return robot, samples, header
 
 

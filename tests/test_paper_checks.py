@@ -177,6 +177,67 @@ def test_seed001_table3_rows_keep_their_finding(paper: ModuleType) -> None:
     from rfsw_plan.validation.seed001_campaign import seed001_cases
 
     rows = paper._seed001_table3_rows(seed001_cases())
-    assert [r.reproduced for r in rows] == [True, False]
+    assert [r.reproduced for r in rows] == [True, False, False]
     assert "not identifiable with the cable at the TCP" in rows[1].project
     assert "k6 not identified" in rows[1].why and "3-D: k6 not identified" in rows[1].why
+
+
+def test_seed000_eq10_readings(paper: ModuleType) -> None:
+    """Seed 000 eq. 10 lists five stiffnesses: no plausible reading gives nu_p <= 0.03 over
+    the Fig. 13 plane; only kN m/rad (1000x Table 2) does. Table 2 is the reproduced one."""
+    rows = {r.reading: r for r in paper.eq10_readings(n_points=15)}
+    assert len(rows) == 8
+    for r in rows.values():
+        assert len(r.Kq) == 6 and 0.0 <= r.median <= r.max < 1.0
+    eq10 = [r for r in rows.values() if not r.reading.startswith("Table 2")]
+    assert [r.reading for r in eq10 if r.holds] == ["values in kN m/rad (x 1e3)"]
+    assert rows["k6 = k5 lost (wrist 1e4)"].median > 0.1
+    assert rows["wrist exponent misread (1e5)"].max > 0.03  # close, but not within
+    t2 = rows["Table 2 (identified)"]
+    assert t2.median <= 0.03 and t2.max <= 0.035
+    assert rows["Table 2, wrench in the tool frame"].holds
+    scale = paper.eq10_scale_for_limit(0.03, n_points=15)
+    assert 3.0 < scale < 30.0
+    robot = load_robot("fanuc_s900ib_400")
+    grid = sample_joint_grid(robot, np.radians(paper.FIG13_Q_DEG), n_points=(15, 15))
+    k = np.array([*paper.EQ10_FIVE, paper.EQ10_FIVE[-1]])
+    assert np.nanmax(index_map(robot, grid, paper.EQ10_WRENCH, scale * k).nu_p) <= 0.03
+    assert np.nanmax(index_map(robot, grid, paper.EQ10_WRENCH, 0.95 * scale * k).nu_p) > 0.03
+
+
+def test_kr600_torque_variant_is_seed002s_robot() -> None:
+    """Seed 002: torque-dependent rotational stiffness (stiffening, Fig. 7's shape) on joints
+    1-5, tilting in both directions on every joint, joint 6 rigid in rotation."""
+    from rfsw_plan.elastostatics.model import load_model
+
+    robot = load_robot("kuka_kr600_r2830_torque")
+    d = robot.description
+    labels = [e.name for e in d.effects]
+    assert labels[:5] == [f"torque_dependent_stiffness:j{i}" for i in range(1, 6)]
+    assert [x for x in labels if x.startswith("tilting")] == [
+        f"tilting_compliance:j{i}" for i in range(1, 7)]
+    assert "torque_dependent_stiffness:j6" not in labels
+    assert d.stiffness[5] >= 1e12 and np.all(d.stiffness[:5] < 1e7)
+    base = load_robot("kuka_kr600_r2830")
+    np.testing.assert_allclose(d.stiffness[:5], base.description.stiffness[:5])
+    model = load_model(robot)
+    q = np.radians([0.0, -80.0, 110.0, 0.0, 60.0, 0.0])
+    F = np.array([0.0, 0.0, 5000.0, 0.0, 0.0, 0.0])
+    d1 = model.deflection(q, 0.2 * F)[:3]
+    d5 = model.deflection(q, F)[:3]
+    # Stiffening: five times the force gives less than five times the deflection, not much less.
+    assert 0.9 * 5 < (d5 @ F[:3]) / (d1 @ F[:3]) < 5.0
+    # Odd in the force: the reversed force gives the mirrored deflection.
+    np.testing.assert_allclose(model.deflection(q, -F)[:3], -d5, rtol=1e-9)
+
+
+def test_seed002_forming_rows(paper: ModuleType) -> None:
+    """Seed 002 Table 3 on the forming-like path: the compensation's reduction is reproduced,
+    the absolute levels are not (and say why)."""
+    f = paper.kr600_forming_check()
+    none, comp = f.mae_mm["main", "none"], f.mae_mm["main", "realtime_seed002"]
+    assert 0.4 < none < 0.8  # measured 0.599 mm against the paper's 0.4277 mm
+    assert comp < 0.05 < f.mae_mm["stiffness_-20%", "realtime_seed002"] < 0.5 * none
+    rows = {r.paper: r for r in paper._seed002_rows()}
+    assert rows["002 Table 3: compensation halves the MAE (0.43 -> ~0.2 mm, E19-E24)"].reproduced
+    assert not rows["002 Table 3: MAE along the normal 0.43 mm uncompensated (E13-E18)"].reproduced

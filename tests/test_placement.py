@@ -14,7 +14,13 @@ from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.placement.geometry import Placement, PlacementGrid, place_task, rot_z
 from rfsw_plan.placement.ik import solve_poses
-from rfsw_plan.placement.map import compute_map, evaluate_given, map_input, taught_given
+from rfsw_plan.placement.map import (
+    compute_map,
+    evaluate_given,
+    map_input,
+    seed_schedule,
+    taught_given,
+)
 from rfsw_plan.placement.optimise import (
     evaluate_candidate,
     move_problem,
@@ -25,7 +31,7 @@ from rfsw_plan.placement.optimise import (
 from rfsw_plan.placement.session import MapRequest, map_problem
 from rfsw_plan.planning.api import options_from_problem, plan
 from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
-from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.planning.verify import predict, verify_plan, verify_samples
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.robot.kinematics import load_robot
 
@@ -89,6 +95,50 @@ def test_map_is_invariant_to_turning_the_placement_about_the_base_axis():
     np.testing.assert_allclose(m1.q_path[..., 1:], m0.q_path[..., 1:], atol=1e-6)
 
 
+def test_seed_schedule_solves_every_placement_once_after_its_seed():
+    shape = (7, 5, 4, 2)
+    levels = seed_schedule(shape, np.deg2rad([-90.0, 0.0, 90.0, 180.0]))
+    done = np.zeros(int(np.prod(shape)), dtype=bool)
+    coords = np.stack(np.unravel_index(np.arange(done.size), shape), axis=1)
+    for k, (idx, parent) in enumerate(levels):
+        assert not done[idx].any()
+        if k == 0:
+            assert (parent == -1).all() and (coords[idx, 2] == 1).all()  # yaw 0 = the given
+        else:
+            assert done[parent].all()
+            if k >= shape[2]:  # the fine levels seed within the same yaw
+                assert (coords[parent, 2] == coords[idx, 2]).all()
+        done[idx] = True
+    assert done.all()
+
+
+@pytest.mark.parametrize("name", ["zk500_table6_seam", "kr600_curved_seam"])
+def test_map_equals_each_placement_mapped_alone(name):
+    """The coarse-to-fine seeds only change where the IK starts: every placement of a map has
+    the indices of the same placement mapped on its own (seeded from the given placement's
+    taught path) wherever that one is feasible; the map never loses a feasible placement."""
+    pr = load_problem(name)
+    mi = map_input(pr, max_weld=15)
+    a = mi.anchor
+    grid = PlacementGrid(a[0] + np.linspace(-0.3, 0.3, 4), a[1] + np.linspace(-0.3, 0.3, 3),
+                         np.deg2rad([-90.0, 0.0, 45.0, 180.0]), np.array([a[2]]))
+    m = compute_map(mi, grid, progress_desc=None)
+    both = 0
+    for i in range(grid.size):
+        x, y, z, yaw = m.placements[i]
+        one = compute_map(mi, PlacementGrid(np.array([x]), np.array([y]), np.array([yaw]),
+                                            np.array([z])), progress_desc=None)
+        if one.status[0] != "ok":
+            continue
+        assert m.status[i] == "ok", (i, m.status[i])
+        both += 1
+        for attr in ("compliance_max", "compliance_mean", "deviation", "tolerated_mirror",
+                     "tolerated_centred", "kappa_f", "nu_p"):
+            np.testing.assert_allclose(getattr(m, attr)[i], getattr(one, attr)[0], rtol=1e-5,
+                                       err_msg=f"{attr} at placement {i}")
+    assert both >= grid.size // 2
+
+
 def test_place_task_moves_points_frames_and_moment_rigidly():
     pr = load_problem("kr600_curved_seam")
     mi = map_input(pr)
@@ -128,6 +178,9 @@ def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
     ver = verify_plan(model, res.task, res.window, res.q, res.offsets,
                       res.options.force_uncertainty)
     assert ver.feasible
+    samples = verify_samples(model, res.task, res.window, res.trajectory, res.options.margin,
+                             res.q)
+    assert samples.ok, [f.message for f in samples.failures]
     e, inside = sample_errors(model, res.task, res.trajectory, res.window)
     assert inside.sum() > 10
     assert np.all(e[inside] >= res.window.lower - 1e-6)

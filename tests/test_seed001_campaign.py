@@ -53,7 +53,7 @@ def test_noise_free_campaign_returns_the_truth_where_identifiable() -> None:
 
 def test_cable_at_the_tcp_never_identifies_k6() -> None:
     cases = seed001_cases(seed=0)
-    tcp3, tcp6, vertical, off3, off6, fine = cases
+    tcp3, tcp6, vertical, off3, off6, fine = cases[:6]
     # No torque on j6 from a force at a TCP on the j6 axis, whatever the data.
     assert np.max(np.abs(tcp3.simulation.j6_torque_per_kN)) < 1e-9
     for c in (tcp3, tcp6):
@@ -76,11 +76,34 @@ def test_averaging_50_samples_shrinks_the_standard_errors() -> None:
     assert np.all((ratio > 3.0) & (ratio < 15.0)), ratio  # sqrt(50) = 7.1
 
 
+def test_commanded_reading_sees_only_the_deflection_along_the_cable() -> None:
+    """The paper's reading: the move is the deflection along the cable plus the stretch, the
+    rest is zero; identifying from it misses Table 3 far beyond its standard errors."""
+    setup = CableCampaign(measurement="commanded", cable_compliance_mm_per_kN=0.5,
+                          **NOISE_FREE)
+    sim = simulate_cable_campaign(setup)
+    d = sim.data
+    u = np.repeat(sim.cable_direction, 5, axis=0)
+    tension = np.linalg.norm(d.wrench[:, :3], axis=1)
+    moved = d.position - sim.truth.batch(d.q).T[:, :3, 3]
+    true = sim.truth.deflection(d.q, d.wrench)[:, :3]
+    along = np.einsum("mi,mi->m", true, u) + tension * 0.5e-6
+    np.testing.assert_allclose(moved, along[:, None] * u, atol=1e-12)
+    assert np.max(np.linalg.norm(true - np.einsum("mi,mi->m", true, u)[:, None] * u,
+                                 axis=1)) > 1e-3  # the cable lets the TCP move across it
+    paper_reading = seed001_cases(seed=0)[6]
+    err = np.abs(paper_reading.relative_error[:5])
+    assert np.nanmax(err) > 0.5
+    assert paper_reading.result.rms_after > 50 * seed001_cases(seed=0)[0].result.rms_after
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"tensions_N": (1000.0, -5.0)}, "tensions_N"),
     ({"samples": 0}, "samples"),
     ({"position_noise_mm": float("nan")}, "position_noise_mm"),
     ({"poses_deg": ((0.0, 0.0, 0.0),)}, "poses_deg"),
+    ({"measurement": "laser"}, "measurement"),
+    ({"cable_compliance_mm_per_kN": -1.0}, "cable_compliance"),
 ])
 def test_bad_setup_is_a_one_line_input_error(kwargs: dict[str, object], match: str) -> None:
     with pytest.raises(InputError, match=match):

@@ -44,9 +44,13 @@ from rfsw_plan.exceptions import IdentificationError
 
 #: Samples per block: large enough that numpy's per-call cost is small, small enough that a
 #: block's regressors and the effects' intermediate arrays stay in the tens of MB.
-BLOCK_SAMPLES = 32_768
+BLOCK_SAMPLES = 16_384
 
 _CHUNKS_KEY = "_blocks"
+#: Bytes of effect caches (e.g. the complementary-stiffness pose basis, 1.7 KB per sample)
+#: kept in the blocks across the passes of one fit; beyond it a block's cache is dropped after
+#: its pass and recomputed on the next (10^6 samples would otherwise keep 1.7 GB).
+CACHE_BUDGET_BYTES = 128 * 2**20
 
 
 def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseBatch]]:
@@ -73,6 +77,27 @@ def forget_block_caches(batch: PoseBatch) -> None:
         if key.startswith(_CHUNKS_KEY):
             for _, b in value:
                 b.cache.clear()
+
+
+def predicted_positions(model: ElastostaticModel, batch: PoseBatch, wrench: FloatArray
+                        ) -> FloatArray:
+    """Predicted TCP positions T + dX [m], base frame, shape (m, 3), evaluated block by block
+    (the effects' intermediate arrays are those of one block, not of every sample)."""
+    out = np.empty((len(batch), 3))
+    for s, b in blocks(batch):
+        out[s] = b.T[:, :3, 3] + model.deflection_batch(b, wrench[s])[:, :3]
+        b.cache.clear()
+    return out
+
+
+def _bound_cache(b: PoseBatch, used: int) -> int:
+    """After a block's pass: keep its cache while the blocks' caches stay within
+    :data:`CACHE_BUDGET_BYTES`, else drop it. Returns the bytes kept so far."""
+    size = sum(int(getattr(v, "nbytes", 0)) for v in b.cache.values())
+    if used + size > CACHE_BUDGET_BYTES:
+        b.cache.clear()
+        return used
+    return used + size
 
 
 def _qr_r(M: FloatArray, n: int) -> FloatArray:
@@ -136,8 +161,10 @@ def fold_factors(
     P = sum(e.params.size for e in effects)
     R = np.zeros((k, P + 1, P + 1))
     n_obs = np.zeros(k, dtype=np.int_)
+    kept = 0
     for s, b in blocks(batch):
         A, r = _rows(model, effects, data, s, b)
+        kept = _bound_cache(b, kept)
         assert A is not None
         if not np.all(np.isfinite(A)):
             raise IdentificationError(f"{data.source}: the regressor is not finite (values out "
@@ -309,8 +336,10 @@ def heldout_blocks(
         (block slice, residual of the measured values of that block, (n_meas,)) [m].
     """
     effects = list(model.effects)
+    kept = 0
     for s, b in blocks(batch):
         A, r = _rows(model, effects, data, s, b)
+        kept = _bound_cache(b, kept)
         assert A is not None
         fo = np.broadcast_to(folds[s][:, None], data.measured[s].shape)[data.measured[s]]
         yield s, r - np.einsum("ip,ip->i", A[:, cols], steps[fo])

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch, cross3
 from rfsw_plan.robot.kinematics import Robot
 
 
@@ -69,15 +69,6 @@ def _stack(batch: PoseBatch, springs: Sequence[JointSprings]) -> tuple[
     return R, r, Cl
 
 
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    """a x b over the last axis (written out: np.cross has a large fixed cost)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
-
-
 def spring_deflection(
     batch: PoseBatch, springs: Sequence[JointSprings], wrench: FloatArray
 ) -> FloatArray:
@@ -93,10 +84,10 @@ def spring_deflection(
         return dX
     R, r, Cl = _stack(batch, springs)
     F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-    M = _cross(r, F[:, None, :3]) + F[:, None, 3:]  # moment about each joint origin [N m]
+    M = cross3(r, F[:, None, :3]) + F[:, None, 3:]  # moment about each joint origin [N m]
     local = np.matmul(M[:, :, None, :], R)  # (R^T M)^T, (m, E, 1, 3)
     w = np.matmul(R, np.matmul(local, Cl)[..., 0, :, None])[..., 0]  # R C_l R^T M [rad]
-    dX[:, :3] = _cross(w, r).sum(axis=1)
+    dX[:, :3] = cross3(w, r).sum(axis=1)
     dX[:, 3:] = w.sum(axis=1)
     return dX
 
@@ -179,7 +170,7 @@ def spring_twists(batch: PoseBatch, springs: Sequence[JointSprings]) -> FloatArr
         u = np.matmul(frame[:, :3, :3], s.axes.T)  # (m, 3, k) base frame
         r = p - frame[:, :3, 3]  # TCP minus joint origin [m]
         kk = k + len(s.axes)
-        out[:, :3, k:kk] = _cross(u.transpose(0, 2, 1), r[:, None, :]).transpose(0, 2, 1)
+        out[:, :3, k:kk] = cross3(u.transpose(0, 2, 1), r[:, None, :]).transpose(0, 2, 1)
         out[:, 3:, k:kk] = u
         k = kk
     return out

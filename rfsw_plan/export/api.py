@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from rfsw_plan import __version__
 from rfsw_plan.exceptions import InfeasibleError, InputError
 from rfsw_plan.export.config import (
     abb_confdata,
@@ -135,9 +136,11 @@ def export_programs(
     spacing = plan_spacing(record) if spacing is None else spacing
     if not spacing > 0:
         raise InputError("--export-spacing-mm", "", f"got {spacing * 1e3:g}", "> 0")
+    robot_file, robot_sha256 = _robot_file(robot)
     header = ProgramHeader(
         name=f"rfsw_{problem}", plan_id=f"{problem}-{sha256_file(waypoints_csv)[:12]}",
-        problem=problem, robot=robot.name, robot_file=str(robot.description.path),
+        problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
+        version=__version__,
         tolerated_uncertainty=tolerated_from_record(record),
         requested_uncertainty=float(record.get("force_uncertainty_requested",
                                                record.get("force_uncertainty", 0.0)) or 0.0),
@@ -187,6 +190,14 @@ def _stream_from(samples: Samples, cycle: float) -> Samples:
                          f"time {dt * 1e3:g} ms", "the plan's sample time, or plan again with "
                          "--export stream (it times the plan at the cycle)")
     return samples
+
+
+def _robot_file(robot: Robot) -> tuple[str, str]:
+    """File name and hex SHA-256 of the robot's description file, ("", "") without one."""
+    path = robot.description.path
+    if path is None or not Path(path).is_file():
+        return "", ""
+    return Path(path).name, sha256_file(path)
 
 
 def _window(record: dict[str, Any]) -> tuple[float, float]:

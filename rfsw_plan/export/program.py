@@ -105,7 +105,11 @@ class ProgramHeader:
         plan_id: ``<problem>-<first 12 hex of the SHA-256 of waypoints.csv>``.
         problem: Problem name.
         robot: Robot name.
-        robot_file: Robot description file the plan used.
+        robot_file: File name (no folder: a controller file must not carry a local path) of
+            the robot description the plan used, or ``""`` for one built in memory.
+        robot_sha256: Hex SHA-256 of that file's bytes (``""`` without a file): names the
+            exact description wherever the file was copied to.
+        version: rfsw-plan version that wrote the program.
         tolerated_uncertainty: Verified tolerated relative force uncertainty (inf: unbounded).
         requested_uncertainty: Relative force uncertainty the plan was asked to hold.
         window_mm: Weld window (lower, upper) [mm].
@@ -118,6 +122,8 @@ class ProgramHeader:
     problem: str
     robot: str
     robot_file: str
+    robot_sha256: str
+    version: str
     tolerated_uncertainty: float
     requested_uncertainty: float
     window_mm: tuple[float, float]
@@ -130,9 +136,12 @@ class ProgramHeader:
         tol_s = "unbounded" if not math.isfinite(tol) else f"+-{100 * tol:.3g} %"
         return [
             f"rfsw-plan program {self.name}",
+            f"rfsw-plan version: {self.version}",
+            f"problem: {self.problem}",
             f"plan id: {self.plan_id}",
             f"robot: {self.robot}",
-            f"robot file: {self.robot_file}",
+            f"robot file: {self.robot_file or 'none (description built in memory)'}",
+            f"robot file sha256: {self.robot_sha256 or 'none'}",
             f"verified tolerated force uncertainty: {tol_s}",
             f"requested force uncertainty: +-{100 * self.requested_uncertainty:.3g} %",
             f"weld window: {self.window_mm[0]:+.3f} .. {self.window_mm[1]:+.3f} mm",
@@ -146,13 +155,15 @@ class ProgramHeader:
 
         Args:
             marker: Text before each line, e.g. ``"; "`` (KRL), ``"  ! "`` (RAPID).
-            max_len: Longest line text (without the marker); a longer one keeps its end,
-                prefixed with ``...`` (FANUC TP remarks). None: no limit.
+            max_len: Longest line text (without the marker); a longer line continues on
+                the next ones, indented by two spaces, so nothing is lost (FANUC TP
+                remarks: the 64 hex of a SHA-256). None: no limit.
         """
         out = []
         for line in self.lines():
-            if max_len is not None and len(line) > max_len:
-                line = "..." + line[3 - max_len:]
+            while max_len is not None and len(line) > max_len:
+                out.append(marker + line[:max_len])
+                line = "  " + line[max_len:]
             out.append(marker + line)
         return out
 

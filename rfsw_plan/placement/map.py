@@ -5,10 +5,12 @@ waypoints (the stationary plunge/dwell waypoints and up to ``max_weld`` weld way
 its process wrench), all placements x waypoints are evaluated at once:
 
 1. Taught path: vectorised IK (:func:`~rfsw_plan.placement.ik.solve_poses`) of the commanded
-   TCP poses (TCP z = -n, the problem's tool rotation). Seeds come coarse-to-fine over the grid
-   (every 8th, 4th, 2nd node, then all, each seeded by its nearest solved coarser node); joint 1
-   is about the base's vertical axis, so a seed is first turned by the change of the anchor's
-   polar angle (exact for a rotation of the whole placement about that axis).
+   TCP poses (TCP z = -n, the problem's tool rotation). Seeds come coarse-to-fine over the
+   table position and height within each yaw (every 8th, 4th, 2nd node, then all, each seeded
+   by its nearest solved coarser node at the same yaw; the coarsest nodes from the neighbouring
+   yaw, :func:`seed_schedule`); joint 1 is about the base's vertical axis, so a seed is first
+   turned by the change of the anchor's polar angle (exact for a rotation of the whole
+   placement about that axis).
 2. Checks: reach (IK converged), joint limits, joint steps between neighbours (a branch flip),
    kappa_f (seed 000 eq. 5) against the planner's bound.
 3. Indices with the problem's forces: lateral compliance c_k = l^T C_tt l (worst = largest and
@@ -253,6 +255,31 @@ def _turn_seed(robot: Robot, Q: FloatArray, dtheta: FloatArray) -> FloatArray:
     return out
 
 
+def wrap_into_limits(robot: Robot, Q: FloatArray) -> FloatArray:
+    """Joint paths (P, K, n) [rad] with every joint whose range exceeds a full turn shifted by
+    -2 pi, 0 or +2 pi (the whole path of a placement at once, so steps stay continuous) to
+    the shift with the largest limit margin: the same TCP poses, and a placement's status
+    does not depend on the turn the IK seed happened to be on. Only revolute joints that no
+    other joint is coupled to (a turn of the joint is a turn of that joint alone)."""
+    lo, hi = robot.description.lower, robot.description.upper
+    G = robot.coupling
+    out = np.array(Q, dtype=float)
+    for j in range(Q.shape[2]):
+        e = np.zeros(len(lo))
+        e[j] = 1.0
+        if hi[j] - lo[j] <= 2 * np.pi or robot.geometry.prismatic[j] or \
+                not np.allclose(G[:, j], e):
+            continue
+        shifts = np.array([-2 * np.pi, 0.0, 2 * np.pi])
+        qj = out[:, :, j][:, :, None] + shifts  # (P, K, 3)
+        with np.errstate(invalid="ignore"):
+            margin = np.min(np.minimum(qj - lo[j], hi[j] - qj), axis=1)  # (P, 3)
+        best = np.argmax(np.where(np.isfinite(margin), margin, -np.inf) + 1e-12 * (
+            shifts == 0.0), axis=1)
+        out[:, :, j] += shifts[best][:, None]
+    return out
+
+
 def nu_p_batch(model: ElastostaticModel, Q: FloatArray, W: FloatArray) -> FloatArray:
     """nu_p (seed 000 eq. 9) at joint values Q (m, n) [rad] under wrenches W (m, 6), (m,):
     |dx_Kc - dx| / max(dx, dx_Kc) with dx the translational deflection of Kq and dx_Kc that
@@ -343,7 +370,7 @@ def _evaluate(mi: MapInput, arr: PlacedArrays, seeds: FloatArray,
     ik = solve_poses(robot, R, arr.target.reshape(P * K, 3), seeds.reshape(P * K, n), tol=1e-6)
     poses = P * K * ik.iterations
     reach = np.asarray(ik.converged.reshape(P, K).all(axis=1), dtype=bool)
-    Q = ik.q.reshape(P, K, n)
+    Q = wrap_into_limits(robot, ik.q.reshape(P, K, n))
     lo, hi = robot.description.lower, robot.description.upper
     limit = np.min(np.minimum(Q - lo, hi - Q), axis=(1, 2))
     sl = task.weld
@@ -437,6 +464,61 @@ def taught_given(mi: MapInput) -> FloatArray | None:
     return ik.q if ik.converged.all() else None
 
 
+def seed_schedule(shape: tuple[int, int, int, int], yaw: FloatArray,
+                  max_stride: int = 8) -> list[tuple[NDArray[np.int_], NDArray[np.int_]]]:
+    """Order in which the map solves its placements, and the seed of each.
+
+    The grid is C order over (x, y, yaw, z). Seeds go coarse-to-fine over the table position
+    and height within each yaw (a neighbour at the same yaw differs by a small translation, so
+    the IK needs few Newton steps), never across yaw at the fine levels (a yaw step of 45 deg
+    would cost several clipped steps for every placement):
+
+    1. roots: every ``top``-th node in x, y, z (top = the largest power of two <= max_stride
+       below the longest spatial axis) at the yaw closest to the given one, seeded from the
+       given placement (parent -1);
+    2. the roots at the other yaws, one yaw step at a time away from that yaw, each seeded by
+       the root at the neighbouring yaw toward it;
+    3. every ``stride``-th node in x, y, z (stride = top/2, top/4 ... 1) at every yaw, seeded by
+       the nearest node of the coarser level at the same yaw.
+
+    Returns:
+        Levels in order, each (placement indices, parent placement indices; -1 = the given
+        placement's taught path).
+    """
+    P = int(np.prod(shape))
+    coords = np.stack(np.unravel_index(np.arange(P), shape), axis=1)  # (P, 4) grid indices
+    spatial = np.array([0, 1, 3])
+    top = 1
+    while top * 2 < max(shape[0], shape[1], shape[3]) and top < max_stride:
+        top *= 2
+    start = int(np.argmin(np.abs(np.asarray(yaw, float))))
+    root = np.all(coords[:, spatial] % top == 0, axis=1)
+    levels: list[tuple[NDArray[np.int_], NDArray[np.int_]]] = []
+    idx = np.flatnonzero(root & (coords[:, 2] == start))
+    levels.append((idx, np.full(len(idx), -1)))
+    for j in sorted(range(shape[2]), key=lambda j: (abs(j - start), j)):
+        if j == start:
+            continue
+        idx = np.flatnonzero(root & (coords[:, 2] == j))
+        pc = coords[idx].copy()
+        pc[:, 2] = j + (1 if j < start else -1)
+        levels.append((idx, np.ravel_multi_index(tuple(pc.T), shape)))
+    solved = root.copy()
+    stride = top // 2
+    last = (np.array(shape) - 1)
+    while stride >= 1:
+        on = np.all(coords[:, spatial] % stride == 0, axis=1) & ~solved
+        idx = np.flatnonzero(on)
+        pc = coords[idx].copy()
+        step = 2 * stride
+        pc[:, spatial] = np.minimum(np.round(pc[:, spatial] / step).astype(int) * step,
+                                    (last[spatial] // step) * step)
+        levels.append((idx, np.ravel_multi_index(tuple(pc.T), shape)))
+        solved |= on
+        stride //= 2
+    return levels
+
+
 def compute_map(mi: MapInput, grid: PlacementGrid, chunk: int = 512,
                 progress_desc: str | None = "map") -> PlacementMap:
     """Evaluate every placement of ``grid`` (see the module docstring).
@@ -468,7 +550,6 @@ def compute_map(mi: MapInput, grid: PlacementGrid, chunk: int = 512,
     PL = grid.placements()
     P = len(PL)
     shape = grid.shape
-    coords = np.stack(np.unravel_index(np.arange(P), shape), axis=1)  # (P, 4) grid indices
     chunks: dict[str, Any] = {
         "status": np.full(P, "unreachable", dtype="<U12"),
         **{k: np.full(P, np.nan) for k in ("limit", "step", "kappa", "nu", "cmax", "cmean",
@@ -476,26 +557,15 @@ def compute_map(mi: MapInput, grid: PlacementGrid, chunk: int = 512,
         "worst": np.zeros(P, dtype=int),
     }
     Qall = np.full((P, K, n), np.nan)
-    solved = np.zeros(P, dtype=bool)
-    top = 1
-    while top * 2 < max(shape):
-        top *= 2
-    top = min(top, 8)
     poses = 0
     with Bar(P, progress_desc or "map", unit="placement") as bar:
-        stride = top
-        while stride >= 1:
-            on = np.all(coords % stride == 0, axis=1) & ~solved
-            idx = np.flatnonzero(on)
-            if stride == top:
-                parent = np.full(len(idx), -1)
-            else:
-                pc = np.minimum(np.round(coords[idx] / (2 * stride)).astype(int) * 2 * stride,
-                                ((np.array(shape) - 1) // (2 * stride)) * 2 * stride)
-                parent = np.ravel_multi_index(tuple(pc.T), shape)
-                parent = np.where(np.all(np.isfinite(Qall[parent, 0]), axis=1), parent, -1)
-            for lo in range(0, len(idx), chunk):
-                sel, par = idx[lo:lo + chunk], parent[lo:lo + chunk]
+        for idx_level, parent_level in seed_schedule(shape, grid.yaw):
+            parent_level = np.where(parent_level >= 0, parent_level, -1)
+            ok_par = parent_level >= 0
+            ok_par[ok_par] = np.all(np.isfinite(Qall[parent_level[ok_par], 0]), axis=1)
+            parent_level = np.where(ok_par, parent_level, -1)
+            for lo in range(0, len(idx_level), chunk):
+                sel, par = idx_level[lo:lo + chunk], parent_level[lo:lo + chunk]
                 arr = place_arrays(task, anchor, PL[sel], R0)
                 seeds = np.where((par >= 0)[:, None, None], Qall[np.maximum(par, 0)], Q0[None])
                 theta_par = np.where(par >= 0, _polar(PL[np.maximum(par, 0), :2]), theta0)
@@ -517,9 +587,7 @@ def compute_map(mi: MapInput, grid: PlacementGrid, chunk: int = 512,
                 for name in chunks:
                     chunks[name][sel] = getattr(res, name)
                 Qall[sel] = res.Q
-                solved[sel] = True
                 bar.update(len(sel))
-            stride //= 2
     given = evaluate_given(mi, Q0)
     return PlacementMap(
         name=mi.name, grid=grid, placements=PL, anchor=anchor, status=chunks["status"],

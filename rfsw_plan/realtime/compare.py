@@ -171,6 +171,44 @@ class CompareOptions:
 
 
 @dataclass(frozen=True)
+class NormalError:
+    """Seed 002 Table 3's metric: the tool position error along the surface normal.
+
+    e_n = (p_pin - p_seam) . n over the weld cycles, with n the workpiece surface normal at the
+    nominal position (base frame). Seed 002 measured it as the distance of the tracked TCP to
+    the CAD surface; in-plane errors do not count.
+
+    Attributes:
+        mae: Mean absolute error, mean |e_n| over the weld cycles [m].
+        max_abs: Largest |e_n| [m].
+        mean: Mean signed error [m] (+ along n, away from the workpiece).
+        std: Standard deviation of e_n [m].
+    """
+
+    mae: float
+    max_abs: float
+    mean: float
+    std: float
+
+    def to_dict(self) -> dict[str, float]:
+        """JSON-ready dictionary (mm)."""
+        return {"mae_normal_mm": self.mae * 1e3, "max_abs_normal_mm": self.max_abs * 1e3,
+                "mean_normal_mm": self.mean * 1e3, "std_normal_mm": self.std * 1e3}
+
+
+def normal_error(weld: VirtualWeld, run: WeldRun) -> NormalError:
+    """:class:`NormalError` of one simulated weld (seed 002 Table 3's MAE along the normal)."""
+    sch = weld.schedule
+    ts = np.asarray(sch.t, dtype=float)
+    nrm = np.column_stack([np.interp(run.t, ts, sch.frames.n[:, i]) for i in range(3)])
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    w = run.weld
+    e = np.einsum("ki,ki->k", run.pin[w] - run.seam[w], nrm[w])
+    return NormalError(float(np.mean(np.abs(e))), float(np.max(np.abs(e))), float(np.mean(e)),
+                       float(np.std(e)))
+
+
+@dataclass(frozen=True)
 class Scenario:
     """One truth / sensor setting with the results of every strategy.
 
@@ -179,12 +217,21 @@ class Scenario:
         description: What differs from the model.
         metrics: Metrics per strategy.
         runs: Simulated welds per strategy.
+        normal: Error along the surface normal per strategy (seed 002 Table 3's MAE).
     """
 
     name: str
     description: str
     metrics: dict[str, WeldMetrics]
     runs: dict[str, WeldRun]
+    normal: dict[str, NormalError] = field(default_factory=dict)
+
+    def strategy_dict(self, name: str) -> dict[str, Any]:
+        """JSON-ready metrics of one strategy: the lateral metrics and the normal error."""
+        out = self.metrics[name].to_dict()
+        if name in self.normal:
+            out.update(self.normal[name].to_dict())
+        return out
 
 
 @dataclass(frozen=True)
@@ -249,14 +296,14 @@ class CompareResult:
         def scen(sc: Scenario) -> dict[str, Any]:
             return {
                 "description": sc.description,
-                "strategies": {k: m.to_dict() for k, m in sc.metrics.items()},
+                "strategies": {k: sc.strategy_dict(k) for k in sc.metrics},
                 "sim_time_s": {k: r.sim_time_s for k, r in sc.runs.items()},
             }
 
         out: dict[str, Any] = {
             "problem": self.problem,
             "window": {"lower_mm": self.window.lower * 1e3, "upper_mm": self.window.upper * 1e3},
-            "strategies": {k: m.to_dict() for k, m in self.main.metrics.items()},
+            "strategies": {k: self.main.strategy_dict(k) for k in self.main.metrics},
             "main": scen(self.main),
             "sensitivity": {sc.name: scen(sc) for sc in self.sensitivity},
             "settings": {
@@ -376,7 +423,8 @@ def _run_scenario(
         if bar is not None:
             bar.update(1)
     metrics = {k: weld_metrics(r, window) for k, r in runs.items()}
-    return Scenario(name, description, metrics, runs)
+    normal = {k: normal_error(weld, r) for k, r in runs.items()}
+    return Scenario(name, description, metrics, runs, normal)
 
 
 def consistency_check(
@@ -514,6 +562,11 @@ def _run_scenarios(
 
 
 # -- presentation ---------------------------------------------------------------------------
+def _mae_text(sc: Scenario, name: str) -> str:
+    n = sc.normal.get(name)
+    return f"{n.mae * 1e3:.3f}" if n is not None else "-"
+
+
 def format_table(result: CompareResult) -> str:
     """Plain-text table of every scenario and strategy."""
     lines = [
@@ -521,7 +574,8 @@ def format_table(result: CompareResult) -> str:
         f"{result.window.upper * 1e3:g}] mm, weld {result.weld_duration_s:.1f} s, "
         f"{result.n_cycles} cycles of {result.options.cycle_s * 1e3:g} ms",
     ]
-    head = f"  {'strategy':<18}{'inside %':>9}{'max|e| mm':>11}{'rms mm':>9}{'settle mm':>11}"
+    head = (f"  {'strategy':<18}{'inside %':>9}{'max|e| mm':>11}{'rms mm':>9}{'settle mm':>11}"
+            f"{'MAE_n mm':>10}")
     for sc in (result.main, *result.sensitivity):
         lines.append(f"{sc.name} ({sc.description}):")
         lines.append(head)
@@ -529,7 +583,7 @@ def format_table(result: CompareResult) -> str:
             lines.append(
                 f"  {name:<18}{m.inside_window_fraction * 100:>9.1f}"
                 f"{m.max_abs_lateral * 1e3:>11.2f}{m.rms_lateral * 1e3:>9.2f}"
-                f"{m.settling_text():>11}"
+                f"{m.settling_text():>11}{_mae_text(sc, name):>10}"
             )
         dcs = {k: m.direction_change for k, m in sc.metrics.items() if m.direction_change}
         if dcs:
@@ -562,13 +616,13 @@ def format_markdown(result: CompareResult) -> str:
     for sc in (result.main, *result.sensitivity):
         out += ["", f"## {sc.name}: {sc.description}", "",
                 "| strategy | inside window [%] | max abs lateral [mm] | RMS [mm] "
-                "| settling [mm] |",
-                "|---|---:|---:|---:|---:|"]
+                "| settling [mm] | MAE along the normal [mm] |",
+                "|---|---:|---:|---:|---:|---:|"]
         for name, m in sc.metrics.items():
             out.append(
                 f"| {name} | {m.inside_window_fraction * 100:.1f} | "
                 f"{m.max_abs_lateral * 1e3:.2f} | {m.rms_lateral * 1e3:.2f} | "
-                f"{m.settling_text()} |"
+                f"{m.settling_text()} | {_mae_text(sc, name)} |"
             )
     if result.consistency is not None:
         c = result.consistency
@@ -649,6 +703,7 @@ __all__ = [
     "CompareOptions",
     "CompareResult",
     "Consistency",
+    "NormalError",
     "PlannedWaypoints",
     "Scenario",
     "check_filter_fits",
@@ -656,6 +711,7 @@ __all__ = [
     "default_planner",
     "format_markdown",
     "format_table",
+    "normal_error",
     "parse_effect_arg",
     "pick_hidden_effect",
     "planned_path",

@@ -491,7 +491,9 @@ class Robot:
         dJd[:, :, 3:, :] = ang.transpose(0, 1, 3, 2)
         G = self.coupling
         # dJ_ctrl/dq_ctrl_k = sum_i (dJ_chain/dq_chain_i) G[i, k], then times G on the right.
-        return np.einsum("ik,miab,bc->mkac", G, dJd, G)
+        if np.array_equal(G, np.eye(n)):  # no coupling: the chain joints are the controller's
+            return dJd
+        return np.einsum("ik,miab,bc->mkac", G, dJd, G, optimize=True)
 
 
 def load_robot(name_or_path: str | object) -> Robot:

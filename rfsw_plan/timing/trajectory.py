@@ -261,7 +261,8 @@ def _dwell_piece(robot: Robot, tk: FloatArray, qk: FloatArray, ok: FloatArray, F
     time (at rest at every waypoint) moves the commanded TCP on the straight line between the
     two waypoints' commanded TCP positions and turns the tool by the slerp of their
     orientations (:func:`_dwell_joint_path`); the offsets and the wrench follow the same
-    lambda linearly. The commanded TCP then never leaves the box of the waypoints, and the
+    lambda linearly (each joint held within the range of the waypoints' values). The commanded
+    TCP then never leaves the box of the waypoints, and the
     predicted pin error, to first order a convex combination of the two waypoints' errors,
     stays between them. (Interpolating the joints instead moves the TCP on an arc whenever the
     tool turns about an axis off the spindle: kr600_curved_seam placed elsewhere by
@@ -296,6 +297,11 @@ def _dwell_piece(robot: Robot, tk: FloatArray, qk: FloatArray, ok: FloatArray, F
         for k, path in enumerate(paths):
             rows = which == k
             qq[rows] = path(lam[rows])
+        # The straight line can need a joint a few nrad beyond the range of the waypoints
+        # (fanuc_butt_1700mm placed at yaw -90 deg: 6.7e-9 rad); the planner's sample check
+        # keeps every dwell joint within that range to 1e-9 rad, so the joints are held in it
+        # (moving the TCP by nanometres; the check's TCP box catches any larger departure).
+        qq = np.clip(qq, np.min(qk, axis=0), np.max(qk, axis=0))
         qd = np.gradient(qq, t, axis=0)
         qdd = np.gradient(qd, t, axis=0)
         qddd = np.gradient(qdd, t, axis=0)

@@ -18,6 +18,11 @@ then calls :func:`rfsw_plan.elastostatics.identification.identify` on it. What t
 not give is ASSUMED and named as such: the anchor point, the tension steps, the attachment
 point, and the noise of each device.
 
+``measurement="commanded"`` reproduces the paper's own reading instead: the TCP is taken as
+held by the cable, so the robot's commanded move along the cable is read as the deflection.
+A cable holds the TCP only along itself; the deflection across it and the tool's rotation do
+not enter that move, and the cable's stretch does.
+
 Joint 6: the ZK-500's TCP lies on the joint-6 axis (tool 390 mm along z6). A cable force at the
 TCP puts no torque on joint 6 (z6 . (r x f) = 0 for r along z6), so k6 leaves no trace in any
 data, 3-D or 6-D. It needs a torque about z6, i.e. an attachment point off the z6 axis and a
@@ -69,9 +74,14 @@ FORCE_NOISE_N, MOMENT_NOISE_NM = 15.0, 6.0
 POSITION_NOISE_MM, ROTATION_NOISE_DEG = 0.02, 0.01
 #: ASSUMED orientation noise of a better device [deg] (precision inclinometer class).
 FINE_ROTATION_NOISE_DEG = 0.001
+#: ASSUMED stretch of the cable [mm/kN]: about 1 m of 6 mm steel wire rope (EA ~ 2 MN).
+CABLE_COMPLIANCE_MM_PER_KN = 0.5
 #: ASSUMED off-axis attachment used to show k6: a bracket on the spindle, 150 mm from the
 #: tool axis, tool frame [mm].
 OFF_AXIS_ATTACHMENT_MM = (150.0, 0.0, 0.0)
+
+#: How the deflection is observed (see :class:`CableCampaign`).
+MEASUREMENTS = ("device", "commanded")
 
 
 @dataclass(frozen=True)
@@ -89,6 +99,14 @@ class CableCampaign:
         position_noise_mm: 1-sigma noise of one position sample [mm].
         rotation_noise_deg: 1-sigma noise of one orientation sample [deg].
         orientation: Record the tool orientation too (6-D data).
+        measurement: ``device``: the TCP pose is measured (tracker, 6-DoF probe).
+            ``commanded``: the paper's reading of §2.2.2: the TCP is taken as held by the cable,
+            so the measured deflection is the commanded move along the cable (the robot moves
+            until the tension is reached; it covers the deflection along the cable plus the
+            cable's stretch) and the commanded orientation does not change; the deflection
+            across the cable (the cable swings freely) and the tool rotation are not seen.
+        cable_compliance_mm_per_kN: Stretch of the cable per kN of tension [mm/kN]
+            (``commanded`` only; 0 = rigid, the paper's assumption).
     """
 
     poses_deg: tuple[tuple[float, ...], ...] = tuple(tuple(r) for r in TABLE2_DEG.tolist())
@@ -101,6 +119,8 @@ class CableCampaign:
     position_noise_mm: float = POSITION_NOISE_MM
     rotation_noise_deg: float = ROTATION_NOISE_DEG
     orientation: bool = False
+    measurement: str = "device"
+    cable_compliance_mm_per_kN: float = 0.0
 
     def check(self, n_joints: int) -> None:
         """Raise :class:`InputError` on an impossible set-up."""
@@ -120,6 +140,12 @@ class CableCampaign:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise InputError(src, name, f"{v}", "a noise >= 0")
+        if self.measurement not in MEASUREMENTS:
+            raise InputError(src, "measurement", f"'{self.measurement}'",
+                             f"one of {', '.join(MEASUREMENTS)}")
+        c = self.cable_compliance_mm_per_kN
+        if not np.isfinite(c) or c < 0:
+            raise InputError(src, "cable_compliance_mm_per_kN", f"{c}", "a stretch >= 0 mm/kN")
 
 
 @dataclass(frozen=True)
@@ -218,11 +244,21 @@ def simulate_cable_campaign(
 
     logged = wrench + np.concatenate([averaged(setup.force_noise_N, 3),
                                       averaged(setup.moment_noise_Nm, 3)], axis=1)
+    rot = dX[:, 3:]
+    if setup.measurement == "commanded":
+        # Held TCP: the robot is commanded along -u by the deflection along the cable plus the
+        # stretch; identify reads that move as a deflection d u and no rotation.
+        ui = np.repeat(u, s, axis=0)
+        tension = np.repeat(steps[None, :], p, axis=0).reshape(-1)
+        along = np.einsum("mi,mi->m", dX[:, :3], ui) + (
+            tension * 1e-3 * setup.cable_compliance_mm_per_kN * 1e-3)
+        position = batch.T[:, :3, 3] + along[:, None] * ui
+        rot = np.zeros_like(rot)
     measured = position + averaged(setup.position_noise_mm * 1e-3, 3)
     rotation = None
     if setup.orientation:
         noise = Rotation.from_rotvec(averaged(np.radians(setup.rotation_noise_deg), 3))
-        rotation = (noise * Rotation.from_rotvec(dX[:, 3:])
+        rotation = (noise * Rotation.from_rotvec(rot)
                     * Rotation.from_matrix(batch.T[:, :3, :3])).as_rotvec()
     pose_idx = np.repeat(np.arange(p), s)
     pose_id: NDArray[np.str_] = np.array([f"T2-P{i + 1}" for i in pose_idx])
@@ -306,7 +342,8 @@ def seed001_cases(
 ) -> list[CampaignIdentification]:
     """The study of issue 15 item 2 on Table 2's five poses, in this order: cable at the TCP
     (3-D, 6-D), a vertical cable (6-D), an attachment off the tool axis (3-D, 6-D, and 6-D with
-    a 10x finer orientation device)."""
+    a 10x finer orientation device), then the paper's own reading of the data (the commanded
+    move along the cable taken as the deflection; rigid cable, then a stretching one)."""
     off = OFF_AXIS_ATTACHMENT_MM if attachments is None else attachments[0]
     cases = [
         ("TCP attachment, positions (3-D)", CableCampaign()),
@@ -320,5 +357,10 @@ def seed001_cases(
          f"{FINE_ROTATION_NOISE_DEG:g} deg orientation noise",
          CableCampaign(attachment_mm=off, orientation=True,
                        rotation_noise_deg=FINE_ROTATION_NOISE_DEG)),
+        ("paper's reading: commanded move along a rigid cable, 3-D",
+         CableCampaign(measurement="commanded")),
+        (f"paper's reading: commanded move, cable {CABLE_COMPLIANCE_MM_PER_KN:g} mm/kN, 3-D",
+         CableCampaign(measurement="commanded",
+                       cable_compliance_mm_per_kN=CABLE_COMPLIANCE_MM_PER_KN)),
     ]
     return [identify_cable_campaign(lab, setup, seed) for lab, setup in cases]

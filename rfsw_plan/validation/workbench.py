@@ -20,6 +20,7 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects import make_effect, parse_effect_label
 from rfsw_plan.elastostatics.identification import IdentificationResult
+from rfsw_plan.elastostatics.identification_blocks import predicted_positions
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
@@ -250,7 +251,7 @@ def validate(
                          f"{model.robot.nq}", f"{model.robot.nq} joint columns")
     labels = check_effect_labels(model, add)
     batch = model.batch(data.q)
-    pred = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
+    pred = predicted_positions(model, batch, data.wrench)
     residual0 = np.where(data.measured, data.position - pred, np.nan)
     noise = estimate_noise_floor(data, residual0, noise_m, model=model,
                                  force_noise_n=force_noise_n, batch=batch)

@@ -126,10 +126,13 @@ def run(args: argparse.Namespace) -> int:
                         f"z {chosen.placement.z * 1e3:.1f} mm, yaw "
                         f"{summary['chosen']['yaw_deg']:+.1f} deg.\nPlanned tolerated force "
                         f"uncertainty {chosen.tolerated_uncertainty * 100:.1f} % (given placement:"
-                        f" {summary['given']['tolerated_uncertainty'] * 100:.1f} %).")
+                        f" {summary['given']['tolerated_uncertainty'] * 100:.1f} %), planned "
+                        f"for {res.planned_for * 100:g} % (requested "
+                        f"{opts.force_uncertainty * 100:g} % plus headroom for the planner's "
+                        f"fine projection).")
                 q_seed = chosen.q_start
                 write_placed_problem(toml, problem, chosen.placement, m.anchor, q_seed, note,
-                                     force_uncertainty=opts.force_uncertainty)
+                                     force_uncertainty=res.planned_for)
                 files.insert(0, toml)
             summary["files"] = [str(f) for f in files]
             write_json(out / "place.json", summary)
@@ -173,6 +176,7 @@ def _summary(problem: Any, res: Any, rows: list[dict[str, Any]], m: Any, request
     return {
         "problem": problem.name,
         "requested_uncertainty": requested,
+        "planned_for_uncertainty": res.planned_for,
         "requested_reached": reached,
         "verdict": verdict,
         "given": given,

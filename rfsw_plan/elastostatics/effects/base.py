@@ -49,6 +49,16 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
+
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
+    """a x b over the last axis (size 3), broadcast; written out because np.cross has a large
+    fixed cost on the many small stacks of the batched effects and springs."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
 #: d(deflection)/dF applied to wrench directions: (batch, F_true, dF (m, 6, p)) -> (m, 6, p).
 #: The model supplies it (:meth:`ElastostaticModel.deflection_jvp`); wrench effects chain their
 #: wrench regressor through it.

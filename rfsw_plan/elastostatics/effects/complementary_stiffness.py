@@ -7,20 +7,16 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import (
+    ComplianceEffect,
+    FloatArray,
+    PoseBatch,
+    cross3,
+)
 
 #: Largest basis (floats) kept in :attr:`PoseBatch.cache`: 2e7 floats = 160 MB, i.e.
 #: ~9e4 poses of a six-axis robot; larger batches recompute it per call.
 BASIS_CACHE_MAX = 20_000_000
-
-
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    """a x b over the last axis, broadcast (written out: np.cross has a large fixed cost)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
 
 
 def complementary_stiffness_basis(batch: PoseBatch) -> FloatArray:
@@ -43,9 +39,9 @@ def complementary_stiffness_basis(batch: PoseBatch) -> FloatArray:
     R = batch.frames[:, :, :3, :3]
     z = np.matmul(R, robot.geometry.axes[:, :, None])[..., 0]  # joint axes, (m, n, 3)
     r = batch.T[:, None, :3, 3] - batch.frames[:, :, :3, 3]  # TCP minus joint origin [m]
-    v = _cross(z, r)  # TCP velocity of a unit joint rate, (m, n, 3)
-    zv = _cross(z[:, :, None, :], v[:, None, :, :])  # [i, j] = z_i x v_j, (m, n, n, 3)
-    zz = _cross(z[:, :, None, :], z[:, None, :, :])  # [i, j] = z_i x z_j
+    v = cross3(z, r)  # TCP velocity of a unit joint rate, (m, n, 3)
+    zv = cross3(z[:, :, None, :], v[:, None, :, :])  # [i, j] = z_i x v_j, (m, n, n, 3)
+    zz = cross3(z[:, :, None, :], z[:, None, :, :])  # [i, j] = z_i x z_j
     upper = np.triu(np.ones((n, n), dtype=bool), k=1)[None, :, :, None]  # [i, j]: i < j
     basis = np.empty((len(batch), n, n, 6))  # [m, i, j] = Kc_chain[j, i] per component
     basis[..., :3] = np.where(upper, zv, zv.transpose(0, 2, 1, 3))  # zv[min(i,j), max(i,j)]

@@ -5,9 +5,12 @@
 
 MODULE rfsw_golden
   ! rfsw-plan program rfsw_golden
+  ! rfsw-plan version: 0.1.0
+  ! problem: golden
   ! plan id: golden-000000000000
   ! robot: zk500
-  ! robot file: robots/zk500.toml
+  ! robot file: zk500.toml
+  ! robot file sha256: 0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef
   ! verified tolerated force uncertainty: +-20 %
   ! requested force uncertainty: +-20 %
   ! weld window: -1.250 .. +0.700 mm
