@@ -522,7 +522,7 @@ def _seed001_table3_rows(cases: list[CampaignIdentification]) -> list[Check]:
     off3, off6, fine = cases[3], cases[4], cases[5]
     rigid, stretch = cases[6], cases[7]
     vertical = cases[2]
-    first5 = tcp3.identified[:5].all() and bool(np.all(
+    first5 = bool(tcp3.identified[:5].all()) and bool(np.all(
         np.abs(tcp3.relative_error[:5]) <= 3.0 * tcp3.relative_std[:5]))
     k6_signal = float(np.max(np.abs(tcp3.simulation.j6_torque_per_kN)))
     off_torque = np.abs(off6.simulation.j6_torque_per_kN)
