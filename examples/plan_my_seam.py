@@ -75,7 +75,7 @@ def main(out: Path) -> rfsw_plan.PlanResult:
 
     problem = rfsw_plan.load_problem(problem_file)   # strict: a wrong key is a one-line error
     result = rfsw_plan.plan(problem)                 # raises InfeasibleError if it cannot hold
-    plan_json = result.write(out / "plan", robot_file=problem.robot.path)
+    plan_json = rfsw_plan.write_plan(out / "plan", result, robot_file=problem.robot.path)
 
     print(f"{result.status}: max |lateral error| {result.summary()['max_abs_lateral_mm']:.3f} mm "
           f"(uncompensated {abs(result.e_none).max() * 1e3:.3f} mm), tolerates "

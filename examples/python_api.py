@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import rfsw_plan
-from rfsw_plan.io.waypoints import check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.waypoints import check_plan_folder, read_waypoints_csv
 
 
 def main(out: Path) -> None:
@@ -46,7 +46,7 @@ def main(out: Path) -> None:
 
     # 4. Write the plan folder exactly as `rfsw-plan plan -o DIR` does (atomic files, plan.json
     #    last with the SHA-256 of every file), then check and read it back.
-    plan_json = result.write(out, robot_file=problem.robot.path)
+    plan_json = rfsw_plan.write_plan(out, result, robot_file=problem.robot.path)
     record = check_plan_folder(plan_json.parent)      # raises if a file is missing or changed
     samples = read_waypoints_csv(out / "waypoints.csv")
     print(f"wrote {plan_json.parent}: status {record['status']}, files "

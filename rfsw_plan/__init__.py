@@ -8,6 +8,8 @@ Public API (see the README for a tour):
 * process: :class:`WeldWindow`, :class:`SeamFrames`, :class:`LoadSchedule`,
   :func:`load_problem`
 * planning: :func:`plan` (problem -> verified, timed :class:`PlanResult`)
+* plan files: :func:`write_plan` (a :class:`PlanResult` -> ``waypoints.csv``, plots,
+  ``plan.json``, exactly as ``rfsw-plan plan -o`` writes them)
 
 Every name is imported on first use, so ``import rfsw_plan`` loads none of the heavy
 libraries (CasADi, Pinocchio, SciPy, matplotlib) until they are needed.
@@ -23,6 +25,7 @@ if TYPE_CHECKING:
     from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
     from rfsw_plan.exceptions import RfswError
     from rfsw_plan.io.measurements import MeasurementSet, read_measurements, write_measurements
+    from rfsw_plan.planfiles import write_plan
     from rfsw_plan.planning.api import plan
     from rfsw_plan.planning.result import PlanResult
     from rfsw_plan.process.frames import LoadSchedule, SeamFrames
@@ -46,6 +49,7 @@ _EXPORTS = {
     "write_measurements": "rfsw_plan.io.measurements",
     "plan": "rfsw_plan.planning.api",
     "PlanResult": "rfsw_plan.planning.result",
+    "write_plan": "rfsw_plan.planfiles",
     "LoadSchedule": "rfsw_plan.process.frames",
     "SeamFrames": "rfsw_plan.process.frames",
     "load_problem": "rfsw_plan.process.problem",
@@ -86,4 +90,5 @@ __all__ = [
     "plan",
     "read_measurements",
     "write_measurements",
+    "write_plan",
 ]

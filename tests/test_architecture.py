@@ -15,20 +15,18 @@ PACKAGE = Path(rfsw_plan.__file__).parent
 
 #: Layers, lowest first: a module may import its own layer and the layers before it, never a
 #: later one (ARCHITECTURE.md draws the same order). Keys are subpackages or top-level modules
-#: of ``rfsw_plan``, or a dotted module that sits on a different floor than its folder. ``io/``
-#: is at the edges of each stage: its primitives (atomic writes, the CSV table reader) are on
-#: the ground floor, the readers and writers of measurement and process files sit right above
-#: the data types they produce (MeasurementSet, ForceSeries, WeldTrack), and the plan files
-#: right above the planner (PlanResult).
+#: of ``rfsw_plan``; every folder is one floor. ``io/`` holds the readers and writers of
+#: measurement and process files, right above the data types they produce (MeasurementSet,
+#: ForceSeries, WeldTrack); ``planfiles/`` the plan folder, right above the planner.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "tomlreader", "io.files", "io.table"),
+    ("exceptions", "progress", "tomlreader", "files", "table"),
     ("robot",),
     ("elastostatics",),
     ("process",),
     ("io",),
     ("timing",),
     ("planning",),
-    ("io.waypoints",),
+    ("planfiles",),
     ("realtime",),
     ("placement",),
     ("validation",),
@@ -36,15 +34,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("cli",),
 )
 
-#: Backward imports that exist today and are scheduled to go (issue 10). This list only
-#: shrinks: a new backward import fails the test, and so does an entry here that is gone (then
-#: delete the entry). Pairs of (importing module, imported module).
-KNOWN_BACKWARD: frozenset[tuple[str, str]] = frozenset({
-    # PlanResult.write(dir) is the Python API's door to the one plan writer (issue 16): the
-    # import is lazy, inside the method, so planning never loads the writers unless a user
-    # asks a result to write itself. Writing stays in io/; nothing else in planning calls it.
-    ("rfsw_plan.planning.result", "rfsw_plan.io.waypoints"),
-})
+#: Backward imports that exist today and are scheduled to go. This list only shrinks: a new
+#: backward import fails the test, and so does an entry here that is gone (then delete the
+#: entry). Pairs of (importing module, imported module).
+KNOWN_BACKWARD: frozenset[tuple[str, str]] = frozenset()
 
 
 def _rank(module: str) -> int | None:
@@ -52,10 +45,9 @@ def _rank(module: str) -> int | None:
     parts = module.split(".")[1:]
     if not parts:
         return None
-    for key in (".".join(parts[:2]), parts[0]):
-        for i, layer in enumerate(LAYERS):
-            if key in layer:
-                return i
+    for i, layer in enumerate(LAYERS):
+        if parts[0] in layer:
+            return i
     raise AssertionError(f"{module}: subpackage '{parts[0]}' has no layer; add it to LAYERS in "
                          "tests/test_architecture.py and to ARCHITECTURE.md")
 
@@ -117,6 +109,77 @@ def test_imports_flow_one_way_between_subpackages():
     gone = sorted(KNOWN_BACKWARD - bad)
     assert not gone, "no longer backward, delete from KNOWN_BACKWARD:\n" + "\n".join(
         f"  {a} -> {b}" for a, b in gone)
+
+
+def folder_graph(root: Path = PACKAGE) -> dict[str, set[str]]:
+    """Top-level subpackage (or module) -> the top-level subpackages it imports, lazy imports
+    included. The facade ``rfsw_plan/__init__.py`` is left out: it may import every layer."""
+    graph: dict[str, set[str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        name = _module_name(path, root)
+        parts = name.split(".")
+        if len(parts) < 2:
+            continue
+        deps = graph.setdefault(parts[1], set())
+        for mod in _imports(path, root):
+            top = mod.split(".")
+            if len(top) > 1 and top[1] != parts[1]:
+                deps.add(top[1])
+    return graph
+
+
+def folder_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Every cycle of the folder graph, as a path that returns to its start (Tarjan's strongly
+    connected components; a component of more than one folder holds a cycle)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_the_folders_import_each_other_without_cycles():
+    """Seen folder by folder (lazy imports included), the import graph is acyclic: a reader of
+    the tree sees the layers in the folders."""
+    cycles = folder_cycles(folder_graph())
+    assert not cycles, "folders that import each other in a cycle: " + "; ".join(
+        " <-> ".join(c) for c in cycles)
+
+
+def test_the_folder_cycle_check_sees_a_lazy_cycle(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    for folder in ("robot", "planning"):
+        (root / folder).mkdir(parents=True)
+        (root / folder / "__init__.py").write_text("")
+    (root / "planning" / "api.py").write_text("from rfsw_plan.robot import fake\n")
+    (root / "robot" / "fake.py").write_text("def f():\n    from rfsw_plan.planning import api\n")
+    assert folder_cycles(folder_graph(root)) == [["planning", "robot"]]
 
 
 def test_the_layering_check_sees_backward_imports(tmp_path):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rfsw_plan.io.waypoints import PLAN_OUTPUTS, check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, check_plan_folder, read_waypoints_csv
 from rfsw_plan.robot.description import load_robot_description
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,7 +70,7 @@ def test_python_api_writes_the_same_files_as_the_cli(tmp_path: Path) -> None:
 
 def test_plan_result_write_refuses_a_file_as_folder(tmp_path: Path) -> None:
     from rfsw_plan.exceptions import OutputPathError
-    from rfsw_plan.io.waypoints import write_plan_folder
+    from rfsw_plan.planfiles.waypoints import write_plan_folder
 
     f = tmp_path / "f"
     f.write_text("x")

@@ -35,7 +35,7 @@ from rfsw_plan.export.krl import read_krl, write_krl
 from rfsw_plan.export.program import ProgramHeader, Samples, build_program
 from rfsw_plan.export.rapid import read_rapid, write_rapid
 from rfsw_plan.export.readback import ANG_TOL, POS_TOL, round_trip
-from rfsw_plan.io.files import sha256_file
+from rfsw_plan.files import sha256_file
 from rfsw_plan.robot.kinematics import load_robot
 
 GOLDEN = Path(__file__).parent / "data" / "export"

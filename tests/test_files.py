@@ -1,4 +1,4 @@
-"""Atomic writes, strict JSON, checked and locked output folders (rfsw_plan.io.files)."""
+"""Atomic writes, strict JSON, checked and locked output folders (rfsw_plan.files)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.exceptions import OutputPathError
-from rfsw_plan.io.files import (
+from rfsw_plan.files import (
     OutputLock,
     atomic_path,
     prepare_output_dir,

@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.io.waypoints import check_plan_folder
+from rfsw_plan.planfiles.waypoints import check_plan_folder
 
 ROOT = Path(__file__).resolve().parents[1]
 PROBLEM = "zk500_table6_seam"
@@ -30,8 +30,8 @@ PROBLEM = "zk500_table6_seam"
 # waypoints.csv, ``pause`` waits there for a flag file (concurrency test).
 CHILD = r"""
 import os, signal, sys, time
-import rfsw_plan.io.files as files
-import rfsw_plan.io.waypoints as wp
+import rfsw_plan.files as files
+import rfsw_plan.planfiles.waypoints as wp
 from rfsw_plan.cli.main import main
 
 mode, sig, flag = sys.argv[1], int(sys.argv[2]), sys.argv[3]

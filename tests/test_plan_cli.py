@@ -103,7 +103,7 @@ def test_path_through_a_singularity_is_one_line_and_nonzero(tmp_path, capsys):
 def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch):
     """The plots are drawn after plan.json has committed waypoints.csv and the programs: a plot
     that raises is one warning line, the plan folder checks out whole, exit 0 (README)."""
-    import rfsw_plan.io.waypoints as wp
+    import rfsw_plan.planfiles.waypoints as wp
 
     def broken(path, result):
         raise RuntimeError("matplotlib backend\nexploded")
@@ -129,7 +129,7 @@ def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch
 def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
     """While the plots are drawn, plan.json already vouches for waypoints.csv (a killed or
     hung plot leaves a whole plan without pictures); afterwards it vouches for both plots."""
-    import rfsw_plan.io.waypoints as wp
+    import rfsw_plan.planfiles.waypoints as wp
     from rfsw_plan.planning.api import plan
 
     seen = []

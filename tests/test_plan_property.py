@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 
 import rfsw_plan.planning.api as api
 from rfsw_plan.cli.main import main
-from rfsw_plan.io.waypoints import Q_RESOLUTION, read_waypoints_csv
+from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, read_waypoints_csv
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.process.problem import resolve_problem_path
 

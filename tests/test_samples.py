@@ -10,7 +10,7 @@ import pytest
 
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.io.waypoints import Q_RESOLUTION, check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, check_plan_folder, read_waypoints_csv
 from rfsw_plan.planning.api import plan
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.process.problem import load_problem

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.io.files import sha256_file
+from rfsw_plan.files import sha256_file
 from rfsw_plan.io.measurements import write_measurements
 from rfsw_plan.robot.description import (
     bundled_robot_names,

@@ -200,7 +200,7 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     name, the parent file, both data files' SHA-256, the date; one number row per line."""
     import re
 
-    from rfsw_plan.io.files import sha256_file
+    from rfsw_plan.files import sha256_file
     from rfsw_plan.robot.description import load_robot_description
 
     plan, forces, track = weld

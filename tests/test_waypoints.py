@@ -10,7 +10,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.io.waypoints import (
+from rfsw_plan.planfiles.waypoints import (
     maker_euler,
     plot_lateral_error,
     write_plan_json,
@@ -129,7 +129,7 @@ def test_lateral_error_png_is_judged_alone(written):
     nominal and worst-case error, the window and the force uncertainty it holds."""
     import struct
 
-    from rfsw_plan.io.waypoints import _lateral_title
+    from rfsw_plan.planfiles.waypoints import _lateral_title
 
     out, res, _ = written
     head = (out / "lateral_error.png").read_bytes()[:24]

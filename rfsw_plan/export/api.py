@@ -41,7 +41,7 @@ from rfsw_plan.export.program import (
 from rfsw_plan.export.rapid import read_rapid, write_rapid
 from rfsw_plan.export.readback import ReadPoint, RoundTrip, round_trip
 from rfsw_plan.export.stream import DEFAULT_CYCLE, write_stream
-from rfsw_plan.io.files import sha256_file
+from rfsw_plan.files import sha256_file
 from rfsw_plan.robot.kinematics import Robot
 
 #: Export formats (``--export`` / ``--format`` values).

@@ -26,7 +26,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import kuka_status_turn
 from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
-from rfsw_plan.io.files import write_text
+from rfsw_plan.files import write_text
 
 FloatArray = NDArray[np.float64]
 

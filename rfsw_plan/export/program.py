@@ -280,7 +280,7 @@ class Program:
 
 
 def read_samples(path: str | Path, robot: Robot) -> Samples:
-    """Read ``waypoints.csv`` (see :mod:`rfsw_plan.io.waypoints`) into :class:`Samples`.
+    """Read ``waypoints.csv`` (see :mod:`rfsw_plan.planfiles.waypoints`) into :class:`Samples`.
 
     Raises:
         InputError: A missing column or a non-numeric cell (one line naming the file).

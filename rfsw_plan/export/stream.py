@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.export.program import Samples
-from rfsw_plan.io.files import atomic_path
+from rfsw_plan.files import atomic_path
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -50,7 +50,7 @@ def samples_of(trajectory: object, seam: FloatArray) -> Samples:
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
     """Write the stream CSV atomically (columns in the module docstring)."""
-    from rfsw_plan.io.waypoints import EULER_COLUMNS, maker_euler
+    from rfsw_plan.planfiles.waypoints import EULER_COLUMNS, maker_euler
 
     conv = robot.description.convention
     T = robot.batch_fk_jacobian(stream.q)[0]

@@ -26,8 +26,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.table import Quantity, read_table
 from rfsw_plan.process.force_series import FORCE_FRAMES, ForceSeries
+from rfsw_plan.table import Quantity, read_table
 
 FloatArray = NDArray[np.float64]
 

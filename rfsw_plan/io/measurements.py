@@ -39,8 +39,8 @@ from rfsw_plan.elastostatics.measurement_set import (
     MeasurementSet,
 )
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.files import atomic_path
-from rfsw_plan.io.table import ColumnMap, Quantity, Table, read_column_map, read_table
+from rfsw_plan.files import atomic_path
+from rfsw_plan.table import ColumnMap, Quantity, Table, read_column_map, read_table
 
 __all__ = [
     "FORCE_COLUMNS",

@@ -128,7 +128,7 @@ def read_weld_track(path: str | Path) -> WeldTrack:
 
 def write_weld_track(path: str | Path, track: WeldTrack) -> Path:
     """Write a track in the format :func:`read_weld_track` reads (atomically); NaN = gap."""
-    from rfsw_plan.io.files import atomic_path
+    from rfsw_plan.files import atomic_path
 
     path = Path(path)
 

@@ -1,6 +1,6 @@
 """Files of the ``map`` and ``place`` commands: map CSV/JSON and the placed problem file.
 
-Every file goes through :mod:`rfsw_plan.io.files` (atomic, strict JSON). The placed problem is
+Every file goes through :mod:`rfsw_plan.files` (atomic, strict JSON). The placed problem is
 the original problem file's TOML with the seam moved (points and surface normals, in mm, in the
 robot base frame), the seed of the planner set to the taught configuration the map found there,
 and a comment block that says where it came from; everything else (process, window, planning
@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import tomli_w
 
-from rfsw_plan.io.files import atomic_path, write_json
+from rfsw_plan.files import atomic_path, write_json
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap
 

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.io.files import atomic_path
+from rfsw_plan.files import atomic_path
 from rfsw_plan.placement.map import PlacementMap
 
 FloatArray = NDArray[np.float64]

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -142,26 +141,6 @@ class PlanResult:
     def worst_waypoint(self) -> int:
         """Waypoint with the smallest window margin."""
         return int(np.argmin(self.verification.margin))
-
-    def write(self, folder: str | Path, robot_file: str | Path | None = None) -> Path:
-        """Write this plan into ``folder`` exactly as ``rfsw-plan plan -o folder`` does.
-
-        ``waypoints.csv``, ``lateral_error.png`` and ``lateral_error_time.png`` are written
-        atomically, then ``plan.json`` (the commit record with the SHA-256 of each file).
-
-        Args:
-            folder: Output folder (created if needed).
-            robot_file: The robot description file used, recorded in ``plan.json``.
-
-        Returns:
-            The path of ``plan.json``.
-
-        Raises:
-            OutputPathError: The folder cannot be written, or another writer holds it.
-        """
-        from rfsw_plan.io.waypoints import write_plan_folder  # writers sit above planning
-
-        return write_plan_folder(folder, self, robot_file=robot_file)
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary in file units (mm, deg, N/mm, s)."""

@@ -54,7 +54,7 @@ class TrialWeld:
 
     def write(self, folder: str | Path, stem: str = "trial") -> tuple[Path, Path]:
         """Write ``<stem>_forces.csv`` and ``<stem>_track.csv`` (atomically) into a folder."""
-        from rfsw_plan.io.files import atomic_path, prepare_output_dir
+        from rfsw_plan.files import atomic_path, prepare_output_dir
         from rfsw_plan.io.force_series import write_force_series
         from rfsw_plan.io.weld_track import write_weld_track
 

@@ -428,7 +428,7 @@ def derived_description(desc: RobotDescription, *, name: str | None, parent: Pat
     """
     from datetime import datetime
 
-    from rfsw_plan.io.files import sha256_file
+    from rfsw_plan.files import sha256_file
 
     if name is None:
         name = derived_name(desc.name, added)
@@ -808,7 +808,7 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     """
     import tomllib
 
-    from rfsw_plan.io.files import write_text
+    from rfsw_plan.files import write_text
 
     d = robot_description_to_toml_dict(desc)
     text = dumps_compact_toml(d)

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rfsw_plan.io.files import atomic_path, write_text
+from rfsw_plan.files import atomic_path, write_text
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
 

@@ -129,7 +129,7 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
     if not path.is_file():
         raise InputError(folder, "plan.json", "missing: no plan in this folder",
                          "the output folder of a successful rfsw-plan plan")
-    from rfsw_plan.io.waypoints import check_plan_folder
+    from rfsw_plan.planfiles.waypoints import check_plan_folder
 
     try:
         data = check_plan_folder(folder)  # status, and the files plan.json vouches for

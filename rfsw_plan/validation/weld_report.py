@@ -5,7 +5,7 @@
 * ``weld_residual.png``: the residual against s and against time, with the best candidate's
   fit and the noise floor.
 
-Every file is written atomically (:mod:`rfsw_plan.io.files`); the JSON is strict (no NaN).
+Every file is written atomically (:mod:`rfsw_plan.files`); the JSON is strict (no NaN).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rfsw_plan.io.files import atomic_path, write_json, write_text
+from rfsw_plan.files import atomic_path, write_json, write_text
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.weld import PARAM_CHANGE, WeldValidation
 
@@ -163,7 +163,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
 def write_weld_report(result: WeldValidation, out: Path, next_cmd: str,
                       extra: dict[str, Any] | None = None) -> WeldReportFiles:
     """Write the PNGs, ``validate_weld.json`` and ``report.html`` (atomically) into ``out``
-    (already checked with :func:`~rfsw_plan.io.files.prepare_output_dir`)."""
+    (already checked with :func:`~rfsw_plan.files.prepare_output_dir`)."""
     plots = make_weld_plots(result, out)
     data = result.to_json()
     data["next_command"] = next_cmd

@@ -90,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
         seed000_update_s=args.seed000_update_ms * 1e-3 if args.seed000_update_ms > 0 else None,
         seed002_maf_samples=args.maf_samples,
     )
-    from rfsw_plan.io.files import (
+    from rfsw_plan.files import (
         OutputLock,
         atomic_path,
         prepare_output_dir,

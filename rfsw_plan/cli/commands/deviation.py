@@ -56,7 +56,7 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
 
     if not (np.isfinite(args.dt) and args.dt > 0):
         raise InputError("--dt", "", f"got {args.dt:g}", "> 0")
-    from rfsw_plan.io.files import (
+    from rfsw_plan.files import (
         OutputLock,
         atomic_path,
         prepare_output_dir,

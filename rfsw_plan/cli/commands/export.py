@@ -135,8 +135,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.export.api import export_programs, parse_formats
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json, write_json
-    from rfsw_plan.io.waypoints import check_plan_folder
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json, write_json
+    from rfsw_plan.planfiles.waypoints import check_plan_folder
     from rfsw_plan.robot.kinematics import load_robot
 
     folder = Path(args.plan_dir)

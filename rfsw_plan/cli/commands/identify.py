@@ -81,7 +81,7 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.io.files import prepare_output_file, strict_json
+    from rfsw_plan.files import prepare_output_file, strict_json
     from rfsw_plan.validation.sanity import check_data, check_registered
 
     if args.output:

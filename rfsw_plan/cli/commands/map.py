@@ -17,7 +17,7 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.placement.files import map_summary, write_map_csv, write_map_json
     from rfsw_plan.placement.plots import plot_map, plot_yaw
     from rfsw_plan.placement.session import map_problem

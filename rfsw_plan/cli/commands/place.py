@@ -68,7 +68,7 @@ def make_executor(workers: int, dask: str | None) -> tuple[Executor | None, Any,
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.io.files import (
+    from rfsw_plan.files import (
         OutputLock,
         atomic_path,
         prepare_output_dir,

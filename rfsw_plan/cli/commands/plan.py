@@ -64,8 +64,8 @@ def _overrides(items: list[str], base: Any) -> Any:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir, strict_json
-    from rfsw_plan.io.waypoints import (
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.planfiles.waypoints import (
         PLAN_OUTPUTS,
         commit_plan,
         mark_outputs_stale,

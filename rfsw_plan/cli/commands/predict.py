@@ -13,7 +13,7 @@ import numpy as np
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, NotWithinLimitsError
-from rfsw_plan.io.files import strict_json
+from rfsw_plan.files import strict_json
 from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "predict"

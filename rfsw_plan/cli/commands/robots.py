@@ -6,7 +6,7 @@ import argparse
 
 import numpy as np
 
-from rfsw_plan.io.files import strict_json
+from rfsw_plan.files import strict_json
 from rfsw_plan.robot.description import bundled_robot_names, load_robot_description
 
 NAME = "robots"

@@ -44,7 +44,7 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.io.files import prepare_output_file, strict_json
+    from rfsw_plan.files import prepare_output_file, strict_json
     from rfsw_plan.io.measurements import write_measurements
 
     prepare_output_file(args.output, "-o")

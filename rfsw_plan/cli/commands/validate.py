@@ -83,7 +83,7 @@ def _run(args: argparse.Namespace, stages: Stages) -> int:
         raise InputError("--noise-mm", "", f"{args.noise_mm:g}", "a positive noise in mm")
     if args.folds < 2:
         raise InputError("--folds", "", f"{args.folds}", "at least 2")
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir, prepare_output_file
+    from rfsw_plan.files import OutputLock, prepare_output_dir, prepare_output_file
     from rfsw_plan.validation.sanity import check_data, check_registered
 
     out = None

@@ -68,7 +68,7 @@ _STAGES = ("reading the plan, track and forces", "diagnosis", "plots and report"
 def _run(args: argparse.Namespace, stages: Stages) -> int:
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.exceptions import InputError
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir, prepare_output_file
+    from rfsw_plan.files import OutputLock, prepare_output_dir, prepare_output_file
     from rfsw_plan.io.force_series import read_force_series
     from rfsw_plan.io.weld_track import read_weld_track
     from rfsw_plan.robot.description import derived_description, save_robot_description

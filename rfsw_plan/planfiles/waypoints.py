@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.files import atomic_path, sha256_file, write_json
+from rfsw_plan.files import atomic_path, sha256_file, write_json
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
 
@@ -253,7 +253,7 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
     Raises:
         OutputPathError: The folder cannot be written or another writer holds it.
     """
-    from rfsw_plan.io.files import OutputLock, prepare_output_dir
+    from rfsw_plan.files import OutputLock, prepare_output_dir
 
     out = prepare_output_dir(folder, "folder")
     with OutputLock(out, "folder"):
