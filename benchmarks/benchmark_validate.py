@@ -49,6 +49,7 @@ def _reset_peak() -> float:
 
 def child(samples: int, case: str, folds: int, old: bool) -> dict[str, Any]:
     """Run one case on one size in this process; return its figures."""
+    import rfsw_plan.validation.crossval as crossval
     import rfsw_plan.validation.diagnosis as diagnosis
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.robot.kinematics import load_robot
@@ -57,12 +58,12 @@ def child(samples: int, case: str, folds: int, old: bool) -> dict[str, Any]:
     from rfsw_plan.validation.report import write_report
 
     if old:  # the stacked regressor of all samples (before the fit in blocks)
-        @diagnosis.single_thread_blas
+        @crossval.single_thread_numpy_blas
         def stacked(model: Any, data: Any, folds_: Any, batch: Any = None) -> Any:
             k = int(folds_.max()) + 1
             obs = folds_[:, None].repeat(data.measured.shape[1], 1)[data.measured]
             min_train = min(int((obs != f).sum()) for f in range(k))
-            return diagnosis._cross_validate_stacked(
+            return crossval._cross_validate_stacked(
                 model, data, folds_, model.batch(data.q) if batch is None else batch, min_train)
 
         diagnosis.cross_validate = stacked  # type: ignore[assignment]

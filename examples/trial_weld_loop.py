@@ -109,7 +109,8 @@ def run_loop(folder: Path, name: str, joint: int | None, hidden: str | None,
     _cli(["validate-weld", str(plan1), "--track", str(track), "--forces", str(forces),
           "-o", str(folder / "validate1")])
     v1 = json.loads((folder / "validate1" / "validate_weld.json").read_text())
-    best = v1["diagnosis"]["candidates"][0]
+    dg1 = v1["diagnosis"]
+    best = next(c for c in dg1["candidates"] if c["label"] == dg1["best"])
     robot = folder / "robot_weld.toml"
     _cli(["validate-weld", str(plan1), "--track", str(track), "--forces", str(forces),
           "--add", best["label"], "--save-robot", str(robot), "-o", str(folder / "validate1_add")])

@@ -254,3 +254,73 @@ def test_no_dispatch_on_effect_types_outside_the_effect_classes():
                 if any(isinstance(c, ast.Name) and c.id in names for c in classes):
                     found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} isinstance")
     assert not found, found
+
+
+def _effect_names() -> set[str]:
+    from rfsw_plan.elastostatics import effects
+
+    return set(effects.EFFECTS)
+
+
+def _names_an_effect(node: ast.AST, names: set[str]) -> bool:
+    """A string literal (or a tuple/list/set of them) that is an effect name or label
+    (``tilting_compliance``, ``joint_compliance:j1``, ``joint_compliance:``)."""
+    if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+        return any(_names_an_effect(e, names) for e in node.elts)
+    return (isinstance(node, ast.Constant) and isinstance(node.value, str)
+            and node.value.partition(":")[0] in names)
+
+
+def effect_name_dispatches(root: Path = PACKAGE, names: set[str] | None = None) -> list[str]:
+    """Places outside ``elastostatics/effects/`` that ask which effect something is by its
+    name: a comparison or ``in`` test against an effect name, or ``startswith``/``endswith``
+    on one. Bounds, admissibility and behaviour come from the effect (its ``param_ranges``,
+    its methods), so a new effect is handled without touching them."""
+    names = _effect_names() if names is None else names
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        if path.parent == root / "elastostatics" / "effects":
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Compare):
+                hit = any(_names_an_effect(x, names) for x in (node.left, *node.comparators))
+            elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                  and node.func.attr in ("startswith", "endswith")):
+                hit = any(_names_an_effect(a, names) for a in node.args)
+            else:
+                continue
+            if hit:
+                found.append(f"{path.relative_to(root)}:{node.lineno}")  # type: ignore[attr-defined]
+    return found
+
+
+def test_no_dispatch_on_effect_names_outside_the_effect_classes():
+    """ARCHITECTURE.md: nothing outside an effect asks what kind it is, by class or by name
+    (issue 26: a bound picked by name gave a new compliance effect -inf lower bounds)."""
+    found = effect_name_dispatches()
+    assert not found, "dispatch on an effect's name: " + ", ".join(found)
+
+
+def test_the_effect_name_check_sees_a_dispatch_in_a_fixture(tmp_path):
+    """A module that picks bounds by effect name, as validation/weld.py did, fails the check;
+    building an effect from a label or asking the model does not."""
+    root = tmp_path / "rfsw_plan"
+    (root / "validation").mkdir(parents=True)
+    (root / "validation" / "bounds.py").write_text(
+        "def lower(label, theta):\n"
+        "    name = label.split(':')[0]\n"
+        "    if name in ('joint_compliance', 'tilting_compliance'):\n"
+        "        return 0.0\n"
+        "    if label.startswith('joint_compliance:'):\n"
+        "        return 0.0\n"
+        "    if e.name == 'payload_gravity':\n"
+        "        return 0.0\n"
+        "    return None\n")
+    (root / "validation" / "fine.py").write_text(
+        "def f(model, robot):\n"
+        "    eff = make_effect(robot, 'tilting_compliance:j2')\n"
+        "    lo, hi = eff.param_range('c_t1')\n"
+        "    return model.has('payload_gravity'), lo\n")
+    names = {"joint_compliance", "tilting_compliance", "payload_gravity"}
+    assert effect_name_dispatches(root, names) == [
+        "validation/bounds.py:3", "validation/bounds.py:5", "validation/bounds.py:7"]

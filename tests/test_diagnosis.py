@@ -188,7 +188,7 @@ def test_fit_in_blocks_is_the_fit_on_the_stacked_regressor(
     """cross_validate visits the samples in blocks (bounded memory on 10^6 samples): with
     blocks of 37 samples (4 blocks here) it gives the stacked regressor's fit and score."""
     import rfsw_plan.elastostatics.identification_blocks as ib
-    from rfsw_plan.validation.diagnosis import _cross_validate_stacked
+    from rfsw_plan.validation.crossval import _cross_validate_stacked
 
     monkeypatch.setattr(ib, "BLOCK_SAMPLES", 37)
     d = _data(["payload_gravity", "joint_backlash:j3"], poses=30)

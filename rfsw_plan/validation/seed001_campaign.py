@@ -310,7 +310,7 @@ class CampaignIdentification:
     def notes(self) -> list[str]:
         """Why each unidentified joint compliance was not identified."""
         return [e.note for e in self.result.estimates
-                if e.effect == "joint_compliance" and not e.identified]
+                if e.effect == self.result.model.joint_compliance.label and not e.identified]
 
 
 #: The prior every identification starts from [N m/rad]: one round guess for all joints, so a

@@ -18,8 +18,10 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.files import atomic_path, write_json, write_text
+from rfsw_plan.validation.candidates import PLAUSIBLE_FACTOR
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
-from rfsw_plan.validation.weld import PARAM_CHANGE, WeldValidation
+from rfsw_plan.validation.identifiability import IDENT_RATIO, PARAM_CHANGE
+from rfsw_plan.validation.weld import WeldValidation
 
 #: PNG size: 13 x 7.5 in at 110 dpi = 1430 x 825 px.
 FIGSIZE = (13.0, 7.5)
@@ -133,16 +135,22 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
         "validate</code>), separates them.</p>",
         "<h2>Candidates</h2>",
         table(["candidate", "held-out RMS [mm]", "RMS [mm]", "F", "significant",
-                "identifiable", "tells from best", "fitted"],
-               [[c.label, _mm(c.heldout_rms), _mm(c.rms), f"{c.F:.3g}",
+                "identifiable", "tells from best", "plausible", "fitted"],
+               [[c.label + (" (named)" if dg.best is not None and c.label == dg.best.label
+                            else ""),
+                 _mm(c.rms_after), _mm(c.fit_rms), f"{c.f_stat:.3g}",
                  "yes" if c.significant else "no", "yes" if c.identifiable else "no",
-                 "yes" if c.distinguishable else "no",
+                 "no" if c.label in dg.ties else "yes",
+                 "yes" if c.plausible else f"no: {c.implausible}",
                  ", ".join(f"{k} {v:.4g}" for k, v in c.params.items())
                  + ("" if c.stiffness_scale is None else
                     f" (stiffness x{c.stiffness_scale:.3f})")]
                 for c in dg.candidates[:25]]),
+        "<p>Sorted by held-out RMS. The named candidate is the simplest (fewest parameters) "
+        "among the best and those this weld cannot tell from it; an implausible fit (a joint "
+        f"stiffness more than {PLAUSIBLE_FACTOR:g} x off the robot file) is never named.</p>",
         f"<p>Identifiable: every parameter's standard error below "
-        f"{100 * PARAM_CHANGE / 3:.1f} % of its size.</p>",
+        f"{100 * PARAM_CHANGE / IDENT_RATIO:.1f} % of its size.</p>",
     ]
     if result.add is not None:
         a = result.add

@@ -193,7 +193,7 @@ def check_effect_labels(model: ElastostaticModel, labels: Sequence[str]) -> list
     for raw in labels:
         cls, joint = parse_effect_label(raw, model.robot.nq)
         label = cls.name if joint is None else f"{cls.name}:j{joint + 1}"
-        if label == "joint_compliance" or model.has(label):
+        if model.has(label):
             raise InputError("--add", label, "effect is already in the model",
                              f"one of the effects it lacks (it has {', '.join(model.labels)})")
         if label in out:

@@ -48,7 +48,8 @@ def _num(x: float) -> float | None:
 
 
 def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> dict[str, Any]:
-    jc = [e for e in res.estimates if e.effect == "joint_compliance"]
+    base = res.model.joint_compliance.label
+    jc = [e for e in res.estimates if e.effect == base]
     joints = []
     for j in range(res.stiffness.size):
         note = next((e.note for e in jc if e.name == f"c{j + 1}"), "not free in this fit")
@@ -62,7 +63,7 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
     others = [
         {"effect": e.effect, "param": e.name, "value": e.value, "prior": e.prior,
          "std_error": _num(e.std_error), "identified": e.identified, "note": e.note}
-        for e in res.estimates if e.effect != "joint_compliance"
+        for e in res.estimates if e.effect != base
     ]
     return {
         "robot": robot_name,

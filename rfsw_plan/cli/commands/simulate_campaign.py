@@ -4,18 +4,17 @@ from __future__ import annotations
 
 import argparse
 
-from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.robot.description import save_robot_description
 from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign import THERMAL_DRIFT, parse_hidden, run_campaign
+from rfsw_plan.validation.candidates import addable_effects
 
 NAME = "simulate-campaign"
 HELP = "write a measurement CSV of a simulated load campaign with hidden effects"
 
 _EPILOG = f"""\
---hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {", ".join(
-    n for n, c in EFFECTS.items()
-    if n != "joint_compliance" and not c.setup)}, and {THERMAL_DRIFT} (not in the library:
+--hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {
+", ".join(addable_effects())}, and {THERMAL_DRIFT} (not in the library:
 a TCP drift with time, parameters rate_mm_per_h, dir_x, dir_y, dir_z; it also makes the
 temperature_C column rise). Values are SI (rad, m, kg, N, N m, kg m), missing ones take the
 effect's prior; without '=' the values are random and plausible, scaled up if needed to at

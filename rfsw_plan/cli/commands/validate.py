@@ -8,10 +8,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rfsw_plan.cli import measurement_args
-from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.kinematics import load_robot
+from rfsw_plan.validation.candidates import addable_effects
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
@@ -23,8 +23,7 @@ NAME = "validate"
 HELP = "compare the model with measurements, diagnose the missing effect, add it and re-identify"
 
 _EPILOG = f"""\
-Effects for --add: {", ".join(n for n, c in EFFECTS.items()
-    if n != "joint_compliance" and not c.setup)}; per-joint ones
+Effects for --add: {", ".join(addable_effects())}; per-joint ones
 take :jN (1-based), e.g. --add tilting_compliance:j2 --add payload_gravity.
 Verdicts: adequate (held-out residual at the noise floor), missing (names the effect and
 joint), undetermined (no noise floor: no repeats, no --noise-mm, and nothing significant

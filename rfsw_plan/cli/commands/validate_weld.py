@@ -144,9 +144,10 @@ def _print(result: object, html: Path, saved: Path | None, nxt: str) -> None:
         for c in dg.candidates[:6]:
             k = c.stiffness_scale
             extra = f" stiffness x{k:.3f}" if k is not None else ""
-            print(f"  {c.label:<32} {c.heldout_rms * 1e3:8.4f} mm  "
+            print(f"  {c.label:<32} {c.rms_after * 1e3:8.4f} mm  "
                   f"{'significant' if c.significant else 'not significant'}"
-                  f"{'' if c.identifiable else ', not identifiable alone'}{extra}", file=out)
+                  f"{'' if c.identifiable else ', not identifiable alone'}{extra}"
+                  f"{'' if c.plausible else ', IMPLAUSIBLE: ' + c.implausible}", file=out)
     if r.add is not None:
         a = r.add
         print(f"added {', '.join(a.labels)}: lateral+normal RMS {a.rms_before * 1e3:.4f} -> "

@@ -1,0 +1,118 @@
+"""The plan that was run, read back from its folder (``validate-weld PLAN_DIR``).
+
+:func:`read_plan_dir` is the only place the workbench reads a plan folder: when the one strict
+plan-folder reader of :mod:`rfsw_plan.planfiles` lands, it changes here and nowhere else.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.process.forces import FIT_PARAMS
+from rfsw_plan.process.frames import FloatArray
+from rfsw_plan.process.problem import Problem, load_problem, with_process
+from rfsw_plan.realtime.compare import PlannedWaypoints
+
+#: Plan statuses that are not a verified plan.
+UNVERIFIED = ("infeasible", "incomplete", "failed", "unverified", "error", "not_verified")
+
+
+@dataclass(frozen=True)
+class PlanRecord:
+    """A verified plan read back from its folder.
+
+    Attributes:
+        folder: The plan folder.
+        data: ``plan.json``.
+        problem: The problem it was planned for (with the fitted forces if it was planned
+            with ``--forces``).
+        robot: The robot file or name the plan was made with.
+        waypoints: The planned joints per waypoint.
+    """
+
+    folder: Path
+    data: dict[str, Any]
+    problem: Problem
+    robot: str
+    waypoints: PlannedWaypoints
+
+
+def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
+    """Read ``plan.json`` of a plan folder and the problem it was planned for.
+
+    Args:
+        folder: Output folder of ``rfsw-plan plan``.
+        problem: Problem file or bundled name (default: the one ``plan.json`` names).
+
+    Raises:
+        InputError: No ``plan.json``, not JSON, not a verified plan, or no waypoints.
+    """
+    folder = Path(folder)
+    path = folder / "plan.json"
+    if not folder.is_dir():
+        raise InputError(folder, "", "is not a folder", "the output folder of rfsw-plan plan")
+    if not path.is_file():
+        raise InputError(folder, "plan.json", "missing: no plan in this folder",
+                         "the output folder of a successful rfsw-plan plan")
+    from rfsw_plan.planfiles.waypoints import check_plan_folder
+
+    try:
+        data = check_plan_folder(folder)  # status, and the files plan.json vouches for
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(path, "", f"not readable strict JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise InputError(path, "", "not a JSON object", "plan.json of rfsw-plan plan")
+    status = str(data.get("status", ""))
+    if not status or any(u in status.lower() for u in UNVERIFIED):
+        raise InputError(path, "status", f"'{status or 'missing'}': not a verified plan",
+                         "a plan that passed verification (status optimal or verified)")
+    wp = data.get("waypoints")
+    if not isinstance(wp, dict) or not all(k in wp for k in ("q_deg", "s_mm", "phase")):
+        raise InputError(path, "waypoints", "missing q_deg/s_mm/phase",
+                         "plan.json with its waypoints")
+    name = problem or data.get("problem_file") or data.get("problem")
+    if not name:
+        raise InputError(path, "problem", "no problem named", "--problem FILE")
+    pb = load_problem(name)
+    robot_ref = data.get("robot_file")
+    if robot_ref:
+        from rfsw_plan.robot.description import load_robot_description
+
+        pb = replace(pb, robot=load_robot_description(robot_ref))
+    fl = data.get("force_log")
+    if isinstance(fl, dict) and fl.get("used"):
+        params = fl.get("fit", {}).get("params", {})
+        try:
+            x = np.array([float(params[n]) for n in FIT_PARAMS])
+        except (KeyError, TypeError, ValueError):
+            raise InputError(path, "force_log.fit.params", "incomplete",
+                             ", ".join(FIT_PARAMS)) from None
+        pb = with_process(pb, _with_forces(pb, x))
+    q = np.deg2rad(np.asarray(wp["q_deg"], dtype=float))
+    s = np.asarray(wp["s_mm"], dtype=float) * 1e-3
+    phase = np.asarray(wp["phase"]).astype(str)
+    if q.ndim != 2 or q.shape[0] != s.size or s.size != phase.size:
+        raise InputError(path, "waypoints", "q_deg, s_mm and phase differ in length")
+    # Stationary waypoints (plunge, dwell) are timed by the process schedule.
+    sched = pb.process.schedule(pb.frames(), 0.05, approach=False)
+    t = np.zeros(s.size)
+    for ph in ("plunge", "dwell"):
+        m = phase == ph
+        ms = np.asarray(sched.phase) == ph
+        if np.any(m) and np.any(ms):
+            t[m] = np.linspace(sched.t[ms][0], sched.t[ms][-1], int(np.sum(m)))
+    wps = PlannedWaypoints(time=t, phase=phase, s=s - s[0], q=q)
+    return PlanRecord(folder, data, pb, str(robot_ref or data.get("robot", "")), wps)
+
+
+def _with_forces(problem: Problem, x: FloatArray) -> Any:
+    proc = problem.process
+    return replace(proc, forces=proc.forces.with_vector(x, source="fitted (plan.json)"))
+
+
+__all__ = ["UNVERIFIED", "PlanRecord", "read_plan_dir"]
