@@ -133,6 +133,14 @@ def x_layout(n: int, K: int) -> Layout:
     return Layout((("points", variable_layout(n).size * K), ("c_max", 1)))
 
 
+def g_layout(n: int, K: int) -> Layout:
+    """The NLP's constraint vector g: the per-waypoint rows of K waypoints (waypoint-major,
+    :data:`POINT_CONSTRAINTS` each), then the link rows of K - 1 links (link-major, see
+    :class:`LinkBounds`)."""
+    per_link = sum(variable_layout(n).width(v) for v in link_variables())
+    return Layout((("points", point_row_count() * K), ("links", per_link * max(K - 1, 0))))
+
+
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
     d = model.robot.description
     return (d.name, d.tool.tobytes(), model.robot.geometry.placements.tobytes(),
@@ -525,13 +533,14 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     Jb = mapped(pf.jac)(W, PAR)
     J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((ng, nw), bool))), cap_col)
     if K > 1:
-        J_link = _link_jacobian(K, columns(variable_layout(n), link_variables()), nw)
+        J_link = _link_jacobian(K, columns(variable_layout(n), link_variables()), nw,
+                                x_layout(n, K).size)
         J = ca.vertcat(J_pts, J_link)
     else:
         J = J_pts
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", g.shape[0])
-    LG = ca.reshape(lam_g[: ng * K], ng, K)
+    LG = ca.reshape(lam_g[g_layout(n, K)["points"]], ng, K)
     Hb = mapped(pf.hess)(W, PAR, GLOB, ca.repmat(lam_f, 1, K), LG)
     H = ca.diagcat(ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool)))),
                    ca.MX(1, 1))
@@ -557,17 +566,18 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     return ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
 
 
-def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int) -> ca.DM:
-    """The constant Jacobian of the link rows (w_{k+1} - w_k)[cols_w] with respect to x: the
-    link row families' blocks (+-1 on the columns of the variables they bound, in the order of
+def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int, n_x: int) -> ca.DM:
+    """The constant Jacobian of the link rows (w_{k+1} - w_k)[cols_w] with respect to x (n_x
+    entries, the waypoints' nw variables first): the link row families' blocks (+-1 on the
+    columns of the variables they bound, in the order of
     :func:`~rfsw_plan.planning.rows.link_variables`)."""
     m = len(cols_w)
-    rows = np.arange(m * (K - 1))
-    cols = (rows // m) * nw + cols_w[rows % m]
-    r = np.concatenate([rows, rows]).tolist()
+    row = np.arange(m * (K - 1))
+    cols = (row // m) * nw + cols_w[row % m]
+    r = np.concatenate([row, row]).tolist()
     c = np.concatenate([cols, cols + nw]).tolist()
-    v = np.concatenate([-np.ones(rows.size), np.ones(rows.size)])
-    return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), nw * K + 1)
+    v = np.concatenate([-np.ones(row.size), np.ones(row.size)])
+    return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), n_x)
 
 
 def _blockdiag(K: int, block: NDArray[np.bool_]) -> ca.Sparsity:

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.compliance import dexterity
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
 from rfsw_plan.planning.rows import checks as declared_checks
 from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask, offsets3
@@ -211,8 +212,8 @@ class CheckInput:
     @property
     def commanded(self) -> FloatArray:
         """Commanded TCP positions p + o_lat l + o_norm n + o_along t [m], (K, 3)."""
-        fr, o = self.task.frames, self.offsets
-        return self.task.target + o[:, :1] * fr.l + o[:, 1:2] * fr.n + o[:, 2:3] * fr.t
+        fr, o = self.task.frames, OFFSETS.split(self.offsets)
+        return self.task.target + o["lateral"] * fr.l + o["normal"] * fr.n + o["along"] * fr.t
 
     def offset_steps(self) -> tuple[FloatArray, FloatArray]:
         """|delta o| and the reference's |delta o_ref| between neighbours [m], (K - 1, 3)."""
@@ -281,8 +282,8 @@ def _offset_margins(name: str, c: CheckInput, bound: FloatArray) -> Margins:
     ``{name}_lat`` etc., at the link's first waypoint."""
     step, ref = c.offset_steps()
     m = bound[:, None] + ref + OFFSET_TOL - step
-    return [(f"{name}_{comp}", np.append(m[:, i], np.inf), "offset")
-            for i, comp in enumerate(("lat", "norm", "along"))]
+    return [(f"{name}_{label}", np.append(m[:, OFFSETS[comp]][:, 0], np.inf), "offset")
+            for comp, label in zip(OFFSETS.names, OFFSET_LABELS, strict=True)]
 
 
 def _check_offset_rate(c: CheckInput) -> Margins | None:
