@@ -177,3 +177,14 @@ def test_the_docs_page_names_every_family():
     text = DOCS.read_text()
     for f in (*POINT_ROWS, *LINK_ROWS):
         assert f"`{f.name}`" in text, f.name
+
+
+def test_offset_speed_option_reads_in_mm_per_s_and_refuses_nonsense():
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.process.plan_options import options_from_table
+
+    assert options_from_table({"offset_speed_mm_s": 2.5}).offset_speed == pytest.approx(2.5e-3)
+    with pytest.raises(InputError, match="offset_speed_mm_s"):
+        options_from_table({"offset_speed_mm_s": 0.0})
+    with pytest.raises(InputError, match="offset_speed"):
+        PlanOptions(offset_speed=-1.0)
