@@ -638,13 +638,15 @@ def build_plan_nlp(
         compile_c: Compile the point functions to C; None: when K >= 200 or already cached.
         load_steps: Offset change the load itself demands on each link (lateral, normal,
             along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
-            offset-rate bound so the bound limits only the *extra* offset change (the force
-            ramps at the weld start need offsets that follow them). None: zero.
+            bound of every link row family on the offsets (offset rate, offset speed) so the
+            bound limits only the *extra* offset change (the force ramps at the weld start
+            need offsets that follow them). None: zero.
         offset_reference: Instead of ``load_steps``: offsets (K, 3) [m] (the mirror
-            baseline's) whose change the offset-rate rows follow, |delta (o - o_ref)| <=
-            offset rate * travel. Tighter than ``load_steps`` (|delta o| <= rate * travel +
-            |delta o_ref|); the coarse NLP uses it so that its solution, interpolated as a
-            departure from the mirror offsets, meets the fine NLP's offset-rate rows.
+            baseline's) whose change the offset link rows follow, |delta (o - o_ref)| <=
+            allowance (offset rate * travel...). Tighter than ``load_steps``
+            (|delta o| <= allowance + |delta o_ref|); the coarse NLP uses it so that its
+            solution, interpolated as a departure from the mirror offsets, meets the fine
+            NLP's offset rows.
 
     Returns:
         The inspectable :class:`PlanNLP`.
