@@ -97,7 +97,7 @@ def test_offset_interpolation_keeps_the_fine_offset_rows(speed: float | None) ->
     assert np.all(np.abs(np.diff(fine, axis=0))[task.n_start:] <= bound[task.n_start:] + 1e-12)
     # The fine NLP's own offset rows hold: the interpolation used its declared allowance.
     nlp = build_plan_nlp(ElastostaticModel(load_robot("zk500")), task, WeldWindow(), warm.q,
-                         warm.offsets, opts, load_steps=np.diff(m, axis=0))
+                         warm.offsets, opts, compile_c=False, load_steps=np.diff(m, axis=0))
     np.testing.assert_array_equal(nlp.links.allowance["offsets"], allowance)
     x = nlp.stack({"q": warm.q, "offsets": fine * 1e3, "sigma": 0.0, "tolerated": 0.0})
     assert not [v for v in nlp.violations(x, ROW_TOL) if v[0].startswith("offset_")]
