@@ -63,7 +63,8 @@ def mirror_pipeline(problem: Any, spacing: float) -> None:
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
     taught = no_compensation(model.robot, task, q_seed, opts.tool_rotation)
     mir = mirror_compensation(model, task, taught.q, opts.tool_rotation)
-    verify_plan(model, task, problem.window, mir.q, mir.offsets, opts.force_uncertainty)
+    verify_plan(model, task, problem.window, mir.q, mir.offsets, opts.force_uncertainty,
+                options=opts, reference_offsets=mir.offsets)
     time_parameterise(model.robot, task, mir.q, mir.offsets,
                       TimingLimits(plunge_speed=problem.process.plunge_speed))
 

@@ -17,9 +17,11 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.api import choose_branch, options_from_problem, solve_plan
 from rfsw_plan.planning.baselines import mirror_compensation
 from rfsw_plan.planning.coarse import ROW_TOL, interpolate_offsets, subsample_task
+from rfsw_plan.planning.nlp import build_plan_nlp
 from rfsw_plan.planning.verify import verify_plan
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.process.task import task_from_schedule
+from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 
 #: Bundled problems and the weld waypoints to plan them with (None: the problem's spacing).
@@ -55,28 +57,47 @@ def test_coarse_to_fine_is_the_full_nlp_plan(name: str, n_weld: int | None) -> N
     # The fine NLP's objective within 0.5 % of its optimum (the fast path cannot beat it).
     gap = (fast.objective - full.objective) / abs(full.objective)
     assert -1e-6 < gap < 5e-3, gap
-    # The independent numeric verification passes for both.
+    # The independent numeric verification passes for both, every declared row included.
     for sol in (fast, full):
         ver = verify_plan(model, task, problem.window, sol.q, sol.offsets,
                           opts.force_uncertainty, opts.robust_hard,
-                          opts.joint_step * (1 + 1e-6), opts.kappa_max, opts.length_scale)
-        assert ver.feasible, ver.messages
+                          opts.joint_step * (1 + 1e-6), opts.kappa_max, opts.length_scale,
+                          options=opts, reference_offsets=warm.offsets)
+        assert ver.feasible and ver.skipped == (), ver.messages
 
 
-def test_offset_interpolation_keeps_the_fine_offset_rate_rows() -> None:
-    """Where the coarse offsets leave the mirror faster than the rate, the fine offsets still
-    change by at most |mirror change| + rate * travel per fine link."""
+@pytest.mark.parametrize("speed", [None, 0.1e-3])
+def test_offset_interpolation_keeps_the_fine_offset_rows(speed: float | None) -> None:
+    """Where the coarse offsets leave the mirror faster than the fine rows allow, the fine
+    offsets still change by at most |mirror change| + allowance per fine link, the allowance
+    being the fine NLP's: offset_rate x travel, or, with a tight offset speed (0.1 mm/s at
+    3 mm/s travel: the speed binds on every weld link), offset_speed x time."""
     _, opts, _, task, warm = _setup("zk500_table6_seam", 200)
+    if speed is not None:
+        opts = replace(opts, offset_speed=speed)
     _, idx = subsample_task(task, 20)
     rng = np.random.default_rng(3)
     m = warm.offsets
     # Coarse offsets that use the coarse rows' whole allowance |dm| + rate S, with random sign.
+    ds, dt = task.link_travel(), task.link_times()
+    allowance = np.repeat((opts.offset_rate * ds + np.where(
+        ds <= 1e-12, opts.offset_speed_stationary * dt, 0.0))[:, None], 3, 1)
+    if speed is not None:
+        allowance = np.minimum(allowance, np.where(ds <= 1e-12, np.inf, speed * dt)[:, None])
+        assert np.all(allowance[task.n_start:] < opts.offset_rate * ds[task.n_start:, None])
+    cum = np.vstack([np.zeros((1, 3)), np.cumsum(allowance, axis=0)])
     o_c = m[idx].copy()
     for j in range(task.n_start, len(idx) - 1):
         a, b = idx[j], idx[j + 1]
-        allow = np.abs(m[b] - m[a]) + opts.offset_rate * (task.s[b] - task.s[a])
+        allow = np.abs(m[b] - m[a]) + (cum[b] - cum[a])
         o_c[j + 1] = o_c[j] + rng.choice([-1.0, 1.0], 3) * allow
-    fine = interpolate_offsets(task, idx, o_c, m, opts.offset_rate)
+    fine = interpolate_offsets(task, idx, o_c, m, allowance)
     np.testing.assert_allclose(fine[idx], o_c, atol=1e-12)
-    bound = np.abs(np.diff(m, axis=0)) + opts.offset_rate * task.link_travel()[:, None]
+    bound = np.abs(np.diff(m, axis=0)) + allowance
     assert np.all(np.abs(np.diff(fine, axis=0))[task.n_start:] <= bound[task.n_start:] + 1e-12)
+    # The fine NLP's own offset rows hold: the interpolation used its declared allowance.
+    nlp = build_plan_nlp(ElastostaticModel(load_robot("zk500")), task, WeldWindow(), warm.q,
+                         warm.offsets, opts, compile_c=False, load_steps=np.diff(m, axis=0))
+    np.testing.assert_array_equal(nlp.links.allowance["offsets"], allowance)
+    x = nlp.stack({"q": warm.q, "offsets": fine * 1e3, "sigma": 0.0, "tolerated": 0.0})
+    assert not [v for v in nlp.violations(x, ROW_TOL) if v[0].startswith("offset_")]

@@ -258,3 +258,76 @@ def test_single_thread_blas_is_scoped():
     with single_thread_blas():
         assert lib.openblas_get_num_threads() == 1
     assert lib.openblas_get_num_threads() == 2
+
+
+#: How the docstrings (and the rows page) write the NLP's sizes, and which size each states:
+#: ``var``: variables per waypoint - n, ``link``: rows per link - n, ``point``: rows per
+#: waypoint, ``terms``: terms of the point function.
+SHAPE_PATTERNS = (
+    (r"K \(n \+ (\d+)\) \+ 1", "var"),
+    (r"\(n \+ (\d+),", "var"),
+    (r", n \+ (\d+)\)", "var"),
+    (r"n \+ (\d+) variables", "var"),
+    (r"g \((\d+),\)", "point"),
+    (r"g \(K, (\d+)\)", "point"),
+    (r"\((\d+), n \+ \d+\)", "point"),
+    (r"(\d+) K \+ \(n \+ \d+\)", "point"),
+    (r"\((\d+) K,\)", "point"),
+    (r"\((\d+) rows", "point"),
+    (r"\(n \+ (\d+)\)\(K - 1\)", "link"),
+    (r"\(K - 1\) \(n \+ (\d+)\)", "link"),
+    (r"n \+ (\d+) rows", "link"),
+    (r"terms \((\d+),\)", "terms"),
+    (r"terms \(K, (\d+)\)", "terms"),
+)
+
+
+def _documented_shapes() -> list[tuple[str, str, int]]:
+    """(where, kind, number) for every size the planner's docstrings and rows page state."""
+    import ast
+    import re
+    from pathlib import Path
+
+    import rfsw_plan.planning as planning
+
+    root = Path(planning.__file__).parent
+    texts = []
+    for name in ("nlp", "coarse", "rows", "layout", "verify"):
+        tree = ast.parse((root / f"{name}.py").read_text())
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef):
+                doc = ast.get_docstring(node)
+                if doc:
+                    texts.append((f"{name}.{getattr(node, 'name', '<module>')}", doc))
+    page = root.parents[1] / "docs" / "dev" / "nlp-rows.md"
+    texts.append(("docs/dev/nlp-rows.md", page.read_text()))
+    found = []
+    for where, text in texts:
+        flat = " ".join(text.split())
+        for pattern, kind in SHAPE_PATTERNS:
+            found += [(where, kind, int(m)) for m in re.findall(pattern, flat)]
+    return found
+
+
+def test_documented_shapes_match_the_built_nlp(setup):
+    """Every size the docstrings state (variables per waypoint, rows per waypoint and per
+    link, terms) is the built NLP's: the next stale ``g (12,)`` or ``n + 4`` fails here."""
+    from rfsw_plan.planning.layout import TERMS
+
+    model, task, _, _, nlp = setup
+    K, n = len(task), model.robot.nq
+    point = len(POINT_CONSTRAINTS)
+    link = (nlp.lbg.size - point * K) // (K - 1)
+    actual = {"var": nlp.n_w - n, "point": point, "link": link - n, "terms": TERMS.size}
+    assert nlp.x0.size == K * nlp.n_w + 1
+    found = _documented_shapes()
+    assert len(found) >= 12, found  # the shapes are still written where this test looks
+    wrong = [(where, kind, v, actual[kind]) for where, kind, v in found if v != actual[kind]]
+    assert not wrong, wrong
+    # The stale forms this test was written for are caught.
+    import re
+
+    for stale, kind in (("g (12,)", "point"), ("dense (12, n + 4)", "var"),
+                        ("shape (K (n + 4) + 1,)", "var"), ("12 K + (n + 3)(K - 1)", "link")):
+        hits = [int(m) for p, k in SHAPE_PATTERNS if k == kind for m in re.findall(p, stale)]
+        assert hits and any(h != actual[kind] for h in hits), stale

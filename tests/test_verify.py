@@ -110,3 +110,29 @@ def test_vectorised_kappa_matches_the_scalar_index(setup):
     Js[1][:, 5] = Js[1][:, 4]  # two equal columns: singular
     assert dexterity_batch(Js)[0] == pytest.approx(dexterity(Js[0])) and np.isinf(
         dexterity_batch(Js)[1])
+
+
+def test_offset_rate_is_checked_against_the_load_steps(setup):
+    """The offsets' change per travel is checked (it was not before the rows were declared):
+    the mirror plan changes its offsets exactly as the load demands, so it holds against
+    itself as reference at any rate, and fails a tight rate without that allowance."""
+    from rfsw_plan.planning.options import PlanOptions
+
+    model, task, _, mir = setup
+    w = WeldWindow()
+    assert verify_plan(model, task, w, mir.q, mir.offsets).skipped == (
+        "offset_rate", "offset_speed")
+    tight = PlanOptions(offset_rate=1e-6)
+    ok = verify_plan(model, task, w, mir.q, mir.offsets, options=tight,
+                     reference_offsets=mir.offsets)
+    assert ok.feasible and ok.skipped == ()
+    step = np.abs(np.diff(mir.offsets, axis=0))
+    assert np.max(step) > 1e-5  # the mirror does move its offsets along this seam
+    bad = verify_plan(model, task, w, mir.q, mir.offsets, options=tight)
+    assert not bad.feasible and bad.binding.startswith("offset_rate_")
+    j = ("lat", "norm", "along").index(bad.binding.rsplit("_", 1)[1])
+    k = bad.worst_waypoint
+    allow = 1e-6 * (task.s[k + 1] - task.s[k]) + 2e-9
+    assert bad.binding_margin == pytest.approx(allow - step[k, j], rel=1e-9)
+    with pytest.raises(InfeasibleError, match=f"waypoint {k + 1} .*offset_rate_"):
+        bad.raise_if_infeasible()

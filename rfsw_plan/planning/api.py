@@ -326,7 +326,7 @@ def _plan_task(
     t0 = time.perf_counter()
     ver = verify_plan(model, task, window, sol.q, sol.offsets, opts.force_uncertainty,
                       opts.robust_hard, opts.joint_step * (1 + 1e-6), opts.kappa_max,
-                      opts.length_scale)
+                      opts.length_scale, options=opts, reference_offsets=warm.offsets)
     verify_time = time.perf_counter() - t0
     stages.start("timing")
     if not ver.feasible:

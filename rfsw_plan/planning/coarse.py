@@ -15,9 +15,16 @@ spread weld waypoints (:func:`subsample_task`), and the fine plan is obtained pe
    iterated until the along-track row holds (o_along enters that row with slope one; the
    deflection's dependence on q makes it a contraction); the outer correction for effects the
    symbolic model lacks is iterated to ``outer_tol`` as in the full solve;
-3. **check of every row of the fine NLP** (window, robust rows with the tightest sigma,
-   singularity, stiffness cap with the tightest c_max, joint steps, offset rates, joint limits)
-   at the NLP's own tolerance. If any row fails, the caller solves the full NLP.
+3. **check of every row of the fine NLP** at the NLP's own tolerance: every row family
+   declared in :mod:`rfsw_plan.planning.rows` (window, robust rows with the tightest sigma,
+   singularity, stiffness cap with the tightest c_max, joint steps, offset rate and speed...,
+   by their declared bounds) and the joint limits. If any row fails, the caller solves the
+   full NLP.
+
+The offsets are interpolated inside the fine NLP's own per-link allowance (the tightest of the
+link rows declared on the offsets, :attr:`~rfsw_plan.planning.nlp.LinkBounds.allowance`), not
+a single rate: a new bound on the offsets' change is kept by the interpolation as soon as it is
+declared.
 
 No row or tolerance of the fine problem is relaxed: the result is a feasible point of the
 fine NLP whose objective is within a small gap of its optimum (the benchmark prints the gap).
@@ -32,7 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.planning.nlp import POINT_CONSTRAINTS, PlanNLP, update_parameters
+from rfsw_plan.planning.layout import OFFSETS
+from rfsw_plan.planning.nlp import PlanNLP, terms_prediction, update_parameters
 from rfsw_plan.planning.verify import predict
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import FloatArray, PlanTask
@@ -43,6 +51,8 @@ log = logging.getLogger(__name__)
 
 #: Tolerance of the fine NLP's rows [NLP units: mm, rad, 1], IPOPT's ``constr_viol_tol``.
 ROW_TOL = 1e-7
+#: The along-track column of a (K, 3) offset array (lateral, normal, along-track).
+ALONG = OFFSETS["along"]
 
 
 def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, IntArray]:
@@ -107,36 +117,42 @@ def interpolate_coarse(task: PlanTask, idx: IntArray, values: FloatArray) -> Flo
 
 
 def interpolate_offsets(task: PlanTask, idx: IntArray, o_coarse: FloatArray,
-                        o_mirror: FloatArray, rate: float) -> FloatArray:
-    """Fine offsets (K, 3) [m] from coarse ones (M, 3) that keep the fine offset-rate rows.
+                        o_mirror: FloatArray, allowance: FloatArray) -> FloatArray:
+    """Fine offsets (K, 3) [m] from coarse ones (M, 3) that keep the fine link rows on the
+    offsets, |o_{k+1} - o_k| <= |m_{k+1} - m_k| + b_k (m the mirror offsets, b_k the fine
+    NLP's per-link allowance [m], (K - 1, 3) or (K - 1,):
+    :attr:`~rfsw_plan.planning.nlp.LinkBounds.allowance` of ``offsets``).
 
-    On a coarse link a -> b (travel S) the fine offsets are
-    o_k = o_a + lambda (m_k - m_a) + mu rate (s_k - s_a), m the mirror offsets. Each fine link
-    then changes by lambda dm_k + mu rate ds_k, within the fine row's |dm_k| + rate ds_k when
-    |lambda|, |mu| <= 1; and the pair exists whenever the coarse row |o_b - o_a| <= |m_b - m_a|
-    + rate S holds. lambda = 1 (mu = departure from the mirror over the link / (rate S)) is
-    linear interpolation of the departure from the mirror; only where that departure changes
-    faster than the rate, mu = +-1 and lambda takes the rest. (Stationary waypoints are all
-    coarse waypoints.)"""
+    On a coarse link a -> b, with B_k = sum_{a <= j < k} b_j the allowance accumulated from a
+    and S = B_b, the fine offsets are o_k = o_a + lambda (m_k - m_a) + mu B_k. Each fine link
+    then changes by lambda dm_k + mu b_k, within the fine row's |dm_k| + b_k when
+    |lambda|, |mu| <= 1; and the pair exists whenever |o_b - o_a| <= |m_b - m_a| + S holds
+    (the coarse row, for an allowance proportional to travel: offset_rate x travel).
+    lambda = 1 (mu = departure from the mirror over the link / S) interpolates the departure
+    from the mirror in proportion to the allowance (in arc length, for a rate per travel); only
+    where that departure changes faster, mu = +-1 and lambda takes the rest. (Stationary
+    waypoints are all coarse waypoints.)"""
     m, K = task.n_start, len(task)
     out = np.empty((K, o_coarse.shape[1]))
     out[:m] = o_coarse[:m]
-    s = task.s
+    b_k = np.broadcast_to(np.asarray(allowance, dtype=float).reshape(K - 1, -1),
+                          (K - 1, o_coarse.shape[1]))
+    B = np.vstack([np.zeros((1, b_k.shape[1])), np.cumsum(b_k, axis=0)])
     for a, b in zip(idx[m - 1 if m else 0:-1], idx[m if m else 1:], strict=True):
         k = np.arange(a, b + 1)
-        S = s[b] - s[a]
+        Bk = B[k] - B[a]
+        S = Bk[-1]
         dm = o_mirror[b] - o_mirror[a]
         do = o_coarse[np.searchsorted(idx, b)] - o_coarse[np.searchsorted(idx, a)]
-        frac = (s[k] - s[a]) / S if S > 0 else np.zeros(len(k))
         dd = do - dm
-        mu = np.clip(dd / max(rate * S, 1e-300), -1.0, 1.0)
+        S_safe = np.maximum(S, 1e-300)
         safe = np.where(np.abs(dm) > 1e-300, dm, 1.0)
         # Within the rows' own slack (1e-6 mm) and IPOPT's tolerance, lambda = 1.
-        linear = np.abs(dd) <= rate * S + 2e-9
-        mu = np.where(linear, dd / max(rate * S, 1e-300), mu)
-        lam = np.where(linear, 1.0, (do - mu * rate * S) / safe)
+        linear = np.abs(dd) <= S + 2e-9
+        mu = np.where(linear, dd / S_safe, np.clip(dd / S_safe, -1.0, 1.0))
+        lam = np.where(linear, 1.0, (do - mu * S) / safe)
         out[k] = (o_coarse[np.searchsorted(idx, a)] + lam * (o_mirror[k] - o_mirror[a])
-                  + (mu * rate * S) * frac[:, None])
+                  + mu * Bk)
     return out
 
 
@@ -194,7 +210,7 @@ def project_fine(
     fr = task.frames
     q = q_mirror + interpolate_coarse(task, idx, q_coarse - q_mirror[idx])
     off = interpolate_offsets(task, idx, offsets_coarse, offsets_mirror,
-                              nlp.options.offset_rate)
+                              nlp.links.allowance["offsets"])
     # Tool rotation: the coarse plan's departure from the mirror's, interpolated.
     mirror_rot = _tool_rotation(task, robot.batch_fk_jacobian(q_mirror)[0])
     coarse_rot = _tool_rotation_sub(task, idx, robot.batch_fk_jacobian(q_coarse)[0])
@@ -207,19 +223,21 @@ def project_fine(
     it = 0
     while ok and it < max_iter:
         it += 1
-        target = task.target + off[:, :1] * fr.l + off[:, 1:2] * fr.n + off[:, 2:3] * fr.t
+        o = OFFSETS.split(off)
+        target = task.target + o["lateral"] * fr.l + o["normal"] * fr.n + o["along"] * fr.t
         q, ok = _newton_ik(model, target, R, q)
         if not ok:
             break
-        W = np.column_stack([q, off * 1e3, np.zeros((len(q), 2))])  # sigma, rho: not here
-        g, terms, _ = fine.point_values(np.append(W.reshape(-1), 0.0))
-        along = g[:, POINT_CONSTRAINTS.index("along_track")]  # [mm]
+        # sigma, rho and c_max do not enter the rows used here
+        x = fine.stack({"q": q, "offsets": off * 1e3, "sigma": 0.0, "tolerated": 0.0})
+        rows, terms = fine.point_rows(x)
+        along = rows["along_track"]  # [mm], (K, 1)
         if float(np.max(np.abs(along))) > ROW_TOL * 1e-2:
-            off[:, 2] -= along * 1e-3
+            off[:, ALONG] -= along * 1e-3
             continue
         pred = predict(model, task, q, 0.0)
         full = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
-        new_corr = full - (terms[:, 3:6] - fine.point_parameter("correction")) * 1e-3
+        new_corr = full - terms_prediction(fine, terms)
         if float(np.max(np.abs(new_corr - corr))) < nlp.options.outer_tol:
             break
         corr = new_corr

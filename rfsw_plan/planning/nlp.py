@@ -41,9 +41,16 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
   entry of x, one dense Jacobian column), the compliance of the weakest waypoint.
 
 Between neighbours: |q_{k+1} - q_k| <= joint step; |o_{k+1} - o_k| <= offset rate * travel
-(+ offset speed * time while stationary) + the step the load change itself demands (the mirror
-baseline's step; see ``load_steps``), per offset component (the along-track component follows
-the traverse-force ramp, which the load step allows).
+(+ offset speed * time while stationary), and <= offset speed * time while moving, each plus
+the step the load change itself demands (the mirror baseline's step; see ``load_steps``), per
+offset component (the along-track component follows the traverse-force ramp, which the load
+step allows).
+
+Every row family above is declared once, by name, in :mod:`rfsw_plan.planning.rows` (its
+expression, bounds, independent check); the variables and parameters are named by the layouts
+of :mod:`rfsw_plan.planning.layout`. Per waypoint there are
+:func:`~rfsw_plan.planning.rows.point_row_count` rows (14) and n + 5 variables; per link n + 4
+rows; x has K (n + 5) + 1 entries.
 
 Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
 w_stiffness share c_max / ref plus the mean over waypoints of
@@ -65,7 +72,6 @@ from __future__ import annotations
 import logging
 import time
 from collections import OrderedDict
-from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -74,8 +80,35 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.planning import rows
 from rfsw_plan.planning.casadi_ import compile_functions, single_thread_blas
+from rfsw_plan.planning.layout import (
+    ERROR_TERMS,
+    GLOBALS,
+    N_GLOB,
+    OFFSETS,
+    SMOOTHED_OFFSETS,
+    TERMS,
+    VARIABLE_SCALE,
+    Layout,
+    columns,
+    n_par,
+    point_layout,
+    problem_layout,
+    variable_layout,
+)
 from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.rows import (
+    LinkContext,
+    PointBounds,
+    PointSymbols,
+    epigraph_rows,
+    link_families,
+    link_variables,
+    point_labels,
+    point_row_count,
+    point_row_layout,
+)
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
@@ -84,127 +117,28 @@ from rfsw_plan.robot.kinematics import Robot
 FloatArray = NDArray[np.float64]
 log = logging.getLogger(__name__)
 
-#: Names of the per-waypoint constraint rows, in order.
-POINT_CONSTRAINTS = (
-    "position_x", "position_y", "position_z", "axis_t", "axis_l", "axis_n",
-    "window", "robust_lower", "robust_upper", "along_track", "singularity", "stiffness_cap",
-    "tolerated_lower", "tolerated_upper",
-)
+#: Names of the per-waypoint constraint rows, in order, as declared in
+#: :data:`~rfsw_plan.planning.rows.POINT_ROWS` (:func:`~rfsw_plan.planning.rows.point_labels`).
+POINT_CONSTRAINTS = point_labels()
 #: Names of the terms returned by the point function, in order.
-POINT_TERMS = ("lateral_compliance", "worst_case", "robust_excess", "error", "normal_error",
-               "along_error")
-#: Offset components per waypoint (lateral, normal, along-track).
-N_OFF = 3
-_NG = len(POINT_CONSTRAINTS)
-_CAP = POINT_CONSTRAINTS.index("stiffness_cap")  # the row that - c_max joins
+POINT_TERMS = TERMS.names
 #: Smoothing of |x| in the worst case [mm]: sqrt(x^2 + eps^2) over-estimates |x| by at most eps.
 ABS_EPS = 1e-2
 
 
-@dataclass(frozen=True)
-class Layout:
-    """Named, contiguous slices of a flat vector, in order.
-
-    One object describes a vector for both sides: :meth:`split` cuts a CasADi symbol (or a
-    numpy row) into named parts, :meth:`pack` assembles numeric rows by name, so the symbolic
-    unpack and the numeric pack cannot disagree on positions.
-
-    Attributes:
-        fields: ``(name, width)`` pairs in order.
-    """
-
-    fields: tuple[tuple[str, int], ...]
-    _slices: dict[str, slice] = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        sl: dict[str, slice] = {}
-        i = 0
-        for name, width in self.fields:
-            if name in sl or width < 0:
-                raise ValueError(f"layout field {name!r} repeated or of negative width")
-            sl[name] = slice(i, i + width)
-            i += width
-        object.__setattr__(self, "_slices", sl)
-
-    @property
-    def size(self) -> int:
-        """Length of the vector."""
-        return sum(w for _, w in self.fields)
-
-    @property
-    def names(self) -> tuple[str, ...]:
-        """Field names in order."""
-        return tuple(name for name, _ in self.fields)
-
-    def __getitem__(self, name: str) -> slice:
-        return self._slices[name]
-
-    def split(self, v: Any) -> dict[str, Any]:
-        """The named parts of a vector v (CasADi column or numpy array: last axis)."""
-        if isinstance(v, np.ndarray):
-            return {name: v[..., sl] for name, sl in self._slices.items()}
-        return {name: v[sl] for name, sl in self._slices.items()}
-
-    def pack(self, rows: int, values: Mapping[str, Any]) -> FloatArray:
-        """Numeric rows (rows, size) from every field by name (broadcast to (rows, width)).
-
-        Raises:
-            KeyError: A field is missing or a name is not in the layout.
-        """
-        unknown = set(values) - set(self._slices)
-        missing = set(self._slices) - set(values)
-        if unknown or missing:
-            raise KeyError(f"layout fields unknown {sorted(unknown)} / missing {sorted(missing)}")
-        out = np.empty((rows, self.size))
-        for name, sl in self._slices.items():
-            width = sl.stop - sl.start
-            out[:, sl] = np.broadcast_to(
-                np.asarray(values[name], dtype=float).reshape(-1, width)
-                if np.ndim(values[name]) else float(values[name]), (rows, width))
-        return out
+def x_layout(n: int, K: int) -> Layout:
+    """The NLP's variable vector x: K waypoints' variables (:func:`variable_layout`,
+    waypoint-major) and c_max, the largest lateral compliance of the weld waypoints
+    [mm/kN] (the epigraph variable)."""
+    return Layout((("points", variable_layout(n).size * K), ("c_max", 1)))
 
 
-def point_layout(n: int) -> Layout:
-    """Per-waypoint parameters: nominal target [m], seam frame t, l, n, wrench (base frame)
-    [N, Nm], force spread u |f| per seam component [N], outer correction (lateral, normal,
-    along-track) [mm], singularity row (sign, floor, det at q_lin, q_lin [rad], d det / dq),
-    weld flag."""
-    return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
-                   ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
-                   ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1)))
-
-
-#: Global scalars passed to every waypoint: the objective weights, the lateral compliance
-#: reference [mm/kN], window centre and half width [mm], 1 / K and the share of the stiffness
-#: weight on the mean (1 - ``min_stiffness_share``).
-GLOBALS = Layout((("w_stiffness", 1), ("w_worst", 1), ("w_robust", 1), ("w_centre", 1),
-                  ("w_depth", 1), ("compliance_ref", 1), ("centre", 1), ("half_width", 1),
-                  ("inv_k", 1), ("w_proximity", 1), ("mean_share", 1)))
-N_GLOB = GLOBALS.size
-
-
-def variable_layout(n: int) -> Layout:
-    """Variables per waypoint: q [rad] (n), offsets [mm] (3), sigma [mm], and rho, the share
-    of the requested force uncertainty the window holds at every waypoint (one value for the
-    whole plan, kept equal by the link rows so the KKT matrix stays banded)."""
-    return Layout((("q", n), ("offsets", N_OFF), ("sigma", 1), ("tolerated", 1)))
-
-
-#: Variables tied between neighbours by the link rows: joint steps, offset rates, rho equal.
-LINK_ROWS = ("q", "offsets", "tolerated")
-
-
-def problem_layout(n: int, K: int) -> Layout:
-    """The whole parameter vector: K waypoints' parameters (waypoint-major), 1 / link length
-    [1/m] (K - 1), the globals, the smoothing weights and the window bounds [mm]."""
-    return Layout((("points", point_layout(n).size * K), ("inv_link", max(K - 1, 0)),
-                   ("globals", N_GLOB), ("w_smooth_q", 1), ("w_smooth_o", 1),
-                   ("lower", 1), ("upper", 1)))
-
-
-def n_par(n: int) -> int:
-    """Per-waypoint parameters (see :func:`point_layout`)."""
-    return point_layout(n).size
+def g_layout(n: int, K: int) -> Layout:
+    """The NLP's constraint vector g: the per-waypoint rows of K waypoints (waypoint-major,
+    :data:`POINT_CONSTRAINTS` each), then the link rows of K - 1 links (link-major, see
+    :class:`LinkBounds`)."""
+    per_link = sum(variable_layout(n).width(v) for v in link_variables())
+    return Layout((("points", point_row_count() * K), ("links", per_link * max(K - 1, 0))))
 
 
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
@@ -218,13 +152,18 @@ def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
 class PointFunctions:
     """Per-waypoint CasADi functions (SX, optionally compiled to C).
 
+    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (14, named
+    by :data:`POINT_CONSTRAINTS`), n_w = n + 5 variables per waypoint
+    (:func:`~rfsw_plan.planning.layout.variable_layout`) and the terms of
+    :data:`~rfsw_plan.planning.layout.TERMS` (6):
+
     Attributes:
-        info: ``(w, par) -> (g (12,), terms (6,), dX (6,))``.
+        info: ``(w, par) -> (g (14,), terms (6,), dX (6,))``.
         fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
-        grad: ``(w, par, glob) -> grad phi (n + 4,)``.
-        jac: ``(w, par) -> dg/dw`` dense (12, n + 4).
+        grad: ``(w, par, glob) -> grad phi (n + 5,)``.
+        jac: ``(w, par) -> dg/dw`` dense (14, n + 5).
         hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
-            dense upper triangle (n + 4, n + 4).
+            dense upper triangle (n + 5, n + 5).
         skipped: Effects the symbolic model lacks.
         compiled: True if the functions run as compiled C.
         fg_vm: ``fg`` in the CasADi virtual machine (differentiable by CasADi).
@@ -250,6 +189,40 @@ _SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 _EVAL_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 
 
+def _point_symbols(model: ElastostaticModel, v: dict[str, Any], pp: dict[str, Any]
+                   ) -> tuple[PointSymbols, Any, tuple[str, ...]]:
+    """One waypoint's quantities (:class:`~rfsw_plan.planning.rows.PointSymbols`) from its
+    variables v and parameters pp (SX, NLP units), the TCP deflection C F [m, rad] (6,) and
+    the effects the symbolic model lacks."""
+    q, o = v["q"], OFFSETS.split(v["offsets"])
+    target, t, l, nn = pp["target"], pp["t"], pp["l"], pp["n"]
+    F, uf, corr = pp["wrench"], pp["force_spread"], OFFSETS.split(pp["correction"])
+    ch = symbolic_chain(model.robot, q)
+    C, skipped = symbolic_cartesian_compliance(model, ch)
+    dX = C @ F
+    pos = 1e3 * (ch.p - target) - o["lateral"] * l - o["normal"] * nn - o["along"] * t
+    pin_err = ch.p + dX[:3] - target
+    lC = C[:3, :3] @ l
+    proj = ca.vertcat(*(1e3 * uf[i] * ca.dot(lC, b) for i, b in enumerate((t, l, nn))))
+    cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
+    sym = PointSymbols(
+        v=v, par=pp, position=pos, axis=ch.R[:, 2],
+        error=1e3 * ca.dot(l, pin_err) + corr["lateral"],
+        normal_error=1e3 * ca.dot(nn, pin_err) + corr["normal"],
+        along_error=1e3 * ca.dot(t, pin_err) + corr["along"],
+        worst=ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2)), compliance=cll)
+    return sym, dX, tuple(skipped)
+
+
+def _family_expression(family: Any, sym: PointSymbols) -> Any:
+    """A point row family's expression, checked against its declared row count."""
+    g = family.expression(sym)
+    if g.shape != (len(family.labels), 1):
+        raise TypeError(f"row family {family.name!r}: expression of shape {g.shape}, declared "
+                        f"{len(family.labels)} rows {family.labels}")
+    return g
+
+
 def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointFunctions:
     """The per-waypoint functions of the NLP (see :class:`PointFunctions`).
 
@@ -268,40 +241,22 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     par = ca.SX.sym("par", pl.size)
     glob = ca.SX.sym("glob", N_GLOB)
     v, pp, gl = vl.split(w), pl.split(par), GLOBALS.split(glob)
-    q, o, sigma, rho = v["q"], v["offsets"], v["sigma"], v["tolerated"]
-    target, t, l, nn = pp["target"], pp["t"], pp["l"], pp["n"]
-    F, uf, corr = pp["wrench"], pp["force_spread"], pp["correction"]
-    det_sign, det_floor, det0 = pp["det_sign"], pp["det_floor"], pp["det_value"]
-    q_lin, ddet, weld_flag = pp["q_lin"], pp["det_grad"], pp["weld"]
-    ch = symbolic_chain(robot, q)
-    C, skipped = symbolic_cartesian_compliance(model, ch)
-    dX = C @ F
-    z = ch.R[:, 2]
-    pos = 1e3 * (ch.p - target) - o[0] * l - o[1] * nn - o[2] * t
-    pin_err = ch.p + dX[:3] - target
-    e = 1e3 * ca.dot(l, pin_err) + corr[0]
-    dep = 1e3 * ca.dot(nn, pin_err) + corr[1]
-    along = 1e3 * ca.dot(t, pin_err) + corr[2]
-    lC = C[:3, :3] @ l
-    proj = ca.vertcat(*(1e3 * uf[i] * ca.dot(lC, b) for i, b in enumerate((t, l, nn))))
-    r = ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2))
-    cll = 1e6 * ca.dot(l, lC)  # lateral compliance [mm/kN]
-    g = ca.vertcat(
-        pos, ca.dot(z, t), ca.dot(z, l), ca.dot(z, nn), e,
-        e - r + sigma, e + r - sigma, along,
-        det_sign * (det0 + ca.dot(ddet, q - q_lin)) - det_floor,
-        weld_flag * cll,  # - c_max (the global epigraph variable) is added in the NLP
-        e - rho * r, e + rho * r,
-    )
-    terms = ca.vertcat(cll, r, sigma, e, dep, along)
+    sym, dX, skipped = _point_symbols(model, v, pp)
+    cll = sym.compliance
+    g = ca.vertcat(*(_family_expression(f, sym) for f in rows.POINT_ROWS))
+    terms = ca.vertcat(*(
+        {"lateral_compliance": cll, "worst_case": sym.worst, "robust_excess": v["sigma"],
+         "error": sym.error, "normal_error": sym.normal_error,
+         "along_error": sym.along_error}[name] for name in TERMS.names))
+    e, r, dep, q, rho = sym.error, sym.worst, sym.normal_error, v["q"], v["tolerated"]
     cref, centre, hw = gl["compliance_ref"], gl["centre"], gl["half_width"]
     phi = gl["inv_k"] * (gl["w_stiffness"] * gl["mean_share"] * cll / cref
                          + gl["w_worst"] * r / hw
-                         + gl["w_robust"] * (sigma / hw + (1 - rho))
+                         + gl["w_robust"] * (v["sigma"] / hw + (1 - rho))
                          + gl["w_centre"] * ((e - centre) / hw) ** 2 + gl["w_depth"] * dep ** 2
-                         + gl["w_proximity"] * ca.sumsqr(q - q_lin))
+                         + gl["w_proximity"] * ca.sumsqr(q - pp["q_lin"]))
     lam_f = ca.SX.sym("lam_f")
-    lam_g = ca.SX.sym("lam_g", _NG)
+    lam_g = ca.SX.sym("lam_g", point_row_count())
     H = ca.hessian(lam_f * phi + ca.dot(lam_g, g), w)[0]
     fns = [
         ca.Function("rfsw_pt_info", [w, par], [g, terms, dX]),
@@ -340,11 +295,14 @@ class PlanNLP:
         task: The task it plans.
         options: The options it was built with.
         n_joints: n.
-        x0: Initial guess, shape (K (n + 4) + 1,) (the last entry is c_max, the largest
-            lateral compliance of the weld waypoints [mm/kN]).
+        x0: Initial guess, shape (K (n + 5) + 1,) (:func:`x_layout`: the last entry is c_max,
+            the largest lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (12 K + (n + 3)(K - 1),).
+        lbg, ubg: Constraint bounds, shape (14 K + (n + 4)(K - 1),): the rows of
+            :data:`~rfsw_plan.planning.rows.POINT_ROWS` at every waypoint, then the link
+            rows of :data:`~rfsw_plan.planning.rows.LINK_ROWS` on every link.
         p: Parameter vector.
+        links: The link rows' bounds by variable (which family binds, the allowance).
     """
 
     cache_key: tuple[object, ...]
@@ -360,6 +318,7 @@ class PlanNLP:
     lbg: FloatArray
     ubg: FloatArray
     p: FloatArray
+    links: LinkBounds
 
     @property
     def skipped(self) -> tuple[str, ...]:
@@ -404,47 +363,64 @@ class PlanNLP:
         return _SOLVER_CACHE[key]
 
     def constraint_names(self) -> list[str]:
-        """Name of every constraint row, e.g. ``window[12]`` or ``joint_step_q3[4]``."""
-        K, n = self.n_waypoints, self.n_joints
-        names = [f"{c}[{k}]" for k in range(K) for c in POINT_CONSTRAINTS]
-        link = [f"joint_step_q{j + 1}" for j in range(n)] + [
-            "offset_rate_lat", "offset_rate_norm", "offset_rate_along", "tolerated_link"]
-        names += [f"{c}[{k}]" for k in range(K - 1) for c in link]
-        return names
+        """Name of every constraint row, e.g. ``window[12]`` or ``joint_step_q3[4]``: the
+        declared label and the waypoint (or, for link rows, the link's first waypoint); a link
+        row shared by several families on one variable is named by the one that binds there."""
+        K = self.n_waypoints
+        names = [f"{c}[{k}]" for k in range(K) for c in point_labels()]
+        return names + self.links.names(self.n_joints)
+
+    def variables(self, x: FloatArray) -> dict[str, FloatArray]:
+        """The per-waypoint variables of x by name, NLP units (K, width) (:func:`variable_layout`),
+        and ``c_max`` (1,)."""
+        x = np.asarray(x, dtype=float)
+        xs = x_layout(self.n_joints, self.n_waypoints).split(x)
+        W = xs["points"].reshape(self.n_waypoints, self.n_w)
+        return {**variable_layout(self.n_joints).split(W), "c_max": xs["c_max"]}
 
     def unpack(self, x: FloatArray) -> dict[str, FloatArray]:
         """Split a variable vector: q (K, n) [rad], offsets (lateral, normal, along) (K, 3)
-        [m], sigma (K,) [mm], c_max [mm/kN]."""
-        n = self.n_joints
-        x = np.asarray(x, dtype=float)
-        W = x[:-1].reshape(self.n_waypoints, self.n_w)
-        return {"q": W[:, :n], "offsets": W[:, n:n + N_OFF] * 1e-3, "sigma": W[:, n + N_OFF],
-                "tolerated": W[:, n + N_OFF + 1], "c_max": x[-1:]}
+        [m], sigma (K,) [mm], tolerated (rho) (K,), c_max [mm/kN] (1,)."""
+        v = self.variables(x)
+        return {"q": v["q"], "offsets": v["offsets"] * (1.0 / VARIABLE_SCALE["offsets"]),
+                "sigma": v["sigma"][:, 0], "tolerated": v["tolerated"][:, 0],
+                "c_max": v["c_max"]}
+
+    def stack(self, values: dict[str, Any], c_max: float = 0.0) -> FloatArray:
+        """A variable vector x from the per-waypoint variables by name (NLP units, each
+        broadcast to (K, width), see :func:`variable_layout`) and c_max [mm/kN]."""
+        W = variable_layout(self.n_joints).pack(self.n_waypoints, values)
+        return np.append(W.reshape(-1), c_max)
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-waypoint (g (K, 12), terms (K, 6), dX (K, 6)) at x (the NLP's own model)."""
+        """Per-waypoint (g (K, 14), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
+        columns of g are :data:`POINT_CONSTRAINTS` (by family: the rows' layout), of
+        terms :data:`~rfsw_plan.planning.layout.TERMS`."""
         K = self.n_waypoints
-        W = np.asarray(x, dtype=float)[: K * self.n_w].reshape(K, self.n_w)
-        g, t, dx = _info_map(self.point, K)(W.T, self.par.T)
+        W = x_layout(self.n_joints, K).split(np.asarray(x, dtype=float))["points"]
+        g, t, dx = _info_map(self.point, K)(W.reshape(K, self.n_w).T, self.par.T)
         return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
+
+    def point_rows(self, x: FloatArray) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
+        """The per-waypoint rows by family (K, rows) and the terms by name (K, 1) at x."""
+        g, terms, _ = self.point_values(x)
+        return point_row_layout().split(g), TERMS.split(terms)
 
     def pack(self, q: FloatArray, offsets: FloatArray) -> FloatArray:
         """A variable vector from q (K, n) [rad] and offsets (K, 3) or (K, 2) [m]; sigma and
         c_max get their tightest feasible values."""
-        n = self.n_joints
-        W = np.zeros((self.n_waypoints, self.n_w))
-        W[:, :n] = q
-        W[:, n:n + N_OFF] = offsets3(offsets) * 1e3
-        x = np.append(W.reshape(-1), 0.0)
-        _, terms, _ = self.point_values(x)
-        e, r = terms[:, 3], terms[:, 1]
+        values: dict[str, Any] = {"q": q, "offsets": offsets3(offsets) * VARIABLE_SCALE["offsets"],
+                                  "sigma": 0.0, "tolerated": 0.0}
+        _, terms = self.point_rows(self.stack(values))
+        e, r = terms["error"][:, 0], terms["worst_case"][:, 0]
         lo, hi = self.p[self.layout["lower"]][0], self.p[self.layout["upper"]][0]  # [mm]
-        W[:, n + N_OFF] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
+        values["sigma"] = np.maximum(np.maximum(lo - (e - r), (e + r) - hi), 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
             rho_k = np.minimum((e - lo) / r, (hi - e) / r)  # r >= ABS_EPS > 0
-        W[:, n + N_OFF + 1] = float(np.clip(np.min(rho_k), 0.0, 1.0))
-        c_max = float(np.max(terms[:, 0] * self.point_parameter("weld")[:, 0]))
-        return np.append(W.reshape(-1), c_max)
+        values["tolerated"] = float(np.clip(np.min(rho_k), 0.0, 1.0))
+        c_max = float(np.max(terms["lateral_compliance"][:, 0]
+                             * self.point_parameter("weld")[:, 0]))
+        return self.stack(values, c_max)
 
     def evaluate(self, x: FloatArray) -> tuple[float, FloatArray]:
         """Objective and constraint values at x."""
@@ -494,10 +470,12 @@ def _mapped(f: ca.Function, K: int) -> ca.Function:
 
 
 def _expressions(pf: PointFunctions, K: int, n: int) -> _Expressions:
-    nw, npar = variable_layout(n).size, n_par(n)
-    X = ca.MX.sym("x", nw * K + 1)
-    W = ca.reshape(X[: nw * K], nw, K)
-    c_max = X[nw * K]  # epigraph of the weld waypoints' lateral compliance [mm/kN]
+    vl, npar = variable_layout(n), n_par(n)
+    nw = vl.size
+    xl = x_layout(n, K)
+    X = ca.MX.sym("x", xl.size)
+    W = ca.reshape(X[xl["points"]], nw, K)
+    c_max = X[xl["c_max"]]  # epigraph of the weld waypoints' lateral compliance [mm/kN]
     lay = problem_layout(n, K)
     P = ca.MX.sym("p", lay.size)
     pv = lay.split(P)
@@ -510,16 +488,16 @@ def _expressions(pf: PointFunctions, K: int, n: int) -> _Expressions:
     phi, G = _mapped(pf.fg_nlp, K)(W, PAR, GLOB)
     # The weakest waypoint's share of the stiffness term: w_stiffness (1 - share) c_max / cref.
     f = ca.sum2(phi) + gl["w_stiffness"] * (1 - gl["mean_share"]) * c_max / gl["compliance_ref"]
-    cap = np.zeros(_NG)
-    cap[_CAP] = 1.0
-    g_parts = [ca.vec(G) - ca.repmat(ca.DM(cap), K, 1) * c_max]
+    g_parts = [ca.vec(G) - ca.repmat(ca.DM(epigraph_rows()), K, 1) * c_max]
     fs = ca.MX(0)
     if K > 1:
         dW = W[:, 1:] - W[:, :-1]
-        dq, do, drho = dW[:n, :], dW[n:n + N_OFF, :], dW[n + N_OFF + 1, :]
+        dq = dW[vl["q"], :]
+        smooth = slice(OFFSETS[SMOOTHED_OFFSETS[0]].start, OFFSETS[SMOOTHED_OFFSETS[-1]].stop)
+        do = dW[vl["offsets"], :][smooth, :]
         fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
-              + wo * ca.sumsqr(1e-3 * do[:2, :] * ca.repmat(hinv, 2, 1))) / (K - 1)
-        g_parts.append(ca.vec(ca.vertcat(dq, do, drho)))
+              + wo * ca.sumsqr(1e-3 * do * ca.repmat(hinv, do.shape[0], 1))) / (K - 1)
+        g_parts.append(ca.vec(ca.vertcat(*(dW[vl[var], :] for var in link_variables()))))
     return _Expressions(X, P, W, PAR, GLOB, glob, c_max, f + fs, ca.vertcat(*g_parts), fs)
 
 
@@ -536,13 +514,13 @@ MUMPS_OPTIONS: dict[str, Any] = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_strateg
 
 
 def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.Function:
-    nw = variable_layout(n).size
+    nw, ng = variable_layout(n).size, point_row_count()
     ex = _expressions(pf, K, n)
     X, P, W, PAR, GLOB, glob = ex.X, ex.P, ex.W, ex.PAR, ex.GLOB, ex.glob
     gl = GLOBALS.split(glob)
     f, g, fs = ex.f, ex.g, ex.fs
-    cap_col = ca.DM(ca.Sparsity.triplet(_NG * K, 1, list(range(_CAP, _NG * K, _NG)),
-                                        [0] * K), -1.0)
+    cap_rows = np.flatnonzero(np.tile(epigraph_rows(), K)).tolist()
+    cap_col = ca.DM(ca.Sparsity.triplet(ng * K, 1, cap_rows, [0] * len(cap_rows)), -1.0)
 
     def mapped(fn: ca.Function) -> ca.Function:
         return _mapped(fn, K)
@@ -553,15 +531,16 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
                       gl["w_stiffness"] * (1 - gl["mean_share"]) / gl["compliance_ref"]
                       ) + ca.gradient(fs, X)
     Jb = mapped(pf.jac)(W, PAR)
-    J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((_NG, nw), bool))), cap_col)
+    J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((ng, nw), bool))), cap_col)
     if K > 1:
-        J_link = _link_jacobian(K, _link_columns(n), nw)
+        J_link = _link_jacobian(K, columns(variable_layout(n), link_variables()), nw,
+                                x_layout(n, K).size)
         J = ca.vertcat(J_pts, J_link)
     else:
         J = J_pts
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", g.shape[0])
-    LG = ca.reshape(lam_g[: _NG * K], _NG, K)
+    LG = ca.reshape(lam_g[g_layout(n, K)["points"]], ng, K)
     Hb = mapped(pf.hess)(W, PAR, GLOB, ca.repmat(lam_f, 1, K), LG)
     H = ca.diagcat(ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool)))),
                    ca.MX(1, 1))
@@ -587,21 +566,18 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
     return ca.nlpsol("plan", "ipopt", nlp_dict, ipopt)
 
 
-def _link_columns(n: int) -> NDArray[np.int_]:
-    """Positions in a waypoint's variables of the link rows' variables (:data:`LINK_ROWS`)."""
-    vl = variable_layout(n)
-    return np.concatenate([np.arange(vl[name].start, vl[name].stop) for name in LINK_ROWS])
-
-
-def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int) -> ca.DM:
-    """The constant Jacobian of the link rows (w_{k+1} - w_k)[cols_w] with respect to x."""
+def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int, n_x: int) -> ca.DM:
+    """The constant Jacobian of the link rows (w_{k+1} - w_k)[cols_w] with respect to x (n_x
+    entries, the waypoints' nw variables first): the link row families' blocks (+-1 on the
+    columns of the variables they bound, in the order of
+    :func:`~rfsw_plan.planning.rows.link_variables`)."""
     m = len(cols_w)
-    rows = np.arange(m * (K - 1))
-    cols = (rows // m) * nw + cols_w[rows % m]
-    r = np.concatenate([rows, rows]).tolist()
+    row = np.arange(m * (K - 1))
+    cols = (row // m) * nw + cols_w[row % m]
+    r = np.concatenate([row, row]).tolist()
     c = np.concatenate([cols, cols + nw]).tolist()
-    v = np.concatenate([-np.ones(rows.size), np.ones(rows.size)])
-    return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), nw * K + 1)
+    v = np.concatenate([-np.ones(row.size), np.ones(row.size)])
+    return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), n_x)
 
 
 def _blockdiag(K: int, block: NDArray[np.bool_]) -> ca.Sparsity:
@@ -662,13 +638,15 @@ def build_plan_nlp(
         compile_c: Compile the point functions to C; None: when K >= 200 or already cached.
         load_steps: Offset change the load itself demands on each link (lateral, normal,
             along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
-            offset-rate bound so the bound limits only the *extra* offset change (the force
-            ramps at the weld start need offsets that follow them). None: zero.
+            bound of every link row family on the offsets (offset rate, offset speed) so the
+            bound limits only the *extra* offset change (the force ramps at the weld start
+            need offsets that follow them). None: zero.
         offset_reference: Instead of ``load_steps``: offsets (K, 3) [m] (the mirror
-            baseline's) whose change the offset-rate rows follow, |delta (o - o_ref)| <=
-            offset rate * travel. Tighter than ``load_steps`` (|delta o| <= rate * travel +
-            |delta o_ref|); the coarse NLP uses it so that its solution, interpolated as a
-            departure from the mirror offsets, meets the fine NLP's offset-rate rows.
+            baseline's) whose change the offset link rows follow, |delta (o - o_ref)| <=
+            allowance (offset rate * travel...). Tighter than ``load_steps``
+            (|delta o| <= allowance + |delta o_ref|); the coarse NLP uses it so that its
+            solution, interpolated as a departure from the mirror offsets, meets the fine
+            NLP's offset rows.
 
     Returns:
         The inspectable :class:`PlanNLP`.
@@ -689,11 +667,25 @@ def build_plan_nlp(
     nlp_fn = _EVAL_CACHE[ekey]
 
     q_init = np.asarray(q_init, dtype=float)
+    p = _parameters(model, task, window, q_init, opts, correction)
+    lbx, ubx = _variable_bounds(robot, K, opts)
+    lbg, ubg = _point_bounds(window, opts, K)
+    links = _link_bounds(task, opts, n, load_steps, offset_reference)
+    nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros(x_layout(n, K).size),
+                  lbx, ubx, np.concatenate([lbg, links.lower]),
+                  np.concatenate([ubg, links.upper]), p, links)
+    return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
+
+
+def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_init: FloatArray,
+                opts: PlanOptions, correction: FloatArray | None) -> FloatArray:
+    """The parameter vector p (:func:`problem_layout`) of a task, warm start q_init (K, n)
+    [rad] and outer correction (K, 3) [m]."""
+    n, K = model.robot.nq, len(task)
     fr = task.frames
-    corr = np.zeros((K, N_OFF)) if correction is None else np.asarray(correction, dtype=float)
-    pl = point_layout(n)
-    det = _det_parameters(robot, q_init, opts)
-    PAR = pl.pack(K, {
+    corr = np.zeros((K, OFFSETS.size)) if correction is None else np.asarray(correction, float)
+    det = _det_parameters(model.robot, q_init, opts)
+    PAR = point_layout(n).pack(K, {
         "target": task.target, "t": fr.t, "l": fr.l, "n": fr.n, "wrench": task.wrench_base,
         "force_spread": opts.force_uncertainty * np.abs(task.force_seam),
         "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
@@ -708,50 +700,118 @@ def build_plan_nlp(
         "half_width": window.half_width * 1e3, "inv_k": 1.0 / K,
         "mean_share": 1.0 - opts.min_stiffness_share,
     })
-    p = problem_layout(n, K).pack(1, {
+    return problem_layout(n, K).pack(1, {
         "points": PAR.reshape(-1), "inv_link": 1.0 / task.link_lengths(), "globals": glob,
         "w_smooth_q": w["w_smooth_q"], "w_smooth_o": w["w_smooth_o"],
         "lower": window.lower * 1e3, "upper": window.upper * 1e3,
     })[0]
 
-    d = robot.description
-    lbw = np.concatenate([d.lower, np.full(N_OFF, -np.inf), [0.0, 0.0]])
-    ubw = np.concatenate([d.upper, np.full(N_OFF, np.inf),
-                          [0.0 if opts.robust_hard else np.inf, 1.0]])
-    lbx, ubx = np.append(np.tile(lbw, K), 0.0), np.append(np.tile(ubw, K), np.inf)
-    lo, hi = window.lower * 1e3, window.upper * 1e3
-    m = opts.margin * 1e3
-    bounds = {  # per-waypoint rows by name (:data:`POINT_CONSTRAINTS`), NLP units
-        "position_x": (0.0, 0.0), "position_y": (0.0, 0.0), "position_z": (0.0, 0.0),
-        "axis_t": (0.0, 0.0), "axis_l": (0.0, 0.0), "axis_n": (-1.5, -0.5),
-        "window": (lo + m, hi - m), "robust_lower": (lo, np.inf), "robust_upper": (-np.inf, hi),
-        "along_track": (0.0, 0.0), "singularity": (0.0, np.inf),
-        "stiffness_cap": (-np.inf, 0.0),
-        "tolerated_lower": (lo, np.inf), "tolerated_upper": (-np.inf, hi),
-    }
-    lbp = np.array([bounds[c][0] for c in POINT_CONSTRAINTS])
-    ubp = np.array([bounds[c][1] for c in POINT_CONSTRAINTS])
-    lbg_parts, ubg_parts = [np.tile(lbp, K)], [np.tile(ubp, K)]
-    if K > 1:
-        ds = task.link_travel()
-        dt = task.link_times()
-        stationary = ds <= 1e-12
-        o_step = (opts.offset_rate * ds + np.where(stationary, opts.offset_speed_stationary
-                                                   * dt, 0.0)) * 1e3 + 1e-6
-        extra = (np.zeros((K - 1, N_OFF)) if load_steps is None or offset_reference is not None
-                 else np.abs(offsets3(load_steps)) * 1e3)
-        centre = np.zeros((K - 1, n + N_OFF + 1))
-        if offset_reference is not None:
-            centre[:, n:n + N_OFF] = np.diff(offsets3(offset_reference), axis=0) * 1e3
-        link_hi = np.column_stack([np.full((K - 1, n), opts.joint_step),
-                                   o_step[:, None] + extra, np.zeros(K - 1)])
-        lbg_parts.append((centre - link_hi).reshape(-1))
-        ubg_parts.append((centre + link_hi).reshape(-1))
-    nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n,
-                  np.zeros(variable_layout(n).size * K + 1),
-                  lbx, ubx,
-                  np.concatenate(lbg_parts), np.concatenate(ubg_parts), p)
-    return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
+
+def _variable_bounds(robot: Robot, K: int, opts: PlanOptions) -> tuple[FloatArray, FloatArray]:
+    """Bounds of x (:func:`x_layout`): joint limits [rad], free offsets, 0 <= sigma (= 0 with
+    ``robust_hard``), 0 <= rho <= 1, c_max >= 0."""
+    d, vl = robot.description, variable_layout(robot.nq)
+    lbw = vl.pack(1, {"q": d.lower, "offsets": -np.inf, "sigma": 0.0, "tolerated": 0.0})[0]
+    ubw = vl.pack(1, {"q": d.upper, "offsets": np.inf,
+                      "sigma": 0.0 if opts.robust_hard else np.inf, "tolerated": 1.0})[0]
+    xl = x_layout(robot.nq, K)
+    return (xl.pack(1, {"points": np.tile(lbw, K), "c_max": 0.0})[0],
+            xl.pack(1, {"points": np.tile(ubw, K), "c_max": np.inf})[0])
+
+
+def _point_bounds(window: WeldWindow, opts: PlanOptions, K: int
+                  ) -> tuple[FloatArray, FloatArray]:
+    """Bounds of the per-waypoint rows of K waypoints, from each family's declaration (NLP
+    units), shape (14 K,) each."""
+    ctx = PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3)
+    pairs = []
+    for f in rows.POINT_ROWS:
+        got = f.bounds(ctx)
+        if len(got) != len(f.labels):
+            raise TypeError(f"row family {f.name!r}: {len(got)} bound pairs for the rows "
+                            f"{f.labels}")
+        pairs += list(got)
+    lb, ub = np.array(pairs, dtype=float).T
+    return np.tile(lb, K), np.tile(ub, K)
+
+
+@dataclass(frozen=True)
+class LinkBounds:
+    """The link rows' bounds, assembled from :data:`~rfsw_plan.planning.rows.LINK_ROWS`.
+
+    On link k (waypoint k -> k + 1), per component of each bounded variable (NLP units):
+    lower = centre - bound, upper = centre + bound, with bound the tightest declared
+    scale * allowance + slack, plus the load step (offsets).
+
+    Attributes:
+        lower, upper: Row bounds, shape ((K - 1) (n + 4),) (link-major; within a link the
+            variables of :func:`~rfsw_plan.planning.rows.link_variables`).
+        binding: Per variable, the index among the families on that variable (declaration
+            order) whose bound is the tightest, (K - 1, width).
+        allowance: Per variable, that family's allowance [SI: rad, m, 1], (K - 1, width),
+            without slack and load step: what the fine projection may use.
+    """
+
+    lower: FloatArray
+    upper: FloatArray
+    binding: dict[str, NDArray[np.int_]] = field(default_factory=dict)
+    allowance: dict[str, FloatArray] = field(default_factory=dict)
+
+    def names(self, n: int) -> list[str]:
+        """Row names ``label[k]``, in row order, named by the binding family."""
+        labels = {}
+        for var in self.binding:
+            fams = link_families(var)
+            labels[var] = np.array([f.labels(n) for f in fams])  # (families, width)
+        per_link = [
+            labels[var][self.binding[var], np.arange(self.binding[var].shape[1])]
+            for var in self.binding]
+        if not per_link or not len(per_link[0]):
+            return []
+        table = np.concatenate(per_link, axis=1)  # (K - 1, rows per link)
+        return [f"{c}[{k}]" for k, row in enumerate(table.tolist()) for c in row]
+
+
+def _link_bounds(task: PlanTask, opts: PlanOptions, n: int, load_steps: FloatArray | None,
+                 offset_reference: FloatArray | None) -> LinkBounds:
+    """The link rows' bounds from their declarations (see :class:`LinkBounds` and
+    :func:`build_plan_nlp` for ``load_steps`` and ``offset_reference``)."""
+    K1 = len(task) - 1
+    if K1 < 1:
+        return LinkBounds(np.zeros(0), np.zeros(0))
+    ctx = LinkContext(task.link_travel(), task.link_times(), opts)
+    vl = variable_layout(n)
+    lower, upper, binding, allowance = [], [], {}, {}
+    for var in link_variables():
+        width, scale = vl.width(var), VARIABLE_SCALE[var]
+        fams = link_families(var)
+        allow = np.stack([np.broadcast_to(np.asarray(f.allowance(ctx), dtype=float)
+                                          .reshape(K1, -1), (K1, width)) for f in fams])
+        bound = np.stack([a * scale + f.slack for a, f in zip(allow, fams, strict=True)])
+        pick = np.argmin(bound, axis=0)  # the first of equal bounds
+        binding[var] = pick
+        allowance[var] = np.take_along_axis(allow, pick[None], 0)[0]
+        centre, extra = _link_reference(var, K1, width, load_steps, offset_reference)
+        half = np.take_along_axis(bound, pick[None], 0)[0] + extra
+        lower.append(centre - half)
+        upper.append(centre + half)
+    return LinkBounds(np.concatenate(lower, axis=1).reshape(-1),
+                      np.concatenate(upper, axis=1).reshape(-1), binding, allowance)
+
+
+def _link_reference(var: str, K1: int, width: int, load_steps: FloatArray | None,
+                    offset_reference: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+    """Centre and extra half width of a variable's link rows (NLP units), (K - 1, width): for
+    the offsets either the reference offsets' change (centre) or the load steps (extra)."""
+    zero = np.zeros((K1, width))
+    if var != "offsets":
+        return zero, zero
+    scale = VARIABLE_SCALE[var]
+    if offset_reference is not None:
+        return np.diff(offsets3(offset_reference), axis=0) * scale, zero
+    if load_steps is not None:
+        return zero, np.abs(offsets3(load_steps)) * scale
+    return zero, zero
 
 
 def _det_parameters(robot: Robot, Q: FloatArray, opts: PlanOptions) -> dict[str, FloatArray]:
@@ -827,5 +887,11 @@ def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
 def nlp_prediction(nlp: PlanNLP, x: FloatArray) -> FloatArray:
     """The NLP's own predicted (lateral, normal, along-track) pin error [m] at x, without the
     outer correction, shape (K, 3)."""
-    _, terms, _ = nlp.point_values(x)
-    return (terms[:, [3, 4, 5]] - nlp.point_parameter("correction")) * 1e-3
+    return terms_prediction(nlp, nlp.point_rows(x)[1])
+
+
+def terms_prediction(nlp: PlanNLP, terms: dict[str, FloatArray]) -> FloatArray:
+    """:func:`nlp_prediction` from the point function's terms by name (:meth:`PlanNLP.point_rows`),
+    [m], shape (K, 3)."""
+    own = np.column_stack([terms[name][:, 0] for name in ERROR_TERMS])
+    return (own - nlp.point_parameter("correction")) * 1e-3

@@ -13,13 +13,21 @@ NLP cannot verify itself. Every waypoint is checked:
   process model gives with the pin at s_k, and the weld is timed on s_k);
 * worst case over the force box |delta f_i| <= u |f_i|: r_k = sum_i u |f_i| |l^T C_tt b_i|
   (deflection is linear in F for compliance effects; seed 000 eq. 11);
-* joint limits, joint steps between neighbours, kappa_f (seed 000 eq. 5) below its bound.
+* joint limits, joint steps between neighbours, kappa_f (seed 000 eq. 5) below its bound;
+* the offsets' change between neighbours beyond the change the load demands (the reference
+  offsets', the mirror baseline's): per travel (and per time while stationary), and per time
+  while moving.
+
+Every row family the NLP declares (:mod:`rfsw_plan.planning.rows`) names its check here, in
+:data:`ROW_CHECKS`; this module refuses to import if a declared check is missing, so a new
+planner constraint cannot go without its independent check.
 
 :func:`pin_track` evaluates the timed trajectory the same way at every sample.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -29,6 +37,9 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.compliance import dexterity
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
+from rfsw_plan.planning.rows import checks as declared_checks
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
@@ -40,6 +51,9 @@ POSE_TOL = 1e-5
 AXIS_TOL = 1e-4
 #: Tolerance of the predicted pin's along-track error [m].
 ALONG_TOL = 1e-5
+#: Tolerance of the offsets' change between neighbours [m]: the NLP rows' own slack (1e-6 mm)
+#: plus IPOPT's constraint tolerance (1e-7 mm), rounded up.
+OFFSET_TOL = 2e-9
 
 
 @dataclass(frozen=True)
@@ -135,10 +149,13 @@ class Verification:
         worst_waypoint: Waypoint with the smallest margin of its binding constraint.
         binding: Name of that constraint (``window``, ``robust_window``, ``pose``,
             ``along_track``, ``tool_axis``, ``joint_limit_qj``, ``joint_step_qj``,
-            ``singularity``).
-        binding_margin: Its margin (negative = violated) [m for window/pose, rad for joints,
-            1 for kappa].
+            ``singularity``, ``offset_rate_lat`` (``_norm``, ``_along``),
+            ``offset_speed_lat``...).
+        binding_margin: Its margin (negative = violated) [m for window, pose and offsets, rad
+            for joints, 1 for kappa].
         messages: One line per violated check.
+        skipped: Checks not run for want of their input (``offset_rate`` and
+            ``offset_speed`` without ``options``).
     """
 
     feasible: bool
@@ -152,12 +169,178 @@ class Verification:
     binding: str
     binding_margin: float
     messages: tuple[str, ...]
+    skipped: tuple[str, ...] = ()
 
     def raise_if_infeasible(self) -> None:
         """Raise :class:`InfeasibleError` naming the waypoint, margin and constraint."""
         if not self.feasible:
             raise InfeasibleError(self.messages[0], self.worst_waypoint, self.binding,
                                   self.binding_margin)
+
+
+@dataclass(frozen=True)
+class CheckInput:
+    """What a row check sees: the plan, its numeric prediction and the limits (SI).
+
+    Attributes:
+        model: The elastostatic model.
+        task: The planned task.
+        window: The weld window [m].
+        q: Joint values [rad], (K, n).
+        offsets: Offsets (lateral, normal, along-track) [m], (K, 3).
+        prediction: The numeric prediction of q.
+        robust_hard: The worst-case window is a hard check.
+        joint_step: Largest joint step [rad], or None.
+        kappa_max: Largest kappa_f.
+        options: The planner options (offset rate and speeds), or None.
+        reference_offsets: Offsets whose change the load itself demands [m], (K, 3) (the
+            mirror baseline's), or None (zero).
+    """
+
+    model: ElastostaticModel
+    task: PlanTask
+    window: WeldWindow
+    q: FloatArray
+    offsets: FloatArray
+    prediction: Prediction
+    robust_hard: bool
+    joint_step: float | None
+    kappa_max: float
+    options: PlanOptions | None
+    reference_offsets: FloatArray | None
+
+    @property
+    def commanded(self) -> FloatArray:
+        """Commanded TCP positions p + o_lat l + o_norm n + o_along t [m], (K, 3)."""
+        fr, o = self.task.frames, OFFSETS.split(self.offsets)
+        return self.task.target + o["lateral"] * fr.l + o["normal"] * fr.n + o["along"] * fr.t
+
+    def offset_steps(self) -> tuple[FloatArray, FloatArray]:
+        """|delta o| and the reference's |delta o_ref| between neighbours [m], (K - 1, 3)."""
+        ref = (np.zeros_like(self.offsets) if self.reference_offsets is None
+               else offsets3(self.reference_offsets))
+        return np.abs(np.diff(self.offsets, axis=0)), np.abs(np.diff(ref, axis=0))
+
+
+#: A named margin series: (check name, margin (K,) (>= 0 holds), unit: "m", "rad" or "").
+Margins = list[tuple[str, FloatArray, str]]
+#: A check: the margins of its rows, or None when its input is missing (reported as skipped).
+RowCheck = Callable[[CheckInput], "Margins | None"]
+
+
+def _check_robust(c: CheckInput) -> Margins:
+    p, w = c.prediction, c.window
+    e = p.e_lat
+    return [("robust_window", np.minimum(e - p.worst - w.lower, w.upper - e - p.worst), "m")
+            ] if c.robust_hard else []
+
+
+def _check_window(c: CheckInput) -> Margins:
+    e = c.prediction.e_lat
+    return [("window", np.minimum(e - c.window.lower, c.window.upper - e), "m")]
+
+
+def _pose_error(c: CheckInput) -> FloatArray:
+    """|FK_p(q) - (p + offsets)| [m], (K,)."""
+    return np.asarray(np.linalg.norm(c.prediction.T[:, :3, 3] - c.commanded, axis=1))
+
+
+def _check_pose(c: CheckInput) -> Margins:
+    return [("pose", POSE_TOL - _pose_error(c), "m")]
+
+
+def _check_along(c: CheckInput) -> Margins:
+    return [("along_track", ALONG_TOL - np.abs(c.prediction.e_along), "m")]
+
+
+def _check_axis(c: CheckInput) -> Margins:
+    return [("tool_axis", AXIS_TOL - _axis_error(c.prediction, c.task), "rad")]
+
+
+def _check_singularity(c: CheckInput) -> Margins:
+    return [("singularity", c.kappa_max - c.prediction.kappa, "")]
+
+
+def _check_joint_limits(c: CheckInput) -> Margins:
+    d = c.model.robot.description
+    # 1e-7 rad: IPOPT may touch a bound within its bound relaxation.
+    return [(f"joint_limit_q{j + 1}", np.minimum(c.q[:, j] - d.lower[j],
+                                                d.upper[j] - c.q[:, j]) + 1e-7, "rad")
+            for j in range(c.q.shape[1])]
+
+
+def _check_joint_steps(c: CheckInput) -> Margins:
+    if c.joint_step is None or len(c.q) < 2:
+        return []
+    step = np.abs(np.diff(c.q, axis=0))
+    return [(f"joint_step_q{j + 1}", np.append(c.joint_step - step[:, j], np.inf), "rad")
+            for j in range(c.q.shape[1])]
+
+
+def _offset_margins(name: str, c: CheckInput, bound: FloatArray) -> Margins:
+    """Margins of |delta o| <= bound + |delta o_ref| + OFFSET_TOL per offset component, named
+    ``{name}_lat`` etc., at the link's first waypoint."""
+    step, ref = c.offset_steps()
+    m = bound[:, None] + ref + OFFSET_TOL - step
+    return [(f"{name}_{label}", np.append(m[:, OFFSETS[comp]][:, 0], np.inf), "offset")
+            for comp, label in zip(OFFSETS.names, OFFSET_LABELS, strict=True)]
+
+
+def _check_offset_rate(c: CheckInput) -> Margins | None:
+    """|delta o| <= offset_rate x travel (+ offset_speed_stationary x time while stationary)
+    + |delta o_ref|."""
+    if c.options is None:
+        return None
+    if len(c.q) < 2:
+        return []
+    ds, dt = np.diff(c.task.s), np.diff(c.task.time)
+    o = c.options
+    bound = o.offset_rate * ds + np.where(ds <= 1e-12, o.offset_speed_stationary * dt, 0.0)
+    return _offset_margins("offset_rate", c, bound)
+
+
+def _check_offset_speed(c: CheckInput) -> Margins | None:
+    """|delta o| <= offset_speed x time + |delta o_ref| on every link with travel."""
+    if c.options is None:
+        return None
+    if len(c.q) < 2:
+        return []
+    ds, dt = np.diff(c.task.s), np.diff(c.task.time)
+    bound = np.where(ds <= 1e-12, np.inf, c.options.offset_speed * dt)
+    return _offset_margins("offset_speed", c, bound)
+
+
+#: The independent checks, by the name the row declarations use, in the order a plan's
+#: first failure is reported. ``joint_limit`` checks the variable bounds (no row family).
+ROW_CHECKS: dict[str, RowCheck] = {
+    "robust_window": _check_robust,
+    "window": _check_window,
+    "pose": _check_pose,
+    "along_track": _check_along,
+    "tool_axis": _check_axis,
+    "singularity": _check_singularity,
+    "joint_limit": _check_joint_limits,
+    "joint_step": _check_joint_steps,
+    "offset_rate": _check_offset_rate,
+    "offset_speed": _check_offset_speed,
+}
+
+
+def _require_declared_checks() -> None:
+    """Every row family declared in :mod:`rfsw_plan.planning.rows` names a check here."""
+    missing = {fam: chk for fam, chk in declared_checks().items() if chk not in ROW_CHECKS}
+    if missing:
+        raise TypeError(f"row families without their check in verify.ROW_CHECKS: {missing}; "
+                        f"the checks are {sorted(ROW_CHECKS)}")
+
+
+_require_declared_checks()
+
+
+def _axis_error(pred: Prediction, task: PlanTask) -> FloatArray:
+    """Angle between the TCP z axis and -n [rad], (K,)."""
+    cosang = np.clip(-np.einsum("ki,ki->k", pred.T[:, :3, 2], task.frames.n), -1.0, 1.0)
+    return np.asarray(np.arccos(cosang))
 
 
 def verify_plan(
@@ -171,8 +354,12 @@ def verify_plan(
     joint_step: float | None = None,
     kappa_max: float = np.inf,
     length_scale: float = 1.0,
+    *,
+    options: PlanOptions | None = None,
+    reference_offsets: FloatArray | None = None,
 ) -> Verification:
-    """Re-evaluate a plan numerically and check every waypoint.
+    """Re-evaluate a plan numerically and run every check of :data:`ROW_CHECKS` at every
+    waypoint (one per row family the NLP declares, and the joint limits).
 
     Args:
         model: Elastostatic model (all effects are evaluated).
@@ -186,38 +373,29 @@ def verify_plan(
         joint_step: Largest joint step between neighbours [rad], or None to skip.
         kappa_max: Largest kappa_f.
         length_scale: Length scale for kappa_f [m].
+        options: The planner options: the offsets' change between neighbours is checked
+            against ``offset_rate``, ``offset_speed_stationary`` and ``offset_speed``
+            (skipped without them, and listed in :attr:`Verification.skipped`).
+        reference_offsets: The offsets whose change the load itself demands [m], (K, 3) (the
+            mirror baseline's, as the planner's ``load_steps``); None: zero.
     """
     Q = np.atleast_2d(np.asarray(q, dtype=float))
     pred = predict(model, task, Q, uncertainty, length_scale)
-    fr = task.frames
     o = offsets3(offsets)
-    cmd = task.target + o[:, :1] * fr.l + o[:, 1:2] * fr.n + o[:, 2:3] * fr.t
-    pose_err = np.linalg.norm(pred.T[:, :3, 3] - cmd, axis=1)
-    cosang = np.clip(-np.einsum("ki,ki->k", pred.T[:, :3, 2], fr.n), -1.0, 1.0)
-    axis_err = np.arccos(cosang)
+    c = CheckInput(model, task, window, Q, o, pred, robust_hard, joint_step, kappa_max, options,
+                   reference_offsets)
+    checks: Margins = []
+    skipped: list[str] = []
+    for name, check in ROW_CHECKS.items():
+        margins = check(c)
+        if margins is None:
+            skipped.append(name)
+        else:
+            checks += margins
     e = pred.e_lat
-    margin = np.minimum(e - window.lower, window.upper - e)
+    margin = _check_window(c)[0][1]
     rmargin = np.minimum(e - pred.worst - window.lower, window.upper - e - pred.worst)
-
-    checks: list[tuple[str, FloatArray, str]] = [
-        *([("robust_window", rmargin, "m")] if robust_hard else []),
-        ("window", margin, "m"),
-        ("pose", POSE_TOL - pose_err, "m"),
-        ("along_track", ALONG_TOL - np.abs(pred.e_along), "m"),
-        ("tool_axis", AXIS_TOL - axis_err, "rad"),
-        ("singularity", kappa_max - pred.kappa, ""),
-    ]
-    d = model.robot.description
-    for j in range(Q.shape[1]):
-        # 1e-7 rad: IPOPT may touch a bound within its bound relaxation.
-        checks.append((f"joint_limit_q{j + 1}", np.minimum(Q[:, j] - d.lower[j],
-                                                          d.upper[j] - Q[:, j]) + 1e-7, "rad"))
-    if joint_step is not None and len(Q) > 1:
-        step = np.abs(np.diff(Q, axis=0))
-        for j in range(Q.shape[1]):
-            checks.append((f"joint_step_q{j + 1}",
-                           np.append(joint_step - step[:, j], np.inf), "rad"))
-
+    pose_err = _pose_error(c)
     messages = []
     worst_k, worst_name, worst_m = int(np.argmin(rmargin if robust_hard else margin)), \
         "robust_window" if robust_hard else "window", float(np.min(rmargin if robust_hard
@@ -232,9 +410,9 @@ def verify_plan(
             messages.append(_message(task, k, name, float(m[k]), unit, e, pred))
     if first_bad is not None:
         worst_k, worst_name, worst_m = first_bad
-    return Verification(not messages, pred, margin, rmargin, pose_err, pred.e_along, axis_err,
-                        worst_k,
-                        worst_name, worst_m, tuple(messages))
+    return Verification(not messages, pred, margin, rmargin, pose_err, pred.e_along,
+                        _axis_error(pred, task), worst_k, worst_name, worst_m, tuple(messages),
+                        tuple(skipped))
 
 
 def _message(task: PlanTask, k: int, name: str, m: float, unit: str, e: FloatArray,
@@ -248,6 +426,9 @@ def _message(task: PlanTask, k: int, name: str, m: float, unit: str, e: FloatArr
         return (f"plan infeasible at {where}: the predicted pin is "
                 f"{pred.e_along[k] * 1e3:+.4f} mm along the track from its seam point "
                 f"(tolerance {ALONG_TOL * 1e3:g} mm)")
+    if unit == "offset":
+        return (f"plan infeasible at {where}: {name}: the offset changes to the next waypoint "
+                f"by {-m * 1e3:.4f} mm more than its bound")
     if unit == "m":
         return f"plan infeasible at {where}: {name} off by {-m * 1e3:.4f} mm"
     if unit == "rad":

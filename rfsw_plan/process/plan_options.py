@@ -68,6 +68,11 @@ class PlanOptions:
         robust_hard: Make the worst-case window a hard constraint (else an exact penalty).
         offset_rate: Bound on the offset change per travel [m/m].
         offset_speed_stationary: Bound on the offset change per time while stationary [m/s].
+        offset_speed: Bound on the offset change per time while moving [m/s], beyond the
+            change the load itself demands (the mirror baseline's). Default 10 mm/s, the same
+            speed as ``offset_speed_stationary``: how fast the fake target may move against the
+            seam, stationary or not. It binds only where offset_rate x travel speed is faster
+            (on the bundled problems at most 0.2 x 20 mm/s = 4 mm/s, so it does not).
         joint_step: Bound on the joint change between neighbouring waypoints [rad].
         kappa_max: Largest allowed kinetostatic index kappa_f (seed 000 eq. 5) on the plan.
         det_fraction: The NLP keeps |det J_n| above this fraction of its warm-start value (a
@@ -104,6 +109,7 @@ class PlanOptions:
     robust_hard: bool = False
     offset_rate: float = 0.2
     offset_speed_stationary: float = 10e-3
+    offset_speed: float = 10e-3
     joint_step: float = float(np.deg2rad(20.0))
     kappa_max: float = 200.0
     det_fraction: float = 0.2
@@ -142,8 +148,8 @@ class PlanOptions:
         for name in ("margin", "force_uncertainty"):
             if getattr(self, name) < 0:
                 raise InputError("planning", name, f"got {getattr(self, name)}", ">= 0")
-        for name in ("offset_rate", "offset_speed_stationary", "joint_step", "length_scale",
-                     "clearance", "approach_speed", "sample_dt", "tol"):
+        for name in ("offset_rate", "offset_speed_stationary", "offset_speed", "joint_step",
+                     "length_scale", "clearance", "approach_speed", "sample_dt", "tol"):
             if getattr(self, name) <= 0:
                 raise InputError("planning", name, f"got {getattr(self, name)}", "> 0")
         if not 0.0 <= self.min_stiffness_share <= 1.0:
@@ -201,6 +207,7 @@ OPTION_KEYS: dict[str, OptionKey] = {
     "offset_rate_mm_per_mm": OptionKey("offset_rate", ge=1e-6, le=10.0),
     "offset_speed_stationary_mm_s": OptionKey("offset_speed_stationary", 1e-3, ge=1e-3,
                                                       le=1e4),
+    "offset_speed_mm_s": OptionKey("offset_speed", 1e-3, ge=1e-3, le=1e4),
     "joint_step_deg": OptionKey("joint_step", _DEG, ge=1e-3, le=360.0),
     "kappa_max": OptionKey("kappa_max", gt=1.0, le=1e12),
     "det_fraction": OptionKey("det_fraction", ge=0.0, le=1.0),

@@ -1,0 +1,316 @@
+"""The planning NLP's constraint rows, each family declared once, by name.
+
+As crocoddyl's ``ConstraintModelManager.addConstraint(name, constraint)`` assembles per-node
+residuals and their bounds from named parts, the NLP (:mod:`rfsw_plan.planning.nlp`) is
+assembled from the declarations in :data:`POINT_ROWS` and :data:`LINK_ROWS`, in their order.
+A declaration gives everything about its rows:
+
+* its **expression**: a CasADi expression of one waypoint's quantities (:class:`PointRows`),
+  or the change of one variable between neighbouring waypoints (:class:`LinkRows`; the rows
+  are linear, their block of the constant link Jacobian is +-1 on that variable's columns);
+* its **bounds**, by row name, in NLP units (mm, rad, 1);
+* its **independent numeric check**: the name of a check in
+  :data:`rfsw_plan.planning.verify.ROW_CHECKS`, which :func:`~rfsw_plan.planning.verify.verify_plan`
+  runs with the numeric model (no CasADi), or, for rows that only serve the objective (an
+  epigraph, a slack), the reason there is nothing to check. ``verify.py`` refuses to import if
+  a declared check does not exist;
+* its **fine-projection check**: the coarse-to-fine solve (:mod:`rfsw_plan.planning.coarse`)
+  checks every declared row at IPOPT's tolerance, and interpolates the offsets inside the
+  per-link allowance of the link rows declared on ``offsets``.
+
+Nothing else indexes a row by position. Link rows that bound the same variable share its rows
+in the NLP: the bound on each link is the tightest declared one (the same feasible set without
+duplicate, linearly dependent rows; a bound that never binds leaves the NLP as it was). Each is
+still checked on its own in ``verify``.
+
+A new row family is one declaration here, its check in ``verify.py`` and its test (see
+``docs/dev/nlp-rows.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from rfsw_plan.planning.layout import OFFSET_LABELS, FloatArray, Layout
+from rfsw_plan.process.plan_options import PlanOptions
+
+INF = float("inf")
+
+
+@dataclass(frozen=True)
+class PointSymbols:
+    """What a per-waypoint row is written in: one waypoint's CasADi (SX) quantities, NLP units.
+
+    With p the nominal target, (t, l, n) the seam frame, F the wrench (base frame), C the
+    Cartesian compliance of the symbolic model (seed 000 eq. 11, seed 002 eq. 2) and
+    c = (c_lat, c_norm, c_along) the outer correction:
+
+    Attributes:
+        v: The waypoint's variables by name (:func:`~rfsw_plan.planning.layout.variable_layout`):
+            ``q`` [rad] (n,), ``offsets`` [mm] (3,), ``sigma`` [mm], ``tolerated`` (rho) [1].
+        par: The waypoint's parameters by name (:func:`~rfsw_plan.planning.layout.point_layout`).
+        position: Commanded TCP position FK_p(q) - (p + o_lat l + o_norm n + o_along t) [mm],
+            base frame, (3,).
+        axis: The TCP z axis R(q) e_z, base frame, (3,).
+        error: Lateral pin error e = l . (FK_p + [C F]_p - p) + c_lat [mm].
+        normal_error: n . (FK_p + [C F]_p - p) + c_norm [mm].
+        along_error: t . (FK_p + [C F]_p - p) + c_along [mm].
+        worst: Worst case over the force box, r = sum_i u |f_i| |l^T C_tt b_i| (smooth |.|)
+            [mm].
+        compliance: Lateral compliance l^T C_tt l [mm/kN].
+    """
+
+    v: dict[str, Any]
+    par: dict[str, Any]
+    position: Any
+    axis: Any
+    error: Any
+    normal_error: Any
+    along_error: Any
+    worst: Any
+    compliance: Any
+
+
+@dataclass(frozen=True)
+class PointBounds:
+    """What the bounds of per-waypoint rows depend on, NLP units.
+
+    Attributes:
+        lower, upper: Weld window bounds [mm].
+        margin: Margin of the nominal error to the window bounds [mm].
+    """
+
+    lower: float
+    upper: float
+    margin: float
+
+
+@dataclass(frozen=True)
+class LinkContext:
+    """What the allowance of link rows depends on (SI).
+
+    Attributes:
+        travel: Travel along the seam of each link [m], (K - 1,) (0 while stationary).
+        time: Time of each link in the schedule [s], (K - 1,).
+        options: The planner options.
+    """
+
+    travel: FloatArray
+    time: FloatArray
+    options: PlanOptions
+
+    @property
+    def stationary(self) -> Any:
+        """Links without travel (plunge and dwell), (K - 1,) bool."""
+        return self.travel <= 1e-12
+
+
+@dataclass(frozen=True)
+class PointRows:
+    """A family of rows at every waypoint.
+
+    Attributes:
+        name: Family name (unique among all rows).
+        labels: Name of each row, in order (``position_x``...); a row of waypoint k is named
+            ``label[k]`` in :meth:`~rfsw_plan.planning.nlp.PlanNLP.constraint_names`.
+        expression: ``PointSymbols -> SX`` of shape (len(labels),).
+        bounds: ``PointBounds -> ((lower, upper), ...)``, one pair per label (NLP units).
+        check: Name of the independent check in :data:`rfsw_plan.planning.verify.ROW_CHECKS`.
+        unchecked: Instead of ``check``: why these rows need no check of the plan (they only
+            define an auxiliary variable of the objective).
+        epigraph: The global variable c_max (last entry of x) is subtracted from these rows:
+            row = expression - c_max.
+    """
+
+    name: str
+    labels: tuple[str, ...]
+    expression: Callable[[PointSymbols], Any]
+    bounds: Callable[[PointBounds], tuple[tuple[float, float], ...]]
+    check: str | None = None
+    unchecked: str = ""
+    epigraph: bool = False
+
+    def __post_init__(self) -> None:
+        _check_or_reason(self.name, self.check, self.unchecked)
+
+
+@dataclass(frozen=True)
+class LinkRows:
+    """A family of rows on every link k -> k + 1: |w_{k+1} - w_k - centre_k| <= bound_k per
+    component of one variable (NLP units), with
+
+        bound_k = scale * allowance_k + slack + load step_k,
+
+    scale the variable's NLP scale (1e3 for offsets), the load step the offset change the load
+    itself demands (the mirror baseline's; offsets only, see
+    :func:`~rfsw_plan.planning.nlp.build_plan_nlp`), centre_k 0 (or the reference offsets'
+    change for the coarse NLP).
+
+    Attributes:
+        name: Family name (unique among all rows).
+        variable: The field of :func:`~rfsw_plan.planning.layout.variable_layout` it bounds.
+        labels: ``n -> row names``, one per component of the variable (n: joints).
+        allowance: ``LinkContext -> allowance`` in SI units of the variable (rad, m, 1), shape
+            (K - 1,) or (K - 1, width); inf where the family does not bound a link.
+        slack: Added to the bound in NLP units (mm for offsets), so that a warm start exactly
+            on the bound is strictly feasible.
+        check: Name of the independent check in :data:`rfsw_plan.planning.verify.ROW_CHECKS`.
+        unchecked: Instead of ``check``: why these rows need no check of the plan.
+    """
+
+    name: str
+    variable: str
+    labels: Callable[[int], tuple[str, ...]]
+    allowance: Callable[[LinkContext], FloatArray]
+    slack: float = 0.0
+    check: str | None = None
+    unchecked: str = ""
+
+    def __post_init__(self) -> None:
+        _check_or_reason(self.name, self.check, self.unchecked)
+
+
+def _check_or_reason(name: str, check: str | None, unchecked: str) -> None:
+    if (check is None) == (not unchecked):
+        raise TypeError(f"row family {name!r}: give exactly one of check (the name of its "
+                        "independent check in verify.ROW_CHECKS) and unchecked (why it needs "
+                        "none)")
+
+
+def _offset_labels(prefix: str) -> Callable[[int], tuple[str, ...]]:
+    return lambda n: tuple(f"{prefix}_{c}" for c in OFFSET_LABELS)
+
+
+def _offset_rate(ctx: LinkContext) -> FloatArray:
+    """Offset change per travel, and per time while stationary [m], (K - 1,)."""
+    o = ctx.options
+    return np.asarray(o.offset_rate * ctx.travel
+                      + np.where(ctx.stationary, o.offset_speed_stationary * ctx.time, 0.0))
+
+
+def _offset_speed(ctx: LinkContext) -> FloatArray:
+    """Offset change per time while moving [m], (K - 1,) (inf on stationary links)."""
+    return np.where(ctx.stationary, INF, ctx.options.offset_speed * ctx.time)
+
+
+def _sym(*rows: Any) -> Any:
+    return ca.vertcat(*rows)
+
+
+#: The per-waypoint row families, in the order of the rows of every waypoint.
+POINT_ROWS: tuple[PointRows, ...] = (
+    PointRows(
+        "position", ("position_x", "position_y", "position_z"),
+        lambda s: s.position, lambda b: ((0.0, 0.0),) * 3, check="pose"),
+    # The tool axis -n: perpendicular to t and l, and the TCP z axis against n.
+    PointRows(
+        "tool_axis", ("axis_t", "axis_l", "axis_n"),
+        lambda s: _sym(*(ca.dot(s.axis, s.par[b]) for b in ("t", "l", "n"))),
+        lambda b: ((0.0, 0.0), (0.0, 0.0), (-1.5, -0.5)), check="tool_axis"),
+    PointRows(
+        "window", ("window",), lambda s: s.error,
+        lambda b: ((b.lower + b.margin, b.upper - b.margin),), check="window"),
+    # e -+ r (worst case) inside the window up to the exact-penalty slack sigma.
+    PointRows(
+        "robust", ("robust_lower", "robust_upper"),
+        lambda s: _sym(s.error - s.worst + s.v["sigma"], s.error + s.worst - s.v["sigma"]),
+        lambda b: ((b.lower, INF), (-INF, b.upper)), check="robust_window"),
+    PointRows(
+        "along_track", ("along_track",), lambda s: s.along_error,
+        lambda b: ((0.0, 0.0),), check="along_track"),
+    # sign det J_n linearised at q_lin above its floor: the smooth stand-in for kappa_f.
+    PointRows(
+        "singularity", ("singularity",),
+        lambda s: s.par["det_sign"] * (s.par["det_value"] + ca.dot(
+            s.par["det_grad"], s.v["q"] - s.par["q_lin"])) - s.par["det_floor"],
+        lambda b: ((0.0, INF),), check="singularity"),
+    PointRows(
+        "stiffness_cap", ("stiffness_cap",), lambda s: s.par["weld"] * s.compliance,
+        lambda b: ((-INF, 0.0),), epigraph=True,
+        unchecked="epigraph: c_max >= the weld waypoints' lateral compliance defines the "
+                  "objective's weakest-waypoint term; c_max is not part of the plan"),
+    PointRows(
+        "tolerated", ("tolerated_lower", "tolerated_upper"),
+        lambda s: _sym(s.error - s.v["tolerated"] * s.worst,
+                       s.error + s.v["tolerated"] * s.worst),
+        lambda b: ((b.lower, INF), (-INF, b.upper)),
+        unchecked="defines rho, the share of the requested force uncertainty held, which the "
+                  "objective maximises; the plan's tolerated uncertainty is computed "
+                  "independently (verify.tolerated_uncertainty) and reported, not required"),
+)
+
+#: The link row families. Their rows on a link follow the order in which their variables
+#: first appear here; families on the same variable share its rows (the tightest bound).
+LINK_ROWS: tuple[LinkRows, ...] = (
+    LinkRows("joint_step", "q", lambda n: tuple(f"joint_step_q{j + 1}" for j in range(n)),
+             lambda c: np.full(len(c.travel), c.options.joint_step), check="joint_step"),
+    # |delta o| <= offset_rate * travel (+ offset_speed_stationary * time while stationary).
+    LinkRows("offset_rate", "offsets", _offset_labels("offset_rate"), _offset_rate,
+             slack=1e-6, check="offset_rate"),
+    LinkRows("tolerated_link", "tolerated", lambda n: ("tolerated_link",),
+             lambda c: np.zeros(len(c.travel)),
+             unchecked="keeps rho, one value for the whole plan, equal at every waypoint"),
+    # |delta o| <= offset_speed * time while moving.
+    LinkRows("offset_speed", "offsets", _offset_labels("offset_speed"), _offset_speed,
+             slack=1e-6, check="offset_speed"),
+)
+
+
+def _unique_names() -> None:
+    names = [f.name for f in POINT_ROWS] + [f.name for f in LINK_ROWS]
+    dup = {x for x in names if names.count(x) > 1}
+    if dup:
+        raise TypeError(f"row families declared twice: {sorted(dup)}")
+
+
+_unique_names()
+
+
+# The functions below read the declarations when called (a test may add one).
+
+
+def point_row_count() -> int:
+    """Rows per waypoint."""
+    return sum(len(f.labels) for f in POINT_ROWS)
+
+
+def point_labels() -> tuple[str, ...]:
+    """Names of the per-waypoint rows, in order."""
+    return tuple(label for f in POINT_ROWS for label in f.labels)
+
+
+def point_row_layout() -> Layout:
+    """The per-waypoint rows by family: ``point_row_layout().split(g)["along_track"]``."""
+    return Layout(tuple((f.name, len(f.labels)) for f in POINT_ROWS))
+
+
+def epigraph_rows() -> FloatArray:
+    """1 at the per-waypoint rows that - c_max joins (declared ``epigraph``), else 0."""
+    return np.concatenate([np.full(len(f.labels), 1.0 if f.epigraph else 0.0)
+                           for f in POINT_ROWS])
+
+
+def link_variables() -> tuple[str, ...]:
+    """The variables the link rows bound, in the order of their rows on a link."""
+    return tuple(dict.fromkeys(f.variable for f in LINK_ROWS))
+
+
+def link_families(variable: str) -> tuple[LinkRows, ...]:
+    """The link row families on one variable, in declaration order."""
+    return tuple(f for f in LINK_ROWS if f.variable == variable)
+
+
+def checks() -> dict[str, str]:
+    """Family name -> the name of its independent check in ``verify`` (checked ones only)."""
+    families: tuple[PointRows | LinkRows, ...] = (*POINT_ROWS, *LINK_ROWS)
+    return {f.name: f.check for f in families if f.check is not None}
+
+
+__all__ = ["LINK_ROWS", "POINT_ROWS", "LinkContext", "LinkRows", "PointBounds", "PointRows",
+           "PointSymbols", "checks", "epigraph_rows", "link_families", "link_variables",
+           "point_labels", "point_row_count", "point_row_layout"]
