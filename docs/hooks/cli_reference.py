@@ -92,6 +92,8 @@ def cli_reference() -> str:
         out += [f"## rfsw-plan {name}", "", "```text",
                 _usage(sub), "```", "",
                 _cell(sub.description or ""), "", *_rows(sub, glob), ""]
+        if sub.epilog:
+            out += ["```text", sub.epilog.strip(), "```", ""]
     return "\n".join(out)
 
 
