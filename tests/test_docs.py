@@ -76,3 +76,10 @@ def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert (tmp_path / "site" / "reference" / "cli" / "index.html").is_file()
+
+
+def test_sphinx_roles_become_inline_code_on_the_api_page() -> None:
+    plain = _hook("sphinx_roles").plain
+    assert plain("see :func:`~rfsw_plan.planning.api.plan` and :meth:`Effect.join`.") == (
+        "see `plan` and `Effect.join`.")
+    assert plain(":py:class:`rfsw_plan.Robot`") == "`rfsw_plan.Robot`"
