@@ -105,7 +105,7 @@ def as_written(block: str) -> str:
 def output_matches(quoted: str, actual: str) -> str | None:
     """None if every quoted line appears in ``actual`` in order, else the first quoted line not
     found. A line ``...`` stands for any lines, ``...`` inside a line for any text (a time, a
-    path); runs of blanks are collapsed and trailing blanks ignored."""
+    path); runs of blanks are collapsed, blank lines and trailing blanks ignored."""
     def norm(s: str) -> str:
         return " ".join(s.split())
 
@@ -114,7 +114,7 @@ def output_matches(quoted: str, actual: str) -> str | None:
             return q == line
         return re.fullmatch(".*".join(re.escape(p) for p in q.split("...")), line) is not None
 
-    lines = [norm(ln) for ln in actual.splitlines()]
+    lines = [norm(ln) for ln in actual.splitlines() if ln.strip()]
     pos = 0
     gap = True  # the first quoted line may come after any lines
     for q in (norm(x) for x in quoted.splitlines()):
@@ -208,11 +208,12 @@ def test_optional_parts_are_removed() -> None:
 
 
 def test_output_is_matched_in_order() -> None:
-    actual = "warning: w\nA: 1\nrobot from /x\ntable  1  2\nlast\n"
+    actual = "warning: w\nA: 1\nrobot from /x\ntable  1  2\n\nlast\n"
     assert output_matches("A: 1\n...\ntable 1 2", actual) is None
     assert output_matches("A: 1\ntable 1 2", actual) == "table 1 2"  # no ... : adjacent
     assert output_matches("table  1  2\n...\nA: 1", actual) == "A: 1"  # order kept
     assert output_matches("A: 2", actual) == "A: 2"
+    assert output_matches("table 1 2\n\nlast", actual) is None  # blank lines do not count
     assert output_matches("robot from ...\ntable 1 ...", actual) is None  # text elided
     assert output_matches("robot ... /y", actual) == "robot ... /y"
 
