@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 PROBLEM ?= problems/zk500_table6_seam.toml
 OUT ?= out/demo
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test lint docs bench clean
 
 $(STAMP): pyproject.toml
 	@echo "Setting up $(VENV) (first run only, about 3 minutes: numpy, scipy, casadi, pinocchio...)"
@@ -26,6 +26,11 @@ test: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check rfsw_plan tests examples benchmarks
 	$(BIN)/mypy
+
+# The manual (docs/, mkdocs.yml) with warnings as errors, into out/site; its CLI reference and
+# API pages are generated from the argparse parser and the docstrings (docs/hooks/).
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # Benchmarks print figures; they are never part of the tests.
 bench: $(STAMP)

@@ -1,6 +1,6 @@
 """Validate your own measurement file against a robot model and save the improved robot.
 
-Run with your file (the measurement CSV format is in the README, "Measurement files")::
+Run with your file (the measurement CSV format: docs/formats/measurements.md)::
 
     PYTHONPATH=. .venv/bin/python examples/validate_my_data.py MY_DATA.csv [ROBOT] [OUT_DIR]
 

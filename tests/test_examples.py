@@ -76,3 +76,15 @@ def test_plan_result_write_refuses_a_file_as_folder(tmp_path: Path) -> None:
     f.write_text("x")
     with pytest.raises(OutputPathError):
         write_plan_folder(f, None)  # type: ignore[arg-type]  # checked before the result is used
+
+
+def test_virtual_trial_weld_refuses_a_folder_without_a_plan(tmp_path: Path) -> None:
+    """The stand-in for a real trial weld (run in full by the trial-weld page's block under
+    -m slow) answers a folder without a plan with one line and exit 2."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run([sys.executable, str(ROOT / "examples" / "virtual_trial_weld.py"),
+                           str(tmp_path), str(tmp_path / "weld")],
+                          capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "plan.json" in proc.stderr
+    assert not (tmp_path / "weld").exists()

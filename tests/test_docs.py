@@ -1,0 +1,85 @@
+"""The manual's generated pages: the CLI reference is the argparse parser, the API page is
+``rfsw_plan.__all__``, and the site builds with warnings as errors (``make docs``)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+import rfsw_plan
+from rfsw_plan.cli.main import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _hook(name: str) -> ModuleType:
+    spec = importlib.util.spec_from_file_location(name, ROOT / "docs" / "hooks" / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def test_cli_reference_has_every_command_and_option_of_the_parser() -> None:
+    text = _hook("cli_reference").cli_reference()
+    parser, _ = build_parser()
+    subs = _subparsers(parser)
+    assert len(subs) >= 12
+    for name, sub in subs.items():
+        section = text.split(f"## rfsw-plan {name}\n", 1)[1].split("\n## rfsw-plan ", 1)[0]
+        for action in sub._actions:
+            if action.help == argparse.SUPPRESS or isinstance(action, argparse._HelpAction):
+                continue
+            if action.option_strings and action.option_strings[0] in ("-v", "-q"):
+                continue  # the global options, listed once at the top
+            label = ", ".join(action.option_strings) or action.dest
+            assert f"| `{label}` |" in section, f"{name}: {label} missing from the reference"
+
+
+def test_cli_reference_escapes_markdown_in_help_text() -> None:
+    cell = _hook("cli_reference")._cell("a [x][, y] | *z* `c` <b>")
+    for raw in ("[", "]", "|", "*", "`", "<"):
+        assert raw not in cell
+
+
+def test_api_reference_renders_every_public_name() -> None:
+    text = _hook("api_reference").api_reference()
+    lines = text.split("\n\n")
+    assert len(lines) == len(rfsw_plan.__all__)
+    for name in rfsw_plan.__all__:
+        assert f"::: {rfsw_plan._EXPORTS[name]}.{name}" in lines
+
+
+def test_cli_and_api_pages_keep_their_markers() -> None:
+    assert "<!-- cli-reference -->" in (ROOT / "docs" / "reference" / "cli.md").read_text()
+    assert "<!-- api-reference -->" in (ROOT / "docs" / "reference" / "api.md").read_text()
+
+
+@pytest.mark.slow
+def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
+    """What ``make docs`` runs in CI, into a temporary folder."""
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q",
+                           "-d", str(tmp_path / "site")], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (tmp_path / "site" / "reference" / "cli" / "index.html").is_file()
+
+
+def test_sphinx_roles_become_inline_code_on_the_api_page() -> None:
+    plain = _hook("sphinx_roles").plain
+    assert plain("see :func:`~rfsw_plan.planning.api.plan` and :meth:`Effect.join`.") == (
+        "see `plan` and `Effect.join`.")
+    assert plain(":py:class:`rfsw_plan.Robot`") == "`rfsw_plan.Robot`"
