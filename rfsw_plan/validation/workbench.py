@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -25,12 +25,8 @@ from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.robot.description import (
-    DeviceFrame,
-    RobotDescription,
-    derived_description,
-    save_robot_description,
-)
+from rfsw_plan.robot.description import DeviceFrame
+from rfsw_plan.validation.derived_robot import save_derived_robot
 from rfsw_plan.validation.diagnosis import (
     DEFAULT_FOLDS,
     CrossValidation,
@@ -339,22 +335,11 @@ def save_extended_robot(result: ValidationResult, path: str | Path,
         f"({fit.n_samples} samples, RMS {fit.rms_after * 1e3:.4g} mm, effects: "
         f"{', '.join(fit.model.labels)})"
     )
-    parent = result.model.robot.description
-    before = {e.name for e in parent.effects}
-    added = tuple(e.label for e in fit.model.effects[1:]
-                  if not e.setup and e.label not in before)
-
-    def derive(desc: RobotDescription) -> RobotDescription:
-        return derived_description(desc, name=name, parent=parent.path,
-                                   data=result.data_source, command="rfsw-plan validate",
-                                   added=added)
-
-    if result.setup is None:
-        return save_robot_description(derive(fit.model.to_description(note)), path)
-    model, frame = result.setup.fold(fit.model, fit.estimates)
-    desc = model.to_description(note)
-    if result.setup.fit_registration or result.setup.fit_marker:
-        desc.sources["device_frame"] = (
-            f"identified by rfsw-plan validate --frame device from {result.data_source} "
-            f"({fit.n_samples} samples), jointly with {', '.join(model.labels)}")
-    return save_robot_description(derive(replace(desc, device_frame=frame)), path)
+    device_note = (
+        f"identified by rfsw-plan validate --frame device from {result.data_source} "
+        f"({fit.n_samples} samples), jointly with "
+        f"{', '.join(e.label for e in fit.model.effects if not e.setup)}")
+    return save_derived_robot(fit.model, path, parent=result.model.robot.description, note=note,
+                              data=result.data_source, command="rfsw-plan validate", name=name,
+                              setup=result.setup, estimates=fit.estimates,
+                              device_note=device_note)
