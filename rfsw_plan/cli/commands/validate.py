@@ -181,7 +181,7 @@ def _add_lines(result: ValidationResult) -> list[str]:
 def _explains(c: Candidate) -> str:
     """What a candidate does to the held-out error, in words (never 'explains -4.4 %')."""
     if c.explained_fraction <= 0:
-        return f"explains nothing (held-out MSE {-100 * c.explained_fraction:+.1f} %)"
+        return f"explains nothing (held-out error {-100 * c.explained_fraction:.1f} % worse)"
     return f"explains {100 * c.explained_fraction:5.1f} %"
 
 
