@@ -65,3 +65,48 @@ def test_engineering_readings() -> None:
     assert engineering(1e-3, "rad") == "1 mrad = 0.0573 deg"
     assert engineering(2.5e-3, "m") == "2.5 mm"
     assert engineering(150.0, "kg") == ""
+    # A prismatic joint's compliance is linear (a torso lift), issue 24.
+    assert engineering(1e-6, "m/N") == "k = 1e+06 N/m = 1 kN/mm"
+
+
+def test_title_names_the_evaluated_model(reports: tuple[Path, Path]) -> None:
+    """Issue 24: with --add the report is about the extended model, and says so."""
+    assert "<h1>Model against measurement: zk500</h1>" in (reports[0] / "report.html"
+                                                         ).read_text()
+    added = (reports[1] / "report.html").read_text()
+    assert ("<h1>Model against measurement: zk500 + payload_gravity (added and "
+            "re-identified)</h1>") in added
+
+
+def test_one_row_per_reason_a_candidate_was_not_fitted() -> None:
+    from rfsw_plan.validation.diagnosis import Skipped
+    from rfsw_plan.validation.report import skipped_by_reason
+
+    why = "not identifiable from this data: does not move the measured TCP"
+    rows = skipped_by_reason([Skipped("tilting_compliance:j6", why), Skipped("a", "other"),
+                              Skipped("torque_dependent_stiffness:j6", why)])
+    assert rows == {why: ["tilting_compliance:j6", "torque_dependent_stiffness:j6"],
+                    "other": ["a"]}
+
+
+def test_the_histogram_draws_what_it_names() -> None:
+    """The histogram's title names the dashed +-1 sigma lines only where it draws them, and
+    they are in its legend (issue 24)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from rfsw_plan.validation.report import _histogram
+
+    res = np.random.default_rng(0).normal(0, 0.01, (200, 3))
+    fig = _histogram(plt, res, 0.01)
+    ax = fig.axes[0]
+    dashed = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    assert len(dashed) == 2 and "dashed: +-1 sigma" in ax.get_title()
+    assert "+-1 sigma noise floor" in [t.get_text() for t in ax.get_legend().get_texts()]
+    plt.close(fig)
+    fig = _histogram(plt, res, None)
+    assert "unknown" in fig.axes[0].get_title() and "dashed" not in fig.axes[0].get_title()
+    plt.close(fig)

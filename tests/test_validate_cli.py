@@ -209,3 +209,25 @@ def test_unidentifiable_added_effect_is_reported_not_fitted(
     assert code == 0, err
     reason = json.loads(out)["add"]["not_added"][0]["reason"]
     assert "does not change sign" in reason
+
+
+def test_json_writes_no_report_and_a_default_report_never_overwrites(
+    campaign_csv: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 24: --json prints JSON and writes a report folder only with -o; the default
+    folder is never overwritten silently: a second run writes beside it and says where."""
+    monkeypatch.chdir(tmp_path)
+    base = ["validate", "--robot", "zk500", "--data", str(campaign_csv), "--folds", FOLDS]
+    code, out, err = _run([*base, "--json"], capsys)
+    assert code == 0, err
+    assert json.loads(out)["verdict"] == "missing"
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    code, out, _ = _run(base, capsys)
+    assert code == 0 and "report: validate_campaign/report.html" in out
+    first = (tmp_path / "validate_campaign" / "validate.json").read_bytes()
+    code, out, _ = _run(base, capsys)
+    assert code == 0 and "report: validate_campaign_2/report.html" in out
+    assert (tmp_path / "validate_campaign" / "validate.json").read_bytes() == first
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["validate_campaign",
+                                                          "validate_campaign_2"]

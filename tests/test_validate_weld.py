@@ -88,6 +88,18 @@ def test_cli_outputs_report_pngs_and_strict_json(
     assert data["predicted_inside_window_fraction"] == 1.0
     assert data["diagnosis"]["identifiability"]["joints_identifiable"] == ["j1"]
     assert "--add joint_compliance:j1" in data["next_command"]
+    # Issue 24: sorted by held-out RMS, the named one marked, nothing both unseen and
+    # significant, a far-off joint stiffness flagged, no set-up effect offered (issue 26).
+    dg = data["diagnosis"]
+    rms = [c["rms_after_mm"] for c in dg["candidates"]]
+    assert rms == sorted(rms) and dg["best"] == "joint_compliance:j1"
+    significant = {c["label"] for c in dg["candidates"] if c["significant"]}
+    assert not significant & set(dg["identifiability"]["invisible"])
+    for c in dg["candidates"]:
+        k = c["stiffness_scale"]
+        if k is not None:
+            assert c["plausible"] == (0.25 <= k <= 4.0), c
+    assert not {c["label"] for c in dg["candidates"]} & {"device_registration", "marker_offset"}
     import matplotlib.image as mpimg
 
     for png in ("weld_lateral.png", "weld_residual.png"):

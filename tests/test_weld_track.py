@@ -37,10 +37,10 @@ def test_round_trip_keeps_gaps(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("text,needle", [
-    ("s_mm,s_mm,e_lat_mm\n0,0,0\n", "duplicated"),
+    ("s_mm,s_mm,e_lat_mm\n0,0,0\n", "appears twice"),
     ("s_mm,e_lateral_mm\n0,0\n", "expected s_mm, e_lat_mm"),
     ("s_mm,e_lat_mm,quality\n0,0,1\n", "unknown column"),
-    ("s_mm,e_lat_mm\n0,abc\n1,0\n2,0\n", "row 2, column e_lat_mm"),
+    ("s_mm,e_lat_mm\n0,abc\n1,0\n2,0\n", "row 2, column 'e_lat_mm'"),
     ("s_mm,e_lat_mm\n0,inf\n1,0\n2,0\n", "finite"),
     ("s_mm,e_lat_mm\n0,0\n1,0\n", "at least 3"),
     ("", "empty"),
@@ -49,3 +49,12 @@ def test_bad_tracks_are_one_line(tmp_path: Path, text: str, needle: str) -> None
     with pytest.raises(InputError) as exc:
         read_weld_track(_w(tmp_path, text))
     assert needle in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_read_through_the_table_reader(tmp_path: Path) -> None:
+    """The one strict table reader: a spreadsheet's semicolons and decimal commas are read, a
+    NaN cell is a gap like an empty one."""
+    t = read_weld_track(_w(tmp_path, "s_mm;e_lat_mm\n0;0,1\n1;nan\n2;0,2\n3;0,3\n"))
+    assert t.n_gaps == 1 and t.e_lat is not None and t.s is not None
+    np.testing.assert_allclose(t.e_lat, [1e-4, 2e-4, 3e-4])
+    np.testing.assert_allclose(t.s, [0.0, 2e-3, 3e-3])

@@ -15,7 +15,6 @@ import numpy as np
 
 from rfsw_plan.elastostatics.measurement_set import MEASUREMENT_FRAMES, MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_setup
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.measurements import WRENCH_FRAMES, read_measurements
 from rfsw_plan.robot.description import DeviceFrame, _rpy_to_matrix
@@ -91,14 +90,10 @@ def load(args: argparse.Namespace, model: ElastostaticModel) -> MeasurementSet:
     return data
 
 
-def device_setup(
-    args: argparse.Namespace, model: ElastostaticModel, data: MeasurementSet
-) -> DeviceSetup | None:
-    """The registration set-up for device-frame data (None for base-frame data)."""
-    if data.frame != "device":
-        return None
-    held = (read_device_frame(args.device_to_base) if args.device_to_base
-            else model.robot.description.device_frame)
+def device_options(args: argparse.Namespace) -> tuple[DeviceFrame | None, np.ndarray | None]:
+    """``--device-to-base`` and ``--marker-mm``: a held registration and marker offset [m]
+    (None where not given; the robot file's ``[device_frame]`` is the library's default)."""
+    held = read_device_frame(args.device_to_base) if args.device_to_base else None
     marker = None if args.marker_mm is None else _numbers(
         args.marker_mm, 3, "--marker-mm", "three numbers X,Y,Z [mm]") / 1000.0
-    return prepare_device_setup(model, data, held, marker)
+    return held, marker

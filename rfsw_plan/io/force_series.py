@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.force_series import FORCE_FRAMES, ForceSeries
-from rfsw_plan.table import Quantity, read_table
+from rfsw_plan.table import Quantity, Table, read_table
 
 FloatArray = NDArray[np.float64]
 
@@ -52,23 +52,8 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
         raise InputError("--forces-frame", "", f"unknown frame '{frame}'",
                          " | ".join(FORCE_FRAMES))
     tab = read_table(path)
-    header = tab.header
-    quantities = {name: Quantity(name.split("_")[0], {name.split("_")[1]: 1.0})
-                  for name in (*REQUIRED, *MOMENTS)}
-    missing = [c for c in REQUIRED if c not in header]
-    if missing:
-        hint = tab.missing(quantities[missing[0]]).problem.removeprefix("missing")
-        raise InputError(path, "header", f"missing column(s) {', '.join(missing)}{hint}",
-                         "t_s, fx_N, fy_N, fz_N[, mx_Nm, my_Nm, mz_Nm][, frame]")
-    present_m = [c for c in MOMENTS if c in header]
-    if present_m and len(present_m) != 3:
-        raise InputError(path, "header", f"only {', '.join(present_m)} of the moment columns",
-                         "all of mx_Nm, my_Nm, mz_Nm or none")
-    if len(tab) < 2:
-        raise InputError(path, "", f"{len(tab)} sample row(s)", "at least 2 samples")
-    numeric = list(REQUIRED) + present_m
-    data = np.stack([tab.numbers(name) for name in numeric], axis=1)
-    frames_seen: set[str] = set(tab.texts("frame")) if "frame" in header else set()
+    present_m = _check_columns(tab)
+    data = np.stack([tab.numbers(name) for name in (*REQUIRED, *present_m)], axis=1)
     t = data[:, 0]
     bad = np.flatnonzero(np.diff(t) <= 0)
     if bad.size:
@@ -76,6 +61,37 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
         raise InputError(path, f"row {r}, column t_s",
                          f"time {t[bad[0] + 1]:g} s does not increase (previous {t[bad[0]]:g} s)",
                          "strictly increasing time")
+    frame = _frame_of(tab, frame)
+    moment = data[:, 4:7].copy() if present_m else None
+    return ForceSeries(t=t.copy(), force=data[:, 1:4].copy(), moment=moment, frame=frame,
+                       source=str(path))
+
+
+def _check_columns(tab: Table) -> list[str]:
+    """Check the header and the row count; returns the moment columns present (all or
+    none)."""
+    header = tab.header
+    quantities = {name: Quantity(name.split("_")[0], {name.split("_")[1]: 1.0})
+                  for name in (*REQUIRED, *MOMENTS)}
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        hint = tab.missing(quantities[missing[0]]).problem.removeprefix("missing")
+        raise InputError(tab.path, "header", f"missing column(s) {', '.join(missing)}{hint}",
+                         "t_s, fx_N, fy_N, fz_N[, mx_Nm, my_Nm, mz_Nm][, frame]")
+    present_m = [c for c in MOMENTS if c in header]
+    if present_m and len(present_m) != 3:
+        raise InputError(tab.path, "header",
+                         f"only {', '.join(present_m)} of the moment columns",
+                         "all of mx_Nm, my_Nm, mz_Nm or none")
+    if len(tab) < 2:
+        raise InputError(tab.path, "", f"{len(tab)} sample row(s)", "at least 2 samples")
+    return present_m
+
+
+def _frame_of(tab: Table, frame: str | None) -> str:
+    """The frame of the vectors: the file's ``frame`` column, else the option."""
+    frames_seen: set[str] = set(tab.texts("frame")) if "frame" in tab.header else set()
+    path = tab.path
     if frames_seen:
         if len(frames_seen) > 1:
             raise InputError(path, "column frame", f"several frames {sorted(frames_seen)}",
@@ -91,9 +107,7 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
     if frame is None:
         raise InputError(path, "header", "no frame column and no frame option",
                          "a 'frame' column or --forces-frame base|seam|tool")
-    moment = data[:, 4:7].copy() if present_m else None
-    return ForceSeries(t=t.copy(), force=data[:, 1:4].copy(), moment=moment, frame=frame,
-                       source=str(path))
+    return frame
 
 
 def write_force_series(path: str | Path, series: ForceSeries) -> Path:

@@ -376,36 +376,44 @@ def write_measurements(
     p.parent.mkdir(parents=True, exist_ok=True)
     n = data.n_joints
     pris = [False] * n if prismatic is None else [bool(x) for x in prismatic]
+    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(_header(data, pris))
+        for i in range(len(data)):
+            w.writerow(_row(data, i, pris))
+    return p
+
+
+def _header(data: MeasurementSet, pris: list[bool]) -> list[str]:
+    """The columns :func:`write_measurements` writes for ``data``."""
     header = ([] if data.t is None else ["t_s"]) + ([] if data.pose_id is None else ["pose_id"])
     header += [] if data.load_step is None else ["load_step"]
-    header += [f"q{j + 1}_{'mm' if pris[j] else 'deg'}" for j in range(n)]
+    header += [f"q{j + 1}_{'mm' if pris[j] else 'deg'}" for j in range(data.n_joints)]
     header += list(FORCE_COLUMNS + MOMENT_COLUMNS + POSITION_COLUMNS)
     header += [] if data.rotation is None else ["rx_mrad", "ry_mrad", "rz_mrad"]
     header += [] if data.sigma is None else ["sigma_mm"]
     header += [] if data.frame == "base" else ["frame"]
-    header += list(data.extra)
-    with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for i in range(len(data)):
-            row: list[str] = []
-            if data.t is not None:
-                row.append(f"{data.t[i]:.4f}")
-            if data.pose_id is not None:
-                row.append(str(data.pose_id[i]))
-            if data.load_step is not None:
-                row.append(str(int(data.load_step[i])))
-            row += [f"{v * 1000.0:.6f}" if pris[j] else f"{np.degrees(v):.8f}"
-                    for j, v in enumerate(data.q[i])]
-            row += [f"{v:.6f}" for v in data.wrench[i]]
-            row += ["" if not np.isfinite(v) else f"{v * 1000.0:.6f}" for v in data.position[i]]
-            if data.rotation is not None:
-                row += [f"{v * 1000.0:.6f}" for v in data.rotation[i]]
-            if data.sigma is not None:
-                row.append(f"{data.sigma[i] * 1000.0:.6f}")
-            if data.frame != "base":
-                row.append(data.frame)
-            row += [f"{data.extra[k][i]:.6g}" for k in data.extra]
-            w.writerow(row)
-    return p
+    return header + list(data.extra)
+
+
+def _row(data: MeasurementSet, i: int, pris: list[bool]) -> list[str]:
+    """Sample ``i`` as the cells of :func:`_header` (mm, deg, N, N m)."""
+    row: list[str] = []
+    if data.t is not None:
+        row.append(f"{data.t[i]:.4f}")
+    if data.pose_id is not None:
+        row.append(str(data.pose_id[i]))
+    if data.load_step is not None:
+        row.append(str(int(data.load_step[i])))
+    row += [f"{v * 1000.0:.6f}" if pris[j] else f"{np.degrees(v):.8f}"
+            for j, v in enumerate(data.q[i])]
+    row += [f"{v:.6f}" for v in data.wrench[i]]
+    row += ["" if not np.isfinite(v) else f"{v * 1000.0:.6f}" for v in data.position[i]]
+    if data.rotation is not None:
+        row += [f"{v * 1000.0:.6f}" for v in data.rotation[i]]
+    if data.sigma is not None:
+        row.append(f"{data.sigma[i] * 1000.0:.6f}")
+    if data.frame != "base":
+        row.append(data.frame)
+    return row + [f"{data.extra[k][i]:.6g}" for k in data.extra]
 

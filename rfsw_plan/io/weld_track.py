@@ -18,14 +18,14 @@ else (unknown or duplicated columns, text, inf) is a one-line :class:`InputError
 from __future__ import annotations
 
 import csv
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.table import Table, read_table
 
 FloatArray = NDArray[np.float64]
 
@@ -62,68 +62,46 @@ class WeldTrack:
 
 
 def read_weld_track(path: str | Path) -> WeldTrack:
-    """Read a weld-track CSV (format in the module docstring).
+    """Read a weld-track CSV (format in the module docstring) through the strict table reader
+    (:func:`~rfsw_plan.table.read_table`: delimiter and decimal comma detected).
 
     Raises:
         InputError: Unreadable file, unknown/duplicated/missing columns, a cell that is not a
             number, fewer than 3 complete rows; the message names the file, row and column.
     """
-    path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    if not rows:
-        raise InputError(path, "", "empty file", _EXPECTED)
-    header = [h.strip() for h in rows[0]]
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise InputError(path, "header", f"duplicated column(s) {', '.join(dup)}", _EXPECTED)
+    tab = read_table(path)
+    form, cols = _form(tab)
+    # An empty cell or NaN is a gap (a scanner drop-out).
+    rows = [[("" if c.lower() == "nan" else c) for c in row] for row in tab.rows]
+    tab = replace(tab, rows=rows)
+    a = np.column_stack([tab.numbers(c, 1e-3, allow_blank=True) for c in cols])
+    complete = np.all(np.isfinite(a), axis=1)
+    gaps = int(np.sum(~complete))
+    a = a[complete]
+    if a.shape[0] < 3:
+        raise InputError(tab.path, "", f"{a.shape[0]} complete row(s)",
+                         "at least 3 measured points")
+    if form == "base":
+        return WeldTrack("base", None, None, None, a, str(tab.path), gaps)
+    a = a[np.argsort(a[:, 0], kind="stable")]
+    e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
+    return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(tab.path), gaps)
+
+
+def _form(tab: Table) -> tuple[str, list[str]]:
+    """The track's form and its columns, from the header (module docstring)."""
+    header = tab.header
     if set(SEAM_FORM) <= set(header):
         form, cols = "seam", [*SEAM_FORM, *(c for c in SEAM_OPTIONAL if c in header)]
     elif set(BASE_FORM) <= set(header):
         form, cols = "base", list(BASE_FORM)
     else:
-        raise InputError(path, "header", f"columns {', '.join(header)}", _EXPECTED)
+        raise InputError(tab.path, "header", f"columns {', '.join(header)}", _EXPECTED)
     unknown = [h for h in header if h not in cols]
     if unknown:
-        raise InputError(path, "header", f"unknown column(s) {', '.join(unknown)} in a "
+        raise InputError(tab.path, "header", f"unknown column(s) {', '.join(unknown)} in a "
                          f"{form}-frame track", ", ".join(cols))
-    col = {h: i for i, h in enumerate(header)}
-    data: list[list[float]] = []
-    gaps = 0
-    for r, row in enumerate(rows[1:], start=2):
-        vals: list[float] = []
-        gap = False
-        for name in cols:
-            i = col[name]
-            cell = row[i].strip() if i < len(row) else ""
-            if cell == "" or cell.lower() == "nan":
-                gap = True
-                continue
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}' is not a number",
-                                 "a number in mm, or an empty cell for a gap") from None
-            if not math.isfinite(v):
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}'",
-                                 "a finite number in mm")
-            vals.append(v)
-        if gap:
-            gaps += 1
-        else:
-            data.append(vals)
-    if len(data) < 3:
-        raise InputError(path, "", f"{len(data)} complete row(s)", "at least 3 measured points")
-    a = np.asarray(data, dtype=float) * 1e-3
-    if form == "base":
-        return WeldTrack("base", None, None, None, a, str(path), gaps)
-    order = np.argsort(a[:, 0], kind="stable")
-    a = a[order]
-    e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
-    return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(path), gaps)
+    return form, cols
 
 
 def write_weld_track(path: str | Path, track: WeldTrack) -> Path:

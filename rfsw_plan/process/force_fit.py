@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -145,65 +146,15 @@ def fit_process_forces(
                              ", ".join(names))
     sched = process.evaluate(frames, series.t)
     f_meas, m_meas = series_in_seam_frame(series, sched, tool_rotation)
-    phase = sched.phase
-    notes: list[str] = []
-    want = set(names if free is None else free)
-    auto_fixed: list[str] = []
-    if not np.any(phase == "plunge"):
-        auto_fixed.append("plunge_peak_axial")
-    if not np.any(phase == "dwell"):
-        auto_fixed += ["dwell_lateral_fraction", "dwell_tau"]
-    if not np.any(phase == "weld"):
-        auto_fixed += ["axial", "lateral", "traverse", "ramp_length"]
-    if m_meas is None:
-        auto_fixed.append("spindle_torque")
-    for a in auto_fixed:
-        if a in want:
-            want.discard(a)
-            notes.append(f"{a} kept at its prior: the series has no samples that inform it")
+    want, notes = _informed(names if free is None else free, sched.phase, m_meas is not None)
     x0 = process.forces.vector()
     idx = [i for i, n in enumerate(names) if n in want and n != "spindle_torque"]
-    n_res = 3 * len(series)
-    if n_res < len(idx):
+    if 3 * len(series) < len(idx):
         raise IdentificationError(f"{len(series)} samples cannot fit {len(idx)} parameters")
-
-    def resid(p: FloatArray) -> FloatArray:
-        x = x0.copy()
-        x[idx] = p * _SCALE[idx]
-        fp = process.forces.with_vector(x)
-        _, _, _, F, _ = process.profile(series.t, float(frames.s[-1] - frames.s[0]), fp)
-        return (F - f_meas).ravel()
-
-    x = x0.copy()
-    std: dict[str, float] = {}
-    if idx:
-        p0 = np.clip(x0[idx], _LOWER[idx] + 1e-9, _UPPER[idx] - 1e-9) / _SCALE[idx]
-        sol = least_squares(resid, p0, bounds=(_LOWER[idx] / _SCALE[idx],
-                                               _UPPER[idx] / _SCALE[idx]),
-                            x_scale="jac", method="trf")
-        x[idx] = sol.x * _SCALE[idx]
-        dof = max(n_res - len(idx), 1)
-        s2 = float(sol.fun @ sol.fun) / dof
-        J = sol.jac
-        sv = np.linalg.svd(J, compute_uv=False)
-        if sv[-1] <= 1e-10 * sv[0]:
-            notes.append("the series does not inform every free parameter (rank-deficient "
-                         "Jacobian); standard errors are unreliable")
-        cov = s2 * np.linalg.pinv(J.T @ J)
-        for j, i in enumerate(idx):
-            std[names[i]] = float(np.sqrt(max(cov[j, j], 0.0))) * _SCALE[i]
+    x, std = _fit_forces(process, frames, series, f_meas, x0, idx, notes)
     torque_rms = None
     if m_meas is not None and "spindle_torque" in want:
-        _, _, _, _, g = process.profile(series.t, float(frames.s[-1] - frames.s[0]),
-                                        replace(process.forces, spindle_torque=1.0))
-        sigma = float(np.sign(np.linalg.det(sched.frames.rotation()[0])))
-        mz = sigma * m_meas[:, 2]
-        gg = float(g @ g)
-        if gg > 0:
-            x[7] = float(g @ mz) / gg
-            r = mz - x[7] * g
-            torque_rms = float(np.sqrt(np.mean(r**2)))
-            std["spindle_torque"] = float(np.sqrt((r @ r) / max(len(r) - 1, 1) / gg))
+        torque_rms = _fit_spindle_torque(process, frames, series, sched, m_meas, x, std)
     forces = process.forces.with_vector(x, source=f"fitted to {series.source}")
     fitted = replace(process, forces=forces)
     _, _, _, F, _ = fitted.profile(series.t, float(frames.s[-1] - frames.s[0]))
@@ -226,6 +177,86 @@ def fit_process_forces(
         torque_rms=torque_rms,
         notes=tuple(notes),
     )
+
+
+def _informed(free: Sequence[str], phase: NDArray[Any], has_moment: bool
+              ) -> tuple[set[str], list[str]]:
+    """The free parameters the series informs (a phase it lacks fixes its parameters), and
+    a note for each one kept at its prior."""
+    want = set(free)
+    auto_fixed: list[str] = []
+    if not np.any(phase == "plunge"):
+        auto_fixed.append("plunge_peak_axial")
+    if not np.any(phase == "dwell"):
+        auto_fixed += ["dwell_lateral_fraction", "dwell_tau"]
+    if not np.any(phase == "weld"):
+        auto_fixed += ["axial", "lateral", "traverse", "ramp_length"]
+    if not has_moment:
+        auto_fixed.append("spindle_torque")
+    notes = []
+    for a in auto_fixed:
+        if a in want:
+            want.discard(a)
+            notes.append(f"{a} kept at its prior: the series has no samples that inform it")
+    return want, notes
+
+
+def _fit_forces(
+    process: ProcessModel, frames: SeamFrames, series: ForceSeries, f_meas: FloatArray,
+    x0: FloatArray, idx: list[int], notes: list[str],
+) -> tuple[FloatArray, dict[str, float]]:
+    """Bounded least squares of the force parameters ``idx`` (seam-frame forces): the full
+    parameter vector and the standard error of each fitted one [SI]; appends a note when the
+    series does not inform every parameter."""
+    names = list(FIT_PARAMS)
+    x = x0.copy()
+    std: dict[str, float] = {}
+    if not idx:
+        return x, std
+
+    def resid(p: FloatArray) -> FloatArray:
+        xp = x0.copy()
+        xp[idx] = p * _SCALE[idx]
+        fp = process.forces.with_vector(xp)
+        _, _, _, F, _ = process.profile(series.t, float(frames.s[-1] - frames.s[0]), fp)
+        return (F - f_meas).ravel()
+
+    p0 = np.clip(x0[idx], _LOWER[idx] + 1e-9, _UPPER[idx] - 1e-9) / _SCALE[idx]
+    sol = least_squares(resid, p0, bounds=(_LOWER[idx] / _SCALE[idx],
+                                           _UPPER[idx] / _SCALE[idx]),
+                        x_scale="jac", method="trf")
+    x[idx] = sol.x * _SCALE[idx]
+    dof = max(3 * len(series) - len(idx), 1)
+    s2 = float(sol.fun @ sol.fun) / dof
+    J = sol.jac
+    sv = np.linalg.svd(J, compute_uv=False)
+    if sv[-1] <= 1e-10 * sv[0]:
+        notes.append("the series does not inform every free parameter (rank-deficient "
+                     "Jacobian); standard errors are unreliable")
+    cov = s2 * np.linalg.pinv(J.T @ J)
+    for j, i in enumerate(idx):
+        std[names[i]] = float(np.sqrt(max(cov[j, j], 0.0))) * _SCALE[i]
+    return x, std
+
+
+def _fit_spindle_torque(
+    process: ProcessModel, frames: SeamFrames, series: ForceSeries, sched: LoadSchedule,
+    m_meas: FloatArray, x: FloatArray, std: dict[str, float],
+) -> float | None:
+    """Linear fit of the spindle torque to the logged moment about the tool axis: sets
+    x[7] and its standard error in place; returns the RMS residual [N m] (None if the
+    schedule has no torque)."""
+    _, _, _, _, g = process.profile(series.t, float(frames.s[-1] - frames.s[0]),
+                                    replace(process.forces, spindle_torque=1.0))
+    sigma = float(np.sign(np.linalg.det(sched.frames.rotation()[0])))
+    mz = sigma * m_meas[:, 2]
+    gg = float(g @ g)
+    if gg <= 0:
+        return None
+    x[7] = float(g @ mz) / gg
+    r = mz - x[7] * g
+    std["spindle_torque"] = float(np.sqrt((r @ r) / max(len(r) - 1, 1) / gg))
+    return float(np.sqrt(np.mean(r**2)))
 
 
 #: Coverage of the derived force uncertainty: +- this many standard deviations of the

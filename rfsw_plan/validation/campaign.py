@@ -254,28 +254,9 @@ def run_campaign(
         UnknownNameError: Unknown effect name.
         UnreachableError: The robot cannot be posed as a campaign needs.
     """
-    if poses < 1:
-        raise InputError("--poses", "", f"{poses}", "at least 1 pose")
-    if loads_per_pose < 1:
-        raise InputError("--loads-per-pose", "", f"{loads_per_pose}", "at least 1 sample")
-    if not np.isfinite(noise_mm) or noise_mm < 0:
-        raise InputError("--noise-mm", "", f"{noise_mm}", "a noise >= 0 mm")
-    if isinstance(robot_or_model, ElastostaticModel):
-        truth = robot_or_model.copy()
-    else:
-        truth = ElastostaticModel(load_robot(robot_or_model))
+    _check_counts(poses, loads_per_pose, noise_mm)
+    truth, specs = _truth_and_hidden(robot_or_model, hidden)
     robot = truth.robot
-    specs = [parse_hidden(h, robot.nq) if isinstance(h, str) else h for h in hidden]
-    labels = [lab for lab, _ in specs]
-    for lab, _ in specs:
-        check_hidden_label(lab, robot.nq)
-        if labels.count(lab) > 1:
-            raise InputError("--hidden", lab, "effect hidden more than once")
-        if truth.has(lab):
-            raise InputError("--hidden", lab, f"already in the model of robot {robot.name}",
-                             f"an effect the robot file does not contain (it has "
-                             f"{', '.join(truth.labels)})")
-
     rng = np.random.default_rng(seed)
     q_pose = campaign_poses(robot, poses, rng)
     M = loads_per_pose
@@ -285,22 +266,7 @@ def run_campaign(
     t = pose_idx * MOVE_S + np.arange(poses * M) * DWELL_S
     batch = PoseBatch.from_q(robot, q)
     visible_mm = max(VISIBILITY_FACTOR * noise_mm, MIN_VISIBLE_MM)
-
-    used: dict[str, dict[str, float]] = {}
-    for lab, params in progress(specs, desc="campaign: hidden effects", total=len(specs),
-                                unit="effect"):
-        if lab == THERMAL_DRIFT:
-            used[lab] = _drift_params(params, rng)
-            continue
-        cls, joint = parse_effect_label(lab, robot.nq)
-        randomised = params is None
-        eff = cls(robot, joint, params)
-        if randomised:
-            eff = cls(robot, joint, eff.plausible_params(batch, wrench, rng))
-        truth = ElastostaticModel(robot, [*truth.effects, eff])
-        if randomised and not cls.fixed_size:
-            truth = _make_visible(truth, lab, batch, wrench, visible_mm)
-        used[lab] = next(e for e in truth.effects if e.label == lab).param_dict()
+    truth, used = _hide(truth, specs, batch, wrench, rng, visible_mm)
 
     position = _positions(truth, batch, wrench)
     contrib = {
@@ -310,9 +276,7 @@ def run_campaign(
     # Ambient: a 20-minute air-conditioning cycle of +-0.3 K, not a trend.
     temperature = AMBIENT_C + 0.3 * np.sin(2 * np.pi * t / 1200.0 + rng.uniform(0, 2 * np.pi))
     if THERMAL_DRIFT in used:
-        p = used[THERMAL_DRIFT]
-        u = np.array([p["dir_x"], p["dir_y"], p["dir_z"]])
-        drift = (p["rate_mm_per_h"] * 1e-3) * (t / 3600.0)[:, None] * u[None, :]
+        drift = _drift(used[THERMAL_DRIFT], t)
         position = position + drift
         contrib[THERMAL_DRIFT] = _rms_mm(drift)
         temperature = AMBIENT_C + HEATING_K_PER_H * t / 3600.0
@@ -328,6 +292,70 @@ def run_campaign(
         extra={"temperature_C": temperature}, source="<simulated campaign>",
     )
     return CampaignResult(data=data, truth=truth, hidden=used, contribution_rms_mm=contrib)
+
+
+def _check_counts(poses: int, loads_per_pose: int, noise_mm: float) -> None:
+    if poses < 1:
+        raise InputError("--poses", "", f"{poses}", "at least 1 pose")
+    if loads_per_pose < 1:
+        raise InputError("--loads-per-pose", "", f"{loads_per_pose}", "at least 1 sample")
+    if not np.isfinite(noise_mm) or noise_mm < 0:
+        raise InputError("--noise-mm", "", f"{noise_mm}", "a noise >= 0 mm")
+
+
+def _truth_and_hidden(
+    robot_or_model: Robot | RobotDescription | ElastostaticModel | str,
+    hidden: Sequence[HiddenSpec | str],
+) -> tuple[ElastostaticModel, list[HiddenSpec]]:
+    """The truth's model before hiding, and the checked hidden effects."""
+    if isinstance(robot_or_model, ElastostaticModel):
+        truth = robot_or_model.copy()
+    else:
+        truth = ElastostaticModel(load_robot(robot_or_model))
+    robot = truth.robot
+    specs = [parse_hidden(h, robot.nq) if isinstance(h, str) else h for h in hidden]
+    labels = [lab for lab, _ in specs]
+    for lab, _ in specs:
+        check_hidden_label(lab, robot.nq)
+        if labels.count(lab) > 1:
+            raise InputError("--hidden", lab, "effect hidden more than once")
+        if truth.has(lab):
+            raise InputError("--hidden", lab, f"already in the model of robot {robot.name}",
+                             f"an effect the robot file does not contain (it has "
+                             f"{', '.join(truth.labels)})")
+    return truth, specs
+
+
+def _hide(
+    truth: ElastostaticModel, specs: Sequence[HiddenSpec], batch: PoseBatch, wrench: FloatArray,
+    rng: np.random.Generator, visible_mm: float,
+) -> tuple[ElastostaticModel, dict[str, dict[str, float]]]:
+    """Add the hidden effects to the truth (random plausible values where none are given);
+    returns the truth and the parameters used [SI]."""
+    robot = truth.robot
+    used: dict[str, dict[str, float]] = {}
+    for lab, params in progress(specs, desc="campaign: hidden effects", total=len(specs),
+                                unit="effect"):
+        if lab == THERMAL_DRIFT:
+            used[lab] = _drift_params(params, rng)
+            continue
+        cls, joint = parse_effect_label(lab, robot.nq)
+        randomised = params is None
+        eff = cls(robot, joint, params)
+        if randomised:
+            eff = cls(robot, joint, eff.plausible_params(batch, wrench, rng))
+        truth = ElastostaticModel(robot, [*truth.effects, eff])
+        if randomised and not cls.fixed_size:
+            truth = _make_visible(truth, lab, batch, wrench, visible_mm)
+        used[lab] = next(e for e in truth.effects if e.label == lab).param_dict()
+    return truth, used
+
+
+def _drift(p: Mapping[str, float], t: FloatArray) -> FloatArray:
+    """The thermal drift of the TCP at times t [s] [m], base frame, shape (m, 3)."""
+    u = np.array([p["dir_x"], p["dir_y"], p["dir_z"]])
+    out: FloatArray = (p["rate_mm_per_h"] * 1e-3) * (t / 3600.0)[:, None] * u[None, :]
+    return out
 
 
 def simulate_campaign(

@@ -217,7 +217,7 @@ def candidate_form(model: ElastostaticModel, label: str, option: str = "--add"
         raise InputError(option, label, "no such joint",
                          f"{base}:jN with N in 1..{model.robot.nq}")
     cls, _ = parse_effect_label(label, model.robot.nq)
-    if model.has(label) or cls is JointCompliance:
+    if model.has(label):  # the base joint compliance is in every model
         raise InputError(option, label, "already in the model",
                          f"an effect the robot file does not have, or "
                          f"{model.joint_compliance.name}:jN to re-fit joint N's stiffness")

@@ -54,6 +54,17 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
     """
     folder = Path(folder)
     path = folder / "plan.json"
+    data = _plan_json(folder)
+    pb = _planned_problem(path, data, problem)
+    robot_ref = data.get("robot_file")
+    return PlanRecord(folder, data, pb, str(robot_ref or data.get("robot", "")),
+                      _waypoints(path, data["waypoints"], pb))
+
+
+def _plan_json(folder: Path) -> dict[str, Any]:
+    """``plan.json`` of a verified plan, with its waypoints (the one place that reads a plan
+    folder: the planfiles reader checks the files plan.json vouches for)."""
+    path = folder / "plan.json"
     if not folder.is_dir():
         raise InputError(folder, "", "is not a folder", "the output folder of rfsw-plan plan")
     if not path.is_file():
@@ -75,6 +86,11 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
     if not isinstance(wp, dict) or not all(k in wp for k in ("q_deg", "s_mm", "phase")):
         raise InputError(path, "waypoints", "missing q_deg/s_mm/phase",
                          "plan.json with its waypoints")
+    return data
+
+
+def _planned_problem(path: Path, data: dict[str, Any], problem: str | None) -> Problem:
+    """The problem the plan was made for, on its robot file, with its fitted forces."""
     name = problem or data.get("problem_file") or data.get("problem")
     if not name:
         raise InputError(path, "problem", "no problem named", "--problem FILE")
@@ -93,12 +109,17 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
             raise InputError(path, "force_log.fit.params", "incomplete",
                              ", ".join(FIT_PARAMS)) from None
         pb = with_process(pb, _with_forces(pb, x))
+    return pb
+
+
+def _waypoints(path: Path, wp: dict[str, Any], pb: Problem) -> PlannedWaypoints:
+    """The planned joints per waypoint [rad], arc length [m] from the first, and the time of
+    the stationary ones (plunge, dwell) from the process schedule [s]."""
     q = np.deg2rad(np.asarray(wp["q_deg"], dtype=float))
     s = np.asarray(wp["s_mm"], dtype=float) * 1e-3
     phase = np.asarray(wp["phase"]).astype(str)
     if q.ndim != 2 or q.shape[0] != s.size or s.size != phase.size:
         raise InputError(path, "waypoints", "q_deg, s_mm and phase differ in length")
-    # Stationary waypoints (plunge, dwell) are timed by the process schedule.
     sched = pb.process.schedule(pb.frames(), 0.05, approach=False)
     t = np.zeros(s.size)
     for ph in ("plunge", "dwell"):
@@ -106,8 +127,7 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
         ms = np.asarray(sched.phase) == ph
         if np.any(m) and np.any(ms):
             t[m] = np.linspace(sched.t[ms][0], sched.t[ms][-1], int(np.sum(m)))
-    wps = PlannedWaypoints(time=t, phase=phase, s=s - s[0], q=q)
-    return PlanRecord(folder, data, pb, str(robot_ref or data.get("robot", "")), wps)
+    return PlannedWaypoints(time=t, phase=phase, s=s - s[0], q=q)
 
 
 def _with_forces(problem: Problem, x: FloatArray) -> Any:

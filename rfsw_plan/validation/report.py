@@ -11,6 +11,7 @@ import json
 import math
 import shlex
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.files import atomic_path, write_text
+from rfsw_plan.validation.diagnosis import Skipped
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
 
@@ -90,62 +92,48 @@ def _scatter_axes(ax: Any, x: np.ndarray, res_mm: np.ndarray, idx: np.ndarray) -
     ax.axhline(0.0, color="k", lw=0.5)
 
 
-def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
-    """Draw the report's PNG plots into ``out_dir``; returns name -> path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    an = result.analysis
-    dg = result.diagnosis
-    res_mm = an.residual * 1e3
-    m = res_mm.shape[0]
-    idx = _subset(m)
-    noise_mm = None if dg.noise.sigma is None else dg.noise.sigma * 1e3
-    plots: dict[str, Path] = {}
-
-    def save(fig: Any, name: str) -> None:
-        path = out_dir / f"{name}.png"
-        # Figures use constrained layout, which keeps the outside legends in the figure in one
-        # drawing pass (bbox_inches="tight" draws twice); PNG_WIDTH_PX wide whatever the size.
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=PNG_WIDTH_PX / fig.get_figwidth(), format="png")
-        plt.close(fig)
-        plots[name] = path
-
-    # Histogram per axis.
+def _histogram(plt: Any, res_mm: np.ndarray, noise_mm: float | None) -> Any:
+    """Histogram of the residual per axis, with the +-1 sigma noise floor where known."""
     fig, ax = plt.subplots(figsize=(6, 3.5), layout="constrained")
     for a in range(3):
         v = res_mm[:, a][np.isfinite(res_mm[:, a])]
         if v.size:
             ax.hist(v, bins=60, histtype="step", color=_AXIS_COLORS[a], label="xyz"[a])
     if noise_mm:
-        for s in (-noise_mm, noise_mm):
-            ax.axvline(s, color="k", ls="--", lw=0.8)
+        ax.axvline(-noise_mm, color="k", ls="--", lw=0.8, label="+-1 sigma noise floor")
+        ax.axvline(noise_mm, color="k", ls="--", lw=0.8)
+        lo, hi = ax.get_xlim()
+        ax.set_xlim(min(lo, -1.2 * noise_mm), max(hi, 1.2 * noise_mm))
+        ax.set_title(f"Residual distribution (dashed: +-1 sigma noise floor, {noise_mm:.3g} mm)")
+    else:
+        ax.set_title("Residual distribution (noise floor unknown)")
     ax.set_xlabel("residual measured - predicted [mm]")
     ax.set_ylabel("samples")
-    ax.set_title("Residual distribution (dashed: +-1 sigma noise floor)")
     ax.legend(**_OUTSIDE)
-    save(fig, "residual_histogram")
+    return fig
 
-    # Against time (or sample order) and extra columns.
+
+def _vs_time(plt: Any, result: ValidationResult, res_mm: np.ndarray, idx: np.ndarray) -> Any:
+    """Residual against time (or sample order) and the extra columns."""
+    an = result.analysis
     seq = [k for k in ("time", "sample_order") if k in an.features]
-    extra = [k for k in an.features if k in result_extra_names(result)]
-    cols = seq + extra
+    cols = seq + [k for k in an.features if k in result_extra_names(result)]
     fig, axes = plt.subplots(len(cols), 1, figsize=(7, 2.6 * len(cols)), squeeze=False,
                              layout="constrained")
     for ax, name in zip(axes[:, 0], cols, strict=True):
-        x = np.asarray(an.features[name], dtype=float)
-        _scatter_axes(ax, x, res_mm, idx)
+        _scatter_axes(ax, np.asarray(an.features[name], dtype=float), res_mm, idx)
         ax.set_xlabel("t [s]" if name == "time" else name)
         ax.set_ylabel("residual [mm]")
     axes[0, 0].legend(markerscale=3, **_OUTSIDE)
     axes[0, 0].set_title("Residual against time and extra columns")
-    save(fig, "residual_vs_time")
+    return fig
 
-    # Against each joint torque.
-    n = an.tau.shape[1]
+
+def _vs_torque(plt: Any, result: ValidationResult, res_mm: np.ndarray, idx: np.ndarray) -> Any:
+    """Residual against each joint torque (force, for a prismatic joint)."""
+    tau = result.analysis.tau
+    prismatic = list(result.model.robot.prismatic)
+    n = tau.shape[1]
     ncol = 3
     nrow = math.ceil(n / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(10, 2.8 * nrow), squeeze=False,
@@ -155,14 +143,18 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
         if j >= n:
             ax.axis("off")
             continue
-        _scatter_axes(ax, an.tau[:, j] / 1e3, res_mm, idx)
-        ax.set_xlabel(f"joint {j + 1} torque [kN m]")
+        _scatter_axes(ax, tau[:, j] / 1e3, res_mm, idx)
+        pj = j < len(prismatic) and prismatic[j]
+        ax.set_xlabel(f"joint {j + 1} {'force [kN]' if pj else 'torque [kN m]'}")
         ax.set_ylabel("residual [mm]")
     axes[0, ncol - 1].legend(markerscale=3, **_OUTSIDE)
     fig.suptitle("Residual against each joint torque J^T F")
-    save(fig, "residual_vs_torque")
+    return fig
 
-    # Against force magnitude and direction.
+
+def _vs_force(plt: Any, result: ValidationResult, res_mm: np.ndarray, idx: np.ndarray) -> Any:
+    """Residual against force magnitude and elevation."""
+    an = result.analysis
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.5), layout="constrained")
     f = np.asarray(an.features["force_magnitude"], dtype=float)
     u = np.asarray(an.features["force_direction"], dtype=float)
@@ -174,11 +166,13 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
     axes[1].set_xlabel("force elevation above the base xy plane [deg]")
     axes[1].legend(markerscale=3, **_OUTSIDE)
     fig.suptitle("Residual against force magnitude and direction")
-    save(fig, "residual_vs_force")
+    return fig
 
-    # Workspace map.
+
+def _workspace(plt: Any, result: ValidationResult, res_mm: np.ndarray, idx: np.ndarray) -> Any:
+    """|residual| over the TCP positions, two views of the base frame."""
     norm = np.sqrt(np.nansum(res_mm**2, axis=1))
-    tcp = an.tcp
+    tcp = result.analysis.tcp
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), layout="constrained")
     for ax, (a, b, la, lb) in zip(axes, ((0, 1, "x", "y"), (0, 2, "x", "z")), strict=True):
         sc = ax.scatter(tcp[idx, a], tcp[idx, b], c=norm[idx], s=8, cmap="viridis",
@@ -188,61 +182,108 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
         ax.set_aspect("equal", adjustable="datalim")
         fig.colorbar(sc, ax=ax, label="|residual| [mm]")
     fig.suptitle("Where in the workspace the model fails (base frame)")
-    save(fig, "workspace_map")
+    return fig
 
-    # Candidates.
+
+def _candidates(plt: Any, result: ValidationResult, noise_mm: float | None) -> Any:
+    """Held-out RMS of the best candidates against the current model and the floor."""
+    dg = result.diagnosis
     cands = dg.candidates[:15]
-    if cands:
-        fig, ax = plt.subplots(figsize=(7, 0.35 * len(cands) + 1.5), layout="constrained")
-        y = np.arange(len(cands))
-        colors = ["tab:green" if c.significant else "tab:gray" for c in cands]
-        ax.barh(y, [c.rms_after * 1e3 for c in cands], color=colors)
-        ax.set_yticks(y, [c.label for c in cands])
-        ax.invert_yaxis()
-        ax.axvline(dg.heldout_rms * 1e3, color="tab:red", label="current model")
-        if noise_mm:
-            ax.axvline(noise_mm, color="k", ls="--", label="noise floor")
-        ax.set_xlabel("held-out RMS with the effect added [mm]")
-        ax.set_title("Candidate effects (green: significant)")
-        ax.legend(**_OUTSIDE)
-        save(fig, "candidates")
+    if not cands:
+        return None
+    fig, ax = plt.subplots(figsize=(7, 0.35 * len(cands) + 1.5), layout="constrained")
+    y = np.arange(len(cands))
+    colors = ["tab:green" if c.significant else "tab:gray" for c in cands]
+    ax.barh(y, [c.rms_after * 1e3 for c in cands], color=colors)
+    ax.set_yticks(y, [c.label for c in cands])
+    ax.invert_yaxis()
+    ax.axvline(dg.heldout_rms * 1e3, color="tab:red", label="current model")
+    if noise_mm:
+        ax.axvline(noise_mm, color="k", ls="--", label="noise floor")
+    ax.set_xlabel("held-out RMS with the effect added [mm]")
+    ax.set_title("Candidate effects (green: significant)")
+    ax.legend(**_OUTSIDE)
+    return fig
 
-    # Correlations.
-    corr = dg.correlations[:12]
-    if corr:
-        fig, ax = plt.subplots(figsize=(7, 0.35 * len(corr) + 1.5), layout="constrained")
-        y = np.arange(len(corr))
-        ax.barh(y, [c.r2 for c in corr],
-                color=["tab:orange" if c.significant else "tab:gray" for c in corr])
-        ax.set_yticks(y, [c.feature for c in corr])
-        ax.invert_yaxis()
-        ax.set_xlim(0, 1)
-        ax.set_xlabel("share of the held-out residual explained (R^2)")
-        ax.set_title("What the residual correlates with (orange: significant)")
-        save(fig, "correlations")
 
-    # Before / after adding effects.
-    if result.add is not None:
-        ad = result.add
-        fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
-        labels = ["before", "after\n+" + "\n+".join(ad.added) if ad.added else "after"]
-        vals = [ad.before.heldout_rms * 1e3, ad.after.heldout_rms * 1e3]
-        bars = ax.bar(labels, vals, color=["tab:red", "tab:green"])
-        ax.bar_label(bars, labels=[f"{v:.4g} mm" for v in vals], padding=2)
-        # Log scale: the error typically falls by orders of magnitude, and the noise-floor
-        # lines (1x and 1.5x) would sit on top of each other near zero on a linear axis.
-        ax.set_yscale("log")
-        if noise_mm:
-            ax.axhline(noise_mm, color="k", ls="--", lw=1.2,
-                       label=f"noise floor {noise_mm:.3g} mm")
-            ax.axhline(1.5 * noise_mm, color="tab:blue", ls=":", lw=1.6,
-                       label=f"1.5 x noise floor {1.5 * noise_mm:.3g} mm (adequate below)")
-        lo = min([*vals, noise_mm or min(vals)])
-        ax.set_ylim(lo / 3.0, max(vals) * 3.0)
+def _correlations(plt: Any, result: ValidationResult) -> Any:
+    """R^2 of the held-out residual against each feature."""
+    corr = result.diagnosis.correlations[:12]
+    if not corr:
+        return None
+    fig, ax = plt.subplots(figsize=(7, 0.35 * len(corr) + 1.5), layout="constrained")
+    y = np.arange(len(corr))
+    ax.barh(y, [c.r2 for c in corr],
+            color=["tab:orange" if c.significant else "tab:gray" for c in corr])
+    ax.set_yticks(y, [c.feature for c in corr])
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1)
+    ax.set_xlabel("share of the held-out residual explained (R^2)")
+    ax.set_title("What the residual correlates with (orange: significant)")
+    return fig
+
+
+def _before_after(plt: Any, result: ValidationResult, noise_mm: float | None) -> Any:
+    """Held-out RMS before and after adding effects (log scale), with the noise floor."""
+    ad = result.add
+    if ad is None:
+        return None
+    fig, ax = plt.subplots(figsize=(10, 4), layout="constrained")
+    labels = ["before", "after\n+" + "\n+".join(ad.added) if ad.added else "after"]
+    vals = [ad.before.heldout_rms * 1e3, ad.after.heldout_rms * 1e3]
+    bars = ax.bar(labels, vals, color=["tab:red", "tab:green"])
+    ax.bar_label(bars, labels=[f"{v:.4g} mm" for v in vals], padding=2)
+    # Log scale: the error typically falls by orders of magnitude, and the noise-floor
+    # lines (1x and 1.5x) would sit on top of each other near zero on a linear axis.
+    ax.set_yscale("log")
+    if noise_mm:
+        ax.axhline(noise_mm, color="k", ls="--", lw=1.2, label=f"noise floor {noise_mm:.3g} mm")
+        ax.axhline(1.5 * noise_mm, color="tab:blue", ls=":", lw=1.6,
+                   label=f"1.5 x noise floor {1.5 * noise_mm:.3g} mm (adequate below)")
         ax.legend(**_OUTSIDE)
-        ax.set_ylabel("held-out RMS [mm] (log scale)")
-        ax.set_title("Adding effects: error on data the fit did not see")
-        save(fig, "before_after")
+    else:
+        ax.text(0.99, 0.97, "noise floor unknown", transform=ax.transAxes, ha="right",
+                va="top")
+    lo = min([*vals, noise_mm or min(vals)])
+    ax.set_ylim(lo / 3.0, max(vals) * 3.0)
+    ax.set_ylabel("held-out RMS [mm] (log scale)")
+    ax.set_title("Adding effects: error on data the fit did not see")
+    return fig
+
+
+def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
+    """Draw the report's PNG plots into ``out_dir``; returns name -> path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dg = result.diagnosis
+    res_mm = result.analysis.residual * 1e3
+    idx = _subset(res_mm.shape[0])
+    noise_mm = None if dg.noise.sigma is None else dg.noise.sigma * 1e3
+    figures = {
+        "residual_histogram": lambda: _histogram(plt, res_mm, noise_mm),
+        "residual_vs_time": lambda: _vs_time(plt, result, res_mm, idx),
+        "residual_vs_torque": lambda: _vs_torque(plt, result, res_mm, idx),
+        "residual_vs_force": lambda: _vs_force(plt, result, res_mm, idx),
+        "workspace_map": lambda: _workspace(plt, result, res_mm, idx),
+        "candidates": lambda: _candidates(plt, result, noise_mm),
+        "correlations": lambda: _correlations(plt, result),
+        "before_after": lambda: _before_after(plt, result, noise_mm),
+    }
+    plots: dict[str, Path] = {}
+    for name, draw in figures.items():
+        fig = draw()
+        if fig is None:
+            continue
+        path = out_dir / f"{name}.png"
+        # Figures use constrained layout, which keeps the outside legends in the figure in one
+        # drawing pass (bbox_inches="tight" draws twice); PNG_WIDTH_PX wide whatever the size.
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=PNG_WIDTH_PX / fig.get_figwidth(), format="png")
+        plt.close(fig)
+        plots[name] = path
     return plots
 
 
@@ -278,8 +319,9 @@ def _num(v: float) -> str:
 def engineering(value: float, unit: str) -> str:
     """The engineering reading of an SI parameter value, or "" when SI is what users read.
 
-    A compliance c [rad/(N m)] reads as the stiffness k = 1/c in N m/rad and kN m/deg; an
-    angle [rad] in mrad and degrees; a length [m] in mm.
+    A compliance c [rad/(N m)] reads as the stiffness k = 1/c in N m/rad and kN m/deg (a
+    linear one [m/N], of a prismatic joint, in N/m and kN/mm); an angle [rad] in mrad and
+    degrees; a length [m] in mm.
     """
     if not math.isfinite(value):
         return ""
@@ -288,6 +330,11 @@ def engineering(value: float, unit: str) -> str:
             return "rigid"
         k = 1.0 / value
         return f"k = {k:.4g} N m/rad = {k * math.pi / 180.0 / 1e3:.4g} kN m/deg"
+    if unit == "m/N":
+        if value <= 0.0:
+            return "rigid"
+        k = 1.0 / value
+        return f"k = {k:.4g} N/m = {k / 1e6:.4g} kN/mm"
     if unit == "rad":
         return f"{value * 1e3:.4g} mrad = {math.degrees(value):.4g} deg"
     if unit == "m":
@@ -321,6 +368,15 @@ def next_command(result: ValidationResult, argv: list[str] | None) -> str:
     return ""
 
 
+def model_title(result: ValidationResult) -> str:
+    """The evaluated model in words: the robot, and the effects added to it if any
+    (``zk500 + payload_gravity (added and re-identified)``)."""
+    added = () if result.add is None else result.add.added
+    if not added:
+        return result.robot
+    return f"{result.robot} + {' + '.join(added)} (added and re-identified)"
+
+
 def render_html(result: ValidationResult, plots: dict[str, Path],
                 argv: list[str] | None = None, wall_seconds: float | None = None) -> str:
     """The report as one self-contained HTML string (plots inline).
@@ -335,10 +391,10 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
     """
     dg = result.diagnosis
     an = result.analysis
-    noise = dg.noise
+    title = model_title(result)
     parts: list[str] = [
-        *page_head(f"rfsw-plan validate: {result.robot}"),
-        f"<h1>Model against measurement: {html.escape(result.robot)}</h1>",
+        *page_head(f"rfsw-plan validate: {title}"),
+        f"<h1>Model against measurement: {html.escape(title)}</h1>",
         f"<p>Data: {html.escape(result.data_source)} ({an.n_samples} samples, "
         f"{an.n_observations} measured values). Model effects: "
         f"{html.escape(', '.join(result.model.labels))}. {dg.folds}-fold cross-validation "
@@ -346,100 +402,11 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         f"<p class='verdict {dg.verdict}'><b>{dg.verdict.upper()}</b>: "
         f"{html.escape(dg.message.removeprefix(f'{dg.verdict}: '))}</p>",
         *_next_step_html(result, argv),
-        "<h2>Summary</h2>",
-        table(
-            ["quantity", "value [mm]"],
-            [
-                ["RMS residual of the model (all samples)", _f(result.rms)],
-                ["held-out RMS (model re-identified per fold)", _f(dg.heldout_rms)],
-                ["RMS after re-identifying on all samples", _f(result.identification.rms_after)],
-                [f"noise floor (1 sigma, {noise.source})", _f(noise.sigma)],
-                ["max |residual|", _f(an.max_abs)],
-                *[[f"{p:g}th percentile of |residual|", _f(v)]
-                  for p, v in an.percentiles.items()],
-            ],
-        ),
-    ]
-    if result.add is not None:
-        ad = result.add
-        units = _param_units(result)
-        parts += [
-            "<h2>Adding effects and re-identifying</h2>",
-            table(
-                ["model", "held-out RMS [mm]", "RMS all samples [mm]"],
-                [
-                    [", ".join(ad.before.labels), _f(ad.before.heldout_rms), _f(ad.rms_before)],
-                    [", ".join(ad.after.labels), _f(ad.after.heldout_rms), _f(ad.rms_after)],
-                ],
-            ),
-        ]
-        if ad.not_added:
-            parts.append("<p>Not fitted: " + html.escape(
-                "; ".join(f"{s.label}: {s.reason}" for s in ad.not_added)) + "</p>")
-        parts.append(table(
-            ["effect", "parameter", "value [SI]", "unit", "engineering", "std error",
-             "prior [SI]", "note"],
-            [[e.effect, e.name, _num(e.value), units.get((e.effect, e.name), ""),
-              engineering(e.value, units.get((e.effect, e.name), "")),
-              _num(e.std_error), _num(e.prior), e.note] for e in ad.after.fit.estimates],
-        ))
-        if "before_after" in plots:
-            parts.append(figure(plots["before_after"], "held-out RMS before and after"))
-    parts += [
-        "<h2>Diagnosis: candidate effects</h2>",
-        "<p>Each effect is added to the current model, all parameters are re-identified on "
-        "the training folds and the model is scored on the held-out fold. Significant = the "
-        "held-out improvement passes an F test at the strict level (noise alone does not).</p>",
-        table(
-            ["effect", "joint", "held-out RMS after [mm]", "explained fraction", "p-value",
-             "significant", "note"],
-            [[c.effect, "-" if c.joint is None else str(c.joint), _f(c.rms_after),
-              f"{c.explained_fraction:.3f}", f"{c.p_value:.2g}",
-              "yes" if c.significant else "no",
-              "indistinguishable from the best" if c.tied_with_best else ""]
-             for c in dg.candidates],
-        ),
-    ]
-    if "candidates" in plots:
-        parts.append(figure(plots["candidates"], "candidates"))
-    if dg.chain:
-        parts.append(table(
-            ["step", "effect added", "held-out RMS before [mm]", "after [mm]"],
-            [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after)]
-             for i, s in enumerate(dg.chain)],
-        ))
-    if dg.skipped:
-        parts += ["<h3>Not identifiable from this data (not fitted)</h3>",
-                  table(["effect", "reason"], [[s.label, s.reason] for s in dg.skipped])]
-    parts += [
-        "<h2>What the residual correlates with</h2>",
-        "<p>Share of the held-out residual explained by each feature (cubic fit for a "
-        "scalar, quadratic for a vector). A strong feature outside the library (time, "
-        "temperature) points at physics the model lacks.</p>",
-        table(
-            ["feature", "R^2", "adjusted R^2", "p-value", "significant", "what"],
-            [[c.feature, f"{c.r2:.3f}", f"{c.adj_r2:.3f}", f"{c.p_value:.2g}",
-              "yes" if c.significant else "no", c.description] for c in dg.correlations],
-        ),
-    ]
-    if "correlations" in plots:
-        parts.append(figure(plots["correlations"], "correlations"))
-    parts += [
-        "<h2>Where the model fails</h2>",
-        "<h3>Per axis and per direction</h3>",
-        table(
-            ["axis", "n", "RMS [mm]", "mean [mm]", "max |r| [mm]"],
-            [[a.name, str(a.n), _f(a.rms), _f(a.mean), _f(a.max_abs)]
-             for a in (*an.per_axis, *an.per_direction)],
-        ),
-        "<h3>Per joint</h3>",
-        table(
-            ["joint", "torque range [kN m]", "R^2 torque", "R^2 angle", "R^2 joint motion",
-             "RMS tau>0 [mm]", "RMS tau<0 [mm]"],
-            [[str(j.joint), f"{j.tau_min / 1e3:.3g} .. {j.tau_max / 1e3:.3g}",
-              f"{j.r2_torque:.3f}", f"{j.r2_angle:.3f}", f"{j.r2_joint_motion:.3f}",
-              _f(j.rms_tau_pos), _f(j.rms_tau_neg)] for j in an.per_joint],
-        ),
+        *_summary_html(result),
+        *_add_html(result, plots),
+        *_candidates_html(result, plots),
+        *_correlations_html(result, plots),
+        *_where_html(result),
     ]
     for name, alt in (
         ("residual_histogram", "residual histogram"),
@@ -454,6 +421,140 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
     what = "validation" if wall_seconds is None else "whole command, up to this report"
     parts.append(f"<p><small>Wall time: {secs:.1f} s ({what}).</small></p>{PAGE_END}")
     return "\n".join(parts)
+
+
+def _summary_html(result: ValidationResult) -> list[str]:
+    dg = result.diagnosis
+    an = result.analysis
+    return ["<h2>Summary</h2>", table(
+        ["quantity", "value [mm]"],
+        [
+            ["RMS residual of the model (all samples)", _f(result.rms)],
+            ["held-out RMS (model re-identified per fold)", _f(dg.heldout_rms)],
+            ["RMS after re-identifying on all samples", _f(result.identification.rms_after)],
+            [f"noise floor (1 sigma, {dg.noise.source})", _f(dg.noise.sigma)],
+            ["max |residual|", _f(an.max_abs)],
+            *[[f"{p:g}th percentile of |residual|", _f(v)] for p, v in an.percentiles.items()],
+        ],
+    )]
+
+
+def _add_html(result: ValidationResult, plots: dict[str, Path]) -> list[str]:
+    if result.add is None:
+        return []
+    ad = result.add
+    units = _param_units(result)
+    parts = [
+        "<h2>Adding effects and re-identifying</h2>",
+        table(
+            ["model", "held-out RMS [mm]", "RMS all samples [mm]"],
+            [
+                [", ".join(ad.before.labels), _f(ad.before.heldout_rms), _f(ad.rms_before)],
+                [", ".join(ad.after.labels), _f(ad.after.heldout_rms), _f(ad.rms_after)],
+            ],
+        ),
+    ]
+    if ad.not_added:
+        parts.append("<p>Not fitted: " + html.escape(
+            "; ".join(f"{s.label}: {s.reason}" for s in ad.not_added)) + "</p>")
+    parts.append(table(
+        ["effect", "parameter", "value [SI]", "unit", "engineering", "std error",
+         "prior [SI]", "note"],
+        [[e.effect, e.name, _num(e.value), units.get((e.effect, e.name), ""),
+          engineering(e.value, units.get((e.effect, e.name), "")),
+          _num(e.std_error), _num(e.prior), e.note] for e in ad.after.fit.estimates],
+    ))
+    if "before_after" in plots:
+        parts.append(figure(plots["before_after"], "held-out RMS before and after"))
+    return parts
+
+
+def _candidates_html(result: ValidationResult, plots: dict[str, Path]) -> list[str]:
+    dg = result.diagnosis
+    parts = [
+        "<h2>Diagnosis: candidate effects</h2>",
+        "<p>Each effect is added to the current model, all parameters are re-identified on "
+        "the training folds and the model is scored on the held-out fold. Significant = the "
+        "held-out improvement passes an F test at the strict level (noise alone does not) "
+        "and the fitted values lie in the effect's physical range.</p>",
+        table(
+            ["effect", "joint", "held-out RMS after [mm]", "explained fraction", "p-value",
+             "significant", "note"],
+            [[c.effect, "-" if c.joint is None else str(c.joint), _f(c.rms_after),
+              f"{c.explained_fraction:.3f}", f"{c.p_value:.2g}",
+              "yes" if c.significant else "no",
+              "; ".join(x for x in ("indistinguishable from the best" if c.tied_with_best
+                                    else "", c.implausible) if x)]
+             for c in dg.candidates],
+        ),
+    ]
+    if "candidates" in plots:
+        parts.append(figure(plots["candidates"], "candidates"))
+    if dg.chain:
+        parts.append(table(
+            ["step", "effect added", "held-out RMS before [mm]", "after [mm]"],
+            [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after)]
+             for i, s in enumerate(dg.chain)],
+        ))
+    if dg.skipped:
+        parts += ["<h3>Not identifiable from this data (not fitted)</h3>",
+                  table(["reason", "effects"], [[why, ", ".join(labels)] for why, labels
+                                                in skipped_by_reason(dg.skipped).items()])]
+    return parts
+
+
+def skipped_by_reason(skipped: Sequence[Skipped]) -> dict[str, list[str]]:
+    """The candidates not fitted, grouped by their reason (one row per reason, not one
+    sentence repeated for every joint)."""
+    out: dict[str, list[str]] = {}
+    for s in skipped:
+        out.setdefault(s.reason, []).append(s.label)
+    return out
+
+
+def _correlations_html(result: ValidationResult, plots: dict[str, Path]) -> list[str]:
+    dg = result.diagnosis
+    parts = [
+        "<h2>What the residual correlates with</h2>",
+        "<p>Share of the held-out residual explained by each feature (cubic fit for a "
+        "scalar, quadratic for a vector). A strong feature outside the library (time, "
+        "temperature) points at physics the model lacks.</p>",
+        table(
+            ["feature", "R^2", "adjusted R^2", "p-value", "significant", "what"],
+            [[c.feature, f"{c.r2:.3f}", f"{c.adj_r2:.3f}", f"{c.p_value:.2g}",
+              "yes" if c.significant else "no", c.description] for c in dg.correlations],
+        ),
+    ]
+    if "correlations" in plots:
+        parts.append(figure(plots["correlations"], "correlations"))
+    return parts
+
+
+def _where_html(result: ValidationResult) -> list[str]:
+    an = result.analysis
+    prismatic = list(result.model.robot.prismatic)
+
+    def trange(j: int, lo: float, hi: float) -> str:
+        unit = "kN" if j - 1 < len(prismatic) and prismatic[j - 1] else "kN m"
+        return f"{lo / 1e3:.3g} .. {hi / 1e3:.3g} {unit}"
+
+    return [
+        "<h2>Where the model fails</h2>",
+        "<h3>Per axis and per direction</h3>",
+        table(
+            ["axis", "n", "RMS [mm]", "mean [mm]", "max |r| [mm]"],
+            [[a.name, str(a.n), _f(a.rms), _f(a.mean), _f(a.max_abs)]
+             for a in (*an.per_axis, *an.per_direction)],
+        ),
+        "<h3>Per joint</h3>",
+        table(
+            ["joint", "torque (force) range", "R^2 torque", "R^2 angle", "R^2 joint motion",
+             "RMS tau>0 [mm]", "RMS tau<0 [mm]"],
+            [[str(j.joint), trange(j.joint, j.tau_min, j.tau_max),
+              f"{j.r2_torque:.3f}", f"{j.r2_angle:.3f}", f"{j.r2_joint_motion:.3f}",
+              _f(j.rms_tau_pos), _f(j.rms_tau_neg)] for j in an.per_joint],
+        ),
+    ]
 
 
 def _next_step_html(result: ValidationResult, argv: list[str] | None) -> list[str]:
@@ -478,6 +579,11 @@ def _param_units(result: ValidationResult) -> dict[tuple[str, str], str]:
     for eff in getattr(result.model, "effects", ()):
         for name in eff.param_names():
             out[(eff.label, name)] = eff.param_unit(name)
+    # The base compliance of a prismatic joint (a torso lift) is a linear one.
+    base = result.model.joint_compliance
+    for name, prismatic in zip(base.param_names(), result.model.robot.prismatic, strict=True):
+        if prismatic:
+            out[(base.label, name)] = "m/N"
     return out
 
 

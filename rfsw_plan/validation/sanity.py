@@ -16,9 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_setup
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.description import DeviceFrame
 
 #: Joint values beyond the limits by more than this [rad] (or 10 % of a prismatic range) are
 #: not a calibration error.
@@ -164,3 +167,35 @@ def check_registered(model: ElastostaticModel, data: MeasurementSet) -> None:
             f"after registering the device frame the residual is still {rms * 1e3:.4g} mm RMS: "
             f"wrong robot, joint order, joint units or marker", f"motion of robot "
             f"{model.robot.name}'s tool seen from a fixed device")
+
+
+def prepare_data(
+    model: ElastostaticModel, data: MeasurementSet, held: DeviceFrame | None = None,
+    marker: FloatArray | None = None,
+) -> DeviceSetup | None:
+    """Check measured data for ``model`` and set up the registration of device-frame data.
+
+    :func:`check_data`; for device-frame positions the registration and marker offset
+    (:func:`~rfsw_plan.elastostatics.registration.prepare_device_setup`: held where given,
+    else fitted with everything else) and :func:`check_registered` on the registered data.
+
+    Args:
+        model: The robot model.
+        data: The measurements.
+        held: A known registration (default: the robot file's ``[device_frame]``, if any).
+        marker: A known marker offset in the tool frame [m], shape (3,).
+
+    Returns:
+        The set-up, or None for base-frame data.
+
+    Raises:
+        InputError: Data that cannot belong to this robot in these units (one line).
+    """
+    check_data(model, data)
+    if data.frame != "device":
+        return None
+    setup = prepare_device_setup(model, data,
+                                 held if held is not None else model.robot.description.device_frame,
+                                 marker)
+    check_registered(setup.model(model), setup.data(data))
+    return setup

@@ -12,25 +12,23 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects import make_effect, parse_effect_label
+from rfsw_plan.elastostatics.effects.base import PoseBatch
 from rfsw_plan.elastostatics.identification import IdentificationResult
 from rfsw_plan.elastostatics.identification_blocks import predicted_positions
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.robot.description import (
-    DeviceFrame,
-    RobotDescription,
-    derived_description,
-    save_robot_description,
-)
+from rfsw_plan.robot.description import DeviceFrame
+from rfsw_plan.validation.derived_robot import save_derived_robot
 from rfsw_plan.validation.diagnosis import (
     DEFAULT_FOLDS,
     CrossValidation,
@@ -239,16 +237,7 @@ def validate(
         UnknownNameError, InputError: Bad effect label, bad noise, mismatched joints.
     """
     t0 = time.perf_counter()
-    if setup is None and data.frame != "base":
-        raise InputError(data.source, "frame", f"positions are in the {data.frame} frame",
-                         "a device set-up (rfsw-plan validate --frame device)")
-    if setup is not None:
-        model = setup.model(model)
-        data = setup.data(data)
-    if data.n_joints != model.robot.nq:
-        raise InputError(data.source, "joint columns",
-                         f"data has {data.n_joints} joints but robot {model.robot.name} has "
-                         f"{model.robot.nq}", f"{model.robot.nq} joint columns")
+    model, data = _registered(model, data, setup)
     labels = check_effect_labels(model, add)
     batch = model.batch(data.q)
     pred = predicted_positions(model, batch, data.wrench)
@@ -257,56 +246,12 @@ def validate(
                                  force_noise_n=force_noise_n, batch=batch)
     fold = make_folds(data, folds, seed)
     before = cross_validate(model, data, fold, batch)
-
-    add_result: AddResult | None = None
-    if labels:
-        F_true = model.true_wrench(batch, data.wrench)
-        extended = model
-        added: list[str] = []
-        not_added: list[Skipped] = []
-        for label in labels:
-            reason = make_effect(model.robot, label).identifiable(batch, F_true)
-            if reason:
-                not_added.append(Skipped(label, f"not identifiable from this data: {reason}"))
-                continue
-            extended = extended.with_effect(label)
-            added.append(label)
-        after = cross_validate(extended, data, fold, batch) if added else before
-        dropped = []
-        for label in added:
-            est = [e for e in after.fit.estimates if e.effect == label]
-            if not any(e.identified for e in est):
-                why = next((e.note for e in est if e.note), "no parameter identified")
-                not_added.append(Skipped(label, f"not identified from this data: {why}"))
-                dropped.append(label)
-        if dropped:  # an effect the data cannot fit would only carry its prior: leave it out
-            added = [x for x in added if x not in dropped]
-            extended = model
-            for label in added:
-                extended = extended.with_effect(label)
-            after = cross_validate(extended, data, fold, batch) if added else before
-        evaluated = after.fit.model
-        add_result = AddResult(
-            requested=tuple(labels),
-            added=tuple(added),
-            not_added=tuple(not_added),
-            before=before,
-            after=after,
-            rms_before=_rms(residual0),
-            rms_after=after.fit.rms_after,
-        )
-        base = after
-    else:
-        evaluated = model
-        base = before
-
+    add_result = (_add_effects(model, data, fold, batch, labels, before, _rms(residual0))
+                  if labels else None)
+    base = before if add_result is None else add_result.after
+    evaluated = base.fit.model if add_result is not None else model
     analysis = analyze_residuals(evaluated, data, noise=noise, batch=batch)
     diagnosis = diagnose(evaluated, data, noise, folds, seed, batch=batch, base=base)
-    frame = None
-    if setup is not None:
-        frame = setup.frame
-        if setup.fit_registration or setup.fit_marker:
-            _, frame = setup.fold(base.fit.model, base.fit.estimates)
     return ValidationResult(
         robot=model.robot.name,
         data_source=data.source,
@@ -318,9 +263,78 @@ def validate(
         add=add_result,
         seconds=time.perf_counter() - t0,
         setup=setup,
-        device_frame=frame,
+        device_frame=_device_frame(setup, base),
         dialect=data.dialect or "in memory",
     )
+
+
+def _registered(model: ElastostaticModel, data: MeasurementSet, setup: DeviceSetup | None
+                ) -> tuple[ElastostaticModel, MeasurementSet]:
+    """The model and data with the device set-up applied, checked to match."""
+    if setup is None and data.frame != "base":
+        raise InputError(data.source, "frame", f"positions are in the {data.frame} frame",
+                         "a device set-up (rfsw-plan validate --frame device)")
+    if setup is not None:
+        model = setup.model(model)
+        data = setup.data(data)
+    if data.n_joints != model.robot.nq:
+        raise InputError(data.source, "joint columns",
+                         f"data has {data.n_joints} joints but robot {model.robot.name} has "
+                         f"{model.robot.nq}", f"{model.robot.nq} joint columns")
+    return model, data
+
+
+def _device_frame(setup: DeviceSetup | None, base: CrossValidation) -> DeviceFrame | None:
+    """The registration used: as held, or folded from the identification where fitted."""
+    if setup is None:
+        return None
+    if setup.fit_registration or setup.fit_marker:
+        return setup.fold(base.fit.model, base.fit.estimates)[1]
+    return setup.frame
+
+
+def _with_effects(model: ElastostaticModel, labels: Sequence[str]) -> ElastostaticModel:
+    for label in labels:
+        model = model.with_effect(label)
+    return model
+
+
+def _unidentified(after: CrossValidation, labels: Sequence[str]) -> list[Skipped]:
+    """The added effects none of whose parameters the data identified."""
+    out = []
+    for label in labels:
+        est = [e for e in after.fit.estimates if e.effect == label]
+        if not any(e.identified for e in est):
+            why = next((e.note for e in est if e.note), "no parameter identified")
+            out.append(Skipped(label, f"not identified from this data: {why}"))
+    return out
+
+
+def _add_effects(
+    model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_], batch: PoseBatch,
+    labels: Sequence[str], before: CrossValidation, rms_before: float,
+) -> AddResult:
+    """Add the effects the data can identify, re-identify everything and score it on the same
+    folds. An effect the data cannot fit would only carry its prior: it is left out."""
+    F_true = model.true_wrench(batch, data.wrench)
+    not_added: list[Skipped] = []
+    added: list[str] = []
+    for label in labels:
+        reason = make_effect(model.robot, label).identifiable(batch, F_true)
+        if reason:
+            not_added.append(Skipped(label, f"not identifiable from this data: {reason}"))
+        else:
+            added.append(label)
+    after = cross_validate(_with_effects(model, added), data, fold, batch) if added else before
+    dropped = _unidentified(after, added)
+    if dropped:
+        not_added += dropped
+        added = [x for x in added if x not in {s.label for s in dropped}]
+        after = (cross_validate(_with_effects(model, added), data, fold, batch) if added
+                 else before)
+    return AddResult(requested=tuple(labels), added=tuple(added), not_added=tuple(not_added),
+                     before=before, after=after, rms_before=rms_before,
+                     rms_after=after.fit.rms_after)
 
 
 def save_extended_robot(result: ValidationResult, path: str | Path,
@@ -339,22 +353,11 @@ def save_extended_robot(result: ValidationResult, path: str | Path,
         f"({fit.n_samples} samples, RMS {fit.rms_after * 1e3:.4g} mm, effects: "
         f"{', '.join(fit.model.labels)})"
     )
-    parent = result.model.robot.description
-    before = {e.name for e in parent.effects}
-    added = tuple(e.label for e in fit.model.effects[1:]
-                  if not e.setup and e.label not in before)
-
-    def derive(desc: RobotDescription) -> RobotDescription:
-        return derived_description(desc, name=name, parent=parent.path,
-                                   data=result.data_source, command="rfsw-plan validate",
-                                   added=added)
-
-    if result.setup is None:
-        return save_robot_description(derive(fit.model.to_description(note)), path)
-    model, frame = result.setup.fold(fit.model, fit.estimates)
-    desc = model.to_description(note)
-    if result.setup.fit_registration or result.setup.fit_marker:
-        desc.sources["device_frame"] = (
-            f"identified by rfsw-plan validate --frame device from {result.data_source} "
-            f"({fit.n_samples} samples), jointly with {', '.join(model.labels)}")
-    return save_robot_description(derive(replace(desc, device_frame=frame)), path)
+    device_note = (
+        f"identified by rfsw-plan validate --frame device from {result.data_source} "
+        f"({fit.n_samples} samples), jointly with "
+        f"{', '.join(e.label for e in fit.model.effects if not e.setup)}")
+    return save_derived_robot(fit.model, path, parent=result.model.robot.description, note=note,
+                              data=result.data_source, command="rfsw-plan validate", name=name,
+                              setup=result.setup, estimates=fit.estimates,
+                              device_note=device_note)

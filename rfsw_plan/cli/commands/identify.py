@@ -1,22 +1,16 @@
 """``rfsw-plan identify``: joint stiffness (and effect parameters) from a measurement file.
 
-Least squares on measured TCP positions (seed 000 eq. 13-15, seed 001 eq. 8-11); see
-:func:`rfsw_plan.elastostatics.identification.identify`.
+Least squares on measured TCP positions (seed 000 eq. 13-15, seed 001 eq. 8-11): parses the
+options, calls :func:`rfsw_plan.validation.identify_robot.identify_robot`, prints.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
-from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 from rfsw_plan.cli import measurement_args
-from rfsw_plan.elastostatics.identification import IdentificationResult, identify
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import IdentificationError, UnknownNameError
-from rfsw_plan.robot.description import derived_description, save_robot_description
 from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "identify"
@@ -43,110 +37,47 @@ def register(parser: argparse.ArgumentParser) -> None:
     measurement_args.register(parser)
 
 
-def _num(x: float) -> float | None:
-    return None if not math.isfinite(x) else float(x)
-
-
-def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> dict[str, Any]:
-    base = res.model.joint_compliance.label
-    jc = [e for e in res.estimates if e.effect == base]
-    joints = []
-    for j in range(res.stiffness.size):
-        note = next((e.note for e in jc if e.name == f"c{j + 1}"), "not free in this fit")
-        joints.append({
-            "joint": j + 1,
-            "stiffness_Nm_per_rad": float(res.stiffness[j]),
-            "std_error_Nm_per_rad": _num(float(res.stiffness_std[j])),
-            "identified": bool(res.joint_identified[j]),
-            "note": note,
-        })
-    others = [
-        {"effect": e.effect, "param": e.name, "value": e.value, "prior": e.prior,
-         "std_error": _num(e.std_error), "identified": e.identified, "note": e.note}
-        for e in res.estimates if e.effect != base
-    ]
-    return {
-        "robot": robot_name,
-        "method": res.method,
-        "joints": joints,
-        "effects": others,
-        "condition_number": _num(res.condition_number),
-        "rms_before_mm": res.rms_before * 1e3,
-        "rms_after_mm": res.rms_after * 1e3,
-        "sigma_mm": res.sigma * 1e3,
-        "n_samples": res.n_samples,
-        "n_observations": res.n_observations,
-        "converged": res.converged,
-        "output": None if output is None else str(output),
-    }
-
-
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.files import prepare_output_file, strict_json
-    from rfsw_plan.validation.sanity import check_data, check_registered
+    from rfsw_plan.validation.identify_robot import identify_robot
 
     if args.output:
         prepare_output_file(args.output, "-o")
-    robot = load_robot(args.robot)
-    model = ElastostaticModel(robot)
+    model = ElastostaticModel(load_robot(args.robot))
     data = measurement_args.load(args, model)
+    held, marker = measurement_args.device_options(args)
     free = None if args.free.strip() == "all" else [x.strip() for x in args.free.split(",")]
-    unknown = [x for x in free or [] if not model.has(x)]
-    if unknown:
-        raise UnknownNameError("effect in the model", unknown[0], model.labels)
-    check_data(model, data)
-    setup = measurement_args.device_setup(args, model, data)
-    fit_model, fit_data = model, data
-    if setup is not None:
-        fit_model, fit_data = setup.model(model), setup.data(data)
-        check_registered(fit_model, fit_data)
-        if free is not None:
-            free = [*free, *setup.effect_labels]
-    res = identify(fit_model, fit_data, method=args.method, free=free)
-    if not (math.isfinite(res.rms_after) and all(math.isfinite(e.value)
-                                                 for e in res.estimates)):
-        raise IdentificationError(f"{args.data}: the fit gave non-finite values; nothing "
-                                  "written")
-    output = None
-    if args.output:
-        note = (f"identified by rfsw-plan identify ({res.method}, {res.n_samples} samples) "
-                f"from {Path(args.data).name}; prior: "
-                f"{robot.description.sources.get('stiffness', 'not stated')}")
-        if setup is None:
-            desc = res.model.to_description(note)
-        else:
-            base_model, frame = setup.fold(res.model, res.estimates)
-            desc = replace(base_model.to_description(note), device_frame=frame)
-        before = {e.name for e in robot.description.effects}
-        added = tuple(e.label for e in res.model.effects[1:]
-                      if not e.setup and e.label not in before)
-        desc = derived_description(desc, name=args.name, parent=robot.description.path,
-                                   data=args.data, command="rfsw-plan identify", added=added)
-        output = save_robot_description(desc, args.output)
-    rep = _report(res, robot.name, output)
+    out = identify_robot(model, data, method=args.method, free=free, held=held, marker=marker,
+                         output=args.output or None, name=args.name)
+    rep = out.to_json()
     if args.json:
         print(strict_json(rep, indent=None), end="")
         return 0
-    print(f"robot {robot.name}: {res.n_samples} samples, {res.n_observations} measured values, "
-          f"method {res.method}")
+    _print(rep)
+    return 0
+
+
+def _status(identified: bool, note: str) -> str:
+    return ("identified" if identified else "NOT identified") + (f": {note}" if note else "")
+
+
+def _print(rep: dict[str, Any]) -> None:
+    """The text summary of ``identify`` (from its JSON object)."""
+    print(f"robot {rep['robot']}: {rep['n_samples']} samples, {rep['n_observations']} measured "
+          f"values, method {rep['method']}")
     print(f"{'joint':>5}  {'stiffness [N m/rad]':>20}  {'std error':>10}  status")
     for j in rep["joints"]:
         std = "-" if j["std_error_Nm_per_rad"] is None else f"{j['std_error_Nm_per_rad']:.3e}"
-        status = "identified" if j["identified"] else "NOT identified"
-        if j["note"]:
-            status += f": {j['note']}"
-        print(f"{j['joint']:>5}  {j['stiffness_Nm_per_rad']:>20.4e}  {std:>10}  {status}")
+        print(f"{j['joint']:>5}  {j['stiffness_Nm_per_rad']:>20.4e}  {std:>10}  "
+              f"{_status(j['identified'], j['note'])}")
     for e in rep["effects"]:
         std = "-" if e["std_error"] is None else f"{e['std_error']:.3e}"
-        status = "identified" if e["identified"] else "NOT identified"
-        if e["note"]:
-            status += f": {e['note']}"
-        print(f"  {e['effect']}.{e['param']} = {e['value']:.4e} (std {std}) {status}")
+        print(f"  {e['effect']}.{e['param']} = {e['value']:.4e} (std {std}) "
+              f"{_status(e['identified'], e['note'])}")
     cond = rep["condition_number"]
     print(f"condition number (column-normalised regressor): "
           f"{'n/a' if cond is None else f'{cond:.4g}'}")
     print(f"RMS position residual: before {rep['rms_before_mm']:.4f} mm, "
           f"after {rep['rms_after_mm']:.4f} mm")
-    if output is not None:
-        print(f"wrote {output}")
-    return 0
+    if rep["output"] is not None:
+        print(f"wrote {rep['output']}")

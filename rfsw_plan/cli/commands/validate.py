@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,8 +14,8 @@ from rfsw_plan.validation.candidates import addable_effects
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
-    from rfsw_plan.validation.diagnosis import Candidate
     from rfsw_plan.validation.report import ReportFiles
+    from rfsw_plan.validation.scoring import Candidate
     from rfsw_plan.validation.workbench import ValidationResult
 
 NAME = "validate"
@@ -65,58 +64,50 @@ def register(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.progress import Stages
 
-    names = _STAGES if not args.no_report else _STAGES[:-1]
+    report = _report_folder(args)
+    names = _STAGES if report is not None else _STAGES[:-1]
     with Stages(NAME, names) as stages:
-        return _run(args, stages)
+        return _run(args, report, stages)
 
 
 #: The steps the progress bar names (the diagnosis draws its own bar over the candidates).
 _STAGES = ("reading the data", "diagnosis", "plots and report")
 
 
-def _run(args: argparse.Namespace, stages: Stages) -> int:
-    from rfsw_plan.validation.report import result_json, write_report
-    from rfsw_plan.validation.workbench import save_extended_robot, validate
+def _report_folder(args: argparse.Namespace) -> Path | None:
+    """The report folder: -o as given; none with --no-report, or with --json and no -o; else
+    the default folder, or a new one beside it if it already holds an earlier report."""
+    from rfsw_plan.files import prepare_output_dir
+    from rfsw_plan.validation.commands import fresh_folder
 
-    if args.noise_mm is not None and not args.noise_mm > 0:
-        raise InputError("--noise-mm", "", f"{args.noise_mm:g}", "a positive noise in mm")
+    if args.no_report or (args.json and not args.output):
+        return None
+    if args.output:
+        return prepare_output_dir(args.output)
+    return prepare_output_dir(fresh_folder(f"validate_{Path(args.data).stem}"))
+
+
+def _run(args: argparse.Namespace, report: Path | None, stages: Stages) -> int:
+    from rfsw_plan.files import prepare_output_file
+    from rfsw_plan.validation.commands import run_validate
+    from rfsw_plan.validation.report import result_json
+
     if args.folds < 2:
         raise InputError("--folds", "", f"{args.folds}", "at least 2")
-    from rfsw_plan.files import OutputLock, prepare_output_dir, prepare_output_file
-    from rfsw_plan.validation.sanity import check_data, check_registered
-
-    out = None
-    if not args.no_report:
-        out = prepare_output_dir(args.output if args.output
-                                 else Path(f"validate_{Path(args.data).stem}"))
-    if args.save_robot:
-        prepare_output_file(args.save_robot, "--save-robot")
-    robot = load_robot(args.robot)
-    model = ElastostaticModel(robot)
+    save = prepare_output_file(args.save_robot, "--save-robot") if args.save_robot else None
+    model = ElastostaticModel(load_robot(args.robot))
     data = measurement_args.load(args, model)
-    check_data(model, data)
-    setup = measurement_args.device_setup(args, model, data)
-    if setup is not None:
-        check_registered(setup.model(model), setup.data(data))
-    stages.start("diagnosis")
-    result = validate(
-        model, data,
+    held, marker = measurement_args.device_options(args)
+    run_ = run_validate(
+        model, data, held=held, marker=marker,
         noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
-        add=args.add, folds=args.folds, seed=args.seed, setup=setup,
-        force_noise_n=args.force_noise_n,
-    )
-    files = None
-    if out is not None:
-        stages.start("plots and report")
-        with OutputLock(out):
-            files = write_report(result, out, argv=getattr(args, "argv", None),
-                                 started=getattr(args, "started", None))
-    saved = (save_extended_robot(result, args.save_robot, name=args.name) if args.save_robot
-             else None)
+        add=args.add, folds=args.folds, seed=args.seed, force_noise_n=args.force_noise_n,
+        report=report, save_robot=save, name=args.name, argv=getattr(args, "argv", None),
+        started=getattr(args, "started", None), on_stage=stages.start)
     if args.json:
-        print(result_json(result))
+        print(result_json(run_.result))
         return 0
-    _print_summary(result, files, saved)
+    _print_summary(run_.result, run_.files, run_.saved)
     return 0
 
 
@@ -137,60 +128,95 @@ def _clear_params(cand: Candidate, joint_names: list[str], prismatic: list[bool]
     return ", ".join(parts)
 
 
+def _floor_lines(result: ValidationResult) -> list[str]:
+    """RMS, held-out RMS and the noise floor with its parts."""
+    dg = result.diagnosis
+    nf = dg.noise
+
+    def mm(v: float | None) -> str:
+        return "unknown" if v is None else f"{v * 1e3:.3g} mm"
+
+    if nf.force_noise is not None:
+        fnoise = f" (force noise {nf.force_noise:.3g} N, {nf.force_noise_source})"
+    elif nf.force_noise_source and nf.force_noise_source != "unknown":
+        fnoise = f" (force noise unknown: {nf.force_noise_source})"
+    else:
+        fnoise = " (force noise unknown)"
+    return [
+        f"RMS {result.rms * 1e3:.4g} mm (3-D {result.rms_3d * 1e3:.4g} mm), held-out RMS "
+        f"{dg.heldout_rms * 1e3:.4g} mm, noise floor {mm(nf.sigma)} ({nf.source})",
+        f"  floor parts: measuring device {mm(nf.device_sigma)}, force sensor "
+        f"{mm(nf.force_sigma)}{fnoise}",
+    ]
+
+
+def _frame_line(result: ValidationResult) -> list[str]:
+    """The device registration used, for device-frame data."""
+    if result.device_frame is None or result.setup is None:
+        return []
+    from rfsw_plan.validation.workbench import device_frame_json
+
+    fr = device_frame_json(result.device_frame, result.setup)
+    std = ", ".join(f"{k} {v:.3g}" for k, v in fr["std"].items()) or "held, no fit"
+    return [f"device frame ({fr['registration']}): base origin in the device frame "
+            f"{', '.join(f'{v:.2f}' for v in fr['base_in_device_xyz_mm'])} mm, rpy "
+            f"{', '.join(f'{v:.3f}' for v in fr['base_in_device_rpy_deg'])} deg; marker "
+            f"({fr['marker']}) {', '.join(f'{v:.2f}' for v in fr['marker_xyz_mm'])} mm in "
+            f"the tool frame; std errors: {std}"]
+
+
+def _add_lines(result: ValidationResult) -> list[str]:
+    """Before/after of --add."""
+    if result.add is None:
+        return []
+    ad = result.add
+    out = ["added and re-identified:", f"  {'model':<60} {'held-out RMS':>13} {'RMS':>9}"]
+    for cv, rms in ((ad.before, ad.rms_before), (ad.after, ad.rms_after)):
+        out.append(f"  {', '.join(cv.labels):<60} {cv.heldout_rms * 1e3:10.4g} mm "
+                   f"{rms * 1e3:6.4g} mm")
+    out += [f"  not fitted: {s.label}: {s.reason}" for s in ad.not_added]
+    return out
+
+
+def _explains(c: Candidate) -> str:
+    """What a candidate does to the held-out error, in words (never 'explains -4.4 %')."""
+    if c.explained_fraction <= 0:
+        return f"explains nothing (held-out error {-100 * c.explained_fraction:.1f} % worse)"
+    return f"explains {100 * c.explained_fraction:5.1f} %"
+
+
+def _candidate_lines(result: ValidationResult) -> list[str]:
+    """The best candidates and the clear parameters of the first."""
+    dg = result.diagnosis
+    if not dg.candidates:
+        return []
+    out = ["best candidates (held-out RMS after adding):"]
+    for c in dg.candidates[:5]:
+        flag = "significant" if c.significant else "not significant"
+        if not c.plausible:
+            flag += f"; implausible: {c.implausible}"
+        out.append(f"  {c.label:<34} {c.rms_after * 1e3:8.4g} mm  {_explains(c)}  ({flag})")
+    top = dg.candidates[0]
+    robot = result.model.robot
+    clear = _clear_params(top, robot.joint_names, list(robot.prismatic))
+    if clear:
+        out.append(f"  {top.label} parameters beyond 2 standard errors: {clear}")
+    return out
+
+
 def _print_summary(
     result: ValidationResult, files: ReportFiles | None, saved: Path | None
 ) -> None:
     dg = result.diagnosis
-    out = sys.stdout
-    noise = "unknown" if dg.noise.sigma is None else f"{dg.noise.sigma * 1e3:.4g} mm"
-    print(f"robot {result.robot}, {result.analysis.n_samples} samples ({result.dialect}; "
-          f"positions in the {'device' if result.setup else 'base'} frame), effects: "
-          f"{', '.join(result.model.labels)}", file=out)
-    print(f"RMS {result.rms * 1e3:.4g} mm (3-D {result.rms_3d * 1e3:.4g} mm), held-out RMS "
-          f"{dg.heldout_rms * 1e3:.4g} mm, noise floor {noise} ({dg.noise.source})", file=out)
-    nf = dg.noise
-
-    def _mm(v: float | None) -> str:
-        return "unknown" if v is None else f"{v * 1e3:.3g} mm"
-
-    fnoise = "unknown" if nf.force_noise is None else f"{nf.force_noise:.3g} N"
-    print(f"  floor parts: measuring device {_mm(nf.device_sigma)}, force sensor "
-          f"{_mm(nf.force_sigma)} (force noise {fnoise}, {nf.force_noise_source})", file=out)
-    if result.device_frame is not None and result.setup is not None:
-        from rfsw_plan.validation.workbench import device_frame_json
-
-        fr = device_frame_json(result.device_frame, result.setup)
-        std = ", ".join(f"{k} {v:.3g}" for k, v in fr["std"].items()) or "held, no fit"
-        print(f"device frame ({fr['registration']}): base origin in the device frame "
-              f"{', '.join(f'{v:.2f}' for v in fr['base_in_device_xyz_mm'])} mm, rpy "
-              f"{', '.join(f'{v:.3f}' for v in fr['base_in_device_rpy_deg'])} deg; marker "
-              f"({fr['marker']}) {', '.join(f'{v:.2f}' for v in fr['marker_xyz_mm'])} mm in "
-              f"the tool frame; std errors: {std}", file=out)
-    if result.add is not None:
-        ad = result.add
-        print("added and re-identified:", file=out)
-        print(f"  {'model':<60} {'held-out RMS':>13} {'RMS':>9}", file=out)
-        for cv, rms in ((ad.before, ad.rms_before), (ad.after, ad.rms_after)):
-            print(f"  {', '.join(cv.labels):<60} {cv.heldout_rms * 1e3:10.4g} mm "
-                  f"{rms * 1e3:6.4g} mm", file=out)
-        for s in ad.not_added:
-            print(f"  not fitted: {s.label}: {s.reason}", file=out)
-    print(f"verdict: {dg.message}", file=out)
-    if dg.candidates:
-        print("best candidates (held-out RMS after adding):", file=out)
-        for c in dg.candidates[:5]:
-            flag = "significant" if c.significant else "not significant"
-            print(f"  {c.label:<34} {c.rms_after * 1e3:8.4g} mm  explains "
-                  f"{100 * c.explained_fraction:5.1f} %  ({flag})", file=out)
-        top = dg.candidates[0]
-        robot = result.model.robot
-        clear = _clear_params(top, robot.joint_names, list(robot.prismatic))
-        if clear:
-            print(f"  {top.label} parameters beyond 2 standard errors: {clear}", file=out)
+    lines = [f"robot {result.robot}, {result.analysis.n_samples} samples ({result.dialect}; "
+             f"positions in the {'device' if result.setup else 'base'} frame), effects: "
+             f"{', '.join(result.model.labels)}",
+             *_floor_lines(result), *_frame_line(result), *_add_lines(result),
+             f"verdict: {dg.message}", *_candidate_lines(result)]
     if dg.skipped:
-        print("not identifiable from this data: "
-              + ", ".join(s.label for s in dg.skipped), file=out)
+        lines.append("not identifiable from this data: " + ", ".join(s.label for s in dg.skipped))
     if files is not None:
-        print(f"report: {files.html}  json: {files.json}", file=out)
+        lines.append(f"report: {files.html}  json: {files.json}")
     if saved is not None:
-        print(f"wrote robot description {saved}", file=out)
+        lines.append(f"wrote robot description {saved}")
+    print("\n".join(lines))

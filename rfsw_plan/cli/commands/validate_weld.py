@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
+    from rfsw_plan.validation.scoring import Candidate
+    from rfsw_plan.validation.weld import WeldValidation
 
 NAME = "validate-weld"
 HELP = ("compare a trial weld's measured track with the plan's predicted pin path, diagnose "
@@ -66,95 +67,65 @@ _STAGES = ("reading the plan, track and forces", "diagnosis", "plots and report"
 
 
 def _run(args: argparse.Namespace, stages: Stages) -> int:
-    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.exceptions import InputError
-    from rfsw_plan.files import OutputLock, prepare_output_dir, prepare_output_file
-    from rfsw_plan.io.force_series import read_force_series
-    from rfsw_plan.io.weld_track import read_weld_track
-    from rfsw_plan.robot.description import derived_description, save_robot_description
-    from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.validation.weld import next_command, read_plan_dir, validate_weld
-    from rfsw_plan.validation.weld_report import write_weld_report
+    from rfsw_plan.files import prepare_output_dir, prepare_output_file, strict_json
+    from rfsw_plan.validation.commands import run_validate_weld
 
-    if args.save_robot and not args.add:
-        raise InputError("--save-robot", args.save_robot, "given without --add",
-                         "--add EFFECT --save-robot NEW.toml (the weld re-identifies only what "
-                         "you add)")
     if args.blocks < 2:
         raise InputError("--blocks", "", f"{args.blocks}", "at least 2")
-    out = prepare_output_dir(args.output or Path(args.plan_dir) / "validate_weld")
     if args.name is not None and not args.save_robot:
         raise InputError("--name", args.name, "given without --save-robot",
                          "--save-robot NEW.toml --name NAME")
+    out = prepare_output_dir(args.output or Path(args.plan_dir) / "validate_weld")
     save = prepare_output_file(args.save_robot, "--save-robot") if args.save_robot else None
-    record = read_plan_dir(args.plan_dir, args.problem)
-    track = read_weld_track(args.track)
-    series = read_force_series(args.forces, args.forces_frame) if args.forces else None
-    if args.forces_frame and not args.forces:
-        raise InputError("--forces-frame", "", "given without --forces", "--forces LOG.csv")
-    model = ElastostaticModel(load_robot(args.robot or record.problem.robot))
-    with OutputLock(out):
-        stages.start("diagnosis")
-        result = validate_weld(record, track, series, model, add=args.add, blocks=args.blocks)
-        saved = None
-        if save is not None and result.add is not None:
-            a = result.add
-            note = (f"re-identified by rfsw-plan validate-weld from {args.track} (plan "
-                    f"{args.plan_dir}): {', '.join(a.labels)}; lateral RMS "
-                    f"{a.rms_before * 1e3:.4g} -> {a.rms_after * 1e3:.4g} mm")
-            # The same compact, provenance-carrying writer as validate --save-robot.
-            desc = derived_description(
-                a.model.to_description(note), name=args.name,
-                parent=model.robot.description.path, data=args.track,
-                command="rfsw-plan validate-weld", added=tuple(a.labels), forces=args.forces)
-            saved = save_robot_description(desc, save)
-        nxt = next_command(result, args.plan_dir, args.track, args.forces, saved)
-        stages.start("plots and report")
-        files = write_weld_report(result, out, nxt, {"saved_robot": str(saved) if saved else None})
-    if args.json:
-        data = json.loads(files.json.read_text())
+    run_ = run_validate_weld(
+        args.plan_dir, args.track, out, forces=args.forces, forces_frame=args.forces_frame,
+        problem=args.problem, robot=args.robot, add=args.add, save_robot=save, name=args.name,
+        blocks=args.blocks, on_stage=stages.start)
+    if args.json:  # validate_weld.json without the samples
+        data = json.loads(run_.files.json.read_text())
         data.pop("samples", None)
-        print(json.dumps(data, indent=2))
+        print(strict_json(data), end="")
         return 0
-    _print(result, files.html, saved, nxt)
+    _print(run_.result, run_.files.html, run_.saved, run_.next)
     return 0
 
 
-def _print(result: object, html: Path, saved: Path | None, nxt: str) -> None:
-    from rfsw_plan.validation.weld import WeldValidation
+def _candidate_line(c: Candidate, best: Candidate | None) -> str:
+    k = c.stiffness_scale
+    return (f"  {c.label:<32} {c.rms_after * 1e3:8.4f} mm  "
+            f"{'significant' if c.significant else 'not significant'}"
+            f"{'' if c.identifiable else ', not identifiable alone'}"
+            f"{'' if k is None else f' stiffness x{k:.3f}'}"
+            f"{'' if c.plausible else f', IMPLAUSIBLE ({c.implausible})'}"
+            f"{'  <- named' if best is not None and c.label == best.label else ''}")
 
-    assert isinstance(result, WeldValidation)
-    r = result
+
+def _print(r: WeldValidation, html: Path, saved: Path | None, nxt: str) -> None:
     dg = r.diagnosis
     js = r.to_json()
-    out = sys.stdout
-    print(f"{r.plan.problem.name}: track {r.track.s.size} points over s = "
-          f"{r.track.overlap[0] * 1e3:.1f}..{r.track.overlap[1] * 1e3:.1f} mm of "
-          f"{r.track.seam_length * 1e3:.1f} mm ({r.track.gaps} gaps), forces: "
-          f"{r.forces_source}", file=out)
     rl = js["residual_lat"]
-    print(f"measured inside the window {100 * js['measured_inside_window_fraction']:.1f} % "
-          f"(predicted {100 * js['predicted_inside_window_fraction']:.1f} %); lateral "
-          f"residual RMS {rl['rms_mm']:.4f} mm, max {rl['max_abs_mm']:.4f} mm, noise floor "
-          f"{dg.sigma * 1e3:.4f} mm", file=out)
-    print(f"verdict: {dg.message}", file=out)
-    print(dg.identifiability.text(), file=out)
+    lines = [
+        f"{r.plan.problem.name}: track {r.track.s.size} points over s = "
+        f"{r.track.overlap[0] * 1e3:.1f}..{r.track.overlap[1] * 1e3:.1f} mm of "
+        f"{r.track.seam_length * 1e3:.1f} mm ({r.track.gaps} gaps), forces: {r.forces_source}",
+        f"measured inside the window {100 * js['measured_inside_window_fraction']:.1f} % "
+        f"(predicted {100 * js['predicted_inside_window_fraction']:.1f} %); lateral "
+        f"residual RMS {rl['rms_mm']:.4f} mm, max {rl['max_abs_mm']:.4f} mm, noise floor "
+        f"{dg.sigma * 1e3:.4f} mm",
+        f"verdict: {dg.message}",
+        dg.identifiability.text(),
+    ]
     if dg.candidates:
-        print("best candidates (held-out RMS over blocks of s):", file=out)
-        for c in dg.candidates[:6]:
-            k = c.stiffness_scale
-            extra = f" stiffness x{k:.3f}" if k is not None else ""
-            print(f"  {c.label:<32} {c.rms_after * 1e3:8.4f} mm  "
-                  f"{'significant' if c.significant else 'not significant'}"
-                  f"{'' if c.identifiable else ', not identifiable alone'}{extra}"
-                  f"{'' if c.plausible else ', IMPLAUSIBLE: ' + c.implausible}", file=out)
+        lines.append("best candidates (held-out RMS over blocks of s, lowest first):")
+        lines += [_candidate_line(c, dg.best) for c in dg.candidates[:6]]
     if r.add is not None:
         a = r.add
-        print(f"added {', '.join(a.labels)}: lateral+normal RMS {a.rms_before * 1e3:.4f} -> "
-              f"{a.rms_after * 1e3:.4f} mm (held-out {a.heldout_after * 1e3:.4f} mm)", file=out)
-    for n in r.notes:
-        print(f"note: {n}", file=out)
+        lines.append(f"added {', '.join(a.labels)}: lateral+normal RMS "
+                     f"{a.rms_before * 1e3:.4f} -> {a.rms_after * 1e3:.4f} mm (held-out "
+                     f"{a.heldout_after * 1e3:.4f} mm)")
+    lines += [f"note: {n}" for n in r.notes]
     if saved is not None:
-        print(f"wrote robot {saved}", file=out)
-    print(f"report: {html}", file=out)
-    print(f"next: {nxt}", file=out)
+        lines.append(f"wrote robot {saved}")
+    lines += [f"report: {html}", f"next: {nxt}"]
+    print("\n".join(lines))

@@ -1,0 +1,73 @@
+"""A re-identified robot written as a new robot file, with its provenance.
+
+The one writer behind ``identify -o``, ``validate --save-robot`` and
+``validate-weld --save-robot``: device-frame set-up effects are folded into the file's
+``[device_frame]`` table, the robot gets a new name (the parent's plus what was added, e.g.
+``zk500+payload_gravity``) and a ``[provenance]`` table (parent file, data file and its
+SHA-256, the command, the date).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from rfsw_plan.elastostatics.identification import ParameterEstimate
+from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.registration import DeviceSetup
+from rfsw_plan.robot.description import (
+    RobotDescription,
+    derived_description,
+    save_robot_description,
+)
+
+
+def added_effects(model: ElastostaticModel, parent: RobotDescription) -> tuple[str, ...]:
+    """Labels of the robot effects of ``model`` that the parent robot file does not have
+    (set-up effects left out)."""
+    before = {e.name for e in parent.effects}
+    return tuple(e.label for e in model.effects[1:] if not e.setup and e.label not in before)
+
+
+def save_derived_robot(
+    model: ElastostaticModel, path: str | Path, *, parent: RobotDescription, note: str,
+    data: str | Path, command: str, name: str | None = None,
+    added: Sequence[str] | None = None, forces: str | Path | None = None,
+    setup: DeviceSetup | None = None, estimates: Sequence[ParameterEstimate] = (),
+    device_note: str | None = None,
+) -> Path:
+    """Write ``model`` as a robot description TOML derived from ``parent``.
+
+    Args:
+        model: The re-identified model (with its set-up effects for device-frame data).
+        path: The new robot file.
+        parent: The robot file it was derived from.
+        note: Where the stiffness values come from (the file's ``sources``).
+        data: The measurement file (or weld track) it was identified on.
+        command: The command that made it.
+        name: The new robot name (default: the parent's plus the added effects).
+        added: What was added (default: :func:`added_effects`).
+        forces: The force log, for a weld.
+        setup: The device set-up of device-frame data: its effects go into ``[device_frame]``.
+        estimates: The identification's estimates (to fold the set-up effects).
+        device_note: Where a fitted registration comes from (``sources.device_frame``).
+
+    Returns:
+        The path written.
+    """
+    if setup is None:
+        desc = model.to_description(note)
+        robot_model = model
+    else:
+        robot_model, frame = setup.fold(model, tuple(estimates))
+        desc = replace(robot_model.to_description(note), device_frame=frame)
+        if device_note and (setup.fit_registration or setup.fit_marker):
+            desc.sources["device_frame"] = device_note
+    added = tuple(added) if added is not None else added_effects(robot_model, parent)
+    desc = derived_description(desc, name=name, parent=parent.path, data=data, command=command,
+                               added=added, forces=forces)
+    return save_robot_description(desc, path)
+
+
+__all__ = ["added_effects", "save_derived_robot"]
