@@ -104,8 +104,11 @@ class IdentificationResult:
 
 
 def predicted_positions(model: ElastostaticModel, data: MeasurementSet) -> FloatArray:
-    """Predicted loaded TCP positions for every sample [m], base frame, shape (m, 3)."""
-    return model.predict_position(data.q, data.wrench)
+    """Predicted loaded TCP positions for every sample [m], base frame, shape (m, 3), with the
+    samples' history (:meth:`ElastostaticModel.batch_of`)."""
+    batch = model.batch_of(data)
+    out: FloatArray = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
+    return out
 
 
 def residuals(model: ElastostaticModel, data: MeasurementSet) -> FloatArray:
@@ -368,7 +371,7 @@ def build_identification(
             f"{data.source}: {n_obs} measured values cannot identify {prior.size} parameters "
             f"({', '.join(labels)}); need at least {prior.size} (better {3 * prior.size})"
         )
-    batch = work.batch(data.q)
+    batch = work.batch_of(data)
     # Positions are linear in theta when every free effect is a linear compliance or
     # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
     linear = all(e.pose_linear_in_params() for e in effects)

@@ -64,8 +64,7 @@ def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseB
         got = []
         for a in range(0, len(batch), size):
             s = slice(a, min(a + size, len(batch)))
-            got.append((s, PoseBatch(batch.robot, batch.q[s], batch.T[s], batch.J[s],
-                                     batch.frames[s])))
+            got.append((s, batch.rows(s)))
         batch.cache[key] = got
     return got
 

@@ -223,7 +223,7 @@ def cross_validate(
             f"{min_samples(n_par, data, k)} samples"
         )
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     if data.rotation is not None:
         return _cross_validate_stacked(model, data, folds, batch, min_train)
     try:
@@ -710,7 +710,7 @@ def diagnose(
     """
     t0 = time.perf_counter()
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     fold = make_folds(data, folds, seed)
     if base is None:
         base = cross_validate(model, data, fold, batch)

@@ -250,7 +250,7 @@ def validate(
                          f"data has {data.n_joints} joints but robot {model.robot.name} has "
                          f"{model.robot.nq}", f"{model.robot.nq} joint columns")
     labels = check_effect_labels(model, add)
-    batch = model.batch(data.q)
+    batch = model.batch_of(data, force_noise_n)
     pred = predicted_positions(model, batch, data.wrench)
     residual0 = np.where(data.measured, data.position - pred, np.nan)
     noise = estimate_noise_floor(data, residual0, noise_m, model=model,

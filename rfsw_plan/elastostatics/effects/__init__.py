@@ -27,6 +27,7 @@ from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
 from rfsw_plan.elastostatics.effects.joint_backlash import JointBacklash
 from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
 from rfsw_plan.elastostatics.effects.kinematic_offsets import KinematicOffsets
+from rfsw_plan.elastostatics.effects.lost_motion import LostMotion
 from rfsw_plan.elastostatics.effects.payload_gravity import PayloadGravity
 from rfsw_plan.elastostatics.effects.sensor_misalignment import SensorMisalignment
 from rfsw_plan.elastostatics.effects.tilting_compliance import TiltingCompliance
@@ -40,7 +41,7 @@ for _module in pkgutil.iter_modules(__path__):
 #: The library's order (the base model first, then compliance, wrench and geometric effects)
 #: for listings; effects of other files follow in the order they registered.
 _LIBRARY = (JointCompliance, ComplementaryStiffness, TiltingCompliance, TorqueDependentStiffness,
-            JointBacklash, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
+            JointBacklash, LostMotion, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
             DeviceRegistration, MarkerOffset)
 _others = {k: v for k, v in EFFECTS.items() if v not in _LIBRARY}
 EFFECTS.clear()
@@ -91,6 +92,7 @@ __all__ = [
     "JointBacklash",
     "JointCompliance",
     "KinematicOffsets",
+    "LostMotion",
     "MarkerOffset",
     "PayloadGravity",
     "PoseBatch",

@@ -78,6 +78,15 @@ class PoseBatch:
         T: TCP poses in the base frame [m], shape (m, 4, 4).
         J: TCP Jacobians (base frame, wrt controller joints), shape (m, 6, n).
         frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4).
+        approach: Direction each joint last moved in before reaching the sample, shape
+            (m, n): +1, -1, or 0 (unknown: the first sample, or no motion yet). None when
+            the samples carry no history (a planned path): effects that need it take 0.
+            See :mod:`rfsw_plan.elastostatics.approach`.
+        force_noise: 1-sigma noise of the logged force per axis [N] that the wrench of
+            these samples carries: 0 for a modelled wrench (planning) or an unknown noise,
+            ``inf`` for measured data without force readings (no force sensor: the load on
+            a joint is not measured at all). Effects that switch on the sign of a torque use
+            it for the threshold below which the sign is not known.
         cache: Wrench-independent quantities derived from the poses by effects, keyed by
             the effect's name (e.g. the complementary-stiffness basis), so that repeated
             evaluations on the same batch (identification iterations) compute them once.
@@ -89,14 +98,24 @@ class PoseBatch:
     T: FloatArray
     J: FloatArray
     frames: FloatArray
+    approach: FloatArray | None = None
+    force_noise: float = 0.0
     cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
-    def from_q(cls, robot: Robot, q: FloatArray) -> PoseBatch:
-        """Evaluate kinematics for joint values [rad], shape (m, n) or (n,)."""
+    def from_q(cls, robot: Robot, q: FloatArray, approach: FloatArray | None = None,
+               force_noise: float = 0.0) -> PoseBatch:
+        """Evaluate kinematics for joint values [rad], shape (m, n) or (n,), with the
+        samples' approach directions (m, n) and force noise [N] (see the attributes)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
         T, J, frames = robot.batch_fk_jacobian_frames(Q)
-        return cls(robot, Q, T, J, frames)
+        return cls(robot, Q, T, J, frames, approach, force_noise)
+
+    def rows(self, s: slice) -> PoseBatch:
+        """The samples ``s`` as a new batch (its own, empty cache)."""
+        return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
+                         None if self.approach is None else self.approach[s],
+                         self.force_noise)
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
