@@ -41,8 +41,8 @@ for _module in pkgutil.iter_modules(__path__):
 #: The library's order (the base model first, then compliance, wrench and geometric effects)
 #: for listings; effects of other files follow in the order they registered.
 _LIBRARY = (JointCompliance, ComplementaryStiffness, TiltingCompliance, TorqueDependentStiffness,
-            JointBacklash, LostMotion, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
-            DeviceRegistration, MarkerOffset)
+            JointBacklash, LostMotion, PayloadGravity, SensorMisalignment, ForceSensorBias,
+            KinematicOffsets, DeviceRegistration, MarkerOffset)
 _others = {k: v for k, v in EFFECTS.items() if v not in _LIBRARY}
 EFFECTS.clear()
 EFFECTS.update({cls.name: cls for cls in _LIBRARY} | _others)

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
@@ -85,11 +86,13 @@ class LostMotion(ComplianceEffect):
             return np.full(len(batch), np.inf)
         return np.maximum(K_SIGMA * batch.force_noise * lever, TAU_ROUND_NM)
 
-    def sides(self, batch: PoseBatch, wrench: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def sides(
+        self, batch: PoseBatch, wrench: FloatArray
+    ) -> tuple[FloatArray, NDArray[np.bool_]]:
         """(side s in {-1, 0, +1}, True where the torque decides), each shape (m,)."""
         assert self.joint is not None
         tau = self.joint_torque(batch, wrench)
-        loaded = np.abs(tau) > self.threshold(batch)
+        loaded: NDArray[np.bool_] = np.abs(tau) > self.threshold(batch)
         a = (np.zeros(len(batch)) if batch.approach is None
              else batch.approach[:, self.joint])
         return np.where(loaded, np.sign(tau), -a), loaded
