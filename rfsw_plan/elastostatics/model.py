@@ -26,6 +26,7 @@ from rfsw_plan.elastostatics.effects import (
 )
 from rfsw_plan.elastostatics.effects.base import FloatArray, WrenchToPose
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
+from rfsw_plan.elastostatics.plugins import load_plugin, plugins_of
 from rfsw_plan.elastostatics.springs import (
     JointSprings,
     SpringChain,
@@ -51,6 +52,8 @@ def _description_effects(robot: Robot) -> list[Effect]:
             its physical range (``effects[2].params.c_t1``).
     """
     desc = robot.description
+    for i, plugin in enumerate(desc.plugins, start=1):
+        load_plugin(plugin, f"{desc.path or desc.name}: effect_plugins[{i}]")
     out: list[Effect] = []
     for i, spec in enumerate(desc.effects, start=1):
         try:
@@ -383,7 +386,7 @@ class ElastostaticModel:
         out = desc.with_stiffness(k, source_note or desc.sources.get("stiffness", ""))
         specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:]
                       if not e.setup)
-        return replace(out, effects=specs)
+        return replace(out, effects=specs, plugins=plugins_of(e.name for e in self.effects))
 
 
 def load_model(robot: Robot | RobotDescription | str) -> ElastostaticModel:
