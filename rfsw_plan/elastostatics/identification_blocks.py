@@ -23,7 +23,7 @@ Only ordinary least squares on position rows is done here (what the diagnosis sc
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,7 +32,9 @@ from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.identification import (
     IdentificationResult,
+    Plausibility,
     build_result,
+    implausible,
     mark_collinear,
     mark_invisible,
     position_jacobian,
@@ -51,6 +53,9 @@ _CHUNKS_KEY = "_blocks"
 #: kept in the blocks across the passes of one fit; beyond it a block's cache is dropped after
 #: its pass and recomputed on the next (10^6 samples would otherwise keep 1.7 GB).
 CACHE_BUDGET_BYTES = 128 * 2**20
+#: Passes that set the prior's weight of regularised parameters from the residual noise of
+#: the previous pass (the first pass has no prior; the weight settles within a few passes).
+PRIOR_PASSES = 3
 
 
 def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseBatch]]:
@@ -119,18 +124,43 @@ class FoldFactors:
 
     R: FloatArray
     n_obs: NDArray[np.int_]
+    prior: FloatArray | None = None
 
     @property
     def total(self) -> FloatArray:
-        """Factor of all folds together, shape (P + 1, P + 1)."""
-        return _qr_r(self.R.reshape(-1, self.R.shape[2]), self.R.shape[2])
+        """Factor of all folds together (and the prior rows), shape (P + 1, P + 1)."""
+        return _qr_r(self.training(None), self.R.shape[2])
+
+    def training(self, held: int | None) -> FloatArray:
+        """Rows of every fold but ``held`` (None: all) and the prior rows, stacked."""
+        keep = self.R if held is None else self.R[np.arange(len(self.R)) != held]
+        rows = keep.reshape(-1, self.R.shape[2])
+        return rows if self.prior is None else np.vstack([rows, self.prior])
+
+    @property
+    def data_sse(self) -> float:
+        """Sum of squared residuals of the observations (the prior rows left out) [m^2]."""
+        return float(np.sum(self.R[:, :, -1] ** 2))
 
     def shifted(self, delta: FloatArray) -> FoldFactors:
         """Factors at theta + delta of a model linear in theta: r -> r - A delta."""
         P = self.R.shape[2] - 1
         M = np.eye(P + 1)
         M[:P, P] = -delta
-        return FoldFactors(self.R @ M, self.n_obs)
+        return FoldFactors(self.R @ M, self.n_obs, None if self.prior is None else self.prior @ M)
+
+
+def prior_rows(weights: FloatArray, prior: FloatArray, theta: FloatArray) -> FloatArray | None:
+    """The Gaussian prior of the regularised parameters as rows of [A | r]: for each k with
+    weight w_k > 0, A = w_k e_k and r = w_k (prior_k - theta_k) [m]; None if there is none.
+    Shape (p, P + 1)."""
+    sel = np.flatnonzero(weights > 0)
+    if not sel.size:
+        return None
+    out = np.zeros((sel.size, prior.size + 1))
+    out[np.arange(sel.size), sel] = weights[sel]
+    out[:, -1] = weights[sel] * (prior[sel] - theta[sel])
+    return out
 
 
 def _rows(
@@ -253,15 +283,17 @@ def identify_blocks(
     setup = np.array([any(e.label == lab and e.setup for e in effects) for lab, _ in names],
                      dtype=bool)
     mark_invisible(names, free, notes, scale, R0[:, :P], n_obs)
-    mark_collinear(names, free, notes, setup, R0[:, :P])
+    bounds = Plausibility.of(effects)
+    mark_collinear(names, free, notes, setup, R0[:, :P], bounds.regularised)
 
     ff = ff0
+    weights = np.zeros(P)  # prior rows of the regularised parameters (none on the first pass)
 
     def at(theta: FloatArray) -> FoldFactors:
         set_theta(effects, theta)
-        if linear:
-            return ff0.shifted(theta - prior)
-        return fold_factors(work, effects, data, batch, folds, k)
+        got = ff0.shifted(theta - prior) if linear else fold_factors(
+            work, effects, data, batch, folds, k)
+        return replace(got, prior=prior_rows(weights, prior, theta))
 
     def gauss_newton(theta: FloatArray, ff: FoldFactors) -> tuple[FloatArray, FoldFactors,
                                                                    int, bool]:
@@ -297,20 +329,21 @@ def identify_blocks(
                                   "(values out of range in the data?)")
     set_theta(effects, theta)
 
-    R = ff.total
-    idx = np.flatnonzero(free)
-    sse = float(np.sum(R[:, P] ** 2))
-    dof = max(n_obs - idx.size, 1)
-    std = np.full(P, np.nan)
-    cond = float("nan")
-    if idx.size:
-        Aw = R[:, idx]
-        colscale = np.linalg.norm(Aw, axis=0)
-        colscale[colscale == 0] = 1.0
-        An = Aw / colscale
-        cond = float(np.linalg.cond(An))
-        cov_n = np.linalg.pinv(An.T @ An)
-        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * sse / dof) / colscale
+    if bounds.regularised.any():  # the prior's weight against the observations' noise
+        for _ in range(PRIOR_PASSES):
+            weights = bounds.prior_weights(np.sqrt(ff.data_sse / max(n_obs - free.sum(), 1)))
+            theta, ff, iterations, converged = gauss_newton(theta, at(theta))
+    std, cond = _standard_errors(ff, free, n_obs)
+    while (drop := implausible(theta, std, free, bounds)) is not None:
+        i, notes[i] = drop  # what the data does not plausibly identify keeps its prior
+        free[i] = False
+        theta[i] = prior[i]
+        ff = at(theta)
+        theta, ff, iterations, converged = gauss_newton(theta, ff)
+        set_theta(effects, theta)
+        std, cond = _standard_errors(ff, free, n_obs)
+    sse = ff.data_sse
+    dof = max(n_obs - int(free.sum()), 1)
     result = build_result(
         model=work, effects=effects, names=names, prior=prior, theta=theta, free=free,
         notes=notes, std=std, cond=cond, rms_before=rms_before,
@@ -319,6 +352,29 @@ def identify_blocks(
         method="ols",
     )
     return BlockFit(result, ff)
+
+
+def _standard_errors(ff: FoldFactors, free: np.ndarray, n_obs: int
+                     ) -> tuple[FloatArray, float]:
+    """Standard errors of the free parameters (NaN for the others) [SI], shape (P,), from the
+    factor of [A | r] with the prior rows (a posterior error for regularised parameters) and
+    the observations' residual variance, and the condition number of the column-normalised
+    regressor."""
+    R = ff.total
+    P = free.size
+    idx = np.flatnonzero(free)
+    sse = ff.data_sse
+    dof = max(n_obs - idx.size, 1)
+    std = np.full(P, np.nan)
+    if not idx.size:
+        return std, float("nan")
+    Aw = R[:, idx]
+    colscale = np.linalg.norm(Aw, axis=0)
+    colscale[colscale == 0] = 1.0
+    An = Aw / colscale
+    cov_n = np.linalg.pinv(An.T @ An)
+    std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * sse / dof) / colscale
+    return std, float(np.linalg.cond(An))
 
 
 def heldout_blocks(
@@ -364,7 +420,7 @@ def heldout_steps(factors: FoldFactors, idx: NDArray[np.int_]) -> tuple[FloatArr
     steps = np.zeros((k, idx.size))
     sse = 0.0
     for f in range(k):
-        train = R[np.arange(k) != f][:, :, cols].reshape(-1, cols.size)
+        train = factors.training(f)[:, cols]
         steps[f] = _step(_qr_r(train, cols.size), np.arange(idx.size))
         sse += float(np.sum((R[f][:, cols] @ np.append(-steps[f], 1.0)) ** 2))
     return steps, sse

@@ -149,6 +149,18 @@ class Effect(abc.ABC):
     #: not listed only have to be finite and within +-PARAM_LIMIT. Checked by
     #: :meth:`check_params` on effects read from a robot file.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    #: Largest |value| of each parameter [SI] that a real robot plausibly shows, keyed like
+    #: :attr:`param_ranges` (a link error of 5 mm is not a calibration, a joint 1000x softer
+    #: than any gear is a stand-in for another effect). Identification keeps a parameter only
+    #: where its standard error is below half this size and its estimate within it (see
+    #: :func:`rfsw_plan.elastostatics.identification.implausible`); parameters not listed
+    #: are not checked.
+    plausible_limits: ClassVar[Mapping[str, float]] = {}
+    #: True if the effect is a full parameter set of which the data identifies combinations
+    #: only (a full geometric calibration): its parameters then get a Gaussian prior of
+    #: mean :meth:`prior` and 1-sigma half their plausible size (a maximum a posteriori fit;
+    #: FIGAROH regularises its ``full_params`` calibration the same way).
+    regularised: ClassVar[bool] = False
     #: SI unit of each parameter, keyed like :attr:`param_ranges` (``"rad/(N m)"`` for a
     #: compliance); reports use it to show engineering units beside the SI value.
     param_units: ClassVar[Mapping[str, str]] = {}
@@ -219,6 +231,11 @@ class Effect(abc.ABC):
         """Physically possible range (lo, hi) of parameter ``name`` [SI]."""
         return tuple(self.param_ranges.get(name.rstrip("0123456789"),  # type: ignore[return-value]
                                            (-PARAM_LIMIT, PARAM_LIMIT)))
+
+    def plausible_limit(self, name: str) -> float | None:
+        """Largest plausible |value| of parameter ``name`` [SI], or None (not checked)."""
+        return self.plausible_limits.get(
+            name, self.plausible_limits.get(name.rstrip("0123456789")))
 
     def param_unit(self, name: str) -> str:
         """SI unit of parameter ``name`` (empty if dimensionless or not declared)."""
