@@ -38,6 +38,9 @@ log = logging.getLogger(__name__)
 SENSITIVITY_FLOOR_M = 1e-9
 #: Relative singular value below which normalised regressor columns are called collinear.
 COLLINEARITY_TOL = 1e-7
+#: Passes that set the prior's weight of regularised parameters from the residual noise of
+#: the previous pass (the first pass has no prior; the weight settles within a few passes).
+PRIOR_PASSES = 3
 
 
 @dataclass(frozen=True)
@@ -197,6 +200,9 @@ class IdentificationProblem:
         row_scale: Weight of each observation row, shape (mask.shape[1],): 1 for positions and
             sigma_position / sigma_rotation [m/rad] for orientation rows (their own noise
             level, estimated from the prior model's residual of each block).
+        prior_weight: Weight of the Gaussian prior row w_k (theta_k - prior_k) = 0 of each
+            parameter [m per SI unit], shape (P,) (0: none; see :attr:`Effect.regularised`),
+            or None.
     """
 
     model: ElastostaticModel
@@ -214,6 +220,7 @@ class IdentificationProblem:
     method: str
     rms_before: float
     row_scale: FloatArray = field(default_factory=lambda: np.ones(3))
+    prior_weight: FloatArray | None = None
 
     @property
     def rows(self) -> int:
@@ -250,6 +257,15 @@ class IdentificationProblem:
     def theta(self) -> FloatArray:
         """Current parameter vector, shape (P,)."""
         return np.concatenate([e.params for e in self.effects])
+
+    def prior_system(self, idx: NDArray[np.int_]) -> tuple[FloatArray, FloatArray]:
+        """The prior rows restricted to the columns ``idx``: (A (p, idx.size), r (p,)) with
+        A = w_k e_k and r = w_k (prior_k - theta_k) [m]; empty without a prior."""
+        w = np.zeros(self.prior.size) if self.prior_weight is None else self.prior_weight
+        sel = np.flatnonzero(w > 0)
+        A = np.zeros((sel.size, self.prior.size))
+        A[np.arange(sel.size), sel] = w[sel]
+        return A[:, idx], w[sel] * (self.prior[sel] - self.theta()[sel])
 
 
 def mark_invisible(
@@ -483,11 +499,13 @@ def _gauss_newton(
     sw = np.sqrt(weights)
     it, conv = 0, False
     for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
-        A = prob.jacobian()[:, idx] * sw[:, None]
+        Ap, rp = prob.prior_system(idx)
+        A = np.vstack([prob.jacobian()[:, idx] * sw[:, None], Ap])
         colscale = np.linalg.norm(A, axis=0)
         colscale[colscale == 0] = 1.0
         try:
-            step, *_ = np.linalg.lstsq(A / colscale, prob.residual() * sw, rcond=None)
+            step, *_ = np.linalg.lstsq(A / colscale, np.concatenate([prob.residual() * sw, rp]),
+                                       rcond=None)
         except np.linalg.LinAlgError as exc:
             raise IdentificationError(f"{prob.data.source}: least squares failed ({exc})") from None
         step /= colscale
@@ -502,9 +520,15 @@ def _gauss_newton(
 
 
 def solve_identification(
-    prob: IdentificationProblem, max_iter: int = 30, tol: float = 1e-10
+    prob: IdentificationProblem, max_iter: int = 30, tol: float = 1e-10,
+    plausibility: bool = True,
 ) -> IdentificationResult:
     """Solve a built problem (:func:`build_identification`) and estimate the uncertainties.
+
+    With ``plausibility`` (the default) a parameter outside its physical range, beyond its
+    plausible size or with a standard error above half of it keeps its prior
+    (:func:`implausible`); without, only the compliances' positivity is enforced (to see
+    what an unconstrained fit would make of the data, e.g. how soft a joint it wants).
 
     Raises:
         IdentificationError: The solve produced non-finite numbers.
@@ -545,8 +569,15 @@ def solve_identification(
 
     # -- uncertainty, and what the data plausibly identifies ---------------------------------
     bounds = Plausibility.of(prob.effects)
+    if bounds.regularised.any():  # the prior's weight against the observations' noise
+        for _ in range(PRIOR_PASSES):
+            res = prob.residual()
+            prob.prior_weight = bounds.prior_weights(
+                float(np.sqrt(np.sum(w * res**2) / max(n_obs - int(prob.free.sum()), 1))))
+            iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+        theta = prob.theta()
     std, cond = _standard_errors(prob, w)
-    while (drop := implausible(theta, std, prob.free, bounds)) is not None:
+    while plausibility and (drop := implausible(theta, std, prob.free, bounds)) is not None:
         k, prob.notes[k] = drop
         prob.free[k] = False
         theta[k] = prob.prior[k]
@@ -578,7 +609,7 @@ def _standard_errors(prob: IdentificationProblem, w: FloatArray) -> tuple[FloatA
     std = np.full(prob.prior.size, np.nan)
     if not idx.size:
         return std, float("nan")
-    Aw = prob.jacobian()[:, idx] * sw[:, None]
+    Aw = np.vstack([prob.jacobian()[:, idx] * sw[:, None], prob.prior_system(idx)[0]])
     colscale = np.linalg.norm(Aw, axis=0)
     colscale[colscale == 0] = 1.0
     An = Aw / colscale
@@ -646,6 +677,7 @@ def identify(
     free: Sequence[str] | None = None,
     max_iter: int = 30,
     tol: float = 1e-10,
+    plausibility: bool = True,
 ) -> IdentificationResult:
     """Identify the parameters of ``free`` effects (all by default) from measured positions.
 
@@ -661,8 +693,11 @@ def identify(
         free: Labels of the effects to identify; others keep their values.
         max_iter: Gauss-Newton iteration cap.
         tol: Convergence tolerance on the relative parameter step.
+        plausibility: Hold implausible parameters at their prior (see
+            :func:`solve_identification`).
 
     Raises:
         IdentificationError: No measured axis, or fewer observations than free parameters.
     """
-    return solve_identification(build_identification(model, data, method, free), max_iter, tol)
+    return solve_identification(build_identification(model, data, method, free), max_iter, tol,
+                                plausibility)

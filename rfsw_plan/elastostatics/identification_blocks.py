@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.identification import (
+    PRIOR_PASSES,
     IdentificationResult,
     Plausibility,
     build_result,
@@ -53,9 +54,6 @@ _CHUNKS_KEY = "_blocks"
 #: kept in the blocks across the passes of one fit; beyond it a block's cache is dropped after
 #: its pass and recomputed on the next (10^6 samples would otherwise keep 1.7 GB).
 CACHE_BUDGET_BYTES = 128 * 2**20
-#: Passes that set the prior's weight of regularised parameters from the residual noise of
-#: the previous pass (the first pass has no prior; the weight settles within a few passes).
-PRIOR_PASSES = 3
 
 
 def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseBatch]]:
