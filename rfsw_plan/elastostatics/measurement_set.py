@@ -51,6 +51,9 @@ class MeasurementSet:
             -1 or 0 (unknown), computed on the whole recording by the reader (from ``dir_qN``
             columns, the time column or the row order) or None: :meth:`approach_directions`
             then derives it from ``t`` or the row order.
+        load_change: The last change of the logged wrench at the same pose before the sample
+            [N, N m], base frame, shape (m, 6) (:func:`rfsw_plan.elastostatics.approach.
+            load_changes`), computed on the whole recording like ``approach``, or None.
     """
 
     q: FloatArray
@@ -67,6 +70,7 @@ class MeasurementSet:
     dialect: str = ""
     columns: dict[str, str] = field(default_factory=dict)
     approach: FloatArray | None = None
+    load_change: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -98,7 +102,18 @@ class MeasurementSet:
             dialect=self.dialect,
             columns=self.columns,
             approach=None if self.approach is None else self.approach[idx],
+            load_change=None if self.load_change is None else self.load_change[idx],
         )
+
+    def load_changes(self) -> FloatArray:
+        """The last load change at the same pose of every sample [N, N m], shape (m, 6): the
+        stored one, else from ``t`` or the row order of these samples."""
+        from rfsw_plan.elastostatics.approach import change_tolerance, load_changes
+
+        if self.load_change is not None:
+            return self.load_change
+        tol = change_tolerance(self.zero_load_force_noise())
+        return load_changes(self.q, self.wrench, self.t, tol)
 
     def approach_directions(self) -> FloatArray:
         """The approach direction of every joint at every sample, shape (m, n) (see

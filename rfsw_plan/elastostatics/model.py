@@ -156,7 +156,8 @@ class ElastostaticModel:
 
     def batch_of(self, data: MeasurementSet, force_noise: float | None = None) -> PoseBatch:
         """Kinematics of a measurement set's samples with their history: each joint's
-        approach direction (:meth:`MeasurementSet.approach_directions`) and the force noise
+        approach direction (:meth:`MeasurementSet.approach_directions`), the last load change
+        at the same pose (:meth:`MeasurementSet.load_changes`) and the force noise
         of the logged wrench [N] (``force_noise`` if given, else from the zero-load readings;
         ``inf`` when the data logs no force at all, 0 when it cannot be estimated).
         """
@@ -167,7 +168,8 @@ class ElastostaticModel:
         else:
             fn = data.zero_load_force_noise() or 0.0
         b = self.batch(data.q)
-        return replace(b, approach=data.approach_directions(), force_noise=fn)
+        return replace(b, approach=data.approach_directions(), force_noise=fn,
+                       load_change=data.load_changes())
 
     def true_wrench(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""

@@ -28,6 +28,7 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -267,11 +268,12 @@ def read_measurements(
     names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
     extra = _extras(tab, set(names.values()))
     approach = _approach(tab, extra, q, t)
-    return MeasurementSet(
+    data = MeasurementSet(
         q, wrench, position, t, pose_id, sigma, extra,
         str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),
         load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
     )
+    return replace(data, load_change=data.load_changes())
 
 
 def _approach(tab: Table, extra: dict[str, FloatArray], q: FloatArray,

@@ -82,6 +82,8 @@ class PoseBatch:
             (m, n): +1, -1, or 0 (unknown: the first sample, or no motion yet). None when
             the samples carry no history (a planned path): effects that need it take 0.
             See :mod:`rfsw_plan.elastostatics.approach`.
+        load_change: The last change of the logged wrench at the same pose before each
+            sample [N, N m], base frame, shape (m, 6), or None (no history).
         force_noise: 1-sigma noise of the logged force per axis [N] that the wrench of
             these samples carries: 0 for a modelled wrench (planning) or an unknown noise,
             ``inf`` for measured data without force readings (no force sensor: the load on
@@ -100,22 +102,24 @@ class PoseBatch:
     frames: FloatArray
     approach: FloatArray | None = None
     force_noise: float = 0.0
+    load_change: FloatArray | None = None
     cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_q(cls, robot: Robot, q: FloatArray, approach: FloatArray | None = None,
-               force_noise: float = 0.0) -> PoseBatch:
+               force_noise: float = 0.0, load_change: FloatArray | None = None) -> PoseBatch:
         """Evaluate kinematics for joint values [rad], shape (m, n) or (n,), with the
-        samples' approach directions (m, n) and force noise [N] (see the attributes)."""
+        samples' history and force noise [N] (see the attributes)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
         T, J, frames = robot.batch_fk_jacobian_frames(Q)
-        return cls(robot, Q, T, J, frames, approach, force_noise)
+        return cls(robot, Q, T, J, frames, approach, force_noise, load_change)
 
     def rows(self, s: slice) -> PoseBatch:
         """The samples ``s`` as a new batch (its own, empty cache)."""
         return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
                          None if self.approach is None else self.approach[s],
-                         self.force_noise)
+                         self.force_noise,
+                         None if self.load_change is None else self.load_change[s])
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
