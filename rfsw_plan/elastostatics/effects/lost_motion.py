@@ -19,6 +19,20 @@ TAU_ROUND_NM = 1e-6
 MIN_SAMPLES_PER_SIDE = 3
 
 
+def load_torque(batch: PoseBatch, wrench: FloatArray, joint: int) -> FloatArray:
+    """Load torque on a joint, tau = (J^T F + tau_g)[joint] [N m], shape (m,): the true wrench
+    at the TCP (base frame) through the joint's twist, plus the links' own weight when the
+    robot description gives link masses (cached in the batch)."""
+    F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+    tau = np.einsum("ma,ma->m", batch.J[:, :, joint], F)
+    if batch.robot.has_link_masses:
+        if "link_gravity" not in batch.cache:
+            batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
+        tau = tau + batch.cache["link_gravity"][:, joint]
+    out: FloatArray = tau
+    return out
+
+
 class LostMotion(ComplianceEffect):
     """Joint N sits on one flank of its gear play, +b/2 or -b/2 from where its encoder says.
 
@@ -70,13 +84,7 @@ class LostMotion(ComplianceEffect):
     def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
         assert self.joint is not None
-        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-        tau = np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
-        if batch.robot.has_link_masses:
-            if "link_gravity" not in batch.cache:
-                batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
-            tau = tau + batch.cache["link_gravity"][:, self.joint]
-        return tau
+        return load_torque(batch, wrench, self.joint)
 
     def threshold(self, batch: PoseBatch) -> FloatArray:
         """tau_th = K_SIGMA sigma_F l_N [N m], shape (m,) (inf without force readings)."""
