@@ -22,7 +22,7 @@ Only ordinary least squares on position rows is done here (what the diagnosis sc
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -327,19 +327,14 @@ def identify_blocks(
                                   "(values out of range in the data?)")
     set_theta(effects, theta)
 
-    if bounds.regularised.any():  # the prior's weight against the observations' noise
-        for _ in range(PRIOR_PASSES):
-            weights = bounds.prior_weights(np.sqrt(ff.data_sse / max(n_obs - free.sum(), 1)))
-            theta, ff, iterations, converged = gauss_newton(theta, at(theta))
+    def refit(theta: FloatArray) -> tuple[FloatArray, FoldFactors, int, bool]:
+        return gauss_newton(theta, at(theta))
+
+    got = _plausible_fit(_Fit(theta, ff, iterations, converged), free, notes, prior, bounds,
+                         weights, refit, n_obs)
+    theta, ff, iterations, converged = got.theta, got.ff, got.iterations, got.converged
+    set_theta(effects, theta)
     std, cond = _standard_errors(ff, free, n_obs)
-    while (drop := implausible(theta, std, free, bounds)) is not None:
-        i, notes[i] = drop  # what the data does not plausibly identify keeps its prior
-        free[i] = False
-        theta[i] = prior[i]
-        ff = at(theta)
-        theta, ff, iterations, converged = gauss_newton(theta, ff)
-        set_theta(effects, theta)
-        std, cond = _standard_errors(ff, free, n_obs)
     sse = ff.data_sse
     dof = max(n_obs - int(free.sum()), 1)
     result = build_result(
@@ -350,6 +345,44 @@ def identify_blocks(
         method="ols",
     )
     return BlockFit(result, ff)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """Where a Gauss-Newton solve ended: parameters, factors, iterations, converged."""
+
+    theta: FloatArray
+    ff: FoldFactors
+    iterations: int
+    converged: bool
+
+
+def _plausible_fit(
+    fit: _Fit, free: np.ndarray, notes: list[str], prior: FloatArray, bounds: Plausibility,
+    weights: FloatArray, refit: Callable[[FloatArray], tuple[FloatArray, FoldFactors, int, bool]],
+    n_obs: int,
+) -> _Fit:
+    """The prior of the regularised parameters, then what the data plausibly identifies.
+
+    The prior's weight (``weights``, updated in place: the factors' prior rows read it) is set
+    from the residual noise of the previous pass, :data:`PRIOR_PASSES` times; then the
+    parameters :func:`~rfsw_plan.elastostatics.identification.implausible` names keep their
+    prior, one at a time, each followed by a refit. ``free`` and ``notes`` are updated.
+    """
+    if bounds.regularised.any():
+        for _ in range(PRIOR_PASSES):
+            weights[:] = bounds.prior_weights(
+                float(np.sqrt(fit.ff.data_sse / max(n_obs - int(free.sum()), 1))))
+            fit = _Fit(*refit(fit.theta))
+    std, _ = _standard_errors(fit.ff, free, n_obs)
+    while (drop := implausible(fit.theta, std, free, bounds)) is not None:
+        i, notes[i] = drop
+        free[i] = False
+        theta = fit.theta.copy()
+        theta[i] = prior[i]
+        fit = _Fit(*refit(theta))
+        std, _ = _standard_errors(fit.ff, free, n_obs)
+    return fit
 
 
 def _standard_errors(ff: FoldFactors, free: np.ndarray, n_obs: int
