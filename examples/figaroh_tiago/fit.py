@@ -80,14 +80,28 @@ def choose_model(model: ElastostaticModel, train: MeasurementSet) -> ValidationR
     return res
 
 
+def _shown(value: float, std: float, unit: str) -> str:
+    """A value and its standard error in engineering units (mrad, mm, N m/rad)."""
+    if unit == "rad/(N m)":  # a compliance: its stiffness reads better
+        k = 1.0 / value if value > 0 else float("inf")
+        return f"stiffness {k:.3g} +- {std * k * k:.2g} N m/rad"
+    scale, shown = {"rad": (1e3, "mrad"), "m": (1e3, "mm")}.get(unit, (1.0, unit or "SI"))
+    return f"{value * scale:.3g} +- {std * scale:.2g} {shown}"
+
+
 def carried(res: ValidationResult) -> list[str]:
-    """One line per identified robot parameter: value, standard error, plausibility note."""
+    """One line per identified robot parameter: value and standard error in engineering
+    units, and its note (poorly determined...); the plausibility check already held the
+    implausible ones at their prior."""
+    effects = {e.label: e for e in res.identification.model.effects}
     out = []
     for e in res.identification.estimates:
-        if e.effect in ("device_registration", "marker_offset") or not e.identified:
+        eff = effects[e.effect]
+        if eff.setup or not e.identified:
             continue
         flag = f"  ({e.note})" if e.note else ""
-        out.append(f"  {e.effect}.{e.name} = {e.value:.4g} +- {e.std_error:.2g} SI{flag}")
+        out.append(f"  {e.effect}.{e.name} = {_shown(e.value, e.std_error, eff.param_unit(e.name))}"
+                   f"{flag}")
     return out
 
 
@@ -180,7 +194,7 @@ def main(argv: list[str]) -> int:
     res = choose_model(model, train)
     path = save_extended_robot(res, fitted)
     print(f"wrote {path}")
-    print("what carried the gain (identified robot parameters, SI units):")
+    print("what carried the gain (identified robot parameters, +- 1 standard error):")
     print("\n".join(carried(res)))
     assert res.setup is not None
     print("\n".join(compare_arm6(model, train, res.setup).lines()))

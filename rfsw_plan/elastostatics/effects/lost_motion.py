@@ -52,7 +52,8 @@ class LostMotion(ComplianceEffect):
     force readings (sigma_F = inf: a motion-capture session) the side is the approach
     direction's everywhere; a planned path (no history, sigma_F = 0) takes the torque's sign.
 
-    Linear in b. :meth:`identifiable` counts the samples on each side of each mechanism.
+    Linear in b. :meth:`identifiable` counts the samples on each side of each mechanism; with
+    none in the approach regime it is joint_backlash's torque model and says so.
     Supersedes :class:`~rfsw_plan.elastostatics.effects.joint_backlash.JointBacklash` on
     data with history (approach directions); that one remains for torque-only loaded data.
     """
@@ -128,9 +129,13 @@ class LostMotion(ComplianceEffect):
     def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
         n = self.side_counts(batch, wrench)
         plus, minus = n["torque+"] + n["approach+"], n["torque-"] + n["approach-"]
-        if min(plus, minus) >= MIN_SAMPLES_PER_SIDE:
-            return None
         assert self.joint is not None
+        if min(plus, minus) >= MIN_SAMPLES_PER_SIDE and n["approach+"] + n["approach-"] > 0:
+            return None
+        if min(plus, minus) >= MIN_SAMPLES_PER_SIDE:
+            return (f"the torque sets joint {self.joint + 1}'s side of the play in every sample "
+                    f"(none below the threshold, where the approach direction would): this is "
+                    f"joint_backlash:j{self.joint + 1}'s torque-only model")
         th = self.threshold(batch)
         where = ("no force readings: the side is the approach direction's" if np.isinf(th).all()
                  else f"torque threshold {np.median(th):.3g} N m median")
