@@ -78,7 +78,9 @@ def test_hidden_link_errors_are_calibrated_to_the_floor() -> None:
     assert dg.heldout_rms <= 1.5 * dg.noise.sigma, dg.message
     est = [e for e in res.identification.estimates if e.effect == "link_errors"]
     named = [e for e in est if not e.identified]
-    assert named and all("collinear" in e.note or "absorb" in e.note for e in named)
+    reasons = ("collinear", "absorb", "does not move the measured TCP")
+    assert named and all(any(r in e.note for r in reasons) for e in named), [
+        e.note for e in named]
     for e in est:
         limit = 5e-3 if e.name.startswith("d") else np.radians(3.0)
         assert abs(e.value) <= limit
