@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.cli.main import main
+from rfsw_plan.elastostatics.approach import approach_directions, load_changes
 from rfsw_plan.elastostatics.effects import EFFECTS, PoseBatch
 from rfsw_plan.elastostatics.identification import identify, residuals, rms
 from rfsw_plan.elastostatics.model import ElastostaticModel
@@ -134,7 +135,9 @@ def test_every_effect_draws_complete_finite_in_range_non_zero_plausible_params(
     rng = np.random.default_rng(3)
     q = np.repeat(campaign_poses(robot, 12, rng), 4, axis=0)
     wrench = campaign_wrenches(12, 4, rng)
-    batch = PoseBatch.from_q(robot, q)
+    # With the samples' history, as run_campaign has it (approach, load changes at a pose).
+    batch = PoseBatch.from_q(robot, q, approach_directions(q),
+                             load_change=load_changes(q, wrench))
     for cls in EFFECTS.values():
         for joint in range(robot.nq) if cls.per_joint else [None]:
             eff = cls(robot, joint)

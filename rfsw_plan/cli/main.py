@@ -96,11 +96,30 @@ def build_parser(only: str | None = None, lazy: bool = False
         # The same options after the subcommand (``rfsw-plan plan P -q``); SUPPRESS keeps the
         # value set before the subcommand when they are not repeated after it.
         _add_global_options(p, argparse.SUPPRESS)
+        if name in EFFECT_COMMANDS:
+            p.add_argument("--effects", action="append", default=[], metavar="FILE.py",
+                           help="load user-defined effects from a Python file (repeatable); "
+                           "installed entry points of group rfsw_plan.effects load anyway")
         if not lazy or name == only:
             mod = importlib.import_module(modname)
             mod.register(p)
             commands[name] = mod
     return parser, commands
+
+
+#: Commands that build an elastostatic model and so accept ``--effects FILE.py``.
+EFFECT_COMMANDS = frozenset({"validate", "identify", "validate-weld", "plan", "predict"})
+
+
+def _load_effects(args: argparse.Namespace) -> None:
+    """Load the user's effect files and the installed effect entry points (one-line errors)."""
+    if args.command not in EFFECT_COMMANDS:
+        return
+    from rfsw_plan.elastostatics.plugins import load_effect_file, load_entry_points
+
+    load_entry_points()
+    for path in getattr(args, "effects", []):
+        load_effect_file(path)
 
 
 def _add_global_options(parser: argparse.ArgumentParser, default: Any) -> None:
@@ -163,6 +182,7 @@ def _main(argv: Sequence[str] | None = None) -> int:
 
     progress.set_enabled(not args.quiet)
     try:
+        _load_effects(args)
         return int(commands[args.command].run(args) or 0)
     except RfswError as exc:
         print(f"rfsw-plan {args.command}: error: {exc}", file=sys.stderr)

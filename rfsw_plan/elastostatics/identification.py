@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import FloatArray
@@ -37,6 +38,9 @@ log = logging.getLogger(__name__)
 SENSITIVITY_FLOOR_M = 1e-9
 #: Relative singular value below which normalised regressor columns are called collinear.
 COLLINEARITY_TOL = 1e-7
+#: Passes that set the prior's weight of regularised parameters from the residual noise of
+#: the previous pass (the first pass has no prior; the weight settles within a few passes).
+PRIOR_PASSES = 3
 
 
 @dataclass(frozen=True)
@@ -104,8 +108,11 @@ class IdentificationResult:
 
 
 def predicted_positions(model: ElastostaticModel, data: MeasurementSet) -> FloatArray:
-    """Predicted loaded TCP positions for every sample [m], base frame, shape (m, 3)."""
-    return model.predict_position(data.q, data.wrench)
+    """Predicted loaded TCP positions for every sample [m], base frame, shape (m, 3), with the
+    samples' history (:meth:`ElastostaticModel.batch_of`)."""
+    batch = model.batch_of(data)
+    out: FloatArray = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
+    return out
 
 
 def residuals(model: ElastostaticModel, data: MeasurementSet) -> FloatArray:
@@ -193,6 +200,9 @@ class IdentificationProblem:
         row_scale: Weight of each observation row, shape (mask.shape[1],): 1 for positions and
             sigma_position / sigma_rotation [m/rad] for orientation rows (their own noise
             level, estimated from the prior model's residual of each block).
+        prior_weight: Weight of the Gaussian prior row w_k (theta_k - prior_k) = 0 of each
+            parameter [m per SI unit], shape (P,) (0: none; see :attr:`Effect.regularised`),
+            or None.
     """
 
     model: ElastostaticModel
@@ -210,6 +220,7 @@ class IdentificationProblem:
     method: str
     rms_before: float
     row_scale: FloatArray = field(default_factory=lambda: np.ones(3))
+    prior_weight: FloatArray | None = None
 
     @property
     def rows(self) -> int:
@@ -247,6 +258,15 @@ class IdentificationProblem:
         """Current parameter vector, shape (P,)."""
         return np.concatenate([e.params for e in self.effects])
 
+    def prior_system(self, idx: NDArray[np.int_]) -> tuple[FloatArray, FloatArray]:
+        """The prior rows restricted to the columns ``idx``: (A (p, idx.size), r (p,)) with
+        A = w_k e_k and r = w_k (prior_k - theta_k) [m]; empty without a prior."""
+        w = np.zeros(self.prior.size) if self.prior_weight is None else self.prior_weight
+        sel = np.flatnonzero(w > 0)
+        A = np.zeros((sel.size, self.prior.size))
+        A[np.arange(sel.size), sel] = w[sel]
+        return A[:, idx], w[sel] * (self.prior[sel] - self.theta()[sel])
+
 
 def mark_invisible(
     names: Sequence[tuple[str, str]], free: np.ndarray, notes: list[str], scale: FloatArray,
@@ -276,14 +296,17 @@ def mark_invisible(
 
 def mark_collinear(
     names: Sequence[tuple[str, str]], free: np.ndarray, notes: list[str], setup: np.ndarray,
-    A0: FloatArray,
+    A0: FloatArray, first: np.ndarray | None = None,
 ) -> None:
     """Drop parameters, one at a time, until the free columns are not collinear.
 
     A measurement set-up parameter (``setup[k]``, :attr:`Effect.setup`: device registration,
     marker offset) is never the one dropped: a joint offset that a free registration absorbs
-    is named as unidentifiable instead. ``A0`` is the regressor or any matrix with the same
-    Gram matrix (its R factor); ``free`` and ``notes`` are updated in place.
+    is named as unidentifiable instead. Parameters flagged in ``first`` (those of a
+    regularised full parameter set, :attr:`Effect.regularised`) go before any other: a link's
+    rotation about its joint axis is named as the joint offset's, not the reverse. ``A0`` is
+    the regressor or any matrix with the same Gram matrix (its R factor); ``free`` and
+    ``notes`` are updated in place.
     """
     while True:
         idx = np.flatnonzero(free)
@@ -294,6 +317,8 @@ def mark_collinear(
         if sv[-1] / sv[0] >= COLLINEARITY_TOL:
             return
         weight = np.abs(Vt[-1]) * np.where(setup[idx], 0.0, 1.0)
+        if first is not None and np.any(weight[first[idx]] > 1e-3):
+            weight = weight * np.where(first[idx], 1.0, 0.0)
         if not weight.any():
             weight = np.abs(Vt[-1])
         worst = idx[int(np.argmax(weight))]
@@ -303,6 +328,78 @@ def mark_collinear(
         why = ("a free device registration absorbs it" if any(setup[idx[j]] for j in order)
                else "cannot be told apart in this data")
         notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
+
+
+@dataclass(frozen=True)
+class Plausibility:
+    """What a real robot plausibly shows, per parameter in regressor order [SI], shape (P,).
+
+    Attributes:
+        limit: Largest plausible |value| (:attr:`Effect.plausible_limits`), inf if none.
+        lo: Lower end of the physically possible range (:attr:`Effect.param_ranges`).
+        hi: Upper end of it.
+    """
+
+    limit: FloatArray
+    lo: FloatArray
+    hi: FloatArray
+    regularised: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, effects: Sequence[Effect]) -> Plausibility:
+        """The bounds of the parameters of ``effects``."""
+        lim = [e.plausible_limit(n) for e in effects for n in e.param_names()]
+        rng = np.array([e.param_range(n) for e in effects for n in e.param_names()],
+                       dtype=float).reshape(-1, 2)
+        limit = np.array([np.inf if x is None else x for x in lim], dtype=float)
+        reg = np.array([e.regularised for e in effects for _ in e.param_names()], dtype=bool)
+        return cls(limit, rng[:, 0], rng[:, 1], reg & np.isfinite(limit))
+
+    def prior_weights(self, sigma_obs: float) -> FloatArray:
+        """Weight of each parameter's prior row w_k (theta_k - prior_k) = 0 against
+        observations of noise ``sigma_obs`` [m]: sigma_obs / (L_k / 2) for the regularised
+        parameters, 0 for the others, shape (P,)."""
+        return np.where(self.regularised, sigma_obs / (self.limit / 2), 0.0)
+
+
+def implausible(
+    theta: FloatArray, std: FloatArray, free: np.ndarray, bounds: Plausibility,
+) -> tuple[int, str] | None:
+    """The free parameter the data does not plausibly identify, worst first, or None.
+
+    An estimate outside its physically possible range (a negative compliance) goes first. A
+    parameter with a plausible size L (:attr:`Effect.plausible_limits`) is kept only if its
+    standard error is below L / 2 (its 95 % interval is narrower than the plausible range:
+    the data tells it apart from zero better than prior knowledge does) and its estimate is
+    within L (a 6 mm link error is not a calibration; a joint 1000x softer than any gear
+    stands in for another effect). Of those, the worst max(std / (L/2), |value| / L) goes.
+
+    Returns:
+        (index, note) of the parameter to hold at its prior, or None.
+    """
+    out = np.flatnonzero(free & ((theta < bounds.lo) | (theta > bounds.hi)))
+    if out.size:
+        k = int(out[0])
+        return k, (f"estimate {theta[k]:.3g} is outside the physically possible "
+                   f"[{bounds.lo[k]:.3g}, {bounds.hi[k]:.3g}] (SI); prior kept")
+    idx = np.flatnonzero(free & np.isfinite(bounds.limit))
+    if idx.size == 0:
+        return None
+    lim = bounds.limit[idx]
+    # A regularised parameter's error is bounded by its prior: only its value is checked.
+    by_std = np.where(bounds.regularised[idx], 0.0,
+                      np.nan_to_num(std[idx] / (lim / 2), nan=np.inf))
+    by_value = np.abs(theta[idx]) / lim
+    score = np.maximum(by_std, by_value)
+    j = int(np.argmax(score))
+    if score[j] <= 1.0:
+        return None
+    k = int(idx[j])
+    if by_value[j] >= by_std[j]:
+        return k, (f"estimate {theta[k]:.3g} is beyond the plausible {lim[j]:.3g} (SI): not "
+                   "a calibration but a stand-in for another effect; prior kept")
+    return k, (f"standard error {std[k]:.2g} exceeds half the plausible size {lim[j]:.3g} "
+               "(SI): this data cannot tell it from zero; prior kept")
 
 
 def _add_orientation(prob: IdentificationProblem) -> None:
@@ -368,7 +465,7 @@ def build_identification(
             f"{data.source}: {n_obs} measured values cannot identify {prior.size} parameters "
             f"({', '.join(labels)}); need at least {prior.size} (better {3 * prior.size})"
         )
-    batch = work.batch(data.q)
+    batch = work.batch_of(data)
     # Positions are linear in theta when every free effect is a linear compliance or
     # geometric effect (the wrench effects, if any, stay fixed): one least-squares step.
     linear = all(e.pose_linear_in_params() for e in effects)
@@ -388,7 +485,8 @@ def build_identification(
     mark_invisible(prob.names, prob.free, prob.notes, prob.scale, A0, A0.shape[0])
     setup = np.array([any(e.label == lab and e.setup for e in prob.effects)
                       for lab, _ in prob.names], dtype=bool)
-    mark_collinear(prob.names, prob.free, prob.notes, setup, A0)
+    mark_collinear(prob.names, prob.free, prob.notes, setup, A0,
+                   Plausibility.of(prob.effects).regularised)
     return prob
 
 
@@ -401,11 +499,13 @@ def _gauss_newton(
     sw = np.sqrt(weights)
     it, conv = 0, False
     for it in range(1, max_iter + 1):  # noqa: B007 - it is returned
-        A = prob.jacobian()[:, idx] * sw[:, None]
+        Ap, rp = prob.prior_system(idx)
+        A = np.vstack([prob.jacobian()[:, idx] * sw[:, None], Ap])
         colscale = np.linalg.norm(A, axis=0)
         colscale[colscale == 0] = 1.0
         try:
-            step, *_ = np.linalg.lstsq(A / colscale, prob.residual() * sw, rcond=None)
+            step, *_ = np.linalg.lstsq(A / colscale, np.concatenate([prob.residual() * sw, rp]),
+                                       rcond=None)
         except np.linalg.LinAlgError as exc:
             raise IdentificationError(f"{prob.data.source}: least squares failed ({exc})") from None
         step /= colscale
@@ -420,9 +520,15 @@ def _gauss_newton(
 
 
 def solve_identification(
-    prob: IdentificationProblem, max_iter: int = 30, tol: float = 1e-10
+    prob: IdentificationProblem, max_iter: int = 30, tol: float = 1e-10,
+    plausibility: bool = True,
 ) -> IdentificationResult:
     """Solve a built problem (:func:`build_identification`) and estimate the uncertainties.
+
+    With ``plausibility`` (the default) a parameter outside its physical range, beyond its
+    plausible size or with a standard error above half of it keeps its prior
+    (:func:`implausible`); without, only the compliances' positivity is enforced (to see
+    what an unconstrained fit would make of the data, e.g. how soft a joint it wants).
 
     Raises:
         IdentificationError: The solve produced non-finite numbers.
@@ -461,23 +567,26 @@ def solve_identification(
         raise IdentificationError(f"{data.source}: the fit did not give finite parameters "
                                   "(values out of range in the data?)")
 
-    # -- uncertainty --------------------------------------------------------------------------
+    # -- uncertainty, and what the data plausibly identifies ---------------------------------
+    bounds = Plausibility.of(prob.effects)
+    if bounds.regularised.any():  # the prior's weight against the observations' noise
+        for _ in range(PRIOR_PASSES):
+            res = prob.residual()
+            prob.prior_weight = bounds.prior_weights(
+                float(np.sqrt(np.sum(w * res**2) / max(n_obs - int(prob.free.sum()), 1))))
+            iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+        theta = prob.theta()
+    std, cond = _standard_errors(prob, w)
+    while plausibility and (drop := implausible(theta, std, prob.free, bounds)) is not None:
+        k, prob.notes[k] = drop
+        prob.free[k] = False
+        theta[k] = prob.prior[k]
+        set_theta(prob.effects, theta)
+        iterations, converged = _gauss_newton(prob, w, max_iter, tol)
+        theta = prob.theta()
+        std, cond = _standard_errors(prob, w)
     res = prob.residual()
-    idx = np.flatnonzero(prob.free)
-    dof = max(n_obs - idx.size, 1)
-    sw = np.sqrt(w)
-    s2 = float(np.sum(w * res**2) / dof)
-    Aw = prob.jacobian()[:, idx] * sw[:, None]
-    P = prob.prior.size
-    std = np.full(P, np.nan)
-    cond = float("nan")
-    if idx.size:
-        colscale = np.linalg.norm(Aw, axis=0)
-        colscale[colscale == 0] = 1.0
-        An = Aw / colscale
-        cond = float(np.linalg.cond(An))
-        cov_n = np.linalg.pinv(An.T @ An)
-        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * s2) / colscale
+    dof = max(n_obs - int(prob.free.sum()), 1)
     sigma = float(np.sqrt(np.mean(res**2) * n_obs / dof))
     return build_result(
         model=prob.model, effects=prob.effects, names=prob.names, prior=prob.prior,
@@ -487,6 +596,26 @@ def solve_identification(
         sigma=sigma, n_samples=len(data), n_obs=n_obs, iterations=iterations,
         converged=converged, method=prob.method,
     )
+
+
+def _standard_errors(prob: IdentificationProblem, w: FloatArray) -> tuple[FloatArray, float]:
+    """1-sigma standard errors of the free parameters (NaN for the others) [SI], shape (P,),
+    and the condition number of the column-normalised weighted regressor."""
+    res = prob.residual()
+    idx = np.flatnonzero(prob.free)
+    dof = max(prob.n_obs - idx.size, 1)
+    sw = np.sqrt(w)
+    s2 = float(np.sum(w * res**2) / dof)
+    std = np.full(prob.prior.size, np.nan)
+    if not idx.size:
+        return std, float("nan")
+    Aw = np.vstack([prob.jacobian()[:, idx] * sw[:, None], prob.prior_system(idx)[0]])
+    colscale = np.linalg.norm(Aw, axis=0)
+    colscale[colscale == 0] = 1.0
+    An = Aw / colscale
+    cov_n = np.linalg.pinv(An.T @ An)
+    std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * s2) / colscale
+    return std, float(np.linalg.cond(An))
 
 
 def build_result(
@@ -548,6 +677,7 @@ def identify(
     free: Sequence[str] | None = None,
     max_iter: int = 30,
     tol: float = 1e-10,
+    plausibility: bool = True,
 ) -> IdentificationResult:
     """Identify the parameters of ``free`` effects (all by default) from measured positions.
 
@@ -563,8 +693,11 @@ def identify(
         free: Labels of the effects to identify; others keep their values.
         max_iter: Gauss-Newton iteration cap.
         tol: Convergence tolerance on the relative parameter step.
+        plausibility: Hold implausible parameters at their prior (see
+            :func:`solve_identification`).
 
     Raises:
         IdentificationError: No measured axis, or fewer observations than free parameters.
     """
-    return solve_identification(build_identification(model, data, method, free), max_iter, tol)
+    return solve_identification(build_identification(model, data, method, free), max_iter, tol,
+                                plausibility)

@@ -22,8 +22,8 @@ Only ordinary least squares on position rows is done here (what the diagnosis sc
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -31,8 +31,11 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.effects import Effect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.identification import (
+    PRIOR_PASSES,
     IdentificationResult,
+    Plausibility,
     build_result,
+    implausible,
     mark_collinear,
     mark_invisible,
     position_jacobian,
@@ -64,8 +67,7 @@ def blocks(batch: PoseBatch, size: int | None = None) -> list[tuple[slice, PoseB
         got = []
         for a in range(0, len(batch), size):
             s = slice(a, min(a + size, len(batch)))
-            got.append((s, PoseBatch(batch.robot, batch.q[s], batch.T[s], batch.J[s],
-                                     batch.frames[s])))
+            got.append((s, batch.rows(s)))
         batch.cache[key] = got
     return got
 
@@ -120,18 +122,43 @@ class FoldFactors:
 
     R: FloatArray
     n_obs: NDArray[np.int_]
+    prior: FloatArray | None = None
 
     @property
     def total(self) -> FloatArray:
-        """Factor of all folds together, shape (P + 1, P + 1)."""
-        return _qr_r(self.R.reshape(-1, self.R.shape[2]), self.R.shape[2])
+        """Factor of all folds together (and the prior rows), shape (P + 1, P + 1)."""
+        return _qr_r(self.training(None), self.R.shape[2])
+
+    def training(self, held: int | None) -> FloatArray:
+        """Rows of every fold but ``held`` (None: all) and the prior rows, stacked."""
+        keep = self.R if held is None else self.R[np.arange(len(self.R)) != held]
+        rows = keep.reshape(-1, self.R.shape[2])
+        return rows if self.prior is None else np.vstack([rows, self.prior])
+
+    @property
+    def data_sse(self) -> float:
+        """Sum of squared residuals of the observations (the prior rows left out) [m^2]."""
+        return float(np.sum(self.R[:, :, -1] ** 2))
 
     def shifted(self, delta: FloatArray) -> FoldFactors:
         """Factors at theta + delta of a model linear in theta: r -> r - A delta."""
         P = self.R.shape[2] - 1
         M = np.eye(P + 1)
         M[:P, P] = -delta
-        return FoldFactors(self.R @ M, self.n_obs)
+        return FoldFactors(self.R @ M, self.n_obs, None if self.prior is None else self.prior @ M)
+
+
+def prior_rows(weights: FloatArray, prior: FloatArray, theta: FloatArray) -> FloatArray | None:
+    """The Gaussian prior of the regularised parameters as rows of [A | r]: for each k with
+    weight w_k > 0, A = w_k e_k and r = w_k (prior_k - theta_k) [m]; None if there is none.
+    Shape (p, P + 1)."""
+    sel = np.flatnonzero(weights > 0)
+    if not sel.size:
+        return None
+    out = np.zeros((sel.size, prior.size + 1))
+    out[np.arange(sel.size), sel] = weights[sel]
+    out[:, -1] = weights[sel] * (prior[sel] - theta[sel])
+    return out
 
 
 def _rows(
@@ -254,15 +281,17 @@ def identify_blocks(
     setup = np.array([any(e.label == lab and e.setup for e in effects) for lab, _ in names],
                      dtype=bool)
     mark_invisible(names, free, notes, scale, R0[:, :P], n_obs)
-    mark_collinear(names, free, notes, setup, R0[:, :P])
+    bounds = Plausibility.of(effects)
+    mark_collinear(names, free, notes, setup, R0[:, :P], bounds.regularised)
 
     ff = ff0
+    weights = np.zeros(P)  # prior rows of the regularised parameters (none on the first pass)
 
     def at(theta: FloatArray) -> FoldFactors:
         set_theta(effects, theta)
-        if linear:
-            return ff0.shifted(theta - prior)
-        return fold_factors(work, effects, data, batch, folds, k)
+        got = ff0.shifted(theta - prior) if linear else fold_factors(
+            work, effects, data, batch, folds, k)
+        return replace(got, prior=prior_rows(weights, prior, theta))
 
     def gauss_newton(theta: FloatArray, ff: FoldFactors) -> tuple[FloatArray, FoldFactors,
                                                                    int, bool]:
@@ -298,20 +327,16 @@ def identify_blocks(
                                   "(values out of range in the data?)")
     set_theta(effects, theta)
 
-    R = ff.total
-    idx = np.flatnonzero(free)
-    sse = float(np.sum(R[:, P] ** 2))
-    dof = max(n_obs - idx.size, 1)
-    std = np.full(P, np.nan)
-    cond = float("nan")
-    if idx.size:
-        Aw = R[:, idx]
-        colscale = np.linalg.norm(Aw, axis=0)
-        colscale[colscale == 0] = 1.0
-        An = Aw / colscale
-        cond = float(np.linalg.cond(An))
-        cov_n = np.linalg.pinv(An.T @ An)
-        std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * sse / dof) / colscale
+    def refit(theta: FloatArray) -> tuple[FloatArray, FoldFactors, int, bool]:
+        return gauss_newton(theta, at(theta))
+
+    got = _plausible_fit(_Fit(theta, ff, iterations, converged), free, notes, prior, bounds,
+                         weights, refit, n_obs)
+    theta, ff, iterations, converged = got.theta, got.ff, got.iterations, got.converged
+    set_theta(effects, theta)
+    std, cond = _standard_errors(ff, free, n_obs)
+    sse = ff.data_sse
+    dof = max(n_obs - int(free.sum()), 1)
     result = build_result(
         model=work, effects=effects, names=names, prior=prior, theta=theta, free=free,
         notes=notes, std=std, cond=cond, rms_before=rms_before,
@@ -320,6 +345,67 @@ def identify_blocks(
         method="ols",
     )
     return BlockFit(result, ff)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """Where a Gauss-Newton solve ended: parameters, factors, iterations, converged."""
+
+    theta: FloatArray
+    ff: FoldFactors
+    iterations: int
+    converged: bool
+
+
+def _plausible_fit(
+    fit: _Fit, free: np.ndarray, notes: list[str], prior: FloatArray, bounds: Plausibility,
+    weights: FloatArray, refit: Callable[[FloatArray], tuple[FloatArray, FoldFactors, int, bool]],
+    n_obs: int,
+) -> _Fit:
+    """The prior of the regularised parameters, then what the data plausibly identifies.
+
+    The prior's weight (``weights``, updated in place: the factors' prior rows read it) is set
+    from the residual noise of the previous pass, :data:`PRIOR_PASSES` times; then the
+    parameters :func:`~rfsw_plan.elastostatics.identification.implausible` names keep their
+    prior, one at a time, each followed by a refit. ``free`` and ``notes`` are updated.
+    """
+    if bounds.regularised.any():
+        for _ in range(PRIOR_PASSES):
+            weights[:] = bounds.prior_weights(
+                float(np.sqrt(fit.ff.data_sse / max(n_obs - int(free.sum()), 1))))
+            fit = _Fit(*refit(fit.theta))
+    std, _ = _standard_errors(fit.ff, free, n_obs)
+    while (drop := implausible(fit.theta, std, free, bounds)) is not None:
+        i, notes[i] = drop
+        free[i] = False
+        theta = fit.theta.copy()
+        theta[i] = prior[i]
+        fit = _Fit(*refit(theta))
+        std, _ = _standard_errors(fit.ff, free, n_obs)
+    return fit
+
+
+def _standard_errors(ff: FoldFactors, free: np.ndarray, n_obs: int
+                     ) -> tuple[FloatArray, float]:
+    """Standard errors of the free parameters (NaN for the others) [SI], shape (P,), from the
+    factor of [A | r] with the prior rows (a posterior error for regularised parameters) and
+    the observations' residual variance, and the condition number of the column-normalised
+    regressor."""
+    R = ff.total
+    P = free.size
+    idx = np.flatnonzero(free)
+    sse = ff.data_sse
+    dof = max(n_obs - idx.size, 1)
+    std = np.full(P, np.nan)
+    if not idx.size:
+        return std, float("nan")
+    Aw = R[:, idx]
+    colscale = np.linalg.norm(Aw, axis=0)
+    colscale[colscale == 0] = 1.0
+    An = Aw / colscale
+    cov_n = np.linalg.pinv(An.T @ An)
+    std[idx] = np.sqrt(np.maximum(np.diag(cov_n), 0.0) * sse / dof) / colscale
+    return std, float(np.linalg.cond(An))
 
 
 def heldout_blocks(
@@ -365,7 +451,7 @@ def heldout_steps(factors: FoldFactors, idx: NDArray[np.int_]) -> tuple[FloatArr
     steps = np.zeros((k, idx.size))
     sse = 0.0
     for f in range(k):
-        train = R[np.arange(k) != f][:, :, cols].reshape(-1, cols.size)
+        train = factors.training(f)[:, cols]
         steps[f] = _step(_qr_r(train, cols.size), np.arange(idx.size))
         sse += float(np.sum((R[f][:, cols] @ np.append(-steps[f], 1.0)) ** 2))
     return steps, sse

@@ -20,6 +20,9 @@ FloatArray = NDArray[np.float64]
 #: measuring device (laser tracker, motion capture), whose pose in the base frame is unknown.
 MeasurementFrame = Literal["base", "device"]
 MEASUREMENT_FRAMES: tuple[str, ...] = ("base", "device")
+#: A logged force below this [N] counts as a zero-load reading for the sensor-noise estimate
+#: (when the file has no ``load_step``).
+ZERO_LOAD_N = 50.0
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,13 @@ class MeasurementSet:
         dialect: What the reader detected (delimiter, decimal separator), for the report.
         columns: File column read for each quantity (``q1`` -> ``q1_deg``, ``x`` -> ``x1``),
             so that messages can name what the user wrote.
+        approach: Direction each joint last moved in before the sample, shape (m, n), +1,
+            -1 or 0 (unknown), computed on the whole recording by the reader (from ``dir_qN``
+            columns, the time column or the row order) or None: :meth:`approach_directions`
+            then derives it from ``t`` or the row order.
+        load_change: The last change of the logged wrench at the same pose before the sample
+            [N, N m], base frame, shape (m, 6) (:func:`rfsw_plan.elastostatics.approach.
+            load_changes`), computed on the whole recording like ``approach``, or None.
     """
 
     q: FloatArray
@@ -59,6 +69,8 @@ class MeasurementSet:
     load_step: NDArray[np.int_] | None = None
     dialect: str = ""
     columns: dict[str, str] = field(default_factory=dict)
+    approach: FloatArray | None = None
+    load_change: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -89,7 +101,47 @@ class MeasurementSet:
             load_step=None if self.load_step is None else self.load_step[idx],
             dialect=self.dialect,
             columns=self.columns,
+            approach=None if self.approach is None else self.approach[idx],
+            load_change=None if self.load_change is None else self.load_change[idx],
         )
+
+    def load_changes(self) -> FloatArray:
+        """The last load change at the same pose of every sample [N, N m], shape (m, 6): the
+        stored one, else from ``t`` or the row order of these samples."""
+        from rfsw_plan.elastostatics.approach import change_tolerance, load_changes
+
+        if self.load_change is not None:
+            return self.load_change
+        tol = change_tolerance(self.zero_load_force_noise())
+        return load_changes(self.q, self.wrench, self.t, tol)
+
+    def approach_directions(self) -> FloatArray:
+        """The approach direction of every joint at every sample, shape (m, n) (see
+        :mod:`rfsw_plan.elastostatics.approach`): the stored one, else from ``t`` or the
+        row order of these samples."""
+        from rfsw_plan.elastostatics.approach import approach_directions
+
+        if self.approach is not None:
+            return self.approach
+        return approach_directions(self.q, self.t)
+
+    def zero_load_force_noise(self) -> float | None:
+        """Force sensor noise per axis [N] from the spread of the zero-load readings.
+
+        Zero-load rows are ``load_step == 0`` when the file has load steps, else rows whose
+        logged force is below :data:`ZERO_LOAD_N`. Their per-axis standard deviation about
+        the mean (a bias is not noise), pooled over the three axes, needs at least 3 such
+        rows. None when it cannot be estimated (no such rows, or no force readings at all).
+        """
+        F = self.wrench[:, :3]
+        if not np.any(F):
+            return None
+        zero = (self.load_step == 0) if self.load_step is not None else (
+            np.linalg.norm(F, axis=1) < ZERO_LOAD_N)
+        Fz = F[zero]
+        if Fz.shape[0] < 3 or not np.any(Fz):
+            return None
+        return float(np.sqrt(np.mean(np.var(Fz, axis=0, ddof=1))))
 
     def with_position(self, position: FloatArray, frame: str) -> MeasurementSet:
         """The same samples with positions (m, 3) [m] expressed in another frame."""

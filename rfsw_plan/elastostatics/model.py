@@ -8,6 +8,7 @@ description's ``[[effects]]`` or are added by the user.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import replace
 from difflib import get_close_matches
@@ -24,6 +25,8 @@ from rfsw_plan.elastostatics.effects import (
     make_effect,
 )
 from rfsw_plan.elastostatics.effects.base import FloatArray, WrenchToPose
+from rfsw_plan.elastostatics.measurement_set import MeasurementSet
+from rfsw_plan.elastostatics.plugins import load_plugin, plugins_of
 from rfsw_plan.elastostatics.springs import (
     JointSprings,
     SpringChain,
@@ -49,6 +52,8 @@ def _description_effects(robot: Robot) -> list[Effect]:
             its physical range (``effects[2].params.c_t1``).
     """
     desc = robot.description
+    for i, plugin in enumerate(desc.plugins, start=1):
+        load_plugin(plugin, f"{desc.path or desc.name}: effect_plugins[{i}]")
     out: list[Effect] = []
     for i, spec in enumerate(desc.effects, start=1):
         try:
@@ -148,6 +153,23 @@ class ElastostaticModel:
             T, J = self.robot.fk_jacobian(Q[0])
             return PoseBatch(self.robot, Q, T[None], J[None], self.robot.joint_frames(Q[0])[None])
         return PoseBatch.from_q(self.robot, Q)
+
+    def batch_of(self, data: MeasurementSet, force_noise: float | None = None) -> PoseBatch:
+        """Kinematics of a measurement set's samples with their history: each joint's
+        approach direction (:meth:`MeasurementSet.approach_directions`), the last load change
+        at the same pose (:meth:`MeasurementSet.load_changes`) and the force noise
+        of the logged wrench [N] (``force_noise`` if given, else from the zero-load readings;
+        ``inf`` when the data logs no force at all, 0 when it cannot be estimated).
+        """
+        if force_noise is not None:
+            fn = float(force_noise)
+        elif not np.any(data.wrench[:, :3]):
+            fn = math.inf
+        else:
+            fn = data.zero_load_force_noise() or 0.0
+        b = self.batch(data.q)
+        return replace(b, approach=data.approach_directions(), force_noise=fn,
+                       load_change=data.load_changes())
 
     def true_wrench(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""
@@ -366,7 +388,7 @@ class ElastostaticModel:
         out = desc.with_stiffness(k, source_note or desc.sources.get("stiffness", ""))
         specs = tuple(EffectSpec(e.label, e.param_dict()) for e in self.effects[1:]
                       if not e.setup)
-        return replace(out, effects=specs)
+        return replace(out, effects=specs, plugins=plugins_of(e.name for e in self.effects))
 
 
 def load_model(robot: Robot | RobotDescription | str) -> ElastostaticModel:

@@ -94,7 +94,7 @@ def estimate_device_frame(
             f"device frame and the marker offset; need at least {MIN_POSES} distinct poses "
             "(6 registration + 3 marker parameters, 3 values per pose, and one to spare)"
         )
-    batch = model.batch(data.q[full])
+    batch = model.batch_of(data.subset(full))
     p = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench[full])[:, :3]
     Rt = batch.T[:, :3, :3]
     y = data.position[full]

@@ -28,11 +28,13 @@ from __future__ import annotations
 import csv
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan.elastostatics.approach import approach_directions, check_directions
 from rfsw_plan.elastostatics.measurement_set import (
     MEASUREMENT_FRAMES,
     FloatArray,
@@ -264,11 +266,38 @@ def read_measurements(
     quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
     quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME]
     names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
-    return MeasurementSet(
-        q, wrench, position, t, pose_id, sigma, _extras(tab, set(names.values())),
+    extra = _extras(tab, set(names.values()))
+    approach = _approach(tab, extra, q, t)
+    data = MeasurementSet(
+        q, wrench, position, t, pose_id, sigma, extra,
         str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),
-        load_step=load_step, dialect=tab.dialect, columns=names,
+        load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
     )
+    return replace(data, load_change=data.load_changes())
+
+
+def _approach(tab: Table, extra: dict[str, FloatArray], q: FloatArray,
+              t: FloatArray | None) -> FloatArray:
+    """Approach direction of every joint (:mod:`rfsw_plan.elastostatics.approach`): from
+    ``dir_q1 .. dir_qN`` columns (-1, 0 or +1; all joints or none; taken out of the extras),
+    else from the time column, else from the row order of the whole file."""
+    n = q.shape[1]
+    named = [f"dir_q{j + 1}" for j in range(n)]
+    present = [c for c in named if c in extra]
+    if not present:
+        return approach_directions(q, t)
+    if len(present) != n:
+        missing = next(c for c in named if c not in extra)
+        raise InputError(tab.path, f"column '{missing}'", "missing: approach directions are "
+                         "given for some joints only", f"all of dir_q1..dir_q{n} or none")
+    values = np.stack([extra.pop(c) for c in named], axis=1)
+    bad = check_directions(values)
+    if bad.any():
+        i, j = (int(x) for x in np.argwhere(bad)[0])
+        raise InputError(tab.path, f"row {tab.row_numbers[i]}, column '{named[j]}'",
+                         f"got {values[i, j]:g}", "-1, 0 or 1 (the direction the joint last "
+                         "moved in)")
+    return values
 
 
 def _logged_wrench(tab: Table) -> FloatArray:

@@ -135,6 +135,24 @@ class EffectSpec:
 
 
 @dataclass(frozen=True)
+class PluginSpec:
+    """A user's effect file or package entry point that a robot description needs.
+
+    Attributes:
+        kind: ``file`` (a Python file, loaded with ``--effects FILE.py``) or ``entry_point``
+            (group ``rfsw_plan.effects`` of an installed package).
+        ref: The file's absolute path, or the entry point as ``name = module:attr``.
+        sha256: SHA-256 of the file (of the entry point's module file) when it was saved.
+        effects: Names of the effects it provides that the description uses.
+    """
+
+    kind: str
+    ref: str
+    sha256: str
+    effects: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class DeviceFrame:
     """Where a measuring device sees the robot: its frame in the base frame, and the marker.
 
@@ -214,6 +232,7 @@ class RobotDescription:
     prismatic: NDArray[np.bool_] | None = None
     device_frame: DeviceFrame | None = None
     provenance: dict[str, str] = field(default_factory=dict)
+    plugins: tuple[PluginSpec, ...] = ()
 
     @property
     def convention(self) -> ControllerConvention:
@@ -272,7 +291,8 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
 # Keys of every table of a robot file. A new key is declared here and read below.
 TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
-            "effects", "device_frame", "provenance")
+            "effects", "device_frame", "provenance", "effect_plugins")
+PLUGIN_KEYS = ("file", "entry_point", "sha256", "effects")
 PROVENANCE_KEYS = ("parent", "data", "data_sha256", "forces", "forces_sha256", "created",
                    "command")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
@@ -386,7 +406,31 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         prismatic=prismatic if prismatic.any() else None,
         device_frame=_device_frame(r, sources),
         provenance=_provenance(r),
+        plugins=_plugins(r, Path(path)),
     )
+
+
+def _plugins(r: Table, path: Path) -> tuple[PluginSpec, ...]:
+    """The ``[[effect_plugins]]`` entries: ``file`` (relative to the robot file) or
+    ``entry_point``, their ``sha256`` and the ``effects`` they provide. Loading and checking
+    the hash is the elastostatic model's job (:mod:`rfsw_plan.elastostatics.plugins`)."""
+    out: list[PluginSpec] = []
+    for t in r.tables("effect_plugins", PLUGIN_KEYS):
+        if t.has("file") == t.has("entry_point"):
+            raise t.error("file", "give either 'file' or 'entry_point'", "exactly one of them")
+        digest = t.str_("sha256")
+        if not re.fullmatch(r"[0-9a-f]{64}", digest):
+            raise t.error("sha256", f"got '{digest[:20]}'", "64 lower-case hex digits")
+        names = t.data.get("effects", [])
+        if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+            raise t.error("effects", f"got {names!r}"[:80], "a list of effect names")
+        if t.has("file"):
+            ref = Path(t.str_("file"))
+            ref = ref if ref.is_absolute() else path.parent / ref
+            out.append(PluginSpec("file", str(ref), digest, tuple(names)))
+        else:
+            out.append(PluginSpec("entry_point", t.str_("entry_point"), digest, tuple(names)))
+    return tuple(out)
 
 
 def _provenance(r: Table) -> dict[str, str]:
@@ -788,6 +832,10 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         }
     if desc.provenance:
         out["provenance"] = dict(desc.provenance)
+    if desc.plugins:
+        out["effect_plugins"] = [
+            {("file" if x.kind == "file" else "entry_point"): x.ref, "sha256": x.sha256,
+             "effects": list(x.effects)} for x in desc.plugins]
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:

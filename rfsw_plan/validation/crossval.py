@@ -224,7 +224,7 @@ def cross_validate(
             f"{min_samples(n_par, data, k)} samples"
         )
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     if data.rotation is not None:
         return _cross_validate_stacked(model, data, folds, batch, min_train)
     try:

@@ -387,7 +387,7 @@ def diagnose(
     """
     t0 = time.perf_counter()
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     fold = make_folds(data, folds, seed)
     if base is None:
         base = cross_validate(model, data, fold, batch)

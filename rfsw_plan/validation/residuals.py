@@ -40,9 +40,6 @@ REPEAT_Q_TOL_RAD = 1e-4
 #: ... and their forces to this [N] and moments to REPEAT_MOMENT_TOL_NM [N m].
 REPEAT_FORCE_TOL_N = 5.0
 REPEAT_MOMENT_TOL_NM = 1.0
-#: A logged force below this [N] counts as a zero-load reading for the sensor-noise estimate
-#: (when the file has no ``load_step``).
-ZERO_LOAD_N = 50.0
 #: Family-wise significance level of the feature tests (Bonferroni over the features).
 FEATURE_ALPHA = 1e-3
 
@@ -313,25 +310,17 @@ def repeat_groups(data: MeasurementSet, force_tol_n: float = REPEAT_FORCE_TOL_N
 
 
 def estimate_force_noise(data: MeasurementSet) -> tuple[float | None, str]:
-    """Force sensor noise per axis [N] from the spread of its zero-load readings.
-
-    Zero-load rows are ``load_step == 0`` when the file has load steps, else rows whose logged
-    force is below ZERO_LOAD_N. Their per-axis standard deviation about the mean (a bias is
-    not noise), pooled over the three axes, needs at least 3 such rows. A log without any
-    non-zero force reading (no sensor, or a simulated/tared log) gives no estimate.
+    """Force sensor noise per axis [N] from the spread of its zero-load readings
+    (:meth:`MeasurementSet.zero_load_force_noise`). A log without any non-zero force reading
+    (no sensor, or a simulated/tared log) gives no estimate.
 
     Returns:
         (noise [N] or None, source text).
     """
-    F = data.wrench[:, :3]
-    if not np.any(F):
+    if not np.any(data.wrench[:, :3]):
         return None, "no force readings"
-    zero = (data.load_step == 0) if data.load_step is not None else (
-        np.linalg.norm(F, axis=1) < ZERO_LOAD_N)
-    Fz = F[zero]
-    if Fz.shape[0] < 3 or not np.any(Fz):
-        return None, "unknown"
-    return float(np.sqrt(np.mean(np.var(Fz, axis=0, ddof=1)))), "zero-load readings"
+    fn = data.zero_load_force_noise()
+    return (None, "unknown") if fn is None else (fn, "zero-load readings")
 
 
 def force_noise_sigma(
@@ -347,7 +336,7 @@ def force_noise_sigma(
     if force_noise_n <= 0:
         return 0.0
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     C = model.cartesian_compliance(batch)[:, :3, :3]  # (m, 3, 3) [m/N]
     var = force_noise_n**2 * np.sum(C**2, axis=2)  # (m, 3) [m^2]
     return float(np.sqrt(np.mean(var[data.measured]))) if data.measured.any() else 0.0
@@ -642,7 +631,7 @@ def analyze_residuals(
         batch: Kinematics of ``data.q`` if already computed.
     """
     if batch is None:
-        batch = model.batch(data.q)
+        batch = model.batch_of(data)
     if residual is None:
         pred = predicted_positions(model, batch, data.wrench)
         residual = data.position - pred

@@ -84,7 +84,7 @@ def check_forces(data: MeasurementSet) -> None:
 
 def check_positions(model: ElastostaticModel, data: MeasurementSet) -> None:
     """Zero-load residual and deflection per newton against the nominal model (base frame)."""
-    batch = model.batch(data.q)
+    batch = model.batch_of(data)
     fk = batch.T[:, :3, 3]
     zero = model.deflection_batch(batch, np.zeros_like(data.wrench))[:, :3]
     loaded = model.deflection_batch(batch, data.wrench)[:, :3]
@@ -157,7 +157,7 @@ def check_data(model: ElastostaticModel, data: MeasurementSet) -> None:
 def check_registered(model: ElastostaticModel, data: MeasurementSet) -> None:
     """After registration (positions brought to the base frame): the residual must be a model
     error, not wrong data."""
-    batch = model.batch(data.q)
+    batch = model.batch_of(data)
     pred = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench)[:, :3]
     res = data.position - pred
     rms = float(np.sqrt(np.nanmean(res**2)))

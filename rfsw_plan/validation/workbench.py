@@ -239,7 +239,7 @@ def validate(
     t0 = time.perf_counter()
     model, data = _registered(model, data, setup)
     labels = check_effect_labels(model, add)
-    batch = model.batch(data.q)
+    batch = model.batch_of(data, force_noise_n)
     pred = predicted_positions(model, batch, data.wrench)
     residual0 = np.where(data.measured, data.position - pred, np.nan)
     noise = estimate_noise_floor(data, residual0, noise_m, model=model,

@@ -27,6 +27,9 @@ from rfsw_plan.elastostatics.effects.force_sensor_bias import ForceSensorBias
 from rfsw_plan.elastostatics.effects.joint_backlash import JointBacklash
 from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
 from rfsw_plan.elastostatics.effects.kinematic_offsets import KinematicOffsets
+from rfsw_plan.elastostatics.effects.link_errors import LinkErrors
+from rfsw_plan.elastostatics.effects.load_hysteresis import LoadHysteresis
+from rfsw_plan.elastostatics.effects.lost_motion import LostMotion
 from rfsw_plan.elastostatics.effects.payload_gravity import PayloadGravity
 from rfsw_plan.elastostatics.effects.sensor_misalignment import SensorMisalignment
 from rfsw_plan.elastostatics.effects.tilting_compliance import TiltingCompliance
@@ -40,8 +43,8 @@ for _module in pkgutil.iter_modules(__path__):
 #: The library's order (the base model first, then compliance, wrench and geometric effects)
 #: for listings; effects of other files follow in the order they registered.
 _LIBRARY = (JointCompliance, ComplementaryStiffness, TiltingCompliance, TorqueDependentStiffness,
-            JointBacklash, PayloadGravity, SensorMisalignment, ForceSensorBias, KinematicOffsets,
-            DeviceRegistration, MarkerOffset)
+            JointBacklash, LostMotion, LoadHysteresis, PayloadGravity, SensorMisalignment,
+            ForceSensorBias, KinematicOffsets, LinkErrors, DeviceRegistration, MarkerOffset)
 _others = {k: v for k, v in EFFECTS.items() if v not in _LIBRARY}
 EFFECTS.clear()
 EFFECTS.update({cls.name: cls for cls in _LIBRARY} | _others)
@@ -91,6 +94,9 @@ __all__ = [
     "JointBacklash",
     "JointCompliance",
     "KinematicOffsets",
+    "LinkErrors",
+    "LoadHysteresis",
+    "LostMotion",
     "MarkerOffset",
     "PayloadGravity",
     "PoseBatch",

@@ -78,6 +78,17 @@ class PoseBatch:
         T: TCP poses in the base frame [m], shape (m, 4, 4).
         J: TCP Jacobians (base frame, wrt controller joints), shape (m, 6, n).
         frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4).
+        approach: Direction each joint last moved in before reaching the sample, shape
+            (m, n): +1, -1, or 0 (unknown: the first sample, or no motion yet). None when
+            the samples carry no history (a planned path): effects that need it take 0.
+            See :mod:`rfsw_plan.elastostatics.approach`.
+        load_change: The last change of the logged wrench at the same pose before each
+            sample [N, N m], base frame, shape (m, 6), or None (no history).
+        force_noise: 1-sigma noise of the logged force per axis [N] that the wrench of
+            these samples carries: 0 for a modelled wrench (planning) or an unknown noise,
+            ``inf`` for measured data without force readings (no force sensor: the load on
+            a joint is not measured at all). Effects that switch on the sign of a torque use
+            it for the threshold below which the sign is not known.
         cache: Wrench-independent quantities derived from the poses by effects, keyed by
             the effect's name (e.g. the complementary-stiffness basis), so that repeated
             evaluations on the same batch (identification iterations) compute them once.
@@ -89,14 +100,26 @@ class PoseBatch:
     T: FloatArray
     J: FloatArray
     frames: FloatArray
+    approach: FloatArray | None = None
+    force_noise: float = 0.0
+    load_change: FloatArray | None = None
     cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
-    def from_q(cls, robot: Robot, q: FloatArray) -> PoseBatch:
-        """Evaluate kinematics for joint values [rad], shape (m, n) or (n,)."""
+    def from_q(cls, robot: Robot, q: FloatArray, approach: FloatArray | None = None,
+               force_noise: float = 0.0, load_change: FloatArray | None = None) -> PoseBatch:
+        """Evaluate kinematics for joint values [rad], shape (m, n) or (n,), with the
+        samples' history and force noise [N] (see the attributes)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
         T, J, frames = robot.batch_fk_jacobian_frames(Q)
-        return cls(robot, Q, T, J, frames)
+        return cls(robot, Q, T, J, frames, approach, force_noise, load_change)
+
+    def rows(self, s: slice) -> PoseBatch:
+        """The samples ``s`` as a new batch (its own, empty cache)."""
+        return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
+                         None if self.approach is None else self.approach[s],
+                         self.force_noise,
+                         None if self.load_change is None else self.load_change[s])
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -130,6 +153,18 @@ class Effect(abc.ABC):
     #: not listed only have to be finite and within +-PARAM_LIMIT. Checked by
     #: :meth:`check_params` on effects read from a robot file.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {}
+    #: Largest |value| of each parameter [SI] that a real robot plausibly shows, keyed like
+    #: :attr:`param_ranges` (a link error of 5 mm is not a calibration, a joint 1000x softer
+    #: than any gear is a stand-in for another effect). Identification keeps a parameter only
+    #: where its standard error is below half this size and its estimate within it (see
+    #: :func:`rfsw_plan.elastostatics.identification.implausible`); parameters not listed
+    #: are not checked.
+    plausible_limits: ClassVar[Mapping[str, float]] = {}
+    #: True if the effect is a full parameter set of which the data identifies combinations
+    #: only (a full geometric calibration): its parameters then get a Gaussian prior of
+    #: mean :meth:`prior` and 1-sigma half their plausible size (a maximum a posteriori fit;
+    #: FIGAROH regularises its ``full_params`` calibration the same way).
+    regularised: ClassVar[bool] = False
     #: SI unit of each parameter, keyed like :attr:`param_ranges` (``"rad/(N m)"`` for a
     #: compliance); reports use it to show engineering units beside the SI value.
     param_units: ClassVar[Mapping[str, str]] = {}
@@ -200,6 +235,11 @@ class Effect(abc.ABC):
         """Physically possible range (lo, hi) of parameter ``name`` [SI]."""
         return tuple(self.param_ranges.get(name.rstrip("0123456789"),  # type: ignore[return-value]
                                            (-PARAM_LIMIT, PARAM_LIMIT)))
+
+    def plausible_limit(self, name: str) -> float | None:
+        """Largest plausible |value| of parameter ``name`` [SI], or None (not checked)."""
+        return self.plausible_limits.get(
+            name, self.plausible_limits.get(name.rstrip("0123456789")))
 
     def param_unit(self, name: str) -> str:
         """SI unit of parameter ``name`` (empty if dimensionless or not declared)."""

@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.lost_motion import load_torque
 
 #: Torque over which the lost motion is taken up [N m] (smooths the sign function).
 TAU_EPS_NM = 20.0
@@ -26,7 +27,9 @@ class JointBacklash(ComplianceEffect):
     the order of a force sensor's noise times the lever arm) the side of the play is undefined
     and the model predicts less than the full offset, zero at zero torque. With the torque
     always of one sign the effect is a constant joint offset, so :meth:`identifiable` asks for
-    both signs.
+    both signs. On data with a history (approach directions),
+    :class:`~rfsw_plan.elastostatics.effects.lost_motion.LostMotion` supersedes it: it also
+    places the samples whose torque is too small to know its sign.
     """
 
     name = "joint_backlash"
@@ -55,13 +58,7 @@ class JointBacklash(ComplianceEffect):
     def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
         assert self.joint is not None
-        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-        tau = np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
-        if batch.robot.has_link_masses:
-            if "link_gravity" not in batch.cache:
-                batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
-            tau = tau + batch.cache["link_gravity"][:, self.joint]
-        return tau
+        return load_torque(batch, wrench, self.joint)
 
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray

@@ -40,6 +40,9 @@ class JointCompliance(ComplianceEffect):
     #: Compliance 1/k [rad/(N m)]: >= 0 (0 = rigid), at most that of a 1 N m/rad joint.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"c": (0.0, 1.0)}
     param_units: ClassVar[Mapping[str, str]] = {"c": "rad/(N m)"}
+    #: A joint softer than 100 N m/rad (1e-2 rad/(N m)) is ten times softer than the smallest
+    #: harmonic drive (about 1e3 N m/rad): a fit that wants it stands in for another effect.
+    plausible_limits: ClassVar[Mapping[str, float]] = {"c": 1e-2}
 
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"c{j + 1}" for j in range(self.robot.nq))

@@ -31,6 +31,8 @@ class KinematicOffsets(GeometricEffect):
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = (
         {"dq": (-0.5, 0.5), "dt_x": (-1.0, 1.0), "dt_y": (-1.0, 1.0), "dt_z": (-1.0, 1.0)})
     param_units: ClassVar[Mapping[str, str]] = {"dq": "rad", "dt_x": "m", "dt_y": "m", "dt_z": "m"}
+    #: A joint zero off by more than 0.2 rad (11 deg) is a wrong mastering, not an offset.
+    plausible_limits: ClassVar[Mapping[str, float]] = {"dq": 0.2}
 
     def param_names(self) -> tuple[str, ...]:
         return (*(f"dq{j + 1}" for j in range(self.robot.nq)), "dt_x", "dt_y", "dt_z")
