@@ -158,8 +158,8 @@ def test_deviation_reports_the_cosimulated_lateral_and_steady_force() -> None:
     weld = res.schedule.mask("weld")
     assert js["max_abs_lateral_weld_mm"] == pytest.approx(np.max(np.abs(lateral[weld])) * 1e3)
     # Other forces than the force model's: another lateral.
-    assert not np.allclose(c.axial_force[weld], res.schedule.force_seam[weld, 2], rtol=0.05)
-    assert np.max(np.abs(lateral[weld] - plain.lateral_t[weld])) > 1e-4
+    assert np.max(np.abs(c.axial_force[weld] - res.schedule.force_seam[weld, 2])) > 50.0
+    assert np.max(np.abs(lateral[weld] - plain.lateral_t[weld])) > 1e-5
     settled = c.penetration > 0.9 * c.penetration.max()
     assert js["steady_axial_force_N"] == pytest.approx(float(np.median(c.axial_force[settled])))
     assert js["max_penetration_mm"] == pytest.approx(c.penetration.max() * 1e3)
