@@ -153,24 +153,26 @@ class PlungeCase:
 
 def zk500_plunge_cases() -> list[PlungeCase]:
     """Seed 001 Fig. 10: the 7 / 8 / 9 mm plunge problems through ``deviation --cosim``."""
-    out = []
-    for depth, name in PLUNGE_CASES.items():
-        res = problem_deviation(load_problem(name), cosim=True)
-        c = res.cosim
-        if c is None or not c.all_converged:
-            raise RuntimeError(f"{name}: the co-simulation did not converge")
-        m = res.steady_weld
-        last = np.flatnonzero(res.schedule.mask("weld"))[-10:]
-        out.append(PlungeCase(
-            depth, res,
-            (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
-            (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
-            (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
-            float(res.lateral_t[last].mean() * 1e3),
-            float(c.penetration.max() * 1e3), c.steady_axial_force,
-            float(np.max(np.abs(res.lateral_t[res.schedule.mask("weld")])) * 1e3),
-        ))
-    return out
+    return [_plunge_case(depth, problem_deviation(load_problem(name), cosim=True))
+            for depth, name in PLUNGE_CASES.items()]
+
+
+def _plunge_case(depth: float, res: DeviationResult) -> PlungeCase:
+    """The numbers of one co-simulated plunge problem."""
+    c = res.cosim
+    if c is None or not c.all_converged:
+        raise RuntimeError(f"{depth:g} mm plunge: the co-simulation did not converge")
+    m = res.steady_weld
+    weld = res.schedule.mask("weld")
+    return PlungeCase(
+        depth, res,
+        (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
+        (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
+        (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
+        float(res.lateral_t[np.flatnonzero(weld)[-10:]].mean() * 1e3),
+        float(c.penetration.max() * 1e3), c.steady_axial_force,
+        float(np.max(np.abs(res.lateral_t[weld])) * 1e3),
+    )
 
 
 def table3_eight_mm() -> PlungeCase:
@@ -178,17 +180,7 @@ def table3_eight_mm() -> PlungeCase:
     started from."""
     problem = load_problem(PLUNGE_CASES[8.0])
     res = problem_deviation(replace(problem, robot=load_robot_description("zk500")), cosim=True)
-    c = res.cosim
-    if c is None:
-        raise RuntimeError("no co-simulation")
-    m = res.steady_weld
-    return PlungeCase(
-        8.0, res, (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
-        (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
-        (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
-        float(res.lateral_t[np.flatnonzero(res.schedule.mask("weld"))[-10:]].mean() * 1e3),
-        float(c.penetration.max() * 1e3), c.steady_axial_force,
-        float(np.max(np.abs(res.lateral_t[res.schedule.mask("weld")])) * 1e3))
+    return _plunge_case(8.0, res)
 
 
 def t3_compliance(case: PlungeCase) -> float:
