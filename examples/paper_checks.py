@@ -5,7 +5,10 @@ Run: ``.venv/bin/python examples/paper_checks.py``
 (a) ZK-500, seed 001: lateral TCP deflection at the start of the Table 6 seam under the
     measured welding forces, compared with the 4.9 mm measured; the Fig. 10 co-simulation of
     the 7 / 8 / 9 mm plunge problems (penetration law fitted to Fig. 10 by least squares on
-    each run) compared with the 5.24 mm and 5-7 mm co-simulated and 4842.58 N measured.
+    each run) compared with the 5.24 mm and 5-7 mm co-simulated and 4842.58 N measured, and
+    the joint check: penetration, steady axial force and lateral deviation of one run each,
+    reproduced together (issue 28). The robot is the problems' ``zk500_seed001`` (Table 3
+    re-identified by ``validate`` on ``examples/seed001``); ``zk500`` is Table 3 as published.
     Table 2 -> Table 3: the cable campaign of §2.2.2 simulated on the five Table 2 poses with
     the Table 3 stiffness as truth and identified (rfsw_plan.validation.seed001_campaign).
 (b) FANUC S-900iB/400, seed 000: the influence index nu_p of the complementary stiffness Kc
@@ -35,7 +38,7 @@ from rfsw_plan.elastostatics.workspace import (
 from rfsw_plan.process.deviation import DeviationResult, problem_deviation
 from rfsw_plan.process.problem import Problem, load_problem
 from rfsw_plan.realtime.compare import CompareOptions, compare
-from rfsw_plan.robot.description import ModifiedDH
+from rfsw_plan.robot.description import ModifiedDH, load_robot_description
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.validation.seed001_campaign import (
@@ -57,6 +60,11 @@ MEASURED_MM, COSIM_MM = 4.9, 5.24
 PLUNGE_CASES = {7.0: "zk500_plunge7mm", 8.0: "zk500_table6_seam", 9.0: "zk500_plunge9mm"}
 #: Seed 001 Fig. 10d-f: lateral deviation of every virtual weld [mm].
 COSIM_RANGE_MM = (5.0, 7.0)
+#: The ZK-500 the zk500 problems use: Table 3 re-identified on examples/seed001 (issue 28).
+ZK500 = "zk500_seed001"
+#: Joint check tolerances (issue 28): penetration +-0.3 mm, steady axial force 15 %, largest
+#: lateral deviation in the weld 10 % of 5.24 mm.
+PEN_TOL_MM, FORCE_TOL, LATERAL_TOL = 0.3, 0.15, 0.10
 
 #: Seed 000 eq. 10: wrench [N, N m] and joint stiffness [N m/rad] (k6 assumed = k5).
 EQ10_WRENCH = np.array([1000.0, -3000.0, -4000.0, -200.0, 200.0, -200.0])
@@ -88,7 +96,7 @@ class SeamCheck:
 
 def zk500_seam_check() -> SeamCheck:
     """Seed 001: tool straight down at the Table 6 seam start, elbow-up near Table 2 pose 1."""
-    robot = load_robot("zk500")
+    robot = load_robot(ZK500)
     model = load_model(robot)
     t = (SEAM_END - SEAM_START) / np.linalg.norm(SEAM_END - SEAM_START)
     up = np.array([0.0, 0.0, 1.0])
@@ -125,6 +133,11 @@ class PlungeCase:
         lateral_mm: Lateral deviation over the steady weld (min, max) [mm].
         last10_lateral_mm: Mean lateral deviation of the last ten weld samples [mm] (seed 001
             §4 averages the final ten iterations).
+        max_penetration_mm: Largest co-simulated penetration [mm] (``cosim.max_penetration_mm``).
+        steady_force_N: Median axial force where the penetration is above 90 % of its largest
+            [N] (``cosim.steady_axial_force_N``).
+        max_lateral_mm: Largest |lateral deviation| in the weld, under the co-simulated forces
+            [mm] (``cosim.max_abs_lateral_weld_mm``).
     """
 
     commanded_mm: float
@@ -133,26 +146,70 @@ class PlungeCase:
     force_N: tuple[float, float]
     lateral_mm: tuple[float, float]
     last10_lateral_mm: float
+    max_penetration_mm: float
+    steady_force_N: float
+    max_lateral_mm: float
 
 
 def zk500_plunge_cases() -> list[PlungeCase]:
     """Seed 001 Fig. 10: the 7 / 8 / 9 mm plunge problems through ``deviation --cosim``."""
-    out = []
-    for depth, name in PLUNGE_CASES.items():
-        res = problem_deviation(load_problem(name), cosim=True)
-        c = res.cosim
-        if c is None or not c.all_converged:
-            raise RuntimeError(f"{name}: the co-simulation did not converge")
-        m = res.steady_weld
-        last = np.flatnonzero(res.schedule.mask("weld"))[-10:]
-        out.append(PlungeCase(
-            depth, res,
-            (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
-            (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
-            (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
-            float(res.lateral_t[last].mean() * 1e3),
-        ))
-    return out
+    return [_plunge_case(depth, problem_deviation(load_problem(name), cosim=True))
+            for depth, name in PLUNGE_CASES.items()]
+
+
+def _plunge_case(depth: float, res: DeviationResult) -> PlungeCase:
+    """The numbers of one co-simulated plunge problem."""
+    c = res.cosim
+    if c is None or not c.all_converged:
+        raise RuntimeError(f"{depth:g} mm plunge: the co-simulation did not converge")
+    m = res.steady_weld
+    weld = res.schedule.mask("weld")
+    return PlungeCase(
+        depth, res,
+        (float(c.penetration[m].min() * 1e3), float(c.penetration[m].max() * 1e3)),
+        (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
+        (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
+        float(res.lateral_t[np.flatnonzero(weld)[-10:]].mean() * 1e3),
+        float(c.penetration.max() * 1e3), c.steady_axial_force,
+        float(np.max(np.abs(res.lateral_t[weld])) * 1e3),
+    )
+
+
+def table3_eight_mm() -> PlungeCase:
+    """The 8 mm run on ``zk500`` (Table 3 as published, no added effect): what issue 28
+    started from."""
+    problem = load_problem(PLUNGE_CASES[8.0])
+    res = problem_deviation(replace(problem, robot=load_robot_description("zk500")), cosim=True)
+    return _plunge_case(8.0, res)
+
+
+def t3_compliance(case: PlungeCase) -> float:
+    """The robot's axial compliance at the fitted sample of a case [mm/kN]."""
+    fit = case.result.penetration_fit
+    return float("nan") if fit is None else fit.axial_compliance * 1e6
+
+
+def joint_check(cases: list[PlungeCase]) -> tuple[bool, str]:
+    """Seed 001's numbers together (issue 28): each plunge is one ``deviation --cosim`` run;
+    the 8 mm run must give its penetration, the measured axial force and the lateral deviation
+    at once, the 7 and 9 mm runs their penetrations.
+
+    Returns:
+        Whether all five hold, and the measured numbers as text.
+    """
+    by = {c.commanded_mm: c for c in cases}
+    seven, eight, nine = by[7.0], by[8.0], by[9.0]
+    f_err = eight.steady_force_N / FD_N - 1.0
+    l_err = eight.max_lateral_mm / COSIM_MM - 1.0
+    holds = (abs(seven.max_penetration_mm - 4.2) <= PEN_TOL_MM
+             and abs(eight.max_penetration_mm - 4.8) <= PEN_TOL_MM
+             and nine.max_penetration_mm > 5.0 and abs(f_err) <= FORCE_TOL
+             and abs(l_err) <= LATERAL_TOL)
+    text = (f"7 mm run: {seven.max_penetration_mm:.2f} mm; 8 mm run: "
+            f"{eight.max_penetration_mm:.2f} mm, {eight.steady_force_N:.0f} N "
+            f"({f_err * 100:+.1f} %), lateral {eight.max_lateral_mm:.2f} mm "
+            f"({l_err * 100:+.1f} %); 9 mm run: {nine.max_penetration_mm:.2f} mm")
+    return holds, text
 
 
 def fanuc_nu_p_maps(n_points: int = 41) -> dict[str, IndexMap]:
@@ -449,64 +506,89 @@ class Check:
 
 
 def _seed001_rows() -> list[Check]:
-    """Seed 001 (ZK-500): measured deflection, Fig. 10 co-simulation, Table 3 stiffness."""
+    """Seed 001 (ZK-500): measured deflection, Fig. 10 co-simulation, the joint check of issue
+    28, Table 3 stiffness."""
     s = zk500_seam_check()
     err = (s.lateral_mm - MEASURED_MM) / MEASURED_MM * 100
     cases = zk500_plunge_cases()
     fit = cases[0].result.penetration_fit
     if fit is None:
         raise RuntimeError(f"{PLUNGE_CASES[7.0]}: no penetration-law calibration")
-    eight = next(c for c in cases if c.commanded_mm == 8.0)
+    by = {c.commanded_mm: c for c in cases}
+    eight = by[8.0]
     implied = (8.0 - 4.8) / FD_N * 1e3  # [mm/kN]: 3.2 mm taken up by the robot at Fd
-    pen = ", ".join(f"{o.commanded_mm:g} -> {o.penetration_mm[0]:.2f}-{o.penetration_mm[1]:.2f}"
-                    for o in cases)
+    pen = ", ".join(f"{o.commanded_mm:g} -> {o.max_penetration_mm:.2f}" for o in cases)
     lat = ", ".join(f"{o.commanded_mm:g}: {o.lateral_mm[0]:.2f}-{o.lateral_mm[1]:.2f}"
                     for o in cases)
     lo = min(o.lateral_mm[0] for o in cases)
     hi = max(o.lateral_mm[1] for o in cases)
     cos_err = (eight.last10_lateral_mm - COSIM_MM) / COSIM_MM * 100
+    f_err = (eight.steady_force_N / FD_N - 1) * 100
+    pen_ok = (abs(by[7.0].max_penetration_mm - 4.2) <= PEN_TOL_MM
+              and abs(by[8.0].max_penetration_mm - 4.8) <= PEN_TOL_MM
+              and by[9.0].max_penetration_mm > 5.0)
+    together, numbers = joint_check(cases)
+    t3 = table3_eight_mm()
     return [
         Check(
             "001 §4: lateral deflection 4.9 mm (measured)",
             f"{s.lateral_mm:.2f} mm ({err:+.1f} %)",
             abs(err) <= 10.0,
-            "elastostatic model, Table 6 seam start, §3 forces; tolerance 10 %",
+            f"elastostatic model ({ZK500}), Table 6 seam start, §3 forces; tolerance 10 %",
         ),
         Check(
             "001 Fig. 10a-c: penetration ~4.2 / ~4.8 / >5 mm for 7 / 8 / 9 mm plunge",
-            "settled (fit): " + ", ".join(
-                f"{o.commanded_depth * 1e3:g} -> {p * 1e3:.2f}"
-                for o, p in zip(fit.observations, fit.predicted, strict=True))
-            + f" mm, RMS residual {fit.rms_residual * 1e3:.3f} mm; steady weld: {pen} mm",
-            fit.rms_residual <= 0.05e-3 and fit.predicted[2] > 5.0e-3,
+            f"largest co-simulated penetration: {pen} mm; law fit "
+            + ", ".join(f"{o.commanded_depth * 1e3:g} -> {p * 1e3:.2f}"
+                        for o, p in zip(fit.observations, fit.predicted, strict=True))
+            + f" mm (RMS residual {fit.rms_residual * 1e3:.3f} mm)",
+            pen_ok,
             f"calibrated, not predicted: the law through zero (1 parameter, k_p "
             f"{fit.law.stiffness * 1e-3:.0f} N/mm) fitted by least squares to the 3 points "
-            "(the >5 mm one as a bound), like eq. 15's f*; tolerance 0.05 mm RMS",
+            "(the >5 mm one as a bound), like eq. 15's f*, through the robot's compliance; "
+            f"tolerance +-{PEN_TOL_MM:g} mm on each run's largest penetration (issue 28)",
         ),
         Check(
             "001 §3: axial force 4842.58 N (measured, 8 mm plunge)",
-            f"{eight.force_N[0]:.0f}-{eight.force_N[1]:.0f} N (co-simulated steady weld)",
-            abs(eight.force_N[1] / FD_N - 1) <= 0.1,
+            f"{eight.steady_force_N:.0f} N ({f_err:+.1f} %; median where the penetration is "
+            f"above 90 % of its largest; steady weld {eight.force_N[0]:.0f}-"
+            f"{eight.force_N[1]:.0f} N)",
+            abs(f_err) <= 10.0,
             f"Fig. 10's 3.2 mm taken up at 8 mm needs {implied:.3f} mm/kN along the tool "
-            f"axis; Table 3 stiffness gives {fit.axial_compliance * 1e6:.3f} mm/kN, so the "
-            "law must push harder; a compliance missing from the robot model (spindle, "
-            "sensor, fixture, link bending) would explain both",
+            f"axis; Table 3 alone gives {t3_compliance(t3):.3f} mm/kN (the law then pushes "
+            f"{t3.steady_force_N:.0f} N); {ZK500}'s "
+            "joint 2 gives way more under the weld's torque (torque_dependent_stiffness:j2, "
+            f"named by validate on examples/seed001: {fit.axial_compliance * 1e6:.2f} mm/kN "
+            "locally at Fd); tolerance 10 %",
         ),
         Check(
             "001 §4: co-simulated lateral 5.24 mm (8 mm, mean of the final 10 iterations)",
             f"{eight.last10_lateral_mm:.2f} mm ({cos_err:+.1f} %)",
             abs(cos_err) <= 10.0,
-            "mean of the last 10 weld samples of deviation --cosim; the higher co-simulated "
-            "axial force lowers the lateral deviation (Fl, Fr held at §3's values); "
-            "tolerance 10 %",
+            "mean of the last 10 weld samples of deviation --cosim (the seam's end); the "
+            f"lateral deviation falls along the seam ({eight.lateral_mm[1]:.2f} -> "
+            f"{eight.lateral_mm[0]:.2f} mm) as the arm moves in; the paper's 5.24 mm is its "
+            f"own model's, the real weld measured ~4.9 mm (Fig. 3b); tolerance 10 %",
         ),
         Check(
             "001 Fig. 10d-f: lateral 5-7 mm in every virtual weld",
             f"{lat} mm (steady weld)",
             lo >= COSIM_RANGE_MM[0] - 0.5 and hi <= COSIM_RANGE_MM[1] + 0.5,
-            f"all cases {lo:.2f}-{hi:.2f} mm, below 5 mm: the elastostatic model gives "
-            f"{s.lateral_mm:.2f} mm at the measured forces and the co-simulation's extra axial "
-            "force lowers it; tolerance 0.5 mm",
+            f"all cases {lo:.2f}-{hi:.2f} mm: the model gives {s.lateral_mm:.2f} mm at the "
+            "measured forces, like the 4.9 mm measured; the paper's virtual welds are above "
+            "its own measurement; tolerance 0.5 mm",
+        ),
+        Check(
+            "001 §2.1/§3/§4 together: 4.2 / 4.8 / >5 mm, Fd0 4842.58 N, lateral 5.24 mm",
+            numbers,
+            together,
+            f"one deviation --cosim run per plunge on {ZK500} (law fitted on each run): "
+            f"largest penetration +-{PEN_TOL_MM:g} mm, steady axial force (median where "
+            f"the penetration is above 90 % of its largest) {FORCE_TOL * 100:.0f} %, largest "
+            f"|cosim.lateral_mm| in the weld {LATERAL_TOL * 100:.0f} %; with Table 3 alone "
+            f"(zk500) the 8 mm run gives {t3.max_penetration_mm:.2f} mm, "
+            f"{t3.steady_force_N:.0f} N ({(t3.steady_force_N / FD_N - 1) * 100:+.0f} %), "
+            f"lateral {t3.max_lateral_mm:.2f} mm",
         ),
         *_seed001_table3_rows(seed001_cases()),
     ]

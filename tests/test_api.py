@@ -27,7 +27,7 @@ def test_plan_returns_a_verified_typed_result() -> None:
 def test_model_predicts_the_seed_001_deflection_scale() -> None:
     model = rfsw_plan.load_model("zk500")
     problem = rfsw_plan.load_problem("zk500_table6_seam")
-    assert problem.robot.name == "zk500"
+    assert problem.robot.name == "zk500_seed001"  # Table 3 re-identified (issue 28)
     q = np.radians([-82.58, 41.65, 18.67, 0.0, 29.68, 15.42])
     dX = model.deflection(q, [-1415.0, -795.2, 4835.5, 0.0, 0.0, 0.0])
     assert 3e-3 < np.linalg.norm(dX[:3]) < 10e-3

@@ -132,3 +132,34 @@ def test_fit_bad_input(setup) -> None:
     weld = np.flatnonzero(sch.mask("weld"))
     with pytest.raises(InputError, match="dwell"):
         fit_penetration_law(model, Qt[weld], _rows(sch, weld), SEED001_FIG10)
+
+
+def test_deviation_reports_the_cosimulated_lateral_and_steady_force() -> None:
+    """``cosim.lateral_mm`` is the lateral deflection under the co-simulated forces (the model
+    evaluated again with the converged f_n gives it), not the force model's; the steady force is
+    the median where the penetration is above 90 % of its largest (issue 28)."""
+    from rfsw_plan.process.deviation import problem_deviation
+    from rfsw_plan.process.problem import load_problem
+
+    problem = load_problem("zk500_table6_seam")
+    plain = problem_deviation(problem, dt=0.5)
+    res = problem_deviation(problem, dt=0.5, cosim=True)
+    c = res.cosim
+    assert c is not None
+    js = res.to_dict()["cosim"]
+    model = ElastostaticModel(load_robot(problem.robot))
+    fr = res.schedule.frames
+    from rfsw_plan.process.deviation import schedule_joints
+
+    Qt = schedule_joints(res.schedule, res.frames, res.q)
+    W = np.hstack([fr.to_base(c.force_seam), res.schedule.moment_base])
+    lateral = np.einsum("ki,ki->k", model.process_deflection(Qt, W)[:, :3], fr.l)
+    np.testing.assert_allclose(js["lateral_mm"], lateral * 1e3, atol=2e-6)
+    weld = res.schedule.mask("weld")
+    assert js["max_abs_lateral_weld_mm"] == pytest.approx(np.max(np.abs(lateral[weld])) * 1e3)
+    # Other forces than the force model's: another lateral.
+    assert np.max(np.abs(c.axial_force[weld] - res.schedule.force_seam[weld, 2])) > 50.0
+    assert np.max(np.abs(lateral[weld] - plain.lateral_t[weld])) > 1e-5
+    settled = c.penetration > 0.9 * c.penetration.max()
+    assert js["steady_axial_force_N"] == pytest.approx(float(np.median(c.axial_force[settled])))
+    assert js["max_penetration_mm"] == pytest.approx(c.penetration.max() * 1e3)

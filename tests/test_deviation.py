@@ -104,7 +104,9 @@ def test_cli_unknown_problem(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_cli_cosim_fits_the_penetration_law(tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
-    """The 7 mm case fits the law to seed 001 Fig. 10 and settles near 4.2 mm of penetration."""
+    """The 7 mm case fits the law to seed 001 Fig. 10 and settles near 4.2 mm of penetration
+    (+-0.3 mm, issue 28: through zk500_seed001's torque-dependent joint 2 the one-parameter law
+    fits the three plunges to about 0.1 mm RMS)."""
     assert main(["deviation", "zk500_plunge7mm", "-o", str(tmp_path), "--no-plot",
                  "--cosim"]) == 0
     out = capsys.readouterr().out
@@ -113,6 +115,8 @@ def test_cli_cosim_fits_the_penetration_law(tmp_path: Path,
     data = json.loads((tmp_path / "deviation.json").read_text())
     fit = data["cosim"]["penetration_fit"]
     assert fit["commanded_depth_mm"] == [7.0, 8.0, 9.0]
-    assert fit["predicted_penetration_mm"][0] == pytest.approx(4.2, abs=0.01)
-    assert fit["rms_residual_mm"] < 0.01
+    assert fit["predicted_penetration_mm"][0] == pytest.approx(4.2, abs=0.3)
+    assert fit["rms_residual_mm"] < 0.15
+    assert data["cosim"]["max_penetration_mm"] == pytest.approx(4.2, abs=0.3)
+    assert "co-simulated: largest penetration" in out
     assert data["cosim"]["all_converged"]

@@ -99,7 +99,7 @@ def test_too_few_samples_says_how_many_are_needed(model: ElastostaticModel) -> N
 
 def test_candidates_are_the_library_minus_the_model(model: ElastostaticModel) -> None:
     labels = candidate_labels(model)
-    assert len(labels) == 6 + 5 * 6  # + link_errors, lost_motion:jN, load_hysteresis:jN
+    assert len(labels) == 7 + 5 * 6  # 7 global (link_errors, flange_compliance), 5 per joint
     assert "joint_compliance" not in labels
     extended = model.with_effect("payload_gravity").with_effect("joint_backlash:j2")
     labels2 = candidate_labels(extended)

@@ -39,7 +39,7 @@ from rfsw_plan.files import sha256_file
 from rfsw_plan.robot.kinematics import load_robot
 
 GOLDEN = Path(__file__).parent / "data" / "export"
-CASES = [("zk500_table6_seam", "zk500"), ("fanuc_butt_1700mm", "fanuc_s900ib_400"),
+CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "fanuc_s900ib_400"),
          ("kr600_curved_seam", "kuka_kr600_r2830")]
 
 
@@ -196,7 +196,8 @@ def _rapid_errors(path: Path) -> list[str]:
 
 
 @pytest.mark.parametrize(
-    "planned", [pytest.param(c, id=c[1], marks=() if c[1] == "zk500" else pytest.mark.slow)
+    "planned", [pytest.param(c, id=c[1],
+                             marks=() if c[1] == "zk500_seed001" else pytest.mark.slow)
                 for c in CASES], indirect=True)
 def test_rapid_passes_rapidchecker(planned) -> None:
     """rapidchecker is slow (~1 s per 15 robtargets): the ZK-500 module in the default run,
@@ -317,7 +318,7 @@ def test_export_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
 def test_export_command_on_a_written_plan(planned, tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     out, robot, _ = planned
-    if robot.name != "zk500":
+    if robot.name != "zk500_seed001":
         pytest.skip("one robot is enough for the command path")
     code = main(["export", str(out), "-o", str(tmp_path), "--format", "krl,rapid",
                  "--export-spacing-mm", "2", "--json"])

@@ -59,6 +59,7 @@ CASES: list[tuple[str, float]] = [
     ("sensor_misalignment", NOISE_MM),
     ("force_sensor_bias", NOISE_MM),
     ("kinematic_offsets", NOISE_MM),
+    ("flange_compliance", NOISE_MM),
 ]
 
 

@@ -35,7 +35,7 @@ def paper() -> ModuleType:
 def test_zk500_lateral_deflection_within_10_percent_of_measured(paper: ModuleType) -> None:
     s = paper.zk500_seam_check()
     # Tool straight down at the seam start (seed 001 Table 6).
-    robot = load_robot("zk500")
+    robot = load_robot(paper.ZK500)
     T = robot.fk(np.radians(s.q_deg))
     np.testing.assert_allclose(T[:3, 3], paper.SEAM_START, atol=1e-6)
     np.testing.assert_allclose(T[:3, 2], [0.0, 0.0, -1.0], atol=1e-6)
@@ -111,20 +111,35 @@ def test_one_table_keeps_the_reproduced_numbers_reproduced(paper: ModuleType) ->
     assert all(r.why for r in rows if not r.reproduced)
 
 
-def test_seed001_cosim_cases_keep_their_finding(paper: ModuleType) -> None:
-    """Fig. 10's plunges order the penetration; the fitted law needs far more than the
-    measured axial force and the lateral deviation stays below the paper's 5-7 mm."""
+def test_seed001_numbers_hold_together_in_one_run(paper: ModuleType) -> None:
+    """Issue 28's joint check on the problems' robot (zk500_seed001): each plunge is one
+    co-simulation; the 8 mm run gives penetration, measured axial force and lateral deviation
+    at once; Table 3 alone (zk500) pushes 1.8x the measured force for the same penetration."""
     cases = paper.zk500_plunge_cases()
     assert [c.commanded_mm for c in cases] == [7.0, 8.0, 9.0]
-    pen = [c.penetration_mm for c in cases]
-    assert pen[0][1] < pen[1][1] < pen[2][1]
-    assert 4.0 < pen[1][1] < 5.0 and pen[2][1] > 5.0  # 8 mm ~4.8 mm, 9 mm beyond the plate
-    eight = cases[1]
-    assert eight.force_N[0] > 1.5 * paper.FD_N
-    assert all(c.lateral_mm[1] < paper.COSIM_RANGE_MM[0] for c in cases)
-    assert 3.5 < eight.last10_lateral_mm < paper.COSIM_MM
+    assert all(c.result.cosim is not None and c.result.cosim.all_converged for c in cases)
+    seven, eight, nine = cases
+    assert abs(seven.max_penetration_mm - 4.2) <= 0.3
+    assert abs(eight.max_penetration_mm - 4.8) <= 0.3
+    assert nine.max_penetration_mm > 5.0
+    assert abs(eight.steady_force_N / paper.FD_N - 1.0) <= 0.15
+    assert abs(eight.max_lateral_mm / paper.COSIM_MM - 1.0) <= 0.10
+    # The three numbers come from the same run's series (what deviation --cosim --json gives).
+    js = eight.result.to_dict()["cosim"]
+    assert js["max_penetration_mm"] == pytest.approx(eight.max_penetration_mm)
+    assert js["steady_axial_force_N"] == pytest.approx(eight.steady_force_N)
+    assert js["max_abs_lateral_weld_mm"] == pytest.approx(eight.max_lateral_mm)
+    holds, text = paper.joint_check(cases)
+    assert holds and "8 mm run" in text
+    t3 = paper.table3_eight_mm()
+    assert t3.result.cosim is not None and t3.steady_force_N > 1.5 * paper.FD_N
     rows = {r.paper: r for r in paper._seed001_rows()}
-    assert not rows["001 §3: axial force 4842.58 N (measured, 8 mm plunge)"].reproduced
+    joint = rows["001 §2.1/§3/§4 together: 4.2 / 4.8 / >5 mm, Fd0 4842.58 N, lateral 5.24 mm"]
+    assert joint.reproduced
+    assert rows["001 §3: axial force 4842.58 N (measured, 8 mm plunge)"].reproduced
+    # The paper's own model's mean of the final ten iterations stays above ours, honestly.
+    assert not rows["001 §4: co-simulated lateral 5.24 mm (8 mm, mean of the final 10 "
+                    "iterations)"].reproduced
 
 
 def test_seed000_direction_cases_keep_their_finding(paper: ModuleType) -> None:

@@ -34,8 +34,9 @@ def test_zk500_plan_keeps_every_weld_waypoint_in_the_window(tmp_path, capsys):
     # ~1.2 mm > half the window), but the NLP leaves it by less than the mirror fake targets.
     margins = {b["strategy"]: b["worst_case_window_margin_mm"] for b in summary["baselines"]}
     assert margins["nlp"] > margins["mirror"] > margins["none"]
-    # The loaded pin sits on every seam point along the track too (the along-track offset).
-    assert summary["max_abs_along_track_error_mm"] < 1e-6
+    # The loaded pin sits on every seam point along the track too (the along-track offset), to
+    # the outer correction's tolerance (outer_tol 1e-6 m: zk500_seed001 has a non-linear effect).
+    assert summary["max_abs_along_track_error_mm"] < 1e-3
     assert np.min(np.array(wp["off_along_mm"])[weld]) > 0.0
     assert (out / "waypoints.csv").exists() and (out / "lateral_error.png").exists()
 

@@ -94,4 +94,4 @@ def test_plan_prints_the_robot_file_it_used(tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plan", "zk500_table6_seam", "-o", str(tmp_path)]) == 0
     out = capsys.readouterr().out
-    assert re.search(r"^robot zk500 from .*robots/zk500\.toml$", out, re.M)
+    assert re.search(r"^robot zk500_seed001 from .*robots/zk500_seed001\.toml$", out, re.M)

@@ -72,13 +72,14 @@ def test_uncompensated_run_reproduces_the_deviation_prediction_within_1_percent(
 
 
 def test_softer_truth_scales_the_deviation() -> None:
-    """Joint compliance only: 20 % lower stiffness -> deflection x 1/0.8 (linear in C)."""
+    """20 % lower joint stiffness -> deflection x 1/0.8 (linear in C); zk500_seed001's
+    torque-dependent joint 2 (issue 28) is not scaled, which leaves about 0.4 %."""
     _, model, *_ = zk500()
     base = run_none(QUIET)
     soft = run_none(QUIET, truth_model(model, 0.8))
     w = base.weld
     # The taught pose sits on the seam, so the lateral error is the deflection alone.
-    np.testing.assert_allclose(soft.lateral_error[w], base.lateral_error[w] / 0.8, atol=2e-6)
+    np.testing.assert_allclose(soft.lateral_error[w], base.lateral_error[w] / 0.8, rtol=0.01)
 
 
 def test_hidden_effect_changes_the_truth_and_unknown_effect_is_rejected() -> None:

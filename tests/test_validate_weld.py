@@ -219,8 +219,8 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     # The next command names the file after the robot it will hold.
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v0")]) == 0
-    assert "--save-robot zk500+joint_compliance:j1.toml" in capsys.readouterr().out
-    saved = tmp_path / "robots" / "zk500+joint_compliance:j1.toml"  # folder made on the way
+    assert "--save-robot zk500_seed001+joint_compliance:j1.toml" in capsys.readouterr().out
+    saved = tmp_path / "robots" / "zk500_seed001+joint_compliance:j1.toml"  # folder made on the way
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v1"), "--add", "joint_compliance:j1",
                  "--save-robot", str(saved)]) == 0
@@ -230,14 +230,14 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     assert len(text.splitlines()) < 60
     assert not [ln for ln in text.splitlines() if re.fullmatch(r"\s*-?[0-9.e+-]+,?\s*", ln)]
     d = load_robot_description(saved)  # the strict reader
-    assert d.name == "zk500+joint_compliance:j1"
+    assert d.name == "zk500_seed001+joint_compliance:j1"
     prov = d.provenance
-    assert prov["parent"].endswith("robots/zk500.toml")
+    assert prov["parent"].endswith("robots/zk500_seed001.toml")
     assert prov["data"] == str(track) and prov["data_sha256"] == sha256_file(track)
     assert prov["forces"] == str(forces) and prov["forces_sha256"] == sha256_file(forces)
     assert prov["command"] == "rfsw-plan validate-weld"
     assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC", prov["created"])
-    k0 = load_robot_description("zk500").stiffness[0]
+    k0 = load_robot_description("zk500_seed001").stiffness[0]
     assert d.stiffness[0] == pytest.approx(0.8 * k0, rel=0.03)  # the truth's softer joint 1
     # A name of the user's; a plan on the saved robot prints the file it used.
     named = tmp_path / "cell7.toml"
@@ -247,7 +247,7 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     assert load_robot_description(named).name == "cell7_zk500"
     capsys.readouterr()
     assert main(["-q", "plan", PROBLEM, "--robot", str(saved), "-o", str(tmp_path / "p2")]) == 0
-    assert re.search(rf"^robot zk500\+joint_compliance:j1 from {re.escape(str(saved))}$",
+    assert re.search(rf"^robot zk500_seed001\+joint_compliance:j1 from {re.escape(str(saved))}$",
                      capsys.readouterr().out, re.M)
     # --name without --save-robot is a one-line error.
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--name", "x"]) == 2

@@ -88,6 +88,18 @@ class CosimResult:
         """True if every step converged."""
         return bool(np.all(self.converged))
 
+    @property
+    def settled(self) -> NDArray[np.bool_]:
+        """Samples where the penetration is above 90 % of its largest value (the tool has
+        settled: seed 001 Fig. 10 reads the penetration there), shape (N,)."""
+        return self.penetration > 0.9 * float(np.max(self.penetration))
+
+    @property
+    def steady_axial_force(self) -> float:
+        """Median axial force over :attr:`settled` [N]: what seed 001 §3 compares with the
+        measured Fd0 (the mean of the stable region of the force curve)."""
+        return float(np.median(self.axial_force[self.settled]))
+
     def summary(self) -> str:
         """One line on convergence."""
         return (f"co-simulation: {int(np.sum(self.converged))}/{len(self.t)} steps converged, "

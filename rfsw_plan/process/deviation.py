@@ -52,7 +52,8 @@ class DeviationResult:
         along: Along-track deviation per waypoint [m], shape (k,).
         schedule: Load schedule over time (N samples).
         deflection_t: TCP deflection over time, base frame [m, rad], shape (N, 6).
-        lateral_t: Lateral deviation over time [m], shape (N,).
+        lateral_t: Lateral deviation over time [m], shape (N,); under the co-simulated forces
+            when ``cosim`` is given.
         axial_t: Axial deviation over time [m], shape (N,).
         along_t: Along-track deviation over time [m], shape (N,).
         window: Weld window.
@@ -87,9 +88,11 @@ class DeviationResult:
             np.abs(sch.force_seam[:, :2] - steady) <= 1e-6 * np.abs(steady).max(), axis=1)
 
     def cosim_summary(self) -> str:
-        """One line on the co-simulated weld: penetration, axial force and lateral deviation
+        """Two lines on the co-simulated weld: penetration, axial force and lateral deviation
         over the steady weld, and the mean lateral deviation of the last ten samples (seed 001
-        §4 reports the mean of the final ten iterations). Empty without a co-simulation."""
+        §4 reports the mean of the final ten iterations); then the three numbers seed 001 gives
+        together (largest penetration, steady axial force, largest |lateral| in the weld).
+        Empty without a co-simulation."""
         c = self.cosim
         m = self.steady_weld
         if c is None or not m.any():
@@ -100,7 +103,11 @@ class DeviationResult:
                 f"-{c.penetration[m].max() * mm:.2f} mm, axial force "
                 f"{c.axial_force[m].min():.0f}-{c.axial_force[m].max():.0f} N, lateral "
                 f"{self.lateral_t[m].min() * mm:.2f}-{self.lateral_t[m].max() * mm:.2f} mm; "
-                f"mean lateral of the last 10 samples {self.lateral_t[last].mean() * mm:.2f} mm")
+                f"mean lateral of the last 10 samples {self.lateral_t[last].mean() * mm:.2f} mm\n"
+                f"co-simulated: largest penetration {c.penetration.max() * mm:.2f} mm, steady "
+                f"axial force {c.steady_axial_force:.0f} N (median where the penetration is above "
+                f"90 % of its largest), largest |lateral| in the weld "
+                f"{np.max(np.abs(self.lateral_t[self.schedule.mask('weld')])) * mm:.2f} mm")
 
     @property
     def max_abs_lateral(self) -> float:
@@ -164,8 +171,15 @@ class DeviationResult:
                 "all_converged": c.all_converged,
                 "max_iterations": int(np.max(c.iterations)),
                 "max_residual_N": float(np.max(c.residual)),
+                "max_penetration_mm": float(np.max(c.penetration)) * mm,
+                "steady_axial_force_N": c.steady_axial_force,
+                "max_abs_lateral_weld_mm": float(np.max(np.abs(self.lateral_t[weld])) * mm)
+                if weld.any() else None,
                 "axial_force_N": _r(c.axial_force),
                 "penetration_mm": _r(c.penetration * mm),
+                "lateral_mm": _r(self.lateral_t * mm),
+                "axial_mm": _r(self.axial_t * mm),
+                "along_mm": _r(self.along_t * mm),
                 "iterations": [int(i) for i in c.iterations],
             }
             fit = self.penetration_fit
