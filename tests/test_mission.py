@@ -89,7 +89,11 @@ def test_hidden_effect_is_ranked_first_and_adding_it_reaches_the_noise_floor(
     assert dg.verdict == "missing", dg.message
     best = dg.candidates[0]
     assert best.label == hidden, dg.message
-    assert best.significant and not any(c.tied_with_best for c in dg.candidates)
+    assert best.significant
+    # The data may not tell the hidden effect from a more general one (link_errors contains
+    # kinematic offsets): such a tie is allowed, but the named one is the simplest of them.
+    ties = [c for c in dg.candidates if c.tied_with_best]
+    assert all(c.n_params > best.n_params for c in ties), [(c.label, c.n_params) for c in ties]
     name, _, joint = hidden.partition(":j")
     assert (best.effect, best.joint) == (name, int(joint) if joint else None)
 
