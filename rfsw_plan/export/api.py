@@ -56,7 +56,7 @@ class ExportResult:
         files: The files written, final names.
         round_trips: Per format, the re-read points against the plan.
         n_points: Number of program points.
-        stream_rows: Rows of the stream file (0 if not written).
+        points_per_format: Points (rows, for a stream) each format wrote.
         header: The program header.
         sample_check: What checked the re-read points and stream rows (empty: none).
         max_path_deviation: Largest bound of a verified sample's distance to the path the
@@ -67,7 +67,7 @@ class ExportResult:
     files: tuple[Path, ...]
     round_trips: dict[str, RoundTrip]
     n_points: int
-    stream_rows: int
+    points_per_format: dict[str, int]
     header: ProgramHeader
     sample_check: str = ""
     max_path_deviation: float = 0.0
@@ -82,7 +82,7 @@ class ExportResult:
             "spacing_mm": self.header.spacing * 1e3,
             "path_tolerance_mm": self.header.path_tol * 1e3,
             "max_path_deviation_mm": self.max_path_deviation * 1e3,
-            "stream_rows": self.stream_rows,
+            "points_per_format": dict(self.points_per_format),
             "sample_check": self.sample_check or "none (plan samples vouched by plan.json)",
             "notes": list(self.notes),
             "round_trip": {k: {"max_position_error_mm": float(np.max(r.pose_error)) * 1e3,
@@ -190,7 +190,7 @@ def export_programs(
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
-    rows = len(program.stream) if "stream" in fmts and program.stream is not None else 0
+    rows = {name: len(trip.q) for name, trip in trips.items()}
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
                         checked.strip(), deviation, program.header.notes)
 

@@ -126,7 +126,10 @@ class ControllerFormat(abc.ABC):
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        if cls.name and not getattr(cls, "__abstractmethods__", None):
+        # ABCMeta fills __abstractmethods__ only after this hook: look at the methods
+        abstract = [m for m in ("write", "read", "posture")
+                    if getattr(getattr(cls, m, None), "__isabstractmethod__", False)]
+        if cls.name and not abstract:
             FORMATS[cls.name] = cls
 
     @abc.abstractmethod
