@@ -25,8 +25,9 @@ def synthetic(n_weld: int = 20, wiggle: float = 0.0) -> tuple[Robot, Samples, Pr
     ramp = np.concatenate([np.linspace(0, 1, 6), np.ones(n - 6)])
     q[:, 1] += np.radians(2.0) * ramp
     w = np.array([p in ("accelerate", "weld", "decelerate") for p in phases])
-    q[:, 0] += np.radians(0.2) * np.cumsum(w) / 10
-    q[:, 2] += np.radians(0.05) * np.cumsum(w) ** 2 / 100
+    c = np.cumsum(w) * (20 / n_weld)  # the same weld, sampled more finely
+    q[:, 0] += np.radians(0.2) * c / 10
+    q[:, 2] += np.radians(0.05) * c ** 2 / 100
     q[:, 0] += wiggle * np.sin(np.cumsum(w) * 0.7) * w
     back = np.array([p == "retract" for p in phases])
     q[:, 1] -= np.radians(0.5) * np.cumsum(back) / 6  # the retract lifts the tool

@@ -108,25 +108,28 @@ def plan_spacing(record: dict[str, Any]) -> float:
 
 
 def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None, str]:
-    """The plate's surface normal at the first weld sample from the plan's problem (base
-    frame, (3,)), or None with the reason when the problem cannot be read or its seam is not
-    the one the samples follow (> 0.01 mm apart)."""
+    """The plate's surface normal at the first weld sample (base frame, (3,)), from the plan's
+    problem: the seam's surface normal made normal to the seam tangent, i.e. the seam frame's
+    tool axis turned back by the trailing tilt (``n_s = cos(tilt) n + sin(tilt) t``, inverse
+    of :meth:`~rfsw_plan.process.seam.Seam.frames_at`). None, with the reason, when the
+    problem cannot be read or its seam is not the one the samples follow (> 0.01 mm apart)."""
     from rfsw_plan.exceptions import RfswError
     from rfsw_plan.process.problem import load_problem
 
     if not problem_file:
         return None, "the plan names no problem file"
     try:
-        frames = load_problem(problem_file).seam.frames(1e-3)
+        seam = load_problem(problem_file).seam
     except (RfswError, OSError) as exc:
         return None, f"problem {problem_file} not readable ({exc})"
     weld = np.flatnonzero(np.isin(samples.phase, ("accelerate", "weld", "decelerate")))
     if weld.size == 0:
         return None, "no weld samples"
-    k = int(np.argmin(np.abs(frames.s - samples.s[weld[0]])))
-    if np.linalg.norm(frames.p[k] - samples.seam[weld[0]]) > max(1e-5, 1e-3):
+    fr = seam.frames_at(np.array([samples.s[weld[0]]]))
+    if np.linalg.norm(fr.p[0] - samples.seam[weld[0]]) > 1e-5:
         return None, f"problem {Path(problem_file).name} has another seam than the plan"
-    return np.asarray(frames.n[k]), ""
+    ns = math.cos(seam.tilt) * fr.n[0] + math.sin(seam.tilt) * fr.t[0]
+    return np.asarray(ns / np.linalg.norm(ns)), ""
 
 
 def export_programs(

@@ -224,7 +224,7 @@ def write_krl(program: Program, folder: str | Path, max_lines: int = MAX_LINES) 
         program: The program.
         folder: Output folder.
         max_lines: Lines of the ``.src`` above which the motions are split into called
-            sub-programs of at most ``max_lines // 2`` motions each.
+            sub-programs of at most ``max_lines // 4`` motions (three lines each at most).
     """
     name = krl_name(program.header.name)
     folder = Path(folder)
@@ -252,7 +252,8 @@ def write_krl(program: Program, folder: str | Path, max_lines: int = MAX_LINES) 
     body = _motion_lines(program, range(len(program.motions)), state)
     subs: list[list[str]] = []
     if len(src) + len(body) > max_lines:
-        for c, span in enumerate(chunks(program.motions, max(max_lines // 2, 10))):
+        # a motion writes at most three lines ($VEL.CP, $APO.CDIS, LIN)
+        for c, span in enumerate(chunks(program.motions, max(max_lines // 4, 10))):
             sub = f"{name[:20]}_S{c + 1}"
             src.append(f"  {sub}( )")
             # each sub-program restates speed and blend: it may be run after a block selection
