@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _programs import synthetic
+from conftest import PROGRAM_CASES
 
 from rfsw_plan import __version__
 from rfsw_plan.cli.main import main
@@ -38,18 +39,15 @@ from rfsw_plan.process.problem import load_problem
 from rfsw_plan.robot.kinematics import Robot, load_robot
 
 GOLDEN = Path(__file__).parent / "data" / "export"
-CASES = [("zk500_table6_seam", "zk500"), ("fanuc_butt_1700mm", "fanuc_s900ib_400"),
-         ("kr600_curved_seam", "kuka_kr600_r2830")]
+CASES = PROGRAM_CASES
 PROGRAMS = ("krl", "fanuc_tp", "rapid")
 
 
 @pytest.fixture(scope="module", params=CASES, ids=[c[1] for c in CASES])
-def planned(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):
+def planned(request: pytest.FixtureRequest, plan_with_programs):
     problem, robot = request.param
-    out = tmp_path_factory.mktemp(robot)
-    code = main(["-q", "plan", problem, "-o", str(out), "--export", "krl,fanuc_tp,rapid,stream"])
-    assert code == 0
-    return out, load_robot(robot), json.loads((out / "plan.json").read_text())
+    out, rec = plan_with_programs(problem)
+    return out, load_robot(robot), rec
 
 
 def _file(out: Path, fmt: str) -> Path:
@@ -319,12 +317,17 @@ def test_export_with_default_options(planned, tmp_path: Path,
     assert set(rec["sha256"]) == written - {"export.json"}
     assert not list((tmp_path / "o").glob(".export-*"))
     if robot.name == "zk500":
-        assert main(["-q", "export", str(out), "--format", "krl"]) == 0
-        plan = json.loads((out / "plan.json").read_text())
-        assert _file(out, "krl").name in plan["sha256"]
+        import shutil
+
+        copy = tmp_path / "plan"
+        shutil.copytree(out, copy)
+        assert main(["-q", "export", str(copy), "--format", "krl"]) == 0
+        plan = json.loads((copy / "plan.json").read_text())
+        assert _file(copy, "krl").name in plan["sha256"]
+        assert _file(copy, "rapid").name not in plan["sha256"]  # replaced set: only krl now
         from rfsw_plan.planfiles.folder import read_plan_folder
 
-        read_plan_folder(out)  # still whole
+        read_plan_folder(copy)  # still whole
 
 
 def test_export_cli_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
