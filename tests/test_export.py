@@ -157,7 +157,7 @@ _MOVE_RE = {"krl": r"^\s*(?:LIN|PTP)\s+XP(\d+)", "fanuc_tp": r"^\s*\d+:[JL] P\[(
 
 @pytest.mark.parametrize("fmt", PROGRAMS)
 def test_spindle_stop_follows_the_move_that_leaves_the_material(planned, fmt: str) -> None:
-    out, robot, _ = planned
+    out, _, _ = planned
     f = get_format(fmt)
     read = f.read(_file(out, fmt))
     z = {p.name.upper().replace("[", "").replace("]", ""): (
@@ -194,7 +194,7 @@ def test_blending_is_bounded_sample_by_sample(planned) -> None:
     """Every verified sample lies within 0.01 mm of the path the controller runs (chord
     distance plus the blend model's corner bound); plunge and dwell are blended in KRL and
     RAPID, FANUC stops exactly (FINE) everywhere."""
-    out, robot, rec = planned
+    out, robot, _ = planned
     samples = _samples(out, robot)
     _, _, header = synthetic()
     program = build_program(robot, samples, header)
@@ -261,7 +261,7 @@ def test_kuka_and_fanuc_angles_do_not_jump(planned) -> None:
 def test_stream_at_the_controller_cycle(planned) -> None:
     import csv
 
-    out, robot, _ = planned
+    out, _, _ = planned
     rows = list(csv.DictReader(_file(out, "stream").open()))
     t = np.array([float(r["t_s"]) for r in rows])
     t_plan = np.array([float(r["t_plan_s"]) for r in rows])

@@ -85,7 +85,7 @@ def test_an_incomplete_format_is_not_registered() -> None:
 def test_a_toy_format_round_trips_without_touching_any_other_file(
         toy: type[ControllerFormat], tmp_path: Path) -> None:
     assert parse_formats("krl,toy_json") == ["krl", "toy_json"]
-    robot, samples, header = synthetic()
+    robot, samples, _ = synthetic()
     res = api.export_programs(robot, samples, {"problem": "golden", "waypoints": {
         "s_mm": [0.0, 5.0, 10.0]}}, ["toy_json", "krl"], tmp_path, plan_sha256="0" * 64,
         spacing=5e-3)

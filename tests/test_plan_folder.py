@@ -24,7 +24,7 @@ COLS = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "J1_deg",
 
 def _folder(tmp: Path) -> Path:
     """A small verified-looking plan folder of the synthetic ZK-500 path."""
-    robot, s, _ = synthetic()
+    _, s, _ = synthetic()
     tmp.mkdir(parents=True, exist_ok=True)
     with (tmp / "waypoints.csv").open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -136,10 +136,10 @@ def test_a_changed_or_missing_file_is_named(tmp_path: Path) -> None:
     folder = _folder(tmp_path / "p")
     with (folder / "waypoints.csv").open("a") as fh:
         fh.write("\n")
-    with pytest.raises(InputError, match="changed since plan.json"):
+    with pytest.raises(InputError, match=r"changed since plan\.json"):
         read_plan_folder(folder)
     (folder / "waypoints.csv").unlink()
-    with pytest.raises(InputError, match="missing beside plan.json"):
+    with pytest.raises(InputError, match=r"missing beside plan\.json"):
         read_plan_folder(folder)
 
 

@@ -72,7 +72,7 @@ def _krl_errors(krl_parser, path: Path) -> list[str]:
         def __init__(self) -> None:
             self.errors: list[str] = []
 
-        def syntaxError(self, recognizer, offending, line, column, msg, e):  # noqa: N802
+        def syntaxError(self, recognizer, offending, line, column, msg, e):
             self.errors.append(f"{path.name}:{line}:{column} {msg}")
 
     errs = Collect()
@@ -156,11 +156,11 @@ def test_rapidchecker_catches_a_broken_module(plan_with_programs, tmp_path: Path
 ATTR_KEYS = ("OWNER", "COMMENT", "PROG_SIZE", "CREATE", "MODIFIED", "FILE_NAME", "VERSION",
              "LINE_COUNT", "MEMORY_SIZE", "PROTECT", "TCD", "DEFAULT_GROUP", "CONTROL_CODE")
 _NUM = r"-?\d*\.?\d+"
-_JOINT_P = re.compile(rf"P\[\d+(?::[^\]]*)?\]\{{\s*GP1:\s*UF : \d+, UT : \d+,\s*"
+_JOINT_P = re.compile(r"P\[\d+(?::[^\]]*)?\]\{\s*GP1:\s*UF : \d+, UT : \d+,\s*"
                       + r",\s*".join(rf"J{j}=\s*{_NUM} deg" for j in range(1, 7))
                       + rf"(?:,\s*E1=\s*{_NUM} deg)?\s*\}};")
-_CART_P = re.compile(rf"P\[\d+(?::[^\]]*)?\]\{{\s*GP1:\s*UF : \d+, UT : \d+,\s*CONFIG : "
-                     rf"'[NF] [UD] [TB], -?\d+, -?\d+, -?\d+',\s*"
+_CART_P = re.compile(r"P\[\d+(?::[^\]]*)?\]\{\s*GP1:\s*UF : \d+, UT : \d+,\s*CONFIG : "
+                     r"'[NF] [UD] [TB], -?\d+, -?\d+, -?\d+',\s*"
                      + r",\s*".join(rf"{k} =\s*{_NUM}  ?{u}" for k, u in
                                     (("X", "mm"), ("Y", "mm"), ("Z", "mm"), ("W", "deg"),
                                      ("P", "deg"), ("R", "deg"))) + r"\s*\};")

@@ -232,7 +232,7 @@ _POS = re.compile(rf"P\[(\d+)\]\{{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*
                   rf"'([^']*)',\s*X\s*=\s*({_NUM})\s*mm,\s*Y\s*=\s*({_NUM})\s*mm,\s*Z\s*=\s*"
                   rf"({_NUM})\s*mm,\s*W\s*=\s*({_NUM})\s*deg,\s*P\s*=\s*({_NUM})\s*deg,\s*R\s*="
                   rf"\s*({_NUM})\s*deg\s*\}};", re.S)
-_JPOS = re.compile(rf"P\[(\d+)\]\{{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
+_JPOS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
                    + r",\s*".join(rf"J{j}\s*=\s*({_NUM})\s*deg" for j in range(1, 7))
                    + r"\s*\};", re.S)
 _MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)\s*;\s*$")
@@ -265,6 +265,12 @@ def read_tp(path: str | Path) -> ReadProgram:
     for n, line in enumerate(mn, start=1):
         if not re.match(rf"^\s*{n}:.*;\s*$", line):
             raise InputError(p, f"/MN line {n}", f"got {line.strip()[:40]!r}", f"'{n:4d}: ... ;'")
+    frames = _tp_frames(p, mn)
+    return ReadProgram(frames["UTOOL"], frames["UFRAME"], _tp_motions(p, text, mn), (p,))
+
+
+def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
+    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines."""
     regs: dict[int, FloatArray] = {}
     frames: dict[str, FloatArray] = {}
     for line in mn:
@@ -278,6 +284,11 @@ def read_tp(path: str | Path) -> ReadProgram:
             frames[s.group(1)] = xyzwpr_to_frame(regs[int(s.group(3))])
     if set(frames) != {"UFRAME", "UTOOL"}:
         raise InputError(p, "UFRAME/UTOOL", "not both set", "the frames set in the program")
+    return frames
+
+
+def _tp_motions(p: Path, text: str, mn: list[str]) -> list[ReadPoint]:
+    """Every motion and wait of /MN with its /POS target."""
     cart = {int(m.group(1)): m.groups() for m in _POS.finditer(text)}
     joint = {int(m.group(1)): m.groups() for m in _JPOS.finditer(text)}
     motions: list[ReadPoint] = []
@@ -290,14 +301,14 @@ def read_tp(path: str | Path) -> ReadProgram:
             continue
         k = int(m.group(2))
         speed, duration = _speed_of(m.group(3))
-        kind = "joint" if m.group(1) == "J" else "lin"
         if k in joint:
             motions.append(ReadPoint(f"P[{k}]", q=np.radians([float(x) for x in joint[k][3:9]]),
                                      kind="joint"))
         elif k in cart:
             g = cart[k]
             motions.append(ReadPoint(f"P[{k}]", xyzwpr_to_frame([float(x) for x in g[4:10]]),
-                                     g[3], speed=speed, duration=duration, kind=kind))
+                                     g[3], speed=speed, duration=duration,
+                                     kind="joint" if m.group(1) == "J" else "lin"))
         else:
             raise InputError(p, f"P[{k}]", "not defined in /POS", "a /POS entry per point")
-    return ReadProgram(frames["UTOOL"], frames["UFRAME"], motions, (p,))
+    return motions

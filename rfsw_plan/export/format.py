@@ -151,7 +151,8 @@ class ControllerFormat(abc.ABC):
 
     def matches(self, robot: Robot, point: ReadPoint, q: FloatArray) -> bool:
         """Does ``q`` have the posture ``point`` states? (Joint values at a boundary, where a
-        sign or quadrant changes, match either side: :func:`~rfsw_plan.export.config.configs_near`.)"""
+        sign or quadrant changes, match either side:
+        :func:`~rfsw_plan.export.config.configs_near`.)"""
         from rfsw_plan.export.config import configs_near
 
         return point.config in configs_near(self.posture, robot, q)
