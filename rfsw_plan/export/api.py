@@ -39,7 +39,7 @@ from rfsw_plan.export.program import (
 )
 from rfsw_plan.export.readback import RoundTrip, round_trip
 from rfsw_plan.files import sha256_file
-from rfsw_plan.progress import Bar
+from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot
 
 __all__ = ["ExportResult", "export_plan_folder", "export_programs", "parse_formats",
@@ -169,29 +169,30 @@ def export_programs(
         requested_uncertainty=_number(record.get("force_uncertainty_requested",
                                                  record.get("force_uncertainty", 0.0))),
         window_mm=_window(record), path_tol=path_tol, spacing=spacing)
-    program = build_program(robot, samples, header, path_tol, normal=normal,
-                            payload=robot.description.tool_payload(), options=options,
-                            stream=stream, cycle=cycle)
     from rfsw_plan.export.program import path_deviation
 
-    deviation = float(np.max(path_deviation(program)))
-    if deviation > path_tol * (1 + 1e-9):
-        raise InfeasibleError(f"programmed path leaves a verified sample by "
-                              f"{deviation * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)",
-                              None, "path_tolerance", path_tol - deviation)
-    out.mkdir(parents=True, exist_ok=True)
-    for old in out.glob(".export-*"):  # left by a killed run
-        shutil.rmtree(old, ignore_errors=True)
-    stage = Path(tempfile.mkdtemp(prefix=".export-", dir=out))
-    try:
-        staged, trips = _write_all(program, fmts, stage, check)
-        final = []
-        for f in staged:
-            target = out / f.name
-            f.replace(target)
-            final.append(target)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    with Stages("export", ("points", *fmts)) as stages:
+        program = build_program(robot, samples, header, path_tol, normal=normal,
+                                payload=robot.description.tool_payload(), options=options,
+                                stream=stream, cycle=cycle)
+        deviation = float(np.max(path_deviation(program)))
+        if deviation > path_tol * (1 + 1e-9):
+            raise InfeasibleError(f"programmed path leaves a verified sample by "
+                                  f"{deviation * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)",
+                                  None, "path_tolerance", path_tol - deviation)
+        out.mkdir(parents=True, exist_ok=True)
+        for old in out.glob(".export-*"):  # left by a killed run
+            shutil.rmtree(old, ignore_errors=True)
+        stage = Path(tempfile.mkdtemp(prefix=".export-", dir=out))
+        try:
+            staged, trips = _write_all(program, fmts, stage, check, stages)
+            final = []
+            for f in staged:
+                target = out / f.name
+                f.replace(target)
+                final.append(target)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
     rows = {name: len(trip.q) for name, trip in trips.items()}
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
@@ -199,24 +200,24 @@ def export_programs(
 
 
 def _write_all(program: Program, fmts: Sequence[str], stage: Path,
-               check: SampleCheck | None) -> tuple[list[Path], dict[str, RoundTrip]]:
+               check: SampleCheck | None, stages: Stages) -> tuple[list[Path],
+                                                                   dict[str, RoundTrip]]:
+    """Write every format into ``stage``, re-read it and take it through the model."""
     staged: list[Path] = []
     trips: dict[str, RoundTrip] = {}
-    with Bar(len(fmts), "export", unit="format") as bar:
-        for name in fmts:
-            fmt = get_format(name)
-            bar.set_description(f"export {name}")
-            files = fmt.write(program, stage)
-            expected = fmt.expected(program)
-            trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)
-            if not trip.ok:
-                raise InfeasibleError(f"{name} program does not reproduce the verified plan: "
-                                      f"{trip.summary()}", None, "round_trip", None)
-            if check is not None:
-                check(replace(expected, q=trip.q))
-            staged += files
-            trips[name] = trip
-            bar.update(1)
+    for name in fmts:
+        stages.start(name)
+        fmt = get_format(name)
+        files = fmt.write(program, stage)
+        expected = fmt.expected(program)
+        trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)
+        if not trip.ok:
+            raise InfeasibleError(f"{name} program does not reproduce the verified plan: "
+                                  f"{trip.summary()}", None, "round_trip", None)
+        if check is not None:
+            check(replace(expected, q=trip.q))
+        staged += files
+        trips[name] = trip
     return staged, trips
 
 

@@ -248,17 +248,15 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
 
     def num(names: list[str]) -> FloatArray:
         idx = [col[c] for c in names]
-        out = np.empty((len(body), len(names)))
-        for k, r in enumerate(body):
-            for j, i in enumerate(idx):
-                try:
-                    v = float(r[i])
-                except ValueError:
-                    v = math.nan
-                if not math.isfinite(v) or abs(v) > 1e12:
-                    raise InputError(p, f"row {k + 2}, column {names[j]}",
-                                     f"'{r[i][:40]}' is not a finite number", "a number")
-                out[k, j] = v
+        try:
+            out = np.array([[r[i] for i in idx] for r in body], dtype=float)
+        except ValueError:
+            out = np.array([[_cell(r[i]) for i in idx] for r in body])
+        bad = ~np.isfinite(out) | (np.abs(out) > 1e12)
+        if np.any(bad):
+            k, j = (int(x[0]) for x in np.nonzero(bad))
+            raise InputError(p, f"row {k + 2}, column {names[j]}",
+                             f"'{body[k][idx[j]][:40]}' is not a finite number", "a number")
         return out
 
     phase = np.array([r[col["phase"]] for r in body])
@@ -277,6 +275,13 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
     return PlanSamples(t, phase, num(["s_mm"])[:, 0] * 1e-3, q,
                        num(["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]),
                        num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3)
+
+
+def _cell(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
 
 
 def _joint_columns(header: list[str]) -> list[str]:
