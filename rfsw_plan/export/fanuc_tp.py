@@ -192,6 +192,11 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     xyzwpr = np.array([frame_to_xyzwpr(p) for p in program.poses])
     xyzwpr[:, 3:] = unwrap_wpr(xyzwpr[:, 3:])
     mn = _mn(program)
+    if len(mn) > FanucTpFormat.limits.max_lines:
+        raise InputError("--format", "fanuc_tp", f"{len(mn)} lines, a TP program holds "
+                         f"{FanucTpFormat.limits.max_lines}",
+                         "a larger --export-spacing-mm or --path-tol-mm (TP splitting into "
+                         "called programs is not written)")
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;",
              f"COMMENT\t\t= \"{program.header.plan_id[:16]}\";", "PROG_SIZE\t= 0;"]
     when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")

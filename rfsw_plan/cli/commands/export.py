@@ -105,10 +105,14 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
     samples = read_plan_samples(out / "waypoints.csv", d.convention.column_names(),
                                 (d.lower, d.upper))
     normal, _ = plate_normal(str(record.get("problem_file") or args.problem), samples)
-    return export_programs(result.model.robot, samples, record, formats, out,
-                           plan_sha256=sha256_file(out / "waypoints.csv"), spacing=spacing,
-                           path_tol=tol, check=_plan_check(result), stream=stream,
-                           cycle=cycle, options=_options(args), normal=normal)
+    res = export_programs(result.model.robot, samples, record, formats, out,
+                          plan_sha256=sha256_file(out / "waypoints.csv"), spacing=spacing,
+                          path_tol=tol, check=_plan_check(result), stream=stream,
+                          cycle=cycle, options=_options(args), normal=normal)
+    for note in res.notes:
+        if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT")):
+            print(f"rfsw-plan plan: note: {note}", file=sys.stderr)
+    return res
 
 
 def _stream_at_cycle(args: argparse.Namespace, result: PlanResult, cycle: float) -> Any:
@@ -185,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
                                  options=options)
     record = {"status": "exported", "plan": str(folder), **res.to_dict()}
     for note in res.notes:
-        print(f"rfsw-plan export: note: {note}", file=sys.stderr)
+        if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT", "plate normal")):
+            print(f"rfsw-plan export: note: {note}", file=sys.stderr)
     if args.json:
         print(strict_json(record), end="")
         return 0
