@@ -18,8 +18,8 @@ owns):
   quaternion w first);
 * ``MoveL p, v100\\V:=speed, zone, tool\\WObj:=wobj``: the ``\\V`` argument sets the TCP speed
   [mm/s] of each move, so no speeddata are declared; ``LOCAL CONST zonedata`` only for the
-  distinct blend sizes (rounded down to two significant digits: a smaller zone keeps the
-  bound); ``fine`` for exact stops; ``WaitTime\\InPos``.
+  distinct blend sizes (rounded down to 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 per decade: a
+  smaller zone keeps the bound); ``fine`` for exact stops; ``WaitTime\\InPos``.
 
 A procedure longer than :data:`MAX_LINES` lines calls sub-procedures of the same module.
 Configuration data follow :mod:`rfsw_plan.export.config` (ABB cfx = 4 rear + 2 lower arm +
@@ -80,13 +80,20 @@ def rapid_name(name: str) -> str:
     return controller_name(name, max_len=32, prefix="m")
 
 
+#: Zone sizes per decade (a blend is rounded down to one of them, so few zonedata are needed).
+ZONE_STEPS = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
+
+
 def zone_mm(blend: float) -> float:
-    """Blend distance [m] -> zone radius [mm], rounded down to two significant digits."""
+    """Blend distance [m] -> zone radius [mm], rounded down to :data:`ZONE_STEPS` (a smaller
+    zone keeps the blend bound)."""
     z = blend * 1e3
     if z <= 0:
         return 0.0
-    e = math.floor(math.log10(z)) - 1
-    return math.floor(z / 10.0 ** e + 1e-9) * 10.0 ** e
+    e = math.floor(math.log10(z))
+    m = z / 10.0 ** e
+    step = max(x for x in ZONE_STEPS if x <= m + 1e-9)
+    return float(f"{step * 10.0 ** e:.6g}")
 
 
 class RapidFormat(ControllerFormat):

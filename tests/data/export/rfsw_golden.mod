@@ -18,17 +18,9 @@ MODULE rfsw_golden
   ! wPlate = the plate: origin on the first weld point, +X along the seam, +Y on the plate. To use a work object taught on the plate, enter its user frame in wPlate and run rfsw-plan check on this file
   LOCAL PERS tooldata tFSW := [TRUE,[[0.0000,0.0000,390.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[1,[0,0,1],[1,0,0,0],0,0,0]];  ! PAYLOAD UNKNOWN: enter the spindle's load data
   LOCAL PERS wobjdata wPlate := [FALSE,TRUE,"",[[-201.1225,-1735.0983,1458.9861],[0.886001721,-0.408478853,0.132177809,0.175142811]],[[0,0,0],[1,0,0,0]]];
-  LOCAL CONST zonedata zB1 := [FALSE,0.24,0.24,0.24,0.24,0.24,0.24];  ! mm
+  LOCAL CONST zonedata zB1 := [FALSE,0.2,0.2,0.2,0.2,0.2,0.2];  ! mm
   LOCAL CONST zonedata zB2 := [FALSE,0.25,0.25,0.25,0.25,0.25,0.25];  ! mm
-  LOCAL CONST zonedata zB3 := [FALSE,0.26,0.26,0.26,0.26,0.26,0.26];  ! mm
-  LOCAL CONST zonedata zB4 := [FALSE,0.27,0.27,0.27,0.27,0.27,0.27];  ! mm
-  LOCAL CONST zonedata zB5 := [FALSE,0.28,0.28,0.28,0.28,0.28,0.28];  ! mm
-  LOCAL CONST zonedata zB6 := [FALSE,0.29,0.29,0.29,0.29,0.29,0.29];  ! mm
-  LOCAL CONST zonedata zB7 := [FALSE,0.3,0.3,0.3,0.3,0.3,0.3];  ! mm
-  LOCAL CONST zonedata zB8 := [FALSE,0.31,0.31,0.31,0.31,0.31,0.31];  ! mm
-  LOCAL CONST zonedata zB9 := [FALSE,0.32,0.32,0.32,0.32,0.32,0.32];  ! mm
-  LOCAL CONST zonedata zB10 := [FALSE,0.33,0.33,0.33,0.33,0.33,0.33];  ! mm
-  LOCAL CONST zonedata zB11 := [FALSE,0.34,0.34,0.34,0.34,0.34,0.34];  ! mm
+  LOCAL CONST zonedata zB3 := [FALSE,0.3,0.3,0.3,0.3,0.3,0.3];  ! mm
   LOCAL CONST jointtarget jStart := [[-96.240000,3.910000,25.450000,-2.100000,57.170000,2.900000],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
   LOCAL CONST robtarget p2 := [[-9.3811,-15.2507,29.7638],[0.339465494,-0.459962068,0.790241360,0.220718524],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
   LOCAL CONST robtarget p3 := [[-7.0384,-11.0996,21.9464],[0.342193676,-0.459310879,0.788979607,0.222369476],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
@@ -94,23 +86,23 @@ MODULE rfsw_golden
     MoveL p15,v100\V:=6.2996,zB2,tFSW\WObj:=wPlate;
     MoveL p16,v100\V:=6.3663,zB2,tFSW\WObj:=wPlate;
     MoveL p17,v100\V:=6.4419,zB2,tFSW\WObj:=wPlate;
-    MoveL p18,v100\V:=6.5260,zB3,tFSW\WObj:=wPlate;
-    MoveL p19,v100\V:=6.6183,zB3,tFSW\WObj:=wPlate;
-    MoveL p20,v100\V:=6.7185,zB3,tFSW\WObj:=wPlate;
-    MoveL p21,v100\V:=6.8261,zB4,tFSW\WObj:=wPlate;
-    MoveL p22,v100\V:=6.9410,zB4,tFSW\WObj:=wPlate;
-    MoveL p23,v100\V:=7.0627,zB5,tFSW\WObj:=wPlate;
-    MoveL p24,v100\V:=7.1908,zB5,tFSW\WObj:=wPlate;
-    MoveL p25,v100\V:=7.3251,zB6,tFSW\WObj:=wPlate;
-    MoveL p26,v100\V:=7.4651,zB6,tFSW\WObj:=wPlate;
-    MoveL p27,v100\V:=7.6107,zB7,tFSW\WObj:=wPlate;
-    MoveL p28,v100\V:=7.7614,zB8,tFSW\WObj:=wPlate;
-    MoveL p29,v100\V:=7.9170,zB8,tFSW\WObj:=wPlate;
-    MoveL p30,v100\V:=8.0772,zB9,tFSW\WObj:=wPlate;
-    MoveL p31,v100\V:=8.2417,zB9,tFSW\WObj:=wPlate;
+    MoveL p18,v100\V:=6.5260,zB2,tFSW\WObj:=wPlate;
+    MoveL p19,v100\V:=6.6183,zB2,tFSW\WObj:=wPlate;
+    MoveL p20,v100\V:=6.7185,zB2,tFSW\WObj:=wPlate;
+    MoveL p21,v100\V:=6.8261,zB2,tFSW\WObj:=wPlate;
+    MoveL p22,v100\V:=6.9410,zB2,tFSW\WObj:=wPlate;
+    MoveL p23,v100\V:=7.0627,zB2,tFSW\WObj:=wPlate;
+    MoveL p24,v100\V:=7.1908,zB2,tFSW\WObj:=wPlate;
+    MoveL p25,v100\V:=7.3251,zB2,tFSW\WObj:=wPlate;
+    MoveL p26,v100\V:=7.4651,zB2,tFSW\WObj:=wPlate;
+    MoveL p27,v100\V:=7.6107,zB3,tFSW\WObj:=wPlate;
+    MoveL p28,v100\V:=7.7614,zB3,tFSW\WObj:=wPlate;
+    MoveL p29,v100\V:=7.9170,zB3,tFSW\WObj:=wPlate;
+    MoveL p30,v100\V:=8.0772,zB3,tFSW\WObj:=wPlate;
+    MoveL p31,v100\V:=8.2417,zB3,tFSW\WObj:=wPlate;
     ! ---- phase: decelerate
-    MoveL p32,v100\V:=8.4103,zB10,tFSW\WObj:=wPlate;
-    MoveL p33,v100\V:=8.5827,zB11,tFSW\WObj:=wPlate;
+    MoveL p32,v100\V:=8.4103,zB3,tFSW\WObj:=wPlate;
+    MoveL p33,v100\V:=8.5827,zB3,tFSW\WObj:=wPlate;
     MoveL p34,v100\V:=8.7587,fine,tFSW\WObj:=wPlate;
     ! FORCE CONTROL OFF here if used (e.g. FCDeact)
     ! ---- phase: retract
