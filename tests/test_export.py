@@ -363,7 +363,7 @@ def golden_diff(got: str, want: str) -> str:
 
 def _golden_program():
     robot, samples, header = synthetic()
-    return build_program(robot, samples, header)
+    return build_program(robot, samples, header, payload=robot.description.tool_payload())
 
 
 @pytest.mark.parametrize("name", ["rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls",
@@ -433,3 +433,37 @@ def test_a_long_seam_is_split_into_sub_programs(tmp_path: Path, fmt: str) -> Non
     assert routines and all(len(b.splitlines()) < 600 for b in routines)
     trip = round_trip(robot, f, f.read(files[0]), f.expected(program))
     assert trip.ok, trip.summary()
+
+
+def test_no_payload_is_said_in_the_header(tmp_path: Path) -> None:
+    robot, samples, header = synthetic()
+    program = build_program(robot, samples, header, payload=None)
+    assert any(n.startswith("PAYLOAD UNKNOWN") for n in program.header.notes)
+    for f in PROGRAMS:
+        text = get_format(f).write(program, tmp_path)[0].read_text()
+        assert "PAYLOAD UNKNOWN" in text
+
+
+def test_user_hooks_replace_the_default_comments(tmp_path: Path) -> None:
+    from rfsw_plan.export.program import ProgramOptions, read_hooks
+
+    hooks = tmp_path / "hooks.toml"
+    hooks.write_text('[spindle_start]\nkrl = ["$OUT[1] = TRUE", "WAIT FOR $IN[1]"]\n'
+                     'rapid = ["SetDO doSpindle, 1;"]\n[spindle_stop]\nkrl = ["$OUT[1] = FALSE"]\n')
+    robot, samples, header = synthetic()
+    program = build_program(robot, samples, header, payload=robot.description.tool_payload(),
+                            options=ProgramOptions(3, 2, read_hooks(hooks)))
+    src = get_format("krl").write(program, tmp_path)[0].read_text()
+    assert "  $OUT[1] = TRUE\n  WAIT FOR $IN[1]\n" in src and "SPINDLE START" not in src
+    assert src.index("$OUT[1] = FALSE") > src.index("phase: retract")
+    assert "BAS(#TOOL, 3)" in src and "BASE_DATA[2] =" in src
+    mod = get_format("rapid").write(program, tmp_path)[0].read_text()
+    assert "    SetDO doSpindle, 1;" in mod and "SPINDLE STOP" in mod  # no rapid stop lines
+    tp = get_format("fanuc_tp").write(program, tmp_path)[0].read_text()
+    assert "UFRAME_NUM=2" in tp and "UTOOL_NUM=3" in tp and "PAYLOAD[3]" in tp
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[spindle_go]\nkrl = ["x"]\n')
+    from rfsw_plan.exceptions import InputError
+
+    with pytest.raises(InputError, match="unknown hook"):
+        read_hooks(bad)

@@ -12,11 +12,10 @@ MODULE rfsw_golden
   ! points: plan samples every 5 mm of seam
   ! path within 0.01 mm of every verified sample
   ! lengths mm, angles deg, joints = controller axes
-  ! PAYLOAD UNKNOWN: the robot file has no [payload] table and no payload_gravity effect; enter the spindle's load on the controller
   ! WARNING: robot zk500 is not a ABB robot (maker not stated): check axis directions, frames and limits on the real controller before running
   ! SET ON THE CONTROLLER: the spindle I/O in the hook comments; tFSW and wPlate are this module's own (LOCAL) data
   ! wPlate = the plate: origin on the first weld point, +X along the seam, +Y on the plate. To use a work object taught on the plate, enter its user frame in wPlate and run rfsw-plan check on this file
-  LOCAL PERS tooldata tFSW := [TRUE,[[0.0000,0.0000,390.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[1,[0,0,1],[1,0,0,0],0,0,0]];  ! PAYLOAD UNKNOWN: enter the spindle's load data
+  LOCAL PERS tooldata tFSW := [TRUE,[[0.0000,0.0000,390.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[150.000,[0.000,0.000,140.000],[1,0,0,0],0.0000,0.0000,0.0000]];  ! inertia not known: 0, identify it
   LOCAL PERS wobjdata wPlate := [FALSE,TRUE,"",[[-201.1225,-1735.0983,1458.9861],[0.886001721,-0.408478853,0.132177809,0.175142811]],[[0,0,0],[1,0,0,0]]];
   LOCAL CONST zonedata zB1 := [FALSE,0.2,0.2,0.2,0.2,0.2,0.2];  ! mm
   LOCAL CONST zonedata zB2 := [FALSE,0.25,0.25,0.25,0.25,0.25,0.25];  ! mm
