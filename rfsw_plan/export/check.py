@@ -45,6 +45,8 @@ FloatArray = NDArray[np.float64]
 
 #: Checks reported by :func:`check_program` (prefixes of :class:`SampleFailure` checks).
 REPORTED = ("window", "joint_limit")
+#: Program points are matched to plan samples within this much programmed time [s].
+MATCH_WINDOW = 1.0
 #: Newton steps of the batched inverse kinematics from the planned joints.
 NEWTON_STEPS = 4
 
@@ -264,13 +266,17 @@ def _program_times(read: ReadProgram, poses: FloatArray) -> FloatArray:
 
 def _match(poses: FloatArray, T_plan: FloatArray, t_plan: FloatArray,
            t_prog: FloatArray) -> NDArray[np.int_]:
-    """Plan sample index of each program point, in order: nearest in position [per mm] and in
-    programmed time [per s], never before the previous point's."""
+    """Plan sample index of each program point, in order, never before the previous point's:
+    the nearest in position among the samples within :data:`MATCH_WINDOW` of the program's
+    own cumulative time (all later samples if none), ties (stationary phases) broken by time."""
     idx = np.zeros(len(poses), dtype=int)
     start = 0
     for k in range(len(poses)):
+        dt = np.abs(t_plan[start:] - t_plan[0] - t_prog[k])
         dist = np.linalg.norm(T_plan[start:, :3, 3] - poses[k, :3, 3], axis=1) * 1e3
-        cost = dist + np.abs(t_plan[start:] - t_plan[0] - t_prog[k])
+        cost = np.where(dt <= MATCH_WINDOW, dist, np.inf) + 1e-2 * dt
+        if not np.isfinite(cost).any():
+            cost = dist + 1e-2 * dt
         idx[k] = start + int(np.argmin(cost))
         start = idx[k]
     return idx

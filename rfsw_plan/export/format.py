@@ -203,14 +203,14 @@ def parse_formats(text: str, option: str = "--export") -> list[str]:
 
 
 def format_for_file(path: str | Path) -> ControllerFormat:
-    """The format whose main-file suffix ``path`` has (``.src``, ``.ls``, ``.mod``).
+    """The format whose main-file suffix ``path`` ends with (``.src``, ``.ls``, ``.mod``).
 
     Raises:
         InputError: No registered format writes that suffix.
     """
-    suffix = Path(path).suffix.lower()
+    name = Path(path).name.lower()
     for cls in formats().values():
-        if cls.suffix and cls.suffix.lower() == suffix:
+        if cls.suffix and name.endswith(cls.suffix.lower()):
             return cls()
     known = ", ".join(f"{c.suffix} ({n})" for n, c in formats().items() if c.suffix)
-    raise InputError(path, "", f"unknown program suffix '{suffix}'", known)
+    raise InputError(path, "", f"unknown program suffix '{Path(path).suffix}'", known)

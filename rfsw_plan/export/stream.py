@@ -102,11 +102,17 @@ class StreamFormat(ControllerFormat):
         if len(rows) < 2:
             raise InputError(path, "", "no rows", "a stream file")
         cols = [i for i, h in enumerate(rows[0]) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
+        if not cols or "t_s" not in rows[0]:
+            raise InputError(path, "header", "no t_s or joint columns", "a stream file")
+        it = rows[0].index("t_s")
         try:
             q = np.radians([[float(r[i]) for i in cols] for r in rows[1:]])
+            t = np.array([float(r[it]) for r in rows[1:]])
         except (ValueError, IndexError):
-            raise InputError(path, "", "a malformed row", "numbers in every joint cell") from None
-        pts = [ReadPoint(f"row {k + 2}", q=q[k], kind="joint") for k in range(len(q))]
+            raise InputError(path, "", "a malformed row", "numbers in every cell") from None
+        dt = np.diff(t, prepend=t[0])
+        pts = [ReadPoint(f"row {k + 2}", q=q[k], kind="joint", duration=float(dt[k]))
+               for k in range(len(q))]
         return ReadProgram(np.eye(4), np.eye(4), pts, (Path(path),))
 
     def expected(self, program: Program) -> Samples:
