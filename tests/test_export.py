@@ -467,3 +467,19 @@ def test_user_hooks_replace_the_default_comments(tmp_path: Path) -> None:
 
     with pytest.raises(InputError, match="unknown hook"):
         read_hooks(bad)
+
+
+def test_a_killed_exports_staging_folder_is_removed(tmp_path: Path) -> None:
+    """A SIGKILL leaves the private staging folder; the next export removes it, and a
+    successful export leaves none of its own."""
+    from rfsw_plan.export.api import export_programs
+
+    stale = tmp_path / ".export-killed"
+    stale.mkdir()
+    (stale / "rfsw_golden.src").write_text("half a program")
+    robot, samples, _ = synthetic()
+    export_programs(robot, samples, {"problem": "golden", "waypoints": {"s_mm": [0.0, 5.0]}},
+                    ["krl"], tmp_path, plan_sha256="0" * 64)
+    assert not list(tmp_path.glob(".export-*"))
+    assert not list(tmp_path.glob(".*.tmp*"))
+    assert (tmp_path / "rfsw_golden.src").is_file()
