@@ -164,7 +164,7 @@ _CART_P = re.compile(r"P\[\d+(?::[^\]]*)?\]\{\s*GP1:\s*UF : \d+, UT : \d+,\s*CON
                      + r",\s*".join(rf"{k} =\s*{_NUM}  ?{u}" for k, u in
                                     (("X", "mm"), ("Y", "mm"), ("Z", "mm"), ("W", "deg"),
                                      ("P", "deg"), ("R", "deg"))) + r"\s*\};")
-_MN_LINE = re.compile(r"^\s*(\d+):(?:[JL] P\[\d+\] (?:\d+%|\d+mm/sec|\d*\.\d+sec) "
+_MN_LINE = re.compile(r"^\s*(\d+):(?:[JL] P\[\d+\] (?:\d+%|\d+mm/sec|\d+msec|\d*\.\d+sec) "
                       r"(?:FINE|CNT\d+)|  .*) ;$")
 
 

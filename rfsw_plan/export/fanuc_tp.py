@@ -21,7 +21,8 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
   shown for it; the corner-region option (``CR``) takes whole millimetres, more than the
   bounded blend here. Each ``FINE`` costs the controller's in-position settle time (tens of
   ms; the header says so).
-* ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t sec``;
+* ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
+  milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
   ``WAIT t(sec)``; remarks ``! text``.
 
 W, P, R (R = Rz(R) Ry(P) Rx(W), deg) are unwrapped along the program: each angle is moved by
@@ -96,11 +97,12 @@ def tp_name(name: str) -> str:
 
 
 def _speed(speed: float, duration: float) -> str:
-    """``v mm/sec`` when the speed is a whole mm/s (within 0.1 %), else the motion time."""
+    """``v mm/sec`` when the speed is a whole mm/s (within 0.1 %), else the motion time in
+    whole milliseconds (``t msec``; the controller rounds it to its 8 ms interpolation period)."""
     v = speed * 1e3
     if v >= 1.0 and abs(v - round(v)) <= 1e-3 * v and round(v) <= 2000:
         return f"{round(v)}mm/sec"
-    return f"{max(duration, 0.01):.2f}sec"
+    return f"{max(round(duration * 1e3), 1)}msec"
 
 
 class FanucTpFormat(ControllerFormat):
@@ -247,9 +249,12 @@ _SET = re.compile(r"^\s*\d+:\s*(UFRAME|UTOOL)\[(\d+)\]=PR\[(\d+)\]\s*;\s*$")
 
 
 def _speed_of(text: str) -> tuple[float, float]:
-    """``3mm/sec`` -> (0.003 m/s, 0); ``1.25sec`` -> (0, 1.25 s); ``10%`` -> (0, 0)."""
+    """``3mm/sec`` -> (0.003 m/s, 0); ``1250msec`` or ``1.25sec`` -> (0, 1.25 s); ``10%`` ->
+    (0, 0)."""
     if text.endswith("mm/sec"):
         return float(text[:-6]) * 1e-3, 0.0
+    if text.endswith("msec"):
+        return 0.0, float(text[:-4]) * 1e-3
     if text.endswith("sec"):
         return 0.0, float(text[:-3])
     return 0.0, 0.0
