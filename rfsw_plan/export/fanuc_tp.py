@@ -61,6 +61,8 @@ STAMP = datetime(2000, 1, 1, tzinfo=UTC)
 KGFCMS2 = 0.0980665
 #: Default hook remarks.
 DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home first,", " e.g. J PR[1:HOME] 10% FINE"),
+    "home_end": ("HOME: back to the cell's home,", " e.g. J PR[1:HOME] 10% FINE"),
     "spindle_start": ("SPINDLE START: spindle on and wait at speed,",
                       " e.g. DO[1]=ON and WAIT DI[1]=ON"),
     "force_on": ("FORCE CONTROL ON here if used",),

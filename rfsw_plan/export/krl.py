@@ -53,6 +53,9 @@ ACC_CP = 1.0
 MAX_LINES = 1400
 #: Default hook comments (one line each).
 DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home position first (not known to rfsw-plan),",
+                   "e.g. PTP XHOME; the joint move to XP1 follows"),
+    "home_end": ("HOME: back to the cell's home position here, e.g. PTP XHOME",),
     "spindle_start": ("SPINDLE START: switch the spindle on and wait until it runs at the",
                       "process speed, e.g. $OUT[1] = TRUE and WAIT FOR $IN[1]"),
     "force_on": ("FORCE CONTROL ON (if used): activate it here, before the plunge",),

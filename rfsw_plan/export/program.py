@@ -44,10 +44,11 @@ plate), y = z x x. The tool's tilt is in the points, so a base taught with three
 the plate (origin, +x along the seam, +y on the plate) reproduces this frame and the depth of
 the pin along the whole seam.
 
-Process hooks (:class:`Hooks`): lines inserted at the phase boundaries: ``spindle_start`` and
-``force_on`` before the plunge, ``force_off`` after the last weld move, ``spindle_stop``
-after the retract move that takes the pin out of the material. By default they are comments
-that say what belongs there.
+Process hooks (:class:`Hooks`): lines inserted at the phase boundaries: ``home_start`` before
+the first move, ``spindle_start`` and ``force_on`` before the plunge, ``force_off`` after the
+last weld move, ``spindle_stop`` after the retract move that takes the pin out of the
+material, ``home_end`` at the end (the cell's home position is not known to the plan). By
+default they are comments that say what belongs there.
 """
 
 from __future__ import annotations
@@ -87,7 +88,7 @@ STILL_ANG = math.radians(1e-3)
 #: Largest blend distance as a share of the shorter neighbouring segment.
 BLEND_SHARE = 0.4
 #: Hook names in the order they occur.
-HOOKS = ("spindle_start", "force_on", "force_off", "spindle_stop")
+HOOKS = ("home_start", "spindle_start", "force_on", "force_off", "spindle_stop", "home_end")
 #: The pin has left the material when the TCP is this far above the plate [m].
 OUT_OF_MATERIAL = 1e-4
 
@@ -536,10 +537,11 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
 
 
 def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
-    """Insert the hooks: spindle start and force on before the first plunge motion, force off
-    after the last weld motion, spindle stop after the first retract move whose target is out
-    of the material (TCP above the plate: z > :data:`OUT_OF_MATERIAL` in the plate frame)."""
-    out: list[Motion] = []
+    """Insert the hooks: the cell's home before the first move, spindle start and force on
+    before the first plunge motion, force off after the last weld motion, spindle stop after
+    the first retract move whose target is out of the material (TCP above the plate:
+    z > :data:`OUT_OF_MATERIAL` in the plate frame), the cell's home at the end."""
+    out: list[Motion] = [Motion("hook", 0, motions[0].phase, hook="home_start")]
     placed: set[str] = set()
     for k, m in enumerate(motions):
         if m.phase == "plunge" and "spindle_start" not in placed:
@@ -555,6 +557,7 @@ def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
                 and (z_work[m.point] > OUT_OF_MATERIAL or last)):
             out.append(Motion("hook", m.point, "retract", hook="spindle_stop"))
             placed.add("spindle_stop")
+    out.append(Motion("hook", motions[-1].point, motions[-1].phase, hook="home_end"))
     return out
 
 

@@ -53,6 +53,10 @@ MOVEJ_SPEED = "v100"
 MAX_LINES = 5000
 #: Default hook comments.
 DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home position first (not known to rfsw-plan),",
+                   "e.g. MoveAbsJ jHome,v100,fine,tFSW;"),
+    "home_end": ("HOME: back to the cell's home position here,",
+                 "e.g. MoveAbsJ jHome,v100,fine,tFSW;"),
     "spindle_start": ("SPINDLE START: spindle on and wait at speed, e.g. SetDO doSpindle, 1;",
                       "WaitDI diSpindleAtSpeed, 1;"),
     "force_on": ("FORCE CONTROL ON here if used (e.g. FCAct)",),

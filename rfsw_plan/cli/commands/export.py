@@ -45,8 +45,9 @@ def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
     parser.add_argument("--base-number", type=int, default=1,
                         help="base number: KUKA BASE_DATA[n], FANUC UFRAME n (default 1)")
     parser.add_argument("--hooks", metavar="FILE.toml", default=None,
-                        help="process hook lines per format (spindle_start, force_on, "
-                             "force_off, spindle_stop); default: comments saying what belongs")
+                        help="process hook lines per format (home_start, spindle_start, "
+                             "force_on, force_off, spindle_stop, home_end); default: comments "
+                             "saying what belongs there")
 
 
 def _checked(args: argparse.Namespace) -> tuple[float | None, float | None, float]:

@@ -60,6 +60,8 @@ MODULE rfsw_golden
   PROC rfsw_golden()
     ConfJ\On;
     ConfL\Off;
+    ! HOME: move to the cell's home position first (not known to rfsw-plan),
+    ! e.g. MoveAbsJ jHome,v100,fine,tFSW;
     ! ---- phase: approach
     MoveAbsJ jStart,v100,fine,tFSW\WObj:=wPlate;
     MoveL p2,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
@@ -108,5 +110,7 @@ MODULE rfsw_golden
     MoveL p35,v100\V:=18.9728,fine,tFSW\WObj:=wPlate;
     ! SPINDLE STOP: the pin has left the material, e.g. SetDO doSpindle, 0;
     MoveL p36,v100\V:=18.9728,fine,tFSW\WObj:=wPlate;
+    ! HOME: back to the cell's home position here,
+    ! e.g. MoveAbsJ jHome,v100,fine,tFSW;
   ENDPROC
 ENDMODULE
