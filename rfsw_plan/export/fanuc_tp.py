@@ -176,8 +176,8 @@ def _mn(program: Program) -> list[str]:
             mn.append(f"! ---- phase: {marks[i]}")
         p = f"P[{m.point + 1}]"
         if m.kind == "hook":
-            user = program.options.hooks.get(m.hook, "fanuc_tp")
-            mn += list(user) if user is not None else [f"! {x}" for x in DEFAULT_HOOKS[m.hook]]
+            mn += program.options.hooks.render(m.hook, "fanuc_tp", DEFAULT_HOOKS[m.hook], "",
+                                               "!")
         elif m.kind == "joint":
             mn.append(f"J {p} {J_PERCENT}% FINE")
         elif m.kind == "wait":

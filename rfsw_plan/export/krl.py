@@ -187,9 +187,8 @@ def _motion_lines(program: Program, span: range, state: dict[str, float]) -> lis
             out.append(f"  ; ---- phase: {marks[i]}")
         p = f"XP{m.point + 1}"
         if m.kind == "hook":
-            user = program.options.hooks.get(m.hook, "krl")
-            out += [f"  {x}" for x in user] if user is not None else \
-                [f"  ; {x}" for x in DEFAULT_HOOKS[m.hook]]
+            out += program.options.hooks.render(m.hook, "krl", DEFAULT_HOOKS[m.hook], "  ",
+                                                ";")
         elif m.kind == "joint":
             out.append(f"  PTP {p}  ; joint target (approach point)")
         elif m.kind == "wait":

@@ -107,6 +107,15 @@ class Hooks:
         """The user's lines of ``hook`` for format ``fmt``, or None (use the default)."""
         return self.lines.get(hook, {}).get(fmt)
 
+    def render(self, hook: str, fmt: str, default: tuple[str, ...], indent: str,
+               comment: str) -> list[str]:
+        """The program lines of ``hook``: the user's lines, indented, or else the format's
+        default text as comment lines (``indent + comment + " " + text``)."""
+        user = self.get(hook, fmt)
+        if user is not None:
+            return [indent + x for x in user]
+        return [f"{indent}{comment} {x}" for x in default]
+
 
 def read_hooks(path: str | Path) -> Hooks:
     """Read a hooks file: a TOML table per hook with a list of lines per format, e.g.::

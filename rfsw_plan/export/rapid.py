@@ -155,9 +155,8 @@ def _motion_lines(program: Program, span: range, zones: dict[float, str]) -> lis
             out.append(f"    ! ---- phase: {marks[i]}")
         p = f"p{m.point + 1}"
         if m.kind == "hook":
-            user = program.options.hooks.get(m.hook, "rapid")
-            out += [f"    {x}" for x in user] if user is not None else \
-                [f"    ! {x}" for x in DEFAULT_HOOKS[m.hook]]
+            out += program.options.hooks.render(m.hook, "rapid", DEFAULT_HOOKS[m.hook], "    ",
+                                                "!")
         elif m.kind == "joint":
             out.append(f"    MoveAbsJ jStart,{MOVEJ_SPEED},fine,tFSW\\WObj:=wPlate;")
         elif m.kind == "wait":
