@@ -1,11 +1,17 @@
-"""Export a written plan as controller programs: build, write, re-read, check, commit.
+"""Export a verified plan as controller programs: build, write, re-read, check, commit.
 
-Every program is first written into a private folder beside the target, re-read by its own
-reader and taken through the robot model (:func:`rfsw_plan.export.readback.round_trip`): the
-re-read points must reproduce the plan samples they were written from to 0.01 mm and
-0.01 deg on the configuration the program states, and (``check``) pass the planner's
-sample-by-sample verification. Only then are the files moved to their names; a failure
-leaves nothing behind and raises :class:`~rfsw_plan.exceptions.InfeasibleError` (exit 3).
+Every program is first written into a private folder beside the target by its format
+(:mod:`rfsw_plan.export.format`), re-read by the same format and taken through the robot model
+(:func:`rfsw_plan.export.readback.round_trip`): the re-read points must reproduce the plan
+samples they were written from to 0.01 mm and 0.01 deg on the configuration the program
+states, and (``check``) pass the planner's sample-by-sample verification. Only then are the
+files moved to their names; a failure leaves nothing behind and raises
+:class:`~rfsw_plan.exceptions.InfeasibleError` (exit 3). A private folder left by a killed
+run (``.export-*``) is removed by the next run.
+
+:func:`export_plan_folder` does the same from a written plan folder read by the strict reader
+(:func:`rfsw_plan.planfiles.folder.read_plan_folder`), and makes the programs part of what the
+folder's record vouches for.
 """
 
 from __future__ import annotations
@@ -22,30 +28,22 @@ import numpy as np
 
 from rfsw_plan import __version__
 from rfsw_plan.exceptions import InfeasibleError, InputError
-from rfsw_plan.export.config import (
-    abb_confdata,
-    configs_near,
-    fanuc_config,
-    kuka_status_turn,
-)
-from rfsw_plan.export.fanuc_tp import read_tp, write_tp
-from rfsw_plan.export.krl import read_krl, write_krl
+from rfsw_plan.export.format import formats, get_format, parse_formats
 from rfsw_plan.export.program import (
     Program,
     ProgramHeader,
+    ProgramOptions,
     Samples,
     build_program,
-    read_samples,
     tolerated_from_record,
 )
-from rfsw_plan.export.rapid import read_rapid, write_rapid
-from rfsw_plan.export.readback import ReadPoint, RoundTrip, round_trip
-from rfsw_plan.export.stream import DEFAULT_CYCLE, write_stream
+from rfsw_plan.export.readback import RoundTrip, round_trip
 from rfsw_plan.files import sha256_file
+from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot
 
-#: Export formats (``--export`` / ``--format`` values).
-FORMATS = ("krl", "fanuc_tp", "rapid", "stream")
+__all__ = ["ExportResult", "export_plan_folder", "export_programs", "parse_formats",
+           "plan_spacing"]
 
 SampleCheck = Callable[[Samples], None]
 
@@ -56,19 +54,24 @@ class ExportResult:
 
     Attributes:
         files: The files written, final names.
-        round_trips: Per program format, the re-read points against the plan.
+        round_trips: Per format, the re-read points against the plan.
         n_points: Number of program points.
-        stream_rows: Rows of the stream file (0 if not written).
+        points_per_format: Points (rows, for a stream) each format wrote.
         header: The program header.
         sample_check: What checked the re-read points and stream rows (empty: none).
+        max_path_deviation: Largest bound of a verified sample's distance to the path the
+            controller runs, blending included [m].
+        notes: What the programmer must know (payload, frames), also in every header.
     """
 
     files: tuple[Path, ...]
     round_trips: dict[str, RoundTrip]
     n_points: int
-    stream_rows: int
+    points_per_format: dict[str, int]
     header: ProgramHeader
     sample_check: str = ""
+    max_path_deviation: float = 0.0
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units)."""
@@ -78,8 +81,10 @@ class ExportResult:
             "points": self.n_points,
             "spacing_mm": self.header.spacing * 1e3,
             "path_tolerance_mm": self.header.path_tol * 1e3,
-            "stream_rows": self.stream_rows,
+            "max_path_deviation_mm": self.max_path_deviation * 1e3,
+            "points_per_format": dict(self.points_per_format),
             "sample_check": self.sample_check or "none (plan samples vouched by plan.json)",
+            "notes": list(self.notes),
             "round_trip": {k: {"max_position_error_mm": float(np.max(r.pose_error)) * 1e3,
                                "max_angle_error_deg": math.degrees(float(np.max(r.angle_error))),
                                "max_joint_error_deg": math.degrees(float(np.max(r.joint_error)))}
@@ -87,50 +92,69 @@ class ExportResult:
         }
 
 
-def parse_formats(text: str, option: str = "--export") -> list[str]:
-    """Comma-separated format list -> names (one-line error naming the bad one)."""
-    names = [f.strip() for f in text.split(",") if f.strip()]
-    bad = [f for f in names if f not in FORMATS]
-    if bad or not names:
-        raise InputError(option, bad[0] if bad else "", "unknown format" if bad else "empty",
-                         ", ".join(FORMATS))
-    return list(dict.fromkeys(names))
-
-
 def plan_spacing(record: dict[str, Any]) -> float:
     """The plan's waypoint spacing along the seam [m] (median step of the weld waypoints)."""
     wp = record.get("waypoints") or {}
-    s = np.asarray(wp.get("s_mm", []), dtype=float)
+    try:
+        s = np.asarray(wp.get("s_mm", []), dtype=float)
+    except (TypeError, ValueError):
+        raise InputError("plan.json", "waypoints.s_mm", "not numbers", "arc lengths") from None
     steps = np.diff(s)
-    steps = steps[steps > 1e-9]
+    steps = steps[np.isfinite(steps) & (steps > 1e-9)]
     if steps.size == 0:
         raise InputError("plan.json", "waypoints.s_mm", "no weld waypoints",
                          "a plan record with waypoints")
     return float(np.median(steps)) * 1e-3
 
 
+def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None, str]:
+    """The plate's surface normal at the first weld sample (base frame, (3,)), from the plan's
+    problem: the seam's surface normal made normal to the seam tangent, i.e. the seam frame's
+    tool axis turned back by the trailing tilt (``n_s = cos(tilt) n + sin(tilt) t``, inverse
+    of :meth:`~rfsw_plan.process.seam.Seam.frames_at`). None, with the reason, when the
+    problem cannot be read or its seam is not the one the samples follow (> 0.01 mm apart)."""
+    from rfsw_plan.exceptions import RfswError
+    from rfsw_plan.process.problem import load_problem
+
+    if not problem_file:
+        return None, "the plan names no problem file"
+    try:
+        seam = load_problem(problem_file).seam
+    except (RfswError, OSError) as exc:
+        return None, f"problem {problem_file} not readable ({exc})"
+    weld = np.flatnonzero(np.isin(samples.phase, ("accelerate", "weld", "decelerate")))
+    if weld.size == 0:
+        return None, "no weld samples"
+    fr = seam.frames_at(np.array([samples.s[weld[0]]]))
+    if np.linalg.norm(fr.p[0] - samples.seam[weld[0]]) > 1e-5:
+        return None, f"problem {Path(problem_file).name} has another seam than the plan"
+    ns = math.cos(seam.tilt) * fr.n[0] + math.sin(seam.tilt) * fr.t[0]
+    return np.asarray(ns / np.linalg.norm(ns)), ""
+
+
 def export_programs(
-    robot: Robot, waypoints_csv: Path, record: dict[str, Any], formats: Sequence[str],
-    out: Path, spacing: float | None = None, cycle: float = DEFAULT_CYCLE,
-    path_tol: float = 1e-5, check: SampleCheck | None = None,
-    stream: Samples | None = None,
+    robot: Robot, samples: Samples, record: dict[str, Any], fmts: Sequence[str], out: Path, *,
+    plan_sha256: str, spacing: float | None = None, path_tol: float = 1e-5,
+    check: SampleCheck | None = None, stream: Samples | None = None, cycle: float = 0.0,
+    options: ProgramOptions | None = None, normal: np.ndarray | None = None,
 ) -> ExportResult:
     """Write the programs of a plan (see the module docstring).
 
     Args:
         robot: The robot of the plan.
-        waypoints_csv: The plan's verified samples.
+        samples: The plan's verified samples (``waypoints.csv``).
         record: The plan's ``plan.json`` record (problem, uncertainty, waypoints).
-        formats: Names from :data:`FORMATS`.
+        fmts: Format names (:func:`rfsw_plan.export.format.format_names`).
         out: Output folder.
+        plan_sha256: SHA-256 of ``waypoints.csv`` (the plan id).
         spacing: Point spacing along the seam [m] (default: the plan's).
-        cycle: Stream cycle [s].
-        path_tol: Largest distance of a verified sample from the programmed path [m].
+        path_tol: Largest distance of a verified sample from the path the controller runs [m].
         check: The planner's sample check, applied to the re-read points and the stream.
-        stream: The plan timed at the controller cycle (``plan --export stream``). Without
-            it the stream is the written samples themselves, which needs the plan's sample
-            time to be the cycle: a resampled trajectory would be a new, unchecked one
-            (interpolating 10 ms samples at 4 ms breaks the jerk limits).
+        stream: The plan timed at the controller cycle (``plan --export stream``); without it
+            the stream is the written samples at the plan's own sample time.
+        cycle: The stream's cycle [s] (with ``stream``).
+        options: Tool/base numbers and hooks.
+        normal: The plate's surface normal, base frame, (3,) (None: see :func:`build_program`).
     """
     problem = str(record.get("problem", "plan"))
     spacing = plan_spacing(record) if spacing is None else spacing
@@ -138,58 +162,120 @@ def export_programs(
         raise InputError("--export-spacing-mm", "", f"got {spacing * 1e3:g}", "> 0")
     robot_file, robot_sha256 = _robot_file(robot)
     header = ProgramHeader(
-        name=f"rfsw_{problem}", plan_id=f"{problem}-{sha256_file(waypoints_csv)[:12]}",
+        name=f"rfsw_{problem}", plan_id=f"{problem}-{plan_sha256[:12]}",
         problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
         version=__version__,
         tolerated_uncertainty=tolerated_from_record(record),
-        requested_uncertainty=float(record.get("force_uncertainty_requested",
-                                               record.get("force_uncertainty", 0.0)) or 0.0),
-        window_mm=_window(record),
-        path_tol=path_tol, spacing=spacing)
-    samples = read_samples(waypoints_csv, robot)
-    program = build_program(robot, samples, header, path_tol)
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".export-", dir=out))
-    try:
-        staged: list[Path] = []
-        trips: dict[str, RoundTrip] = {}
-        rows = 0
-        for fmt in formats:
-            if fmt == "stream":
-                st = stream if stream is not None else _stream_from(samples, cycle)
-                if check is not None:
-                    check(st)
-                staged.append(write_stream(stage / f"{header.name}_stream.csv", robot, st, cycle))
-                rows = len(st)
-                continue
-            files, trip = _write_and_read_back(fmt, program, stage)
-            if not trip.ok:
-                raise InfeasibleError(f"{fmt} program does not reproduce the verified plan: "
-                                      f"{trip.summary()}", None, "round_trip", None)
-            if check is not None:
-                moved = program.samples.subset(program.moved_points())
-                check(replace(moved, q=trip.q))
-            staged += files
-            trips[fmt] = trip
-        final = []
-        for f in staged:
-            target = out / f.name
-            f.replace(target)
-            final.append(target)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        requested_uncertainty=_number(record.get("force_uncertainty_requested",
+                                                 record.get("force_uncertainty", 0.0))),
+        window_mm=_window(record), path_tol=path_tol, spacing=spacing)
+    from rfsw_plan.export.program import path_deviation
+
+    with Stages("export", ("points", *fmts)) as stages:
+        program = build_program(robot, samples, header, path_tol, normal=normal,
+                                payload=robot.description.tool_payload(), options=options,
+                                stream=stream, cycle=cycle)
+        deviation = float(np.max(path_deviation(program)))
+        if deviation > path_tol * (1 + 1e-9):
+            raise InfeasibleError(f"programmed path leaves a verified sample by "
+                                  f"{deviation * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)",
+                                  None, "path_tolerance", path_tol - deviation)
+        out.mkdir(parents=True, exist_ok=True)
+        for old in out.glob(".export-*"):  # left by a killed run
+            shutil.rmtree(old, ignore_errors=True)
+        stage = Path(tempfile.mkdtemp(prefix=".export-", dir=out))
+        try:
+            staged, trips = _write_all(program, fmts, stage, check, stages)
+            final = []
+            for f in staged:
+                target = out / f.name
+                f.replace(target)
+                final.append(target)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
-    return ExportResult(tuple(final), trips, len(program.sample_index), rows, header,
-                        checked.strip())
+    rows = {name: len(trip.q) for name, trip in trips.items()}
+    return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
+                        checked.strip(), deviation, program.header.notes)
 
 
-def _stream_from(samples: Samples, cycle: float) -> Samples:
-    dt = float(np.max(np.diff(samples.t)))
-    if abs(dt - cycle) > 1e-6:
-        raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's sample "
-                         f"time {dt * 1e3:g} ms", "the plan's sample time, or plan again with "
-                         "--export stream (it times the plan at the cycle)")
-    return samples
+def _write_all(program: Program, fmts: Sequence[str], stage: Path,
+               check: SampleCheck | None, stages: Stages) -> tuple[list[Path],
+                                                                   dict[str, RoundTrip]]:
+    """Write every format into ``stage``, re-read it and take it through the model."""
+    staged: list[Path] = []
+    trips: dict[str, RoundTrip] = {}
+    for name in fmts:
+        stages.start(name)
+        fmt = get_format(name)
+        files = fmt.write(program, stage)
+        expected = fmt.expected(program)
+        trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)
+        if not trip.ok:
+            raise InfeasibleError(f"{name} program does not reproduce the verified plan: "
+                                  f"{trip.summary()}", None, "round_trip", None)
+        if check is not None:
+            check(replace(expected, q=trip.q))
+        staged += files
+        trips[name] = trip
+    return staged, trips
+
+
+def export_plan_folder(
+    folder: str | Path, fmts: Sequence[str], out: Path | None = None, *,
+    spacing: float | None = None, path_tol: float = 1e-5,
+    options: ProgramOptions | None = None,
+) -> ExportResult:
+    """Programs of a written plan folder (read by the strict reader), and their record.
+
+    Into the plan folder itself (``out`` None or the folder), ``plan.json`` is rewritten to
+    vouch for the programs: first without any earlier programs, then, after the new files
+    have their names, with them, so a kill at any moment leaves a record that vouches for a
+    whole set. Into another folder, ``export.json`` is written last and vouches for them.
+
+    Raises:
+        InputError: A damaged plan folder (one line), bad options.
+        InfeasibleError: A plan that is not verified, or a program that does not reproduce it.
+    """
+    from rfsw_plan.files import write_json
+    from rfsw_plan.planfiles.folder import read_plan_folder, read_plan_record
+    from rfsw_plan.robot.kinematics import load_robot
+
+    folder = Path(folder)
+    rec0 = read_plan_record(folder / "plan.json")  # a damaged record is named first
+    robot = load_robot(str(rec0.get("robot_file") or rec0.get("robot") or ""))
+    d = robot.description
+    plan = read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper))
+    normal, why = plate_normal(plan.problem_file, plan.samples)
+    target = folder if out is None else Path(out)
+    inside = target.resolve() == folder.resolve()
+    record = dict(plan.record)
+    if inside:  # the plan alone stays vouched for while the programs are replaced
+        old = set(record.get("export", {}).get("files", [])) if isinstance(
+            record.get("export"), dict) else set()
+        record["sha256"] = {k: v for k, v in record["sha256"].items()
+                            if k not in {Path(f).name for f in old}}
+        record.pop("export", None)
+        write_json(folder / "plan.json", record)
+    res = export_programs(robot, plan.samples, plan.record, fmts, target,
+                          plan_sha256=plan.waypoints_sha256, spacing=spacing,
+                          path_tol=path_tol, options=options, normal=normal)
+    if why:
+        res = replace(res, notes=(*res.notes, f"plate normal not known: {why}"))
+    summary = {"status": "exported", "plan": str(folder), **res.to_dict()}
+    if inside:
+        record["export"] = summary
+        record["sha256"] = {**record["sha256"],
+                            **{f.name: sha256_file(f) for f in res.files}}
+        write_json(folder / "plan.json", record)
+    else:
+        summary["sha256"] = {f.name: sha256_file(f) for f in res.files}
+        write_json(target / "export.json", summary)
+    return res
+
+
+def _number(v: Any) -> float:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else 0.0
 
 
 def _robot_file(robot: Robot) -> tuple[str, str]:
@@ -201,33 +287,12 @@ def _robot_file(robot: Robot) -> tuple[str, str]:
 
 
 def _window(record: dict[str, Any]) -> tuple[float, float]:
-    w = record.get("window_mm") or [float("nan"), float("nan")]
-    return float(w[0]), float(w[1])
+    w = record.get("window_mm")
+    if not isinstance(w, list) or len(w) != 2:
+        return float("nan"), float("nan")
+    return _number(w[0]), _number(w[1])
 
 
-def _write_and_read_back(fmt: str, program: Program, stage: Path) -> tuple[list[Path],
-                                                                          RoundTrip]:
-    robot = program.robot
-    q_plan = program.samples.q[program.moved_points()]
-    matches: Callable[[ReadPoint, Any], bool]
-    if fmt == "krl":
-        files = write_krl(program, stage)
-        tool, work, points = read_krl(files[0])
-
-        def matches(p: ReadPoint, q: Any) -> bool:
-            return (p.config["S"], p.config["T"]) in configs_near(kuka_status_turn, robot, q)
-    elif fmt == "fanuc_tp":
-        files = write_tp(program, stage)
-        tool, work, points = read_tp(files[0])
-
-        def matches(p: ReadPoint, q: Any) -> bool:
-            return p.config["CONFIG"] in configs_near(fanuc_config, robot, q)
-    elif fmt == "rapid":
-        files = write_rapid(program, stage)
-        tool, work, points = read_rapid(files[0])
-
-        def matches(p: ReadPoint, q: Any) -> bool:
-            return p.config["cf"] in configs_near(abb_confdata, robot, q)
-    else:
-        raise InputError("--export", fmt, "unknown format", ", ".join(FORMATS))
-    return files, round_trip(robot, tool, work, points, q_plan, matches)
+def format_help() -> str:
+    """``--format`` help text from the registry."""
+    return ", ".join(f"{n} ({c.description})" for n, c in formats().items())

@@ -16,9 +16,13 @@ in ``tests/test_export.py`` checks writer and reader agree on every bundled robo
 * KUKA ``S`` (Status): bit 0 = 1 if the wrist centre is overhead (behind axis 1, not
   ``front``), bit 1 = 1 if A3 is on the elbow-up side of its stretched angle (``elbow_up``),
   bit 2 = 1 if A5 < 0. ``T`` (Turn): bit i = 1 if axis i+1 < 0.
-* FANUC ``CONFIG``: ``'F|N U|D T|B, t1, t4, t6'``: N (no flip) if J5 >= 0 else F; U if
-  ``elbow_up`` else D; T (top/front) if ``front`` else B; turn numbers of J1, J4, J6: 0 for
-  -180 < J <= 180 deg, +1 for 180 < J <= 540, -1 for -540 < J <= -180.
+* FANUC ``CONFIG``: ``'F|N U|D T|B, t1, t4, t6'``: F (flip) if J5 > 0, N (no flip) if
+  J5 < 0 (at the singular J5 = 0 either; written N); U if ``elbow_up`` else D; T (top/front)
+  if ``front`` else B; turn numbers of J1, J4, J6: 0 for -180 < J <= 180 deg, +1 for
+  180 < J <= 540, -1 for -540 < J <= -180. The wrist flag follows two public sources, kept
+  with their origin in ``tests/data/vendor/posture_facts.csv``: RoboDK's FANUC R-30iA
+  post-processor ("F means axis 5 >= 0, N means axis 5 < 0") and a ROBOGUIDE-derived
+  configuration table of the CRX-10iA (J5 = -90 deg is ``N U T``, J5 = +90 deg ``F U T``).
 * ABB ``confdata [cf1, cf4, cf6, cfx]``: quadrants floor(q / 90 deg) of axes 1, 4, 6 and
   cfx = 4 (not front) + 2 (not elbow_up) + (axis 5 < 0).
 """
@@ -26,6 +30,7 @@ in ``tests/test_export.py`` checks writer and reader agree on every bundled robo
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,7 +98,8 @@ def _turn(a: float) -> int:
 def fanuc_config(robot: Robot, q: FloatArray) -> str:
     """FANUC CONFIG string of controller values q [rad], e.g. ``'N U T, 0, 0, 0'``."""
     p = posture(robot, q)
-    return (f"{'F' if p.wrist_negative else 'N'} {'U' if p.elbow_up else 'D'} "
+    flip = bool(q[4] > 0.0)
+    return (f"{'F' if flip else 'N'} {'U' if p.elbow_up else 'D'} "
             f"{'T' if p.front else 'B'}, {_turn(q[0])}, {_turn(q[3])}, {_turn(q[5])}")
 
 
@@ -139,24 +145,14 @@ def ik_on_branch(
         target: TCP pose in the description's base frame [m].
         matches: Callable ``q -> bool``: does q have the program's configuration (posture and
             turns)? Solutions are shifted by whole turns within the joint limits first.
-        seed: The previous point's joint values (continuation), or None (multi-start over the
-            configuration branches).
+        seed: The joint values to start from (the planned ones of the point, or the previous
+            point's), or None (multi-start over the configuration branches).
 
     Raises:
         InputError: No solution with that configuration.
     """
-    from rfsw_plan.planning.baselines import branch_seeds
-
     assert callable(matches)
-    d = robot.description
-    seeds: list[FloatArray] = [] if seed is None else [np.asarray(seed, dtype=float)]
-    base = seed if seed is not None else 0.5 * (d.lower + d.upper)
-    seeds += [s for _, s in branch_seeds(robot, np.asarray(base, dtype=float))]
-    if seed is None:
-        rng = np.random.default_rng(0)
-        seeds += list(rng.uniform(np.maximum(d.lower, -math.pi), np.minimum(d.upper, math.pi),
-                                  size=(24, robot.nq)))
-    for s in seeds:
+    for s in _seeds(robot, seed):
         res = solve_ik(robot, target, s, tol_pos=1e-10, tol_rot=1e-10, max_iter=300)
         if not res.converged and (res.position_error > 1e-8 or res.rotation_error > 1e-8):
             continue
@@ -165,6 +161,23 @@ def ik_on_branch(
                 return q
     raise InputError("program", "", "a point has no joint solution in its configuration",
                      "a reachable pose with its posture and turns")
+
+
+def _seeds(robot: Robot, seed: FloatArray | None) -> Iterator[FloatArray]:
+    """The seed first; the configuration branches and a seeded multi-start only if it fails
+    (computing the branches costs about 0.2 s, the seeded solve a millisecond)."""
+    from rfsw_plan.planning.baselines import branch_seeds
+
+    d = robot.description
+    if seed is not None:
+        yield np.asarray(seed, dtype=float)
+    base = seed if seed is not None else 0.5 * (d.lower + d.upper)
+    for _, s in branch_seeds(robot, np.asarray(base, dtype=float)):
+        yield s
+    if seed is None:
+        rng = np.random.default_rng(0)
+        yield from rng.uniform(np.maximum(d.lower, -math.pi), np.minimum(d.upper, math.pi),
+                               size=(24, robot.nq))
 
 
 def _turn_variants(robot: Robot, q: FloatArray, near: FloatArray) -> list[FloatArray]:

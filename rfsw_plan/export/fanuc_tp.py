@@ -1,26 +1,39 @@
 """FANUC TP program in ASCII form (``.ls``) of a :class:`~rfsw_plan.export.program.Program`.
 
 Format conventions followed (FANUC R-30iB HandlingTool operator's manual, program structure
-and the ASCII ``.ls`` listing that ``ASCII Upload`` / ``MAKETP`` accept): the sections
-``/PROG name``, ``/ATTR`` (``OWNER``, ``COMMENT``, ``PROG_SIZE``, ``CREATE``, ``MODIFIED``,
-``FILE_NAME``, ``VERSION``, ``LINE_COUNT``, ``MEMORY_SIZE``, ``PROTECT``, ``TCD``,
-``DEFAULT_GROUP``, ``CONTROL_CODE``), ``/MN`` with numbered lines ``   n:  instruction ;``,
-``/POS`` with ``P[n]{ GP1: UF : u, UT : t, CONFIG : 'N U T, 0, 0, 0', X = .. mm, Y, Z, W = ..
-deg, P, R };`` and ``/END``; motion lines ``J P[n] v% FINE``, ``L P[n] v mm/sec FINE|CNTc`` or
-``L P[n] t sec FINE`` (motion time, for speeds that are not whole mm/sec), ``WAIT t(sec)``,
-remarks ``! text``, ``UFRAME_NUM``/``UTOOL_NUM``; program names of at most 8 upper-case
-characters in the ``/PROG`` line are not required here (R-30iB allows 36).
+and the ASCII ``.ls`` listing that ``ASCII Upload`` / ``MAKETP`` accept; the layout RoboDK's
+R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``,
+``COMMENT``, ``PROG_SIZE``, ``CREATE``, ``MODIFIED``, ``FILE_NAME``, ``VERSION``,
+``LINE_COUNT``, ``MEMORY_SIZE``, ``PROTECT``, ``TCD``, ``DEFAULT_GROUP``, ``CONTROL_CODE``),
+``/MN`` with numbered lines ``   n:  instruction ;``, ``/POS`` and ``/END``.
+
+* The first point ``P[1]`` is a joint target (``J1 = .. deg`` ... in ``/POS``): the first move
+  cannot take another posture. The others are Cartesian with ``CONFIG : 'N U T, 0, 0, 0'``
+  (:func:`rfsw_plan.export.config.fanuc_config`: F if J5 > 0, N if J5 < 0, checked against
+  RoboDK's post-processor and a ROBOGUIDE table in ``tests/data/vendor``).
+* Frames are set in the program, exactly: the plate frame and the TCP are written element by
+  element into position registers (``PR[i]=LPOS`` makes the register Cartesian, then
+  ``PR[i,1..6]``), then ``UFRAME[uf]=PR[i]``, ``UTOOL[ut]=PR[j]``, ``UFRAME_NUM``,
+  ``UTOOL_NUM``; ``PAYLOAD[ut]`` selects the payload schedule whose values the header lists
+  (FANUC units: kg, cm, kgf cm s^2), to be entered on the payload screen.
+* Termination ``FINE`` everywhere: FANUC's ``CNT`` rounds a corner by an amount that depends
+  on speed and acceleration, with no published bound, so the 0.01 mm path tolerance cannot be
+  shown for it; the corner-region option (``CR``) takes whole millimetres, more than the
+  bounded blend here. Each ``FINE`` costs the controller's in-position settle time (tens of
+  ms; the header says so).
+* ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
+  milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
+  ``WAIT t(sec)``; remarks ``! text``.
 
 W, P, R (R = Rz(R) Ry(P) Rx(W), deg) are unwrapped along the program: each angle is moved by
-whole turns to be within 180 deg of the previous point's, so no motion sees a +-180 jump.
-UF and UT are frame numbers; their values (the seam work object in the world frame and the
-TCP in the faceplate frame) are in the header remarks, to be entered on the pendant.
+whole turns to be within 180 deg of the previous point's.
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Hashable
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -29,20 +42,33 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import fanuc_config
-from rfsw_plan.export.program import Program, controller_name, phase_comments
-from rfsw_plan.export.readback import ReadPoint
+from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
+from rfsw_plan.export.krl import unwrap_angles
+from rfsw_plan.export.program import Program, controller_name, number
 from rfsw_plan.files import write_text
+from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
-#: User frame and tool frame numbers the program uses.
-UFRAME = 1
-UTOOL = 1
+#: Position registers the program writes the user frame and tool frame into.
+PR_UFRAME = 91
+PR_UTOOL = 92
 #: Joint speed of the move to the approach point [%].
 J_PERCENT = 10
-#: Spindle placeholders (remarks) before the plunge and at the retract.
-SPINDLE_START = ("SPINDLE START placeholder:", " e.g. DO[1]=ON and WAIT DI[1]=ON")
-SPINDLE_STOP = ("SPINDLE STOP placeholder:", " e.g. DO[1]=OFF")
+#: CREATE/MODIFIED stamp (fixed: the same plan gives the same bytes on every machine).
+STAMP = datetime(2000, 1, 1, tzinfo=UTC)
+#: kg m^2 -> kgf cm s^2 (FANUC's payload inertia unit): 1 kgf cm s^2 = 0.0980665 kg m^2.
+KGFCMS2 = 0.0980665
+#: Default hook remarks.
+DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home first,", " e.g. J PR[1:HOME] 10% FINE"),
+    "home_end": ("HOME: back to the cell's home,", " e.g. J PR[1:HOME] 10% FINE"),
+    "spindle_start": ("SPINDLE START: spindle on and wait at speed,",
+                      " e.g. DO[1]=ON and WAIT DI[1]=ON"),
+    "force_on": ("FORCE CONTROL ON here if used",),
+    "force_off": ("FORCE CONTROL OFF here if used",),
+    "spindle_stop": ("SPINDLE STOP: the pin has left the material,", " e.g. DO[1]=OFF"),
+}
 
 
 def frame_to_xyzwpr(T: FloatArray) -> FloatArray:
@@ -64,10 +90,7 @@ def xyzwpr_to_frame(v: FloatArray | list[float]) -> FloatArray:
 
 def unwrap_wpr(wpr: FloatArray) -> FloatArray:
     """W, P, R rows [deg], (m, 3), each moved by whole turns to follow the previous row."""
-    out = np.array(wpr, dtype=float)
-    for k in range(1, len(out)):
-        out[k] -= 360.0 * np.round((out[k] - out[k - 1]) / 360.0)
-    return out
+    return unwrap_angles(wpr)
 
 
 def tp_name(name: str) -> str:
@@ -76,49 +99,111 @@ def tp_name(name: str) -> str:
 
 
 def _speed(speed: float, duration: float) -> str:
-    """``v mm/sec`` when the speed is a whole mm/s (within 0.1 %), else the motion time."""
+    """``v mm/sec`` when the speed is a whole mm/s (within 0.1 %), else the motion time in
+    whole milliseconds (``t msec``; the controller rounds it to its 8 ms interpolation period)."""
     v = speed * 1e3
     if v >= 1.0 and abs(v - round(v)) <= 1e-3 * v and round(v) <= 2000:
         return f"{round(v)}mm/sec"
-    return f"{duration:.2f}sec"
+    return f"{max(round(duration * 1e3), 1)}msec"
+
+
+class FanucTpFormat(ControllerFormat):
+    """FANUC TP in ASCII (``.ls``), R-30iB."""
+
+    name = "fanuc_tp"
+    description = "FANUC TP ASCII (.ls, R-30iB)"
+    suffix = ".ls"
+    maker = "FANUC"
+    limits = FormatLimits(name_length=36, max_lines=9999)
+
+    def file_name(self, program: Program) -> str:
+        return tp_name(program.header.name) + ".ls"
+
+    def posture(self, robot: Robot, q: FloatArray) -> Hashable:
+        return fanuc_config(robot, q)
+
+    def write(self, program: Program, folder: Path) -> list[Path]:
+        return write_tp(program, folder)
+
+    def read(self, path: Path) -> ReadProgram:
+        return read_tp(path)
+
+
+def _frames(program: Program) -> list[str]:
+    o = program.options
+    out = []
+    for pr, what, T in ((PR_UFRAME, "plate frame in world", program.work),
+                        (PR_UTOOL, "TCP in faceplate", program.tool)):
+        v = frame_to_xyzwpr(T)
+        out += [f"! PR[{pr}] = {what}", f"PR[{pr}]=LPOS"]
+        out += [f"PR[{pr},{j + 1}]={number(x, 4)}" for j, x in enumerate(v)]
+    out += [f"UFRAME[{o.base_number}]=PR[{PR_UFRAME}]", f"UTOOL[{o.tool_number}]=PR[{PR_UTOOL}]",
+            f"UFRAME_NUM={o.base_number}", f"UTOOL_NUM={o.tool_number}"]
+    if program.payload is not None:
+        out.append(f"PAYLOAD[{o.tool_number}]")
+    return out
+
+
+def _header_extra(program: Program) -> list[str]:
+    o = program.options
+    out = [*program.maker_note("FANUC"),
+           f"SET ON THE CONTROLLER: UFRAME {o.base_number} and UTOOL {o.tool_number} are "
+           f"written below (PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten); the spindle "
+           "I/O in the hook remarks"]
+    pl = program.payload
+    if pl is not None:
+        com = (np.linalg.inv(program.robot.description.convention.flange)
+               @ np.append(pl.com, 1.0))[:3] * 100.0
+        inertia = "not known (0; identify it)" if pl.inertia is None else \
+            " ".join(f"{number(x / KGFCMS2, 3)}" for x in pl.inertia) + " kgf cm s^2"
+        out.append(f"PAYLOAD[{o.tool_number}] (payload screen): {number(pl.mass, 1)} kg, "
+                   f"centre X {number(com[0], 2)} Y {number(com[1], 2)} Z {number(com[2], 2)} "
+                   f"cm (faceplate), inertia {inertia}")
+    out += ["UFRAME = the plate: origin on the first weld point, +X along the seam, +Y on "
+            "the plate. To use a frame taught on the plate (3-point), replace the PR["
+            f"{PR_UFRAME}] values with it and run rfsw-plan check on this file",
+            "Termination FINE at every point: FANUC CNT has no published path bound; each "
+            "FINE adds the in-position settle time"]
+    return out
+
+
+def _mn(program: Program) -> list[str]:
+    mn = program.header.comments("! ", max_len=60, extra=_header_extra(program))
+    mn += _frames(program)
+    marks = program.phase_changes()
+    for i, m in enumerate(program.motions):
+        if i in marks:
+            mn.append(f"! ---- phase: {marks[i]}")
+        p = f"P[{m.point + 1}]"
+        if m.kind == "hook":
+            mn += program.options.hooks.render(m.hook, "fanuc_tp", DEFAULT_HOOKS[m.hook], "",
+                                               "!")
+        elif m.kind == "joint":
+            mn.append(f"J {p} {J_PERCENT}% FINE")
+        elif m.kind == "wait":
+            mn.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
+        else:
+            mn.append(f"L {p} {_speed(m.speed, m.duration)} FINE")
+    return mn
 
 
 def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None) -> list[Path]:
     """Write ``<name>.ls`` atomically; returns its path (``stamp``: CREATE/MODIFIED time,
-    default now)."""
+    default :data:`STAMP`)."""
     name = tp_name(program.header.name)
     robot = program.robot
+    o = program.options
     xyzwpr = np.array([frame_to_xyzwpr(p) for p in program.poses])
     xyzwpr[:, 3:] = unwrap_wpr(xyzwpr[:, 3:])
-    uf = frame_to_xyzwpr(program.work)
-    ut = frame_to_xyzwpr(program.tool)
-
-    mn = program.header.comments("! ", max_len=60)
-    mn += [f"! UFRAME {UFRAME} = seam work object in world:",
-           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", uf, strict=True)),
-           f"! UTOOL {UTOOL} = TCP in faceplate:",
-           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", ut, strict=True)),
-           f"UFRAME_NUM={UFRAME}", f"UTOOL_NUM={UTOOL}"]
-    marks = program.phase_changes()
-    for i, m in enumerate(program.motions):
-        if i in marks:
-            mn += phase_comments(marks[i], "!", SPINDLE_START, SPINDLE_STOP)
-        p = f"P[{m.point + 1}]"
-        if m.kind == "ptp":
-            mn.append(f"J {p} {J_PERCENT}% FINE")
-        elif m.kind == "wait":
-            mn.append(f"WAIT {m.duration:.2f}(sec)")
-        else:
-            term = "FINE"
-            if m.blend > 0:
-                seg = [x for x in _adjacent(program, i)]
-                cap = 0.4 * min(seg) if seg else m.blend
-                term = f"CNT{max(1, min(100, round(100 * m.blend / cap)))}"
-            mn.append(f"L {p} {_speed(m.speed, m.duration)} {term}")
-
+    mn = _mn(program)
+    if len(mn) > FanucTpFormat.limits.max_lines:
+        raise InputError("--format", "fanuc_tp", f"{len(mn)} lines, a TP program holds "
+                         f"{FanucTpFormat.limits.max_lines}",
+                         "a larger --export-spacing-mm or --path-tol-mm (TP splitting into "
+                         "called programs is not written)")
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;",
              f"COMMENT\t\t= \"{program.header.plan_id[:16]}\";", "PROG_SIZE\t= 0;"]
-    when = (stamp or datetime.now(UTC)).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
+    when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
     lines += [f"CREATE\t\t= {when};", f"MODIFIED\t= {when};", "FILE_NAME\t= ;",
               "VERSION\t\t= 0;", f"LINE_COUNT\t= {len(mn)};", "MEMORY_SIZE\t= 0;",
               "PROTECT\t\t= READ_WRITE;",
@@ -129,74 +214,113 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     for n, text in enumerate(mn, start=1):
         lines.append(f"{n:4d}:{'  ' if text[0] not in 'JL' else ''}{text} ;")
     lines.append("/POS")
-    for k, (v, q) in enumerate(zip(xyzwpr, program.samples.q, strict=True)):
+    q0 = np.degrees(program.samples.q[0])
+    lines += ["P[1]{", "   GP1:", f"\tUF : {o.base_number}, UT : {o.tool_number},",
+              "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3)) + ",",
+              "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3, 6)),
+              "};"]
+    for k in range(1, len(xyzwpr)):
+        v, q = xyzwpr[k], program.samples.q[k]
         lines += [f"P[{k + 1}]{{", "   GP1:",
-                  f"\tUF : {UFRAME}, UT : {UTOOL},\t\tCONFIG : '{fanuc_config(robot, q)}',",
-                  f"\tX = {_num(v[0], 4):>10}  mm,\tY = {_num(v[1], 4):>10}  mm,"
-                  f"\tZ = {_num(v[2], 4):>10}  mm,",
-                  f"\tW = {_num(v[3], 5):>10} deg,\tP = {_num(v[4], 5):>10} deg,"
-                  f"\tR = {_num(v[5], 5):>10} deg",
+                  f"\tUF : {o.base_number}, UT : {o.tool_number},\t\t"
+                  f"CONFIG : '{fanuc_config(robot, q)}',",
+                  f"\tX = {number(v[0], 4):>10}  mm,\tY = {number(v[1], 4):>10}  mm,"
+                  f"\tZ = {number(v[2], 4):>10}  mm,",
+                  f"\tW = {number(v[3], 5):>10} deg,\tP = {number(v[4], 5):>10} deg,"
+                  f"\tR = {number(v[5], 5):>10} deg",
                   "};"]
     lines.append("/END")
     return [write_text(Path(folder) / f"{name}.ls", "\n".join(lines) + "\n")]
 
 
-def _num(x: float, digits: int) -> str:
-    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
-    t = f"{x:.{digits}f}"
-    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+# --------------------------------------------------------------------------------------------
+# Reading
 
-
-def _adjacent(program: Program, i: int) -> list[float]:
-    """Lengths [m] of the segments before and after motion i's target."""
-    m = program.motions[i]
-    P = program.poses[:, :3, 3]
-    out = []
-    if m.point > 0:
-        out.append(float(np.linalg.norm(P[m.point] - P[m.point - 1])))
-    if m.point + 1 < len(P):
-        out.append(float(np.linalg.norm(P[m.point + 1] - P[m.point])))
-    return out
-
-
-_POS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*CONFIG\s*:\s*"
-                  r"'([^']*)',\s*X\s*=\s*(\S+)\s*mm,\s*Y\s*=\s*(\S+)\s*mm,\s*Z\s*=\s*(\S+)\s*mm,"
-                  r"\s*W\s*=\s*(\S+)\s*deg,\s*P\s*=\s*(\S+)\s*deg,\s*R\s*=\s*(\S+)\s*deg\s*\};",
-                  re.S)
+_NUM = r"[-+0-9.Ee]+"
+_POS = re.compile(rf"P\[(\d+)\]\{{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*CONFIG\s*:\s*"
+                  rf"'([^']*)',\s*X\s*=\s*({_NUM})\s*mm,\s*Y\s*=\s*({_NUM})\s*mm,\s*Z\s*=\s*"
+                  rf"({_NUM})\s*mm,\s*W\s*=\s*({_NUM})\s*deg,\s*P\s*=\s*({_NUM})\s*deg,\s*R\s*="
+                  rf"\s*({_NUM})\s*deg\s*\}};", re.S)
+_JPOS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
+                   + r",\s*".join(rf"J{j}\s*=\s*({_NUM})\s*deg" for j in range(1, 7))
+                   + r"\s*\};", re.S)
 _MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)\s*;\s*$")
-_REMARK_FRAME = re.compile(r"!\s+X=(\S+) Y=(\S+) Z=(\S+) W=(\S+) P=(\S+) R=(\S+) ;")
+_WAIT = re.compile(rf"^\s*\d+:\s*WAIT\s+({_NUM})\(sec\)\s*;\s*$")
+_PR = re.compile(rf"^\s*\d+:\s*PR\[(\d+),(\d)\]=({_NUM})\s*;\s*$")
+_SET = re.compile(r"^\s*\d+:\s*(UFRAME|UTOOL)\[(\d+)\]=PR\[(\d+)\]\s*;\s*$")
 
 
-def read_tp(path: str | Path) -> tuple[FloatArray, FloatArray, list[ReadPoint]]:
-    """Re-read a written ``.ls``: (UTOOL (4, 4), UFRAME (4, 4) [m], points in program order).
+def _speed_of(text: str) -> tuple[float, float]:
+    """``3mm/sec`` -> (0.003 m/s, 0); ``1250msec`` or ``1.25sec`` -> (0, 1.25 s); ``10%`` ->
+    (0, 0)."""
+    if text.endswith("mm/sec"):
+        return float(text[:-6]) * 1e-3, 0.0
+    if text.endswith("msec"):
+        return 0.0, float(text[:-4]) * 1e-3
+    if text.endswith("sec"):
+        return 0.0, float(text[:-3])
+    return 0.0, 0.0
+
+
+def read_tp(path: str | Path) -> ReadProgram:
+    """Re-read a ``.ls``: frames from the ``PR[i,j]`` lines, every motion and wait.
 
     Checks the section order ``/PROG``, ``/ATTR``, ``/MN``, ``/POS``, ``/END``, the line
     numbering of ``/MN`` and that every moved-to ``P[n]`` is defined in ``/POS``.
     """
     p = Path(path)
-    text = p.read_text()
+    text = p.read_text(encoding="utf-8")
     heads = [line.split()[0] for line in text.splitlines() if line.startswith("/")]
     if heads != ["/PROG", "/ATTR", "/MN", "/POS", "/END"]:
         raise InputError(p, "sections", f"got {heads}", "/PROG /ATTR /MN /POS /END in order")
     mn = text.split("/MN", 1)[1].split("/POS", 1)[0].strip().splitlines()
     for n, line in enumerate(mn, start=1):
         if not re.match(rf"^\s*{n}:.*;\s*$", line):
-            raise InputError(p, f"/MN line {n}", f"got {line!r}", f"'{n:4d}: ... ;'")
-    frames = [m.groups() for m in _REMARK_FRAME.finditer(text)]
-    if len(frames) < 2:
-        raise InputError(p, "UFRAME/UTOOL", "values missing", "the header remarks")
-    uf, ut = (xyzwpr_to_frame([float(x) for x in f]) for f in frames[:2])
-    pos = {int(m.group(1)): m.groups() for m in _POS.finditer(text)}
-    points: list[ReadPoint] = []
+            raise InputError(p, f"/MN line {n}", f"got {line.strip()[:40]!r}", f"'{n:4d}: ... ;'")
+    frames = _tp_frames(p, mn)
+    return ReadProgram(frames["UTOOL"], frames["UFRAME"], _tp_motions(p, text, mn), (p,))
+
+
+def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
+    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines."""
+    regs: dict[int, FloatArray] = {}
+    frames: dict[str, FloatArray] = {}
     for line in mn:
+        if (r := _PR.match(line)) is not None:
+            regs.setdefault(int(r.group(1)), np.zeros(6))[int(r.group(2)) - 1] = \
+                float(r.group(3))
+        elif (s := _SET.match(line)) is not None:
+            if int(s.group(3)) not in regs:
+                raise InputError(p, s.group(0).strip()[:40], "register not set",
+                                 "PR[i,1..6] lines before it")
+            frames[s.group(1)] = xyzwpr_to_frame(regs[int(s.group(3))])
+    if set(frames) != {"UFRAME", "UTOOL"}:
+        raise InputError(p, "UFRAME/UTOOL", "not both set", "the frames set in the program")
+    return frames
+
+
+def _tp_motions(p: Path, text: str, mn: list[str]) -> list[ReadPoint]:
+    """Every motion and wait of /MN with its /POS target."""
+    cart = {int(m.group(1)): m.groups() for m in _POS.finditer(text)}
+    joint = {int(m.group(1)): m.groups() for m in _JPOS.finditer(text)}
+    motions: list[ReadPoint] = []
+    for line in mn:
+        if (w := _WAIT.match(line)) is not None:
+            motions.append(ReadPoint("WAIT", kind="wait", duration=float(w.group(1))))
+            continue
         m = _MOT.match(line)
         if not m:
             continue
         k = int(m.group(2))
-        if k not in pos:
+        speed, duration = _speed_of(m.group(3))
+        if k in joint:
+            motions.append(ReadPoint(f"P[{k}]", q=np.radians([float(x) for x in joint[k][3:9]]),
+                                     kind="joint"))
+        elif k in cart:
+            g = cart[k]
+            motions.append(ReadPoint(f"P[{k}]", xyzwpr_to_frame([float(x) for x in g[4:10]]),
+                                     g[3], speed=speed, duration=duration,
+                                     kind="joint" if m.group(1) == "J" else "lin"))
+        else:
             raise InputError(p, f"P[{k}]", "not defined in /POS", "a /POS entry per point")
-        g = pos[k]
-        pose = xyzwpr_to_frame([float(x) for x in g[4:10]])
-        points.append(ReadPoint(f"P[{k}]", pose, {"CONFIG": g[3], "UF": int(g[1]),
-                                                  "UT": int(g[2])}))
-    return ut, uf, points
+    return motions

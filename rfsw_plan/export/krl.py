@@ -1,22 +1,32 @@
 """KUKA KRL program (``.src`` + ``.dat``) of a :class:`~rfsw_plan.export.program.Program`.
 
 Format conventions followed (KUKA System Software 8.x operating and programming manuals for
-system integrators, expert programming chapters): ``&ACCESS``/``&REL`` attribute lines,
-``DEF name( ) ... END`` in the ``.src`` and ``DEFDAT name PUBLIC ... ENDDAT`` in the ``.dat``
-holding the points as ``DECL E6POS XPn={X .., Y .., Z .., A .., B .., C .., S .., T .., E1 ..
-E6 ..}`` (mm, deg; orientation A, B, C about z, y', x'': R = Rz(A) Ry(B) Rx(C));
-``$TOOL``/``$BASE`` as ``FRAME`` aggregates; ``$VEL.CP`` in m/s, ``$APO.CDIS`` in mm with
-``C_DIS`` approximation; ``$VEL_AXIS``/``$ACC_AXIS`` in % for the PTP; ``WAIT SEC``; comments
-after ``;``; identifiers of at most 24 characters.
+system integrators, expert programming chapters; the structure of KUKA's own ``.src``
+template and of common post-processors): ``&ACCESS``/``&REL`` attribute lines,
+``DEF name( ) ... END`` in the ``.src`` with an ``INI`` fold calling ``BAS(#INITMOV, 0)``;
+``DEFDAT name PUBLIC ... ENDDAT`` in the ``.dat`` holding the first point as ``DECL E6AXIS``
+(a joint target: the first move cannot take another posture) and the others as ``DECL E6POS
+XPn={X .., Y .., Z .., A .., B .., C .., S .., T .., E1 .. E6 ..}`` (mm, deg; R = Rz(A) Ry(B)
+Rx(C), each angle unwrapped to follow the previous point's, so no ``+-180`` jumps);
+``TOOL_DATA[t]``, ``LOAD_DATA[t]`` and ``BASE_DATA[b]`` assigned and selected with
+``BAS(#TOOL, t)``/``BAS(#BASE, b)`` (KUKA's ``BAS.SRC``: it sets ``$TOOL``, ``$LOAD`` and
+``$BASE``), ``$VEL.CP`` in m/s, ``$VEL.ORI1/2`` and ``$ACC.CP/ORI1/ORI2``, ``$APO.CDIS`` in mm
+with ``C_DIS`` approximation; ``$VEL_AXIS``/``$ACC_AXIS`` in % for the PTP; ``WAIT SEC``;
+comments after ``;``; identifiers of at most 24 characters. A program longer than
+:data:`MAX_LINES` lines moves its motions into called sub-programs (``DEF`` ... ``END`` in the
+same ``.src``, ``XPn`` in the shared ``.dat``).
 
-``$TOOL`` is the TCP in KUKA's FLANGE frame (x out of the flange) and ``$BASE`` the seam work
-object in ROBROOT; points are in ``$BASE``. S and T follow :mod:`rfsw_plan.export.config`.
+``TOOL_DATA`` is the TCP in KUKA's FLANGE frame (x out of the flange), ``BASE_DATA`` the plate
+frame in ROBROOT, ``LOAD_DATA`` the spindle's mass, centre of mass in FLANGE [mm] and inertia
+[kg m^2]; points are in the base. S and T follow :mod:`rfsw_plan.export.config` (checked
+against public sources in ``tests/data/vendor/posture_facts.csv``).
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Hashable
 from pathlib import Path
 
 import numpy as np
@@ -24,20 +34,35 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import kuka_status_turn
-from rfsw_plan.export.program import Program, controller_name, phase_comments
-from rfsw_plan.export.readback import ReadPoint
+from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
+from rfsw_plan.export.program import Motion, Program, controller_name, number
 from rfsw_plan.files import write_text
+from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
 #: PTP axis speed and acceleration for the move to the approach point [%].
 PTP_PERCENT = 10
-#: Spindle placeholders (comments) before the plunge and at the retract.
-SPINDLE_START = ("SPINDLE START (placeholder): switch the spindle on and wait until it",
-                 "runs at the process speed before the plunge, e.g. $OUT[1] = TRUE",
-                 "WAIT FOR $IN[1]")
-SPINDLE_STOP = ("SPINDLE STOP (placeholder): after the pin has left the material,",
-                "e.g. $OUT[1] = FALSE")
+#: Orientation speed limits of LIN moves [deg/s] and accelerations [deg/s^2]: high enough
+#: that the programmed CP speed, not the orientation, sets the pace.
+VEL_ORI = (200, 200)
+ACC_ORI = (100, 100)
+#: CP acceleration [m/s^2].
+ACC_CP = 1.0
+#: Lines of one .src above which the motions move into sub-programs (KRC4 practical limit).
+MAX_LINES = 1400
+#: Default hook comments (one line each).
+DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home position first (not known to rfsw-plan),",
+                   "e.g. PTP XHOME; the joint move to XP1 follows"),
+    "home_end": ("HOME: back to the cell's home position here, e.g. PTP XHOME",),
+    "spindle_start": ("SPINDLE START: switch the spindle on and wait until it runs at the",
+                      "process speed, e.g. $OUT[1] = TRUE and WAIT FOR $IN[1]"),
+    "force_on": ("FORCE CONTROL ON (if used): activate it here, before the plunge",),
+    "force_off": ("FORCE CONTROL OFF (if used): the weld has ended, the retract follows",),
+    "spindle_stop": ("SPINDLE STOP: the pin has left the material (move above), e.g.",
+                     "$OUT[1] = FALSE"),
+}
 
 
 def frame_to_xyzabc(T: FloatArray) -> tuple[float, ...]:
@@ -50,7 +75,7 @@ def frame_to_xyzabc(T: FloatArray) -> tuple[float, ...]:
 
 
 def xyzabc_to_frame(v: tuple[float, ...] | list[float]) -> FloatArray:
-    """Inverse of :func:`frame_to_xyzabc`."""
+    """Inverse of :func:`frame_to_xyzabc` (any number of turns in A, B, C)."""
     X, Y, Z, A, B, C = v
     a, b, c = (math.radians(x) for x in (A, B, C))
     ca, sa, cb, sb, cc, sc = math.cos(a), math.sin(a), math.cos(b), math.sin(b), \
@@ -64,14 +89,16 @@ def xyzabc_to_frame(v: tuple[float, ...] | list[float]) -> FloatArray:
     return T
 
 
-def _num(x: float, digits: int) -> str:
-    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
-    t = f"{x:.{digits}f}"
-    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+def unwrap_angles(rows: FloatArray) -> FloatArray:
+    """Angle rows [deg], (m, 3), each moved by whole turns to follow the previous row."""
+    out = np.array(rows, dtype=float)
+    for k in range(1, len(out)):
+        out[k] -= 360.0 * np.round((out[k] - out[k - 1]) / 360.0)
+    return out
 
 
-def _frame(v: tuple[float, ...]) -> str:
-    return "{" + ", ".join(f"{k} {_num(x, 6)}" for k, x in zip("XYZABC", v, strict=True)) + "}"
+def _frame(v: tuple[float, ...] | FloatArray) -> str:
+    return "{" + ",".join(f"{k} {number(x, 6)}" for k, x in zip("XYZABC", v, strict=True)) + "}"
 
 
 def krl_name(name: str) -> str:
@@ -79,65 +106,181 @@ def krl_name(name: str) -> str:
     return controller_name(name, max_len=24, prefix="P")
 
 
-def write_krl(program: Program, folder: str | Path) -> list[Path]:
-    """Write ``<name>.src`` and ``<name>.dat`` atomically; returns both paths."""
+class KrlFormat(ControllerFormat):
+    """KUKA KRL (KRC4, KSS 8): ``.src`` and ``.dat``."""
+
+    name = "krl"
+    description = "KUKA KRL (.src/.dat, KRC4)"
+    suffix = ".src"
+    maker = "KUKA"
+    limits = FormatLimits(name_length=24, max_lines=MAX_LINES)
+
+    def file_name(self, program: Program) -> str:
+        return krl_name(program.header.name) + ".src"
+
+    def posture(self, robot: Robot, q: FloatArray) -> Hashable:
+        return kuka_status_turn(robot, q)
+
+    def write(self, program: Program, folder: Path) -> list[Path]:
+        return write_krl(program, folder)
+
+    def read(self, path: Path) -> ReadProgram:
+        return read_krl(path)
+
+
+def _header_extra(program: Program) -> list[str]:
+    o = program.options
+    return [
+        *program.maker_note("KUKA"),
+        f"SET ON THE CONTROLLER: tool {o.tool_number} (TOOL_DATA[{o.tool_number}], "
+        f"LOAD_DATA[{o.tool_number}]) and base {o.base_number} (BASE_DATA[{o.base_number}]) "
+        "are assigned below from the plan; the spindle I/O in the hook comments",
+        "BASE = the plate: origin on the first weld point, +X along the seam, +Y on the "
+        "plate, Z out of it. To use a base taught on the plate (3-point method), delete the "
+        "BASE_DATA line, enter the taught values there instead and run rfsw-plan check on "
+        "this file: the pin depth then follows the taught plate",
+    ]
+
+
+def _load(program: Program) -> str:
+    pl = program.payload
+    if pl is None:
+        return ""
+    conv = program.robot.description.convention
+    com = (np.linalg.inv(conv.flange) @ np.append(pl.com, 1.0))[:3] * 1e3
+    inertia = pl.inertia if pl.inertia is not None else np.zeros(3)
+    return (f"{{M {number(pl.mass, 3)},CM {_frame((*com, 0.0, 0.0, 0.0))},"
+            f"J {{X {number(inertia[0], 4)},Y {number(inertia[1], 4)},"
+            f"Z {number(inertia[2], 4)}}}}}")
+
+
+def _init(program: Program) -> list[str]:
+    o = program.options
+    t, b = o.tool_number, o.base_number
+    pl = program.payload
+    load = _load(program)
+    out = [";FOLD INI", "  BAS(#INITMOV, 0)", ";ENDFOLD (INI)",
+           f"  TOOL_DATA[{t}] = {_frame(frame_to_xyzabc(program.tool))}  ; TCP in FLANGE"]
+    if pl is not None:
+        src = "inertia not known: 0, set it by load identification" if pl.inertia is None \
+            else "inertia known"
+        out.append(f"  LOAD_DATA[{t}] = {load}  ; spindle {number(pl.mass, 1)} kg, {src}")
+    else:
+        out.append("  ; LOAD_DATA: PAYLOAD UNKNOWN, enter the spindle's load data")
+    out += [f"  BASE_DATA[{b}] = {_frame(frame_to_xyzabc(program.work))}  ; plate in ROBROOT",
+            f"  BAS(#TOOL, {t})", f"  BAS(#BASE, {b})",
+            "  FOR I = 1 TO 6", f"    $VEL_AXIS[I] = {PTP_PERCENT}",
+            f"    $ACC_AXIS[I] = {PTP_PERCENT}", "  ENDFOR",
+            f"  $VEL.ORI1 = {VEL_ORI[0]}", f"  $VEL.ORI2 = {VEL_ORI[1]}",
+            f"  $ACC.CP = {ACC_CP}", f"  $ACC.ORI1 = {ACC_ORI[0]}", f"  $ACC.ORI2 = {ACC_ORI[1]}",
+            "  $APO.CDIS = 0.0", "  $ADVANCE = 3"]
+    return out
+
+
+def _motion_lines(program: Program, span: range, state: dict[str, float]) -> list[str]:
+    """KRL lines of the motions in ``span``; ``state`` keeps the last $VEL.CP and $APO.CDIS."""
+    out: list[str] = []
+    marks = program.phase_changes()
+    for i in span:
+        m = program.motions[i]
+        if i in marks:
+            out.append(f"  ; ---- phase: {marks[i]}")
+        p = f"XP{m.point + 1}"
+        if m.kind == "hook":
+            out += program.options.hooks.render(m.hook, "krl", DEFAULT_HOOKS[m.hook], "  ",
+                                                ";")
+        elif m.kind == "joint":
+            out.append(f"  PTP {p}  ; joint target (approach point)")
+        elif m.kind == "wait":
+            out.append(f"  WAIT SEC {m.duration:.3f}  ; hold {p} ({m.phase})")
+        else:
+            speed = round(float(m.speed), 7)
+            if speed != state.get("vel"):
+                out.append(f"  $VEL.CP = {max(speed, 1e-7):.7f}  ; m/s")
+                state["vel"] = speed
+            if m.blend > 0:
+                d = round(m.blend * 1e3, 4)
+                if d != state.get("cdis"):
+                    out.append(f"  $APO.CDIS = {d:.4f}  ; mm")
+                    state["cdis"] = d
+                out.append(f"  LIN {p} C_DIS")
+            else:
+                out.append(f"  LIN {p}")
+    return out
+
+
+def chunks(motions: tuple[Motion, ...], size: int) -> list[range]:
+    """Index ranges of at most about ``size`` motions each, cut before a move (a hook or wait
+    stays with the move before it)."""
+    starts = [0]
+    for i, m in enumerate(motions):
+        if i - starts[-1] >= size and m.kind in ("lin", "joint"):
+            starts.append(i)
+    return [range(a, b) for a, b in zip(starts, [*starts[1:], len(motions)], strict=True)]
+
+
+def write_krl(program: Program, folder: str | Path, max_lines: int = MAX_LINES) -> list[Path]:
+    """Write ``<name>.src`` and ``<name>.dat`` atomically; returns both paths.
+
+    Args:
+        program: The program.
+        folder: Output folder.
+        max_lines: Lines of the ``.src`` above which the motions are split into called
+            sub-programs of at most ``max_lines // 4`` motions (three lines each at most).
+    """
     name = krl_name(program.header.name)
     folder = Path(folder)
     robot = program.robot
     dat = [f"&ACCESS RVP\n&REL 1\nDEFDAT {name} PUBLIC"]
-    dat += program.header.comments("; ")
-    for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
-        s, t = kuka_status_turn(robot, q)
-        v = frame_to_xyzabc(pose)
-        dat.append(f"DECL E6POS XP{k + 1}={{X {_num(v[0], 4)},Y {_num(v[1], 4)},"
-                   f"Z {_num(v[2], 4)},A {_num(v[3], 5)},B {_num(v[4], 5)},"
-                   f"C {_num(v[5], 5)},S {s},T {t},"
+    dat += program.header.comments("; ", extra=_header_extra(program))
+    q0 = np.degrees(program.samples.q[0])
+    dat.append("DECL E6AXIS XP1={" + ",".join(f"A{j + 1} {number(v, 6)}"
+                                               for j, v in enumerate(q0))
+               + ",E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
+    v = np.array([frame_to_xyzabc(p) for p in program.poses])
+    v[:, 3:] = unwrap_angles(v[:, 3:])
+    for k in range(1, len(program.poses)):
+        s, t = kuka_status_turn(robot, program.samples.q[k])
+        dat.append(f"DECL E6POS XP{k + 1}={{X {number(v[k, 0], 4)},Y {number(v[k, 1], 4)},"
+                   f"Z {number(v[k, 2], 4)},A {number(v[k, 3], 5)},B {number(v[k, 4], 5)},"
+                   f"C {number(v[k, 5], 5)},S {s},T {t},"
                    "E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
     dat.append("ENDDAT")
 
     src = [f"&ACCESS RVP\n&REL 1\nDEF {name}( )", "  DECL INT I"]
-    src += program.header.comments("  ; ")
-    src += [f"  $TOOL = {_frame(frame_to_xyzabc(program.tool))}  ; TCP in FLANGE",
-            f"  $BASE = {_frame(frame_to_xyzabc(program.work))}  ; seam work object in ROBROOT",
-            "  FOR I = 1 TO 6",
-            f"    $VEL_AXIS[I] = {PTP_PERCENT}",
-            f"    $ACC_AXIS[I] = {PTP_PERCENT}",
-            "  ENDFOR",
-            "  $ACC.CP = 0.5",
-            "  $ADVANCE = 3"]
-    marks = program.phase_changes()
-    vel: float | None = None
-    cdis: float | None = None
-    for i, m in enumerate(program.motions):
-        if i in marks:
-            src += phase_comments(marks[i], "  ;", SPINDLE_START, SPINDLE_STOP)
-        p = f"XP{m.point + 1}"
-        if m.kind == "ptp":
-            src.append(f"  PTP {p}  ; approach point, joint move")
-        elif m.kind == "wait":
-            src.append(f"  WAIT SEC {m.duration:.3f}  ; hold {p} ({m.phase})")
-        else:
-            speed = round(float(m.speed), 7)
-            if speed != vel:
-                src.append(f"  $VEL.CP = {max(speed, 1e-7):.7f}  ; m/s")
-                vel = speed
-            if m.blend > 0:
-                d = round(m.blend * 1e3, 4)
-                if d != cdis:
-                    src.append(f"  $APO.CDIS = {d:.4f}  ; mm")
-                    cdis = d
-                src.append(f"  LIN {p} C_DIS")
-            else:
-                src.append(f"  LIN {p}")
+    src += program.header.comments("  ; ", extra=_header_extra(program))
+    src += _init(program)
+    state: dict[str, float] = {}
+    body = _motion_lines(program, range(len(program.motions)), state)
+    subs: list[list[str]] = []
+    if len(src) + len(body) > max_lines:
+        # a motion writes at most three lines ($VEL.CP, $APO.CDIS, LIN)
+        for c, span in enumerate(chunks(program.motions, max(max_lines // 4, 10))):
+            sub = f"{name[:20]}_S{c + 1}"
+            src.append(f"  {sub}( )")
+            # each sub-program restates speed and blend: it may be run after a block selection
+            subs.append([f"DEF {sub}( )", *_motion_lines(program, span, {}), "END"])
+    else:
+        src += body
     src.append("END")
+    for sub_lines in subs:
+        src += ["", *sub_lines]
     src_path = write_text(folder / f"{name}.src", "\n".join(src) + "\n")
     dat_path = write_text(folder / f"{name}.dat", "\n".join(dat) + "\n")
     return [src_path, dat_path]
 
 
-_E6POS = re.compile(r"DECL\s+E6POS\s+(\w+)\s*=\s*\{([^}]*)\}", re.I)
-_FRAME = re.compile(r"\$(TOOL|BASE)\s*=\s*\{([^}]*)\}", re.I)
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+_DECL = re.compile(r"DECL\s+(E6POS|E6AXIS)\s+(\w+)\s*=\s*\{([^}]*)\}", re.I)
+_FRAME_SET = re.compile(r"^\s*(TOOL_DATA|BASE_DATA)\[\d+\]\s*=\s*\{([^}]*)\}", re.I | re.M)
 _MOVE = re.compile(r"^\s*(PTP|LIN)\s+(\w+)(\s+C_DIS)?\s*(;.*)?$", re.I)
+_VEL = re.compile(r"^\s*\$VEL\.CP\s*=\s*([-+0-9.Ee]+)", re.I)
+_WAIT = re.compile(r"^\s*WAIT\s+SEC\s+([-+0-9.Ee]+)", re.I)
+_CALL = re.compile(r"^\s*(\w+)\s*\(\s*\)\s*(;.*)?$")
+_DEF = re.compile(r"^\s*DEF\s+(\w+)\s*\(\s*\)", re.I)
 
 
 def _agg(body: str, where: str) -> dict[str, float]:
@@ -145,36 +288,84 @@ def _agg(body: str, where: str) -> dict[str, float]:
     for item in body.split(","):
         parts = item.split()
         if len(parts) != 2:
-            raise InputError(where, item.strip(), "malformed aggregate component", "'X 1.0'")
-        out[parts[0].upper()] = float(parts[1])
+            raise InputError(where, item.strip()[:40], "malformed aggregate component",
+                             "'X 1.0'")
+        try:
+            out[parts[0].upper()] = float(parts[1])
+        except ValueError:
+            raise InputError(where, item.strip()[:40], "not a number", "'X 1.0'") from None
     return out
 
 
-def read_krl(src: str | Path) -> tuple[FloatArray, FloatArray, list[ReadPoint]]:
-    """Re-read a written ``.src`` (and its ``.dat`` beside it).
+def _routines(text: str) -> dict[str, list[str]]:
+    """DEF name -> its lines (the main routine first)."""
+    out: dict[str, list[str]] = {}
+    current: list[str] | None = None
+    for line in text.splitlines():
+        d = _DEF.match(line)
+        if d:
+            current = out.setdefault(d.group(1).upper(), [])
+            continue
+        if re.match(r"^\s*END\s*$", line, re.I):
+            current = None
+            continue
+        if current is not None:
+            current.append(line)
+    return out
 
-    Returns:
-        ``(tool, base, points)``: $TOOL (4, 4) and $BASE (4, 4) [m], and the moved-to points in
-        program order with their pose in $BASE [m] and the S/T configuration.
+
+def read_krl(src: str | Path) -> ReadProgram:
+    """Re-read a ``.src`` (and its ``.dat`` beside it), following called sub-programs.
+
+    Raises:
+        InputError: Missing frames or declarations, malformed aggregates (one line).
     """
     src = Path(src)
     dat = src.with_suffix(".dat")
-    text = src.read_text()
-    frames = {m.group(1).upper(): _agg(m.group(2), str(src)) for m in _FRAME.finditer(text)}
-    if set(frames) != {"TOOL", "BASE"}:
-        raise InputError(src, "$TOOL/$BASE", "missing", "both frames set in the program")
-    tool, base = (xyzabc_to_frame([frames[f][k] for k in "XYZABC"]) for f in ("TOOL", "BASE"))
-    decl = {m.group(1).upper(): _agg(m.group(2), str(dat))
-            for m in _E6POS.finditer(dat.read_text())}
-    points: list[ReadPoint] = []
-    for line in text.splitlines():
-        m = _MOVE.match(line)
-        if not m:
-            continue
-        name = m.group(2).upper()
-        if name not in decl:
-            raise InputError(dat, name, "not declared", "a DECL E6POS for every moved-to point")
-        a = decl[name]
-        pose = xyzabc_to_frame([a[k] for k in "XYZABC"])
-        points.append(ReadPoint(name, pose, {"S": int(a["S"]), "T": int(a["T"])}))
-    return tool, base, points
+    if not dat.is_file():
+        raise InputError(dat, "", "missing beside the .src", "the program's .dat")
+    text = src.read_text(encoding="utf-8")
+    frames = {m.group(1).upper(): _agg(m.group(2), str(src))
+              for m in _FRAME_SET.finditer(text)}
+    if set(frames) != {"TOOL_DATA", "BASE_DATA"}:
+        raise InputError(src, "TOOL_DATA/BASE_DATA", "not both assigned",
+                         "the tool and base values in the program")
+    tool, base = (xyzabc_to_frame([frames[f].get(k, 0.0) for k in "XYZABC"])
+                  for f in ("TOOL_DATA", "BASE_DATA"))
+    decl = {m.group(2).upper(): (m.group(1).upper(), _agg(m.group(3), str(dat)))
+            for m in _DECL.finditer(dat.read_text(encoding="utf-8"))}
+    routines = _routines(text)
+    if not routines:
+        raise InputError(src, "DEF", "no routine", "DEF name( ) ... END")
+    motions: list[ReadPoint] = []
+    _read_routine(src, next(iter(routines)), routines, decl, motions, {"vel": 0.0})
+    return ReadProgram(tool, base, motions, (src, dat))
+
+
+def _read_routine(src: Path, name: str, routines: dict[str, list[str]],
+                  decl: dict[str, tuple[str, dict[str, float]]], out: list[ReadPoint],
+                  state: dict[str, float]) -> None:
+    for line in routines[name]:
+        code = line.split(";", 1)[0]
+        if (v := _VEL.match(code)) is not None:
+            state["vel"] = float(v.group(1))
+        elif (w := _WAIT.match(code)) is not None:
+            out.append(ReadPoint("WAIT", kind="wait", duration=float(w.group(1))))
+        elif (c := _CALL.match(code)) is not None and c.group(1).upper() in routines:
+            _read_routine(src, c.group(1).upper(), routines, decl, out, state)
+        elif (m := _MOVE.match(line)) is not None:
+            out.append(_point(src, m.group(1).upper(), m.group(2).upper(), decl, state["vel"]))
+
+
+def _point(src: Path, move: str, name: str, decl: dict[str, tuple[str, dict[str, float]]],
+           vel: float) -> ReadPoint:
+    if name not in decl:
+        raise InputError(src.with_suffix(".dat"), name, "not declared",
+                         "a DECL E6POS or E6AXIS for every moved-to point")
+    kind, a = decl[name]
+    if kind == "E6AXIS":
+        q = np.radians([a.get(f"A{j + 1}", 0.0) for j in range(6)])
+        return ReadPoint(name, q=q, kind="joint")
+    pose = xyzabc_to_frame([a[k] for k in "XYZABC"])
+    return ReadPoint(name, pose, (int(a["S"]), int(a["T"])), speed=vel,
+                     kind="joint" if move == "PTP" else "lin")

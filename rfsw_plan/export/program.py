@@ -1,4 +1,4 @@
-"""A controller program, independent of the vendor language: points, motions, frames, header.
+"""A controller program, independent of the vendor language: points, motions, frames, hooks.
 
 The program is built from the *verified samples* of a written plan (``waypoints.csv``, every
 row checked by the planner before it was written): every program point is one of those
@@ -6,44 +6,56 @@ samples, never an interpolation, so each point is a pose the plan verified.
 
 Points (:func:`build_program`):
 
-* the first sample (the approach point, reached with a joint move, PTP / J / MoveJ), the last
-  sample of every phase, and in the welding phases (``accelerate``, ``weld``, ``decelerate``) the
-  sample nearest to every multiple of the export spacing along the seam (default the plan's
-  waypoint spacing: the planned fake targets);
+* the first sample (the approach point, a *joint target*: PTP to an E6AXIS, J to a
+  joint-defined P[], MoveAbsJ, so no posture flag can send the robot another way), the last
+  sample of every phase, and in the welding phases (``accelerate``, ``weld``, ``decelerate``)
+  the sample nearest to every multiple of the export spacing along the seam (default the
+  plan's waypoint spacing: the planned fake targets);
 * then, between two neighbouring points, the sample farthest from the straight line the
   controller will run (position distance to the chord, orientation angle to the slerp at the
-  same fraction) is added while it is farther than ``path_tol`` (Douglas-Peucker), so every
-  verified sample lies within ``path_tol`` of the programmed linear path
-  (default 0.01 mm and 0.01 deg).
+  same fraction) is added while it is farther than ``path_tol / 2`` (Douglas-Peucker): half
+  the path tolerance for the chords, half for the blending below.
 
 Motions: a linear move to every point after the first, with the speed that keeps the plan's
 time on that segment (chord length / planned duration); a segment over which the pose does not
-change (below 1 um and 0.001 deg) is a wait for its planned duration (``WAIT SEC``, ``WAIT``,
-``WaitTime``).
+change (below 1 um and 0.001 deg) is a wait for its planned duration.
 
-Blending rule (what keeps the verified path): only between two segments that both lie in a
-welding phase, never at a point that ends the approach, plunge or dwell or starts the retract
-(exact stop there: the plunge and dwell are force-controlled by time, and the pin must be at
-the planned spot). The blend distance at point k is
-``d_k = min(0.4 min(|seg_k-1|, |seg_k|), 2 path_tol / sin(theta_k / 2))`` with theta_k the
-direction change between the two segments: a corner rounded over the distance d deviates from
-the polyline by at most ``d sin(theta/2) / 2 <= path_tol``, so the rounded path stays within
-2 ``path_tol`` of every verified sample. Vendor mapping: KUKA ``C_DIS`` with ``$APO.CDIS = d``,
-ABB zonedata with ``pzone_tcp = d``, FANUC ``CNT`` = 100 d / (0.4 min segment) (FANUC's CNT is a
-percentage of the corner rounding, not a distance).
+Blending (:func:`blend_distance`), the model of every vendor's approximation used here: the
+controller leaves the programmed polyline at most ``d`` before a blended point and rejoins it
+at most ``d`` after it, and the rounded contour stays inside the triangle (entry, point,
+exit). KUKA documents ``$APO.CDIS`` as that distance (KSS 8 expert programming, "approximate
+positioning"), ABB ``zonedata.pzone_tcp`` as the zone radius around the point (RAPID
+reference, zonedata). A contour inside the triangle is at most ``d sin(theta) / 2`` from the
+polyline (theta the direction change), so ``d = 2 (tol - dev) / sin(theta)`` (capped at 0.4 of
+the shorter segment) keeps every verified sample within ``tol`` of the path the controller
+runs, where ``dev`` is the samples' largest distance from the two chords
+(:func:`path_deviation` checks it sample by sample). FANUC's ``CNT`` rounds a corner by an
+amount that depends on speed and acceleration, with no published bound, so FANUC programs
+use ``FINE`` (:mod:`rfsw_plan.export.fanuc_tp`). Blending is allowed between two segments
+inside the plunge, the dwell or the welding phases, so the plunge and the dwell are not a
+chain of exact stops; the robot stops exactly where the pin touches down, at the end of the
+dwell and at the end of the weld (the retract starts from the planned spot).
 
 Frames: the tool is the planned TCP in the controller's flange frame (KUKA FLANGE, FANUC
-faceplate, ABB tool0); the work object (KUKA BASE, FANUC user frame, ABB wobjdata) is a seam
-frame in the controller's base frame: origin at the first weld sample's seam point, x along
-the seam, z against the tool axis at the first in-material sample (out of the workpiece),
-y = z x x. Points are written in that frame, so re-teaching the work object moves the program.
+faceplate, ABB tool0); the work object (KUKA BASE, FANUC user frame, ABB wobjdata) is the
+*plate's* frame in the controller's base frame: origin at the first weld sample's seam point,
+x along the seam (towards its farthest weld point), z the surface normal there (out of the
+plate), y = z x x. The tool's tilt is in the points, so a base taught with three points on
+the plate (origin, +x along the seam, +y on the plate) reproduces this frame and the depth of
+the pin along the whole seam.
+
+Process hooks (:class:`Hooks`): lines inserted at the phase boundaries: ``home_start`` before
+the first move, ``spindle_start`` and ``force_on`` before the plunge, ``force_off`` after the
+last weld move, ``spindle_stop`` after the retract move that takes the pin out of the
+material, ``home_end`` at the end (the cell's home position is not known to the plan). By
+default they are comments that say what belongs there.
 """
 
 from __future__ import annotations
 
-import csv
 import math
 import re
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -53,47 +65,100 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.planfiles.folder import PlanSamples
 from rfsw_plan.planning.verify import CONTACT_PHASES
+from rfsw_plan.robot.description import Payload
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
-#: Phases in which blending is allowed (the pin travels along the seam).
+#: The verified samples of a plan (the plan-folder reader's type).
+Samples = PlanSamples
+
+#: Phases in which the pin travels along the seam.
 WELD_PHASES = ("accelerate", "weld", "decelerate")
+#: Phases inside which blending is allowed (between two segments of the same group).
+BLEND_GROUPS = {"plunge": "plunge", "dwell": "dwell", "accelerate": "weld", "weld": "weld",
+                "decelerate": "weld"}
 #: Phase names in program order.
 PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
 #: Below these a segment does not move [m], [rad]: it is a wait.
 STILL_POS = 1e-6
 STILL_ANG = math.radians(1e-3)
+#: Largest blend distance as a share of the shorter neighbouring segment.
+BLEND_SHARE = 0.4
+#: Hook names in the order they occur.
+HOOKS = ("home_start", "spindle_start", "force_on", "force_off", "spindle_stop", "home_end")
+#: The pin has left the material when the TCP is this far above the plate [m].
+OUT_OF_MATERIAL = 1e-4
 
 
 @dataclass(frozen=True)
-class Samples:
-    """The verified timed samples of a plan (SI, base frame of the robot description).
+class Hooks:
+    """Process hooks: per hook name, per format name, the lines to insert (vendor text).
 
-    Attributes:
-        t: Time [s], (N,).
-        phase: Phase per sample, (N,).
-        s: Pin arc length along the seam [m], (N,).
-        q: Controller joint values [rad], (N, n).
-        wrench: Process wrench on the tool [N, N m], (N, 6).
-        seam: Seam point [m], (N, 3).
+    A hook without lines for a format gets that format's default comment, which says exactly
+    what belongs there (:attr:`ControllerFormat` writers' ``DEFAULT_HOOKS``).
     """
 
-    t: FloatArray
-    phase: NDArray[np.str_]
-    s: FloatArray
-    q: FloatArray
-    wrench: FloatArray
-    seam: FloatArray
+    lines: dict[str, dict[str, tuple[str, ...]]] = field(default_factory=dict)
 
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
+    def get(self, hook: str, fmt: str) -> tuple[str, ...] | None:
+        """The user's lines of ``hook`` for format ``fmt``, or None (use the default)."""
+        return self.lines.get(hook, {}).get(fmt)
 
-    def subset(self, idx: NDArray[np.int_]) -> Samples:
-        """The samples at indices ``idx``."""
-        return Samples(self.t[idx], self.phase[idx], self.s[idx], self.q[idx],
-                       self.wrench[idx], self.seam[idx])
+    def render(self, hook: str, fmt: str, default: tuple[str, ...], indent: str,
+               comment: str) -> list[str]:
+        """The program lines of ``hook``: the user's lines, indented, or else the format's
+        default text as comment lines (``indent + comment + " " + text``)."""
+        user = self.get(hook, fmt)
+        if user is not None:
+            return [indent + x for x in user]
+        return [f"{indent}{comment} {x}" for x in default]
+
+
+def read_hooks(path: str | Path) -> Hooks:
+    """Read a hooks file: a TOML table per hook with a list of lines per format, e.g.::
+
+        [spindle_start]
+        krl = ["$OUT[1] = TRUE", "WAIT FOR $IN[1]"]
+        rapid = ["SetDO doSpindle, 1;", "WaitDI diSpindleAtSpeed, 1;"]
+
+    Raises:
+        InputError: Not TOML, an unknown hook, or lines that are not a list of strings.
+    """
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_bytes().decode("utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(p, "", f"not a readable TOML file ({exc})", "a hooks file") from None
+    out: dict[str, dict[str, tuple[str, ...]]] = {}
+    for hook, per in data.items():
+        if hook not in HOOKS or not isinstance(per, dict):
+            raise InputError(p, hook, "unknown hook", ", ".join(HOOKS))
+        out[hook] = {}
+        for fmt, lines in per.items():
+            if not isinstance(lines, list) or not all(isinstance(x, str) and "\n" not in x
+                                                      for x in lines):
+                raise InputError(p, f"{hook}.{fmt}", "not a list of one-line strings",
+                                 '["line 1", "line 2"]')
+            out[hook][fmt] = tuple(lines)
+    return Hooks(out)
+
+
+@dataclass(frozen=True)
+class ProgramOptions:
+    """What the programmer chooses for the controller.
+
+    Attributes:
+        tool_number: Tool number (KUKA TOOL_DATA[n], FANUC UTOOL n; RAPID uses a named tool).
+        base_number: Base number (KUKA BASE_DATA[n], FANUC UFRAME n; RAPID a named wobjdata).
+        hooks: The process hooks.
+    """
+
+    tool_number: int = 1
+    base_number: int = 1
+    hooks: Hooks = field(default_factory=Hooks)
 
 
 @dataclass(frozen=True)
@@ -107,14 +172,14 @@ class ProgramHeader:
         robot: Robot name.
         robot_file: File name (no folder: a controller file must not carry a local path) of
             the robot description the plan used, or ``""`` for one built in memory.
-        robot_sha256: Hex SHA-256 of that file's bytes (``""`` without a file): names the
-            exact description wherever the file was copied to.
+        robot_sha256: Hex SHA-256 of that file's bytes (``""`` without a file).
         version: rfsw-plan version that wrote the program.
         tolerated_uncertainty: Verified tolerated relative force uncertainty (inf: unbounded).
         requested_uncertainty: Relative force uncertainty the plan was asked to hold.
         window_mm: Weld window (lower, upper) [mm].
-        path_tol: Path tolerance of the point selection [m].
+        path_tol: Path tolerance of the program [m].
         spacing: Point spacing along the seam [m].
+        notes: Extra lines: what the tool cannot know and the programmer must check.
     """
 
     name: str
@@ -129,6 +194,7 @@ class ProgramHeader:
     window_mm: tuple[float, float]
     path_tol: float
     spacing: float
+    notes: tuple[str, ...] = ()
 
     def lines(self) -> list[str]:
         """Header lines (without comment markers), the same for every vendor."""
@@ -148,22 +214,26 @@ class ProgramHeader:
             f"points: plan samples every {self.spacing * 1e3:.3g} mm of seam",
             f"path within {self.path_tol * 1e3:.3g} mm of every verified sample",
             "lengths mm, angles deg, joints = controller axes",
+            *self.notes,
         ]
 
-    def comments(self, marker: str, max_len: int | None = None) -> list[str]:
-        """The header as comment lines of a vendor language.
+    def comments(self, marker: str, max_len: int | None = None,
+                 extra: list[str] | tuple[str, ...] = ()) -> list[str]:
+        """The header (and ``extra`` lines) as comment lines of a vendor language.
 
         Args:
             marker: Text before each line, e.g. ``"; "`` (KRL), ``"  ! "`` (RAPID).
             max_len: Longest line text (without the marker); a longer line continues on
-                the next ones, indented by two spaces, so nothing is lost (FANUC TP
-                remarks: the 64 hex of a SHA-256). None: no limit.
+                the next ones, indented by two spaces, so nothing is lost. None: no limit.
+            extra: Format-specific lines (set-up steps, warnings) after the header.
         """
         out = []
-        for line in self.lines():
+        for line in [*self.lines(), *extra]:
             while max_len is not None and len(line) > max_len:
-                out.append(marker + line[:max_len])
-                line = "  " + line[max_len:]
+                cut = line.rfind(" ", 20, max_len)
+                cut = max_len if cut < 0 else cut
+                out.append(marker + line[:cut])
+                line = "  " + line[cut:].lstrip()
             out.append(marker + line)
         return out
 
@@ -173,12 +243,6 @@ def controller_name(name: str, *, max_len: int, prefix: str, upper: bool = False
 
     Every character other than a letter, digit or underscore becomes ``_``; a name that does
     not start with a letter gets ``prefix``; the result is cut to ``max_len`` characters.
-
-    Args:
-        name: The requested name.
-        max_len: The vendor's longest name (KRL 24, RAPID 32, FANUC TP 36).
-        prefix: Prepended when the name does not start with a letter.
-        upper: Upper-case only (FANUC TP).
     """
     n = re.sub(r"[^A-Z0-9_]" if upper else r"[^A-Za-z0-9_]", "_",
                name.upper() if upper else name)
@@ -187,38 +251,19 @@ def controller_name(name: str, *, max_len: int, prefix: str, upper: bool = False
     return n[:max_len]
 
 
-def phase_comments(phase: str, marker: str, spindle_start: tuple[str, ...],
-                   spindle_stop: tuple[str, ...]) -> list[str]:
-    """Comment lines that open a phase in a program.
-
-    The phase mark, then before the plunge the spindle start placeholder and at the retract the
-    spindle stop placeholder (vendor text, one comment line each).
-
-    Args:
-        phase: The phase that starts.
-        marker: Comment marker with its indentation, e.g. ``"  ;"`` (KRL).
-        spindle_start: Placeholder text lines before the plunge.
-        spindle_stop: Placeholder text lines at the retract.
-    """
-    out = [f"{marker} ---- phase: {phase}"]
-    if phase == "plunge":
-        out += [f"{marker} {t}" for t in spindle_start]
-    if phase == "retract":
-        out += [f"{marker} {t}" for t in spindle_stop]
-    return out
-
-
 @dataclass(frozen=True)
 class Motion:
     """One program instruction.
 
     Attributes:
-        kind: ``ptp`` (joint move to the point), ``lin`` (linear move) or ``wait``.
+        kind: ``joint`` (joint move to a joint target), ``lin`` (linear move), ``wait``, or
+            ``hook`` (process lines, see :class:`Hooks`).
         point: Index into :attr:`Program.points` (the target; for ``wait``, the point held).
         phase: Phase of the motion (of its target point).
         speed: TCP speed of a ``lin`` [m/s].
         duration: Planned duration of the segment or wait [s].
         blend: Blend distance at the target [m] (0: exact stop).
+        hook: The hook's name (``kind == "hook"``).
     """
 
     kind: str
@@ -227,6 +272,7 @@ class Motion:
     speed: float = 0.0
     duration: float = 0.0
     blend: float = 0.0
+    hook: str = ""
 
 
 @dataclass(frozen=True)
@@ -239,10 +285,14 @@ class Program:
         sample_index: Index of each point's sample in the plan's samples, (P,).
         samples: The program points' samples (joint values, phases...), length P.
         tool: TCP in the controller's flange frame [m], (4, 4).
-        work: Work object (seam frame) in the controller's base frame [m], (4, 4).
+        work: Work object (the plate frame) in the controller's base frame [m], (4, 4).
         poses: TCP of every point in the work object frame [m], (P, 4, 4).
         motions: The instructions, in order.
         all_samples: Every verified sample (for the stream and the path checks).
+        payload: The tool's load (None: unknown, the header says so).
+        options: Tool/base numbers and hooks.
+        stream: The samples of a stream file at the controller cycle (None: the plan's).
+        cycle: The stream's controller cycle [s].
     """
 
     header: ProgramHeader
@@ -254,84 +304,41 @@ class Program:
     poses: FloatArray
     motions: tuple[Motion, ...]
     all_samples: Samples = field(repr=False)
+    payload: Payload | None = None
+    options: ProgramOptions = field(default_factory=ProgramOptions)
+    stream: Samples | None = field(default=None, repr=False)
+    cycle: float = 0.0
 
     def phase_changes(self) -> dict[int, str]:
         """Motion index -> phase, where a new phase starts (for the phase marks)."""
         out: dict[int, str] = {}
         last = ""
         for i, m in enumerate(self.motions):
+            if m.kind == "hook":
+                continue
             if m.phase != last:
                 out[i] = m.phase
                 last = m.phase
         return out
 
     def moved_points(self) -> NDArray[np.int_]:
-        """Indices of the points a motion moves to (a wait holds the previous point)."""
-        return np.array([m.point for m in self.motions if m.kind != "wait"], dtype=int)
+        """Indices of the points a motion moves to (a wait or hook holds the previous one)."""
+        return np.array([m.point for m in self.motions if m.kind in ("joint", "lin")],
+                        dtype=int)
 
     def base_pose(self, pose_work: FloatArray) -> FloatArray:
         """TCP pose(s) in the work object frame -> the description's base frame [m]."""
         conv = self.robot.description.convention
         return np.asarray(conv.base @ self.work @ pose_work)
 
-
-# --------------------------------------------------------------------------------------------
-# Reading a plan folder
-
-
-def read_samples(path: str | Path, robot: Robot) -> Samples:
-    """Read ``waypoints.csv`` (see :mod:`rfsw_plan.planfiles.waypoints`) into :class:`Samples`.
-
-    Raises:
-        InputError: A missing column or a non-numeric cell (one line naming the file).
-    """
-    p = Path(path)
-    cols = robot.description.convention.column_names()
-    with p.open(newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    if not rows:
-        raise InputError(p, "", "no samples", "a waypoints.csv written by rfsw-plan plan")
-    need = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", *cols,
-            "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
-    missing = [c for c in need if c not in rows[0]]
-    if missing:
-        raise InputError(p, missing[0], "missing column",
-                         f"the columns of waypoints.csv for robot {robot.name}")
-
-    def num(names: list[str]) -> FloatArray:
-        try:
-            return np.array([[float(r[c]) for c in names] for r in rows])
-        except ValueError as exc:
-            raise InputError(p, ",".join(names), f"not a number ({exc})") from None
-
-    return Samples(
-        t=num(["t_s"])[:, 0], phase=np.array([r["phase"] for r in rows]),
-        s=num(["s_mm"])[:, 0] * 1e-3, q=np.radians(num(cols)),
-        wrench=num(["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]),
-        seam=num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3)
-
-
-def tolerated_from_record(rec: dict[str, Any]) -> float:
-    """The verified tolerated force uncertainty of a ``plan.json`` record.
-
-    ``tolerated_force_uncertainty`` when the record has it; otherwise from the per-waypoint
-    margins and worst cases (the worst case is linear in the uncertainty u: tolerated =
-    u min_k margin_k / worst_k).
-    """
-    v = rec.get("tolerated_force_uncertainty")
-    if isinstance(v, int | float) and not isinstance(v, bool):
-        return float(v)
-    if v is None and "tolerated_force_uncertainty" in rec:
-        return float("inf")  # strict JSON writes inf as null
-    u = float(rec.get("force_uncertainty", 0.0) or 0.0)
-    wp = rec.get("waypoints") or {}
-    m = np.asarray(wp.get("margin_mm", []), dtype=float)
-    w = np.asarray(wp.get("worst_case_mm", []), dtype=float)
-    if u <= 0 or m.size == 0 or m.size != w.size:
-        return float("nan")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(w > 0, np.maximum(m, 0.0) * u / w, np.inf)
-    return float(np.min(r))
+    def maker_note(self, maker: str) -> list[str]:
+        """One warning line when the robot's maker is not ``maker`` (empty otherwise)."""
+        own = self.robot.description.convention.maker
+        if not maker or own.upper() == maker.upper():
+            return []
+        return [f"WARNING: robot {self.robot.name} is not a {maker} robot "
+                f"({own or 'maker not stated'}): check axis directions, frames and limits "
+                "on the real controller before running"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -340,54 +347,108 @@ def tolerated_from_record(rec: dict[str, Any]) -> float:
 
 def build_program(
     robot: Robot, samples: Samples, header: ProgramHeader, path_tol: float = 1e-5,
-    angle_tol: float = math.radians(0.01),
+    angle_tol: float = math.radians(0.01), normal: FloatArray | None = None,
+    payload: Payload | None = None, options: ProgramOptions | None = None,
+    stream: Samples | None = None, cycle: float = 0.0,
 ) -> Program:
-    """Select points, motions and blending from verified samples (see the module docstring).
+    """Select points, motions, blending and hooks from verified samples (module docstring).
 
     Args:
         robot: The robot the plan was made for.
         samples: Its verified samples.
         header: Program header (its ``spacing`` is the point spacing along the seam [m]).
-        path_tol: Largest distance of a verified sample from the programmed line [m].
+        path_tol: Largest distance of a verified sample from the path the controller runs [m].
         angle_tol: Largest orientation difference of a sample from the programmed slerp [rad].
+        normal: The plate's surface normal at the first weld point, base frame, (3,). None:
+            the plane through the weld seam points if they span one, else the tool axis at
+            touch-down (the header then says the work object's z is not the plate normal).
+        payload: The tool's load for the controller (None: the header says it is unknown).
+        options: Tool/base numbers and hooks.
+        stream: Samples of the stream file (default: ``samples``).
+        cycle: Stream cycle [s] (default: the samples' step).
     """
     if header.spacing <= 0:
         raise InputError("--export-spacing-mm", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = robot.batch_fk_jacobian(samples.q)[0]
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool
-    work = _work_frame(samples, T, conv.base)
+    work, notes = _work_frame(samples, T, conv.base, normal)
     to_work = np.linalg.inv(conv.base @ work)
     P = to_work[None] @ T  # TCP in the work frame, (N, 4, 4)
 
     keep = _anchor_points(samples, header.spacing)
-    keep = _refine(P, keep, path_tol, angle_tol)
+    keep = _refine(P, keep, 0.5 * path_tol, angle_tol)
     idx = np.array(sorted(keep), dtype=int)
     motions = _motions(samples, P, idx, path_tol)
+    motions = _with_hooks(motions, P[idx, 2, 3])
+    if payload is None:
+        notes.append("PAYLOAD UNKNOWN: the robot file has no [payload] table and no "
+                     "payload_gravity effect; enter the spindle's load on the controller")
+    header = ProgramHeader(**{**header.__dict__, "notes": (*header.notes, *notes)})
+    if stream is None:
+        stream = samples
+        cycle = cycle or float(np.median(np.diff(samples.t)))
     return Program(header, robot, idx, samples.subset(idx), tool, work, P[idx],
-                   tuple(motions), samples)
+                   tuple(motions), samples, payload, options or ProgramOptions(), stream,
+                   cycle)
 
 
-def _work_frame(samples: Samples, T: FloatArray, base: FloatArray) -> FloatArray:
-    """Seam frame (see the module docstring) in the controller's base frame, (4, 4)."""
+def plate_frame(origin: FloatArray, toward: FloatArray, normal: FloatArray) -> FloatArray:
+    """The plate frame (4, 4): origin, x towards ``toward`` projected on the plate, z = normal.
+
+    Args:
+        origin: First weld point, (3,) [m].
+        toward: A point farther along the seam, (3,) [m].
+        normal: Surface normal (out of the plate), (3,).
+    """
+    z = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    x = np.asarray(toward, dtype=float) - origin
+    x = x - z * (x @ z)
+    if np.linalg.norm(x) < 1e-9:
+        raise InputError("seam", "", "the seam runs along the surface normal",
+                         "a seam on the plate")
+    x /= np.linalg.norm(x)
+    W = np.eye(4)
+    W[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    W[:3, 3] = origin
+    return W
+
+
+def _work_frame(samples: Samples, T: FloatArray, base: FloatArray,
+                normal: FloatArray | None) -> tuple[FloatArray, list[str]]:
+    """The plate frame in the controller's base frame, and notes for the header."""
     weld = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
     contact = np.flatnonzero(np.isin(samples.phase, CONTACT_PHASES))
     if weld.size == 0 or contact.size == 0:
         raise InputError("waypoints.csv", "phase", "no welding samples",
                          "a plan with plunge, dwell and weld")
     o = samples.seam[weld[0]]
-    far = np.linalg.norm(samples.seam[weld] - o, axis=1)
-    x = samples.seam[weld[int(np.argmax(far))]] - o
-    z = -T[contact[0], :3, 2]
-    if np.linalg.norm(x) < 1e-9:
-        x = T[contact[0], :3, 0]
-    x = x - z * (x @ z)
-    x /= np.linalg.norm(x)
-    z /= np.linalg.norm(z)
-    W = np.eye(4)
-    W[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    W[:3, 3] = o
-    return np.asarray(np.linalg.inv(base) @ W)
+    far = samples.seam[weld[int(np.argmax(np.linalg.norm(samples.seam[weld] - o, axis=1)))]]
+    tool_axis = -T[contact[0], :3, 2]
+    notes: list[str] = []
+    if normal is None:
+        normal = _fitted_normal(samples.seam[weld])
+        if normal is None:
+            normal = tool_axis
+            notes.append("WORK OBJECT z IS THE TOOL AXIS at touch-down, not a known plate "
+                         "normal: do not re-teach it on the plate")
+    normal = np.asarray(normal, dtype=float)
+    if normal @ tool_axis < 0:
+        normal = -normal
+    if np.linalg.norm(far - o) < 1e-9:
+        far = o + T[contact[0], :3, 0]
+    return np.asarray(np.linalg.inv(base) @ plate_frame(o, far, normal)), notes
+
+
+def _fitted_normal(points: FloatArray) -> FloatArray | None:
+    """Normal of the plane through points (m, 3) if they span one (not a line), else None."""
+    c = points - points.mean(axis=0)
+    if len(points) < 3:
+        return None
+    _, sv, vt = np.linalg.svd(c, full_matrices=False)
+    if sv[1] < 1e-6 * max(sv[0], 1e-12) or sv[1] < 1e-4:
+        return None
+    return np.asarray(vt[2])
 
 
 def _anchor_points(samples: Samples, spacing: float) -> set[int]:
@@ -400,8 +461,11 @@ def _anchor_points(samples: Samples, spacing: float) -> set[int]:
     weld = np.flatnonzero(np.isin(ph, WELD_PHASES))
     if weld.size:
         s = samples.s[weld]
-        for target in np.arange(0.0, s[-1] + 0.5 * spacing, spacing):
-            keep.add(int(weld[int(np.argmin(np.abs(s - target)))]))
+        targets = np.arange(0.0, s[-1] + 0.5 * spacing, spacing)
+        pos = np.clip(np.searchsorted(s, targets), 1, len(s) - 1)
+        nearest = np.where(np.abs(s[pos - 1] - targets) <= np.abs(s[pos] - targets), pos - 1,
+                           pos)
+        keep |= {int(weld[k]) for k in nearest}
     return keep
 
 
@@ -437,10 +501,29 @@ def _refine(P: FloatArray, keep: set[int], tol: float, ang_tol: float) -> set[in
     return out
 
 
+def blend_distance(d0: FloatArray, d1: FloatArray, tol: float, dev: float) -> float:
+    """Blend distance [m] at a point between segments d0 and d1 (vectors [m], (3,)).
+
+    ``d = min(BLEND_SHARE min(|d0|, |d1|), 2 (tol - dev) / sin(theta))``: a contour inside the
+    triangle (entry, point, exit) is at most ``d sin(theta) / 2`` from the polyline, so with the
+    chords' own largest sample distance ``dev`` every sample stays within ``tol``. 0 when the
+    chords already use the whole tolerance.
+    """
+    n0, n1 = float(np.linalg.norm(d0)), float(np.linalg.norm(d1))
+    if n0 <= STILL_POS or n1 <= STILL_POS or dev >= tol:
+        return 0.0
+    cap = BLEND_SHARE * min(n0, n1)
+    sin_t = math.sqrt(max(0.0, 1.0 - float(np.clip(d0 @ d1 / (n0 * n1), -1.0, 1.0)) ** 2))
+    return cap if sin_t < 1e-12 else min(cap, 2.0 * (tol - dev) / sin_t)
+
+
 def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
              tol: float) -> list[Motion]:
-    motions = [Motion("ptp", 0, str(samples.phase[idx[0]]))]
-    seg = np.linalg.norm(np.diff(P[idx, :3, 3], axis=0), axis=1)
+    motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
+    pts = P[idx, :3, 3]
+    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    dev = np.array([float(np.max(_deviation(P, int(idx[k]), int(idx[k + 1]))[0]))
+                    for k in range(len(idx) - 1)])
     for k in range(1, len(idx)):
         i, j = idx[k - 1], idx[k]
         phase = str(samples.phase[j])
@@ -452,13 +535,103 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
             continue
         speed = seg[k - 1] / dt if dt > 0 else 0.0
         blend = 0.0
-        nxt = k + 1 < len(idx) and str(samples.phase[idx[k + 1]]) in WELD_PHASES
-        if phase in WELD_PHASES and str(samples.phase[i]) in WELD_PHASES and nxt:
-            d0, d1 = P[j, :3, 3] - P[i, :3, 3], P[idx[k + 1], :3, 3] - P[j, :3, 3]
-            n0, n1 = float(np.linalg.norm(d0)), float(np.linalg.norm(d1))
-            if n0 > STILL_POS and n1 > STILL_POS:
-                theta = math.acos(float(np.clip(d0 @ d1 / (n0 * n1), -1.0, 1.0)))
-                cap = 0.4 * min(n0, n1)
-                blend = cap if theta < 1e-9 else min(cap, 2 * tol / math.sin(theta / 2))
+        group = BLEND_GROUPS.get(phase)
+        if (k + 1 < len(idx) and group is not None
+                and BLEND_GROUPS.get(str(samples.phase[i])) == group
+                and BLEND_GROUPS.get(str(samples.phase[idx[k + 1]])) == group):
+            blend = blend_distance(pts[k] - pts[k - 1], pts[k + 1] - pts[k], tol,
+                                   max(dev[k - 1], dev[k]))
         motions.append(Motion("lin", k, phase, speed=speed, duration=dt, blend=blend))
     return motions
+
+
+def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
+    """Insert the hooks: the cell's home before the first move, spindle start and force on
+    before the first plunge motion, force off after the last weld motion, spindle stop after
+    the first retract move whose target is out of the material (TCP above the plate:
+    z > :data:`OUT_OF_MATERIAL` in the plate frame), the cell's home at the end."""
+    out: list[Motion] = [Motion("hook", 0, motions[0].phase, hook="home_start")]
+    placed: set[str] = set()
+    for k, m in enumerate(motions):
+        if m.phase == "plunge" and "spindle_start" not in placed:
+            out += [Motion("hook", m.point, "plunge", hook="spindle_start"),
+                    Motion("hook", m.point, "plunge", hook="force_on")]
+            placed |= {"spindle_start", "force_on"}
+        if m.phase == "retract" and "force_off" not in placed:
+            out.append(Motion("hook", m.point, "retract", hook="force_off"))
+            placed.add("force_off")
+        out.append(m)
+        last = k == len(motions) - 1
+        if (m.phase == "retract" and "spindle_stop" not in placed and m.kind != "hook"
+                and (z_work[m.point] > OUT_OF_MATERIAL or last)):
+            out.append(Motion("hook", m.point, "retract", hook="spindle_stop"))
+            placed.add("spindle_stop")
+    out.append(Motion("hook", motions[-1].point, motions[-1].phase, hook="home_end"))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Checks of a program
+
+
+def path_deviation(program: Program) -> FloatArray:
+    """Bound of every verified sample's distance to the path the controller runs [m], (N,).
+
+    Sample by sample: the distance to the chord of its segment, plus, for a sample on either
+    half of a blended corner (within the blend distance d of the point), the blend model's
+    ``d sin(theta) / 2`` (module docstring). Samples before the first point or on waits: 0.
+    """
+    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
+        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+    idx = program.sample_index
+    pts = P[idx, :3, 3]
+    out = np.zeros(len(program.all_samples))
+    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"}
+
+    def corner_bound(c: int) -> tuple[float, float]:
+        d = blend.get(c, 0.0)
+        if d <= 0 or not 0 < c < len(pts) - 1:
+            return 0.0, 0.0
+        a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
+        cos_t = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
+        return d, d * math.sqrt(max(0.0, 1.0 - cos_t * cos_t)) / 2.0
+
+    for k in range(len(idx) - 1):
+        i, j = int(idx[k]), int(idx[k + 1])
+        pos = _deviation(P, i, j)[0]
+        p = P[i:j + 1, :3, 3]
+        for c in (k, k + 1):
+            d, extra = corner_bound(c)
+            if d > 0:
+                pos = pos + (np.linalg.norm(p - pts[c], axis=1) <= d + 1e-12) * extra
+        out[i:j + 1] = np.maximum(out[i:j + 1], pos)
+    return out
+
+
+def tolerated_from_record(rec: dict[str, Any]) -> float:
+    """The verified tolerated force uncertainty of a ``plan.json`` record.
+
+    ``tolerated_force_uncertainty`` when the record has it; otherwise from the per-waypoint
+    margins and worst cases (the worst case is linear in the uncertainty u: tolerated =
+    u min_k margin_k / worst_k).
+    """
+    v = rec.get("tolerated_force_uncertainty")
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return float(v)
+    if v is None and "tolerated_force_uncertainty" in rec:
+        return float("inf")  # strict JSON writes inf as null
+    u = float(rec.get("force_uncertainty", 0.0) or 0.0)
+    wp = rec.get("waypoints") or {}
+    m = np.asarray(wp.get("margin_mm", []), dtype=float)
+    w = np.asarray(wp.get("worst_case_mm", []), dtype=float)
+    if u <= 0 or m.size == 0 or m.size != w.size:
+        return float("nan")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(w > 0, np.maximum(m, 0.0) * u / w, np.inf)
+    return float(np.min(r))
+
+
+def number(x: float, digits: int) -> str:
+    """Fixed-point text without a negative zero (identical text for +-1e-17 on every machine)."""
+    t = f"{x:.{digits}f}"
+    return t[1:] if t.startswith("-") and float(t) == 0.0 else t

@@ -1,23 +1,36 @@
 """ABB RAPID module (``.mod``) of a :class:`~rfsw_plan.export.program.Program`.
 
-Format (ABB RAPID instructions, functions and data types reference): a ``MODULE ... ENDMODULE``
-with ``PERS tooldata`` ([robhold, [[x, y, z], [q1, q2, q3, q4]], [mass, [cog], [aom], ix, iy,
-iz]]), ``PERS wobjdata`` ([robhold, ufprog, ufmec, [[x, y, z], [q1..q4]] user frame,
-[[0, 0, 0], [1, 0, 0, 0]] object frame]), ``CONST robtarget pN := [[x, y, z], [q1, q2, q3, q4],
-[cf1, cf4, cf6, cfx], [9E+09 x 6]]`` with the quaternion w first (q1 = w), ``CONST speeddata``
-and ``CONST zonedata`` (``fine`` for exact stops), ``PROC main()`` with ``MoveJ``, ``MoveL``
-and ``WaitTime``. ``MoveL`` is never given ``\\Conc`` while the pin is in the material (the next
-instruction must not start before the robot is on its path); the file starts with a ``%%%``
-header as RobotStudio writes it.
+Format (ABB RAPID instructions, functions and data types reference; IRC5): a ``MODULE ...
+ENDMODULE`` without the ``%%%`` header of S4 files (RobotWare 5/6 load a module that starts
+with ``MODULE``; ``rapidchecker`` parses the file exactly as written). Its data are
+module-local (``LOCAL``), so loading it never clashes with the controller's other modules, and
+its procedure is named after the program (not ``main``, which the controller's main module
+owns):
 
-The tool payload is a placeholder (mass 1 kg at the TCP) to be replaced by the real spindle's
-load data; configuration data follow :mod:`rfsw_plan.export.config`.
+* ``LOCAL PERS tooldata`` ([robhold, [[x, y, z], [q1, q2, q3, q4]], [mass, [cog], [aom], ix,
+  iy, iz]]): the TCP in tool0 and the spindle's load (mass [kg], centre of gravity in tool0
+  [mm], inertia [kg m^2]) from the robot file;
+* ``LOCAL PERS wobjdata`` ([robhold, ufprog, ufmec, user frame, object frame]): the plate;
+* ``LOCAL CONST jointtarget`` of the first point, reached with ``MoveAbsJ`` (no posture flag
+  can send it another way), ``ConfJ\\On`` and ``ConfL\\Off`` (linear moves continue from
+  there; a configuration check on every LIN would stop on the wrist's turn numbers);
+* ``LOCAL CONST robtarget pN`` ([[x, y, z], [q1..q4], [cf1, cf4, cf6, cfx], [9E+09 x 6]],
+  quaternion w first);
+* ``MoveL p, v100\\V:=speed, zone, tool\\WObj:=wobj``: the ``\\V`` argument sets the TCP speed
+  [mm/s] of each move, so no speeddata are declared; ``LOCAL CONST zonedata`` only for the
+  distinct blend sizes (rounded down to 1, 1.2, 1.5, 2, 2.5, 3, 4, 5, 6 or 8 per decade: a
+  smaller zone keeps the bound); ``fine`` for exact stops; ``WaitTime\\InPos``.
+
+A procedure longer than :data:`MAX_LINES` lines calls sub-procedures of the same module.
+Configuration data follow :mod:`rfsw_plan.export.config` (ABB cfx = 4 rear + 2 lower arm +
+flip, the RoboDK IRC5 post-processor's encoding).
 """
 
 from __future__ import annotations
 
 import math
 import re
+from collections.abc import Hashable
 from pathlib import Path
 
 import numpy as np
@@ -26,18 +39,30 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import abb_confdata
-from rfsw_plan.export.program import Program, controller_name, phase_comments
-from rfsw_plan.export.readback import ReadPoint
+from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
+from rfsw_plan.export.krl import chunks
+from rfsw_plan.export.program import Program, controller_name, number
 from rfsw_plan.files import write_text
+from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
 #: Joint-move speed to the approach point.
 MOVEJ_SPEED = "v100"
-#: Spindle placeholders (comments) before the plunge and at the retract.
-SPINDLE_START = ("SPINDLE START placeholder: e.g. SetDO doSpindle, 1;",
-                 "WaitDI diSpindleAtSpeed, 1;")
-SPINDLE_STOP = ("SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;",)
+#: Lines of the procedure above which the motions move into sub-procedures.
+MAX_LINES = 5000
+#: Default hook comments.
+DEFAULT_HOOKS = {
+    "home_start": ("HOME: move to the cell's home position first (not known to rfsw-plan),",
+                   "e.g. MoveAbsJ jHome,v100,fine,tFSW;"),
+    "home_end": ("HOME: back to the cell's home position here,",
+                 "e.g. MoveAbsJ jHome,v100,fine,tFSW;"),
+    "spindle_start": ("SPINDLE START: spindle on and wait at speed, e.g. SetDO doSpindle, 1;",
+                      "WaitDI diSpindleAtSpeed, 1;"),
+    "force_on": ("FORCE CONTROL ON here if used (e.g. FCAct)",),
+    "force_off": ("FORCE CONTROL OFF here if used (e.g. FCDeact)",),
+    "spindle_stop": ("SPINDLE STOP: the pin has left the material, e.g. SetDO doSpindle, 0;",),
+}
 
 
 def quat_wxyz(R: FloatArray) -> FloatArray:
@@ -50,8 +75,8 @@ def quat_wxyz(R: FloatArray) -> FloatArray:
 def _pose(T: FloatArray) -> str:
     p = T[:3, 3] * 1e3
     q = quat_wxyz(T[:3, :3])
-    return (f"[[{p[0]:.4f},{p[1]:.4f},{p[2]:.4f}],"
-            f"[{q[0]:.9f},{q[1]:.9f},{q[2]:.9f},{q[3]:.9f}]]")
+    return (f"[[{number(p[0], 4)},{number(p[1], 4)},{number(p[2], 4)}],"
+            f"[{','.join(number(x, 9) for x in q)}]]")
 
 
 def rapid_name(name: str) -> str:
@@ -59,53 +84,133 @@ def rapid_name(name: str) -> str:
     return controller_name(name, max_len=32, prefix="m")
 
 
-def write_rapid(program: Program, folder: str | Path) -> list[Path]:
-    """Write ``<name>.mod`` atomically; returns its path."""
-    name = rapid_name(program.header.name)
-    robot = program.robot
-    out = ["%%%", "  VERSION:1", "  LANGUAGE:ENGLISH", "%%%", "", f"MODULE {name}"]
-    out += program.header.comments("  ! ")
-    out += [f"  PERS tooldata tFSW := [TRUE,{_pose(program.tool)},"
-            "[1,[0,0,1],[1,0,0,0],0,0,0]];  ! load data: placeholder, enter the spindle's",
-            f"  PERS wobjdata wSeam := [FALSE,TRUE,\"\",{_pose(program.work)},"
-            "[[0,0,0],[1,0,0,0]]];"]
-    speeds: dict[float, str] = {}
-    zones: dict[float, str] = {}
-    for m in program.motions:
-        if m.kind == "lin":
-            v = round(m.speed * 1e3, 4)
-            speeds.setdefault(v, f"vS{len(speeds) + 1}")
-            if m.blend > 0:
-                z = round(m.blend * 1e3, 4)
-                zones.setdefault(z, f"zB{len(zones) + 1}")
-    for v, nm in speeds.items():
-        out.append(f"  CONST speeddata {nm} := [{max(v, 1e-4):.4f},30,5000,1000];  ! mm/s")
-    for z, nm in zones.items():
-        out.append(f"  CONST zonedata {nm} := [FALSE,{z:.4f},{1.5 * z:.4f},{1.5 * z:.4f},"
-                   f"{0.15 * z:.4f},{1.5 * z:.4f},{0.15 * z:.4f}];  ! mm")
-    for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
-        cf = abb_confdata(robot, q)
-        out.append(f"  CONST robtarget p{k + 1} := {_pose(pose)[:-1]},"
-                   f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
-                   "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
-    out.append("")
-    out.append("  PROC main()")
+#: Zone sizes per decade (a blend is rounded down to one of them, so few zonedata are needed).
+ZONE_STEPS = (1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0)
+
+
+def zone_mm(blend: float) -> float:
+    """Blend distance [m] -> zone radius [mm], rounded down to :data:`ZONE_STEPS` (a smaller
+    zone keeps the blend bound)."""
+    z = blend * 1e3
+    if z <= 0:
+        return 0.0
+    e = math.floor(math.log10(z))
+    m = z / 10.0 ** e
+    step = max(x for x in ZONE_STEPS if x <= m + 1e-9)
+    return float(f"{step * 10.0 ** e:.6g}")
+
+
+class RapidFormat(ControllerFormat):
+    """ABB RAPID module (``.mod``), IRC5."""
+
+    name = "rapid"
+    description = "ABB RAPID module (.mod, IRC5)"
+    suffix = ".mod"
+    maker = "ABB"
+    limits = FormatLimits(name_length=32, max_lines=MAX_LINES)
+
+    def file_name(self, program: Program) -> str:
+        return rapid_name(program.header.name) + ".mod"
+
+    def posture(self, robot: Robot, q: FloatArray) -> Hashable:
+        return abb_confdata(robot, q)
+
+    def write(self, program: Program, folder: Path) -> list[Path]:
+        return write_rapid(program, folder)
+
+    def read(self, path: Path) -> ReadProgram:
+        return read_rapid(path)
+
+
+def _tooldata(program: Program) -> str:
+    pl = program.payload
+    if pl is None:
+        load = "[1,[0,0,1],[1,0,0,0],0,0,0]"
+        note = "  ! PAYLOAD UNKNOWN: enter the spindle's load data"
+    else:
+        conv = program.robot.description.convention
+        cog = (np.linalg.inv(conv.flange) @ np.append(pl.com, 1.0))[:3] * 1e3
+        inertia = pl.inertia if pl.inertia is not None else np.zeros(3)
+        load = (f"[{number(pl.mass, 3)},[{','.join(number(x, 3) for x in cog)}],[1,0,0,0],"
+                f"{','.join(number(x, 4) for x in inertia)}]")
+        note = "" if pl.inertia is not None else "  ! inertia not known: 0, identify it"
+    return f"  LOCAL PERS tooldata tFSW := [TRUE,{_pose(program.tool)},{load}];{note}"
+
+
+def _header_extra(program: Program) -> list[str]:
+    return [*program.maker_note("ABB"),
+            "SET ON THE CONTROLLER: the spindle I/O in the hook comments; tFSW and wPlate "
+            "are this module's own (LOCAL) data",
+            "wPlate = the plate: origin on the first weld point, +X along the seam, +Y on "
+            "the plate. To use a work object taught on the plate, enter its user frame in "
+            "wPlate and run rfsw-plan check on this file"]
+
+
+def _motion_lines(program: Program, span: range, zones: dict[float, str]) -> list[str]:
+    out: list[str] = []
     marks = program.phase_changes()
-    for i, m in enumerate(program.motions):
+    for i in span:
+        m = program.motions[i]
         if i in marks:
-            out += phase_comments(marks[i], "    !", SPINDLE_START, SPINDLE_STOP)
+            out.append(f"    ! ---- phase: {marks[i]}")
         p = f"p{m.point + 1}"
-        if m.kind == "ptp":
-            out.append(f"    MoveJ {p},{MOVEJ_SPEED},fine,tFSW\\WObj:=wSeam;")
+        if m.kind == "hook":
+            out += program.options.hooks.render(m.hook, "rapid", DEFAULT_HOOKS[m.hook], "    ",
+                                                "!")
+        elif m.kind == "joint":
+            out.append(f"    MoveAbsJ jStart,{MOVEJ_SPEED},fine,tFSW\\WObj:=wPlate;")
         elif m.kind == "wait":
             out.append(f"    WaitTime\\InPos,{m.duration:.3f};")
         else:
-            vname = speeds[round(m.speed * 1e3, 4)]
-            zname = zones[round(m.blend * 1e3, 4)] if m.blend > 0 else "fine"
-            out.append(f"    MoveL {p},{vname},{zname},tFSW\\WObj:=wSeam;")
-    out += ["  ENDPROC", "ENDMODULE"]
+            z = zone_mm(m.blend)
+            zname = zones[z] if z > 0 else "fine"
+            out.append(f"    MoveL {p},v100\\V:={max(m.speed * 1e3, 1e-4):.4f},{zname},"
+                       "tFSW\\WObj:=wPlate;")
+    return out
+
+
+def write_rapid(program: Program, folder: str | Path, max_lines: int = MAX_LINES) -> list[Path]:
+    """Write ``<name>.mod`` atomically; returns its path."""
+    name = rapid_name(program.header.name)
+    robot = program.robot
+    out = [f"MODULE {name}"]
+    out += program.header.comments("  ! ", extra=_header_extra(program))
+    out += [_tooldata(program),
+            f"  LOCAL PERS wobjdata wPlate := [FALSE,TRUE,\"\",{_pose(program.work)},"
+            "[[0,0,0],[1,0,0,0]]];"]
+    zones: dict[float, str] = {}
+    for m in program.motions:
+        z = zone_mm(m.blend) if m.kind == "lin" else 0.0
+        if z > 0:
+            zones.setdefault(z, f"zB{len(zones) + 1}")
+    for z, nm in zones.items():
+        out.append(f"  LOCAL CONST zonedata {nm} := [FALSE,{z:g},{z:g},{z:g},{z:g},{z:g},"
+                   f"{z:g}];  ! mm")
+    q0 = np.degrees(program.samples.q[0])
+    out.append("  LOCAL CONST jointtarget jStart := [["
+               + ",".join(number(x, 6) for x in q0) + "],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
+    for k in range(1, len(program.poses)):
+        cf = abb_confdata(robot, program.samples.q[k])
+        out.append(f"  LOCAL CONST robtarget p{k + 1} := {_pose(program.poses[k])[:-1]},"
+                   f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
+                   "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
+    body = _motion_lines(program, range(len(program.motions)), zones)
+    head = ["", f"  PROC {name}()", "    ConfJ\\On;", "    ConfL\\Off;"]
+    if len(out) + len(body) > max_lines:
+        subs: list[str] = []
+        for c, span in enumerate(chunks(program.motions, max(max_lines // 2, 10))):
+            sub = f"{name[:26]}_s{c + 1}"
+            head.append(f"    {sub};")
+            subs += ["", f"  LOCAL PROC {sub}()", *_motion_lines(program, span, zones),
+                     "  ENDPROC"]
+        out += [*head, "  ENDPROC", *subs, "ENDMODULE"]
+    else:
+        out += [*head, *body, "  ENDPROC", "ENDMODULE"]
     return [write_text(Path(folder) / f"{name}.mod", "\n".join(out) + "\n")]
 
+
+# --------------------------------------------------------------------------------------------
+# Reading
 
 _NUM = r"[-+0-9.Ee]+"
 _POSE = rf"\[\[({_NUM}),({_NUM}),({_NUM})\],\[({_NUM}),({_NUM}),({_NUM}),({_NUM})\]\]"
@@ -113,35 +218,69 @@ _TOOL = re.compile(rf"PERS\s+tooldata\s+\w+\s*:=\s*\[TRUE,{_POSE}")
 _WOBJ = re.compile(rf"PERS\s+wobjdata\s+\w+\s*:=\s*\[FALSE,TRUE,\"\",{_POSE}")
 _ROBT = re.compile(rf"CONST\s+robtarget\s+(\w+)\s*:=\s*\[\[({_NUM}),({_NUM}),({_NUM})\],"
                    rf"\[({_NUM}),({_NUM}),({_NUM}),({_NUM})\],\[(-?\d+),(-?\d+),(-?\d+),(\d+)\]")
-_MOVE = re.compile(r"^\s*Move[JL]\s+(\w+),")
+_JT = re.compile(rf"CONST\s+jointtarget\s+(\w+)\s*:=\s*\[\[((?:{_NUM},){{5}}{_NUM})\]")
+_MOVE = re.compile(rf"^\s*(MoveL|MoveJ|MoveAbsJ)\s+(\w+),\w+(?:\\V:=({_NUM}))?,")
+_WAIT = re.compile(rf"^\s*WaitTime(?:\\InPos)?\s*,\s*({_NUM})\s*;")
+_PROC = re.compile(r"^\s*(?:LOCAL\s+)?PROC\s+(\w+)\s*\(\s*\)")
+_CALL = re.compile(r"^\s*(\w+)\s*;\s*$")
 
 
-def _frame(vals: tuple[str, ...]) -> FloatArray:
+def _frame(vals: tuple[str, ...], where: str) -> FloatArray:
     x, y, z, w, qx, qy, qz = (float(v) for v in vals)
     n = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
     if abs(n - 1.0) > 1e-6:
-        raise InputError("rapid", "quaternion", f"norm {n:.9f}", "a unit quaternion")
+        raise InputError(where, "quaternion", f"norm {n:.9f}", "a unit quaternion")
     T = np.eye(4)
     T[:3, :3] = Rotation.from_quat([qx, qy, qz, w]).as_matrix()
     T[:3, 3] = np.array([x, y, z]) * 1e-3
     return T
 
 
-def read_rapid(path: str | Path) -> tuple[FloatArray, FloatArray, list[ReadPoint]]:
-    """Re-read a written ``.mod``: (tool (4, 4), work object (4, 4) [m], moved-to points)."""
+def read_rapid(path: str | Path) -> ReadProgram:
+    """Re-read a ``.mod``: tool, work object and every motion and wait (sub-procedures
+    followed)."""
     p = Path(path)
-    text = p.read_text()
+    text = p.read_text(encoding="utf-8")
     t, w = _TOOL.search(text), _WOBJ.search(text)
     if t is None or w is None:
         raise InputError(p, "tooldata/wobjdata", "missing", "both declared")
     targets = {m.group(1): m.groups() for m in _ROBT.finditer(text)}
-    points: list[ReadPoint] = []
+    joints = {m.group(1): np.radians([float(x) for x in m.group(2).split(",")])
+              for m in _JT.finditer(text)}
+    procs: dict[str, list[str]] = {}
+    current: list[str] | None = None
     for line in text.splitlines():
-        m = _MOVE.match(line)
-        if not m:
-            continue
-        g = targets.get(m.group(1))
-        if g is None:
-            raise InputError(p, m.group(1), "not declared", "a robtarget per moved-to point")
-        points.append(ReadPoint(g[0], _frame(g[1:8]), {"cf": tuple(int(x) for x in g[8:12])}))
-    return _frame(t.groups()), _frame(w.groups()), points
+        if (pm := _PROC.match(line)) is not None:
+            current = procs.setdefault(pm.group(1), [])
+        elif line.strip() == "ENDPROC":
+            current = None
+        elif current is not None:
+            current.append(line)
+    if not procs:
+        raise InputError(p, "PROC", "no procedure", "PROC name() ... ENDPROC")
+    motions: list[ReadPoint] = []
+    _read_proc(p, next(iter(procs)), procs, targets, joints, motions)
+    return ReadProgram(_frame(t.groups(), str(p)), _frame(w.groups(), str(p)), motions, (p,))
+
+
+def _read_proc(p: Path, name: str, procs: dict[str, list[str]], targets: dict[str, tuple],
+               joints: dict[str, FloatArray], out: list[ReadPoint]) -> None:
+    for line in procs[name]:
+        code = line.split("!", 1)[0]
+        if (c := _CALL.match(code)) is not None and c.group(1) in procs:
+            _read_proc(p, c.group(1), procs, targets, joints, out)
+        elif (wt := _WAIT.match(code)) is not None:
+            out.append(ReadPoint("WaitTime", kind="wait", duration=float(wt.group(1))))
+        elif (m := _MOVE.match(code)) is not None:
+            tname = m.group(2)
+            if m.group(1) == "MoveAbsJ":
+                if tname not in joints:
+                    raise InputError(p, tname, "not declared", "a jointtarget")
+                out.append(ReadPoint(tname, q=joints[tname], kind="joint"))
+                continue
+            g = targets.get(tname)
+            if g is None:
+                raise InputError(p, tname, "not declared", "a robtarget per moved-to point")
+            speed = float(m.group(3)) * 1e-3 if m.group(3) else 0.0
+            out.append(ReadPoint(tname, _frame(g[1:8], str(p)), tuple(int(x) for x in g[8:12]),
+                                 speed=speed, kind="lin" if m.group(1) == "MoveL" else "joint"))

@@ -10,8 +10,8 @@ values with the plan sample the point was written from.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,27 +20,15 @@ from scipy.spatial.transform import Rotation
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.robot.kinematics import Robot
 
+if TYPE_CHECKING:
+    from rfsw_plan.export.format import ControllerFormat, ReadProgram
+    from rfsw_plan.export.program import Samples
+
 FloatArray = NDArray[np.float64]
 
 #: Round-trip tolerances: position [m], orientation [rad].
 POS_TOL = 1e-5
 ANG_TOL = math.radians(0.01)
-
-
-@dataclass(frozen=True)
-class ReadPoint:
-    """One point re-read from a program.
-
-    Attributes:
-        name: The point's name in the program (``XP3``, ``P[3]``, ``p3``).
-        pose: TCP pose in the program's work object frame [m], (4, 4).
-        config: The configuration the program states (vendor keys: ``S``/``T``, ``CONFIG``,
-            ``cf``).
-    """
-
-    name: str
-    pose: FloatArray
-    config: dict[str, object] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -72,42 +60,45 @@ class RoundTrip:
                 f"{math.degrees(np.max(self.joint_error)):.2e} deg")
 
 
-def round_trip(
-    robot: Robot, tool: FloatArray, work: FloatArray, points: list[ReadPoint],
-    q_plan: FloatArray, matches: Callable[[ReadPoint, FloatArray], bool],
-) -> RoundTrip:
-    """Recover the joint values of re-read program points and compare them with the plan.
+def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
+               expected: Samples) -> RoundTrip:
+    """Recover the joint values of a re-read program's points and compare them with the plan.
+
+    A joint target's values are taken as written; a Cartesian point goes through the robot
+    model's inverse kinematics on the posture the program states (``fmt.matches``), started
+    from the joint values planned for it (one or two Newton steps when the point is right; the
+    configuration branches are searched only when that solution has another posture).
 
     Args:
         robot: The robot.
-        tool: The program's tool: TCP in the controller's flange frame [m], (4, 4).
-        work: The program's work object in the controller's base frame [m], (4, 4).
-        points: The re-read points, in program order.
-        q_plan: The plan samples' joint values the points were written from [rad], (P, n).
-        matches: ``(point, q) -> bool``: q has the point's stated configuration.
+        fmt: The program's format.
+        read: The re-read program (tool, work object, points).
+        expected: The plan samples the points were written from, in order.
 
     Raises:
         InfeasibleError: The number of points differs from the plan's.
     """
     from rfsw_plan.export.config import ik_on_branch
 
+    points = read.points
+    q_plan = expected.q
     if len(points) != len(q_plan):
         raise InfeasibleError(f"program has {len(points)} points, the plan {len(q_plan)}",
                               None, "round_trip", None)
     conv = robot.description.convention
     # Model TCP = controller flange * flange^-1 * description tool.
-    to_model = np.linalg.inv(tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
+    to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
     Q = np.empty_like(q_plan)
-    pos = np.empty(len(points))
-    ang = np.empty(len(points))
-    seed: FloatArray | None = None
     for k, p in enumerate(points):
-        T = conv.base @ work @ p.pose @ to_model
-        q = ik_on_branch(robot, T, lambda x, p=p: matches(p, x), seed)
-        Q[k] = q
-        seed = q
-        ref = robot.fk(q_plan[k])
-        pos[k] = float(np.linalg.norm(T[:3, 3] - ref[:3, 3]))
-        ang[k] = float((Rotation.from_matrix(ref[:3, :3]).inv()
-                        * Rotation.from_matrix(T[:3, :3])).magnitude())
-    return RoundTrip(Q, pos, ang, np.max(np.abs(Q - q_plan), axis=1))
+        if p.q is not None:
+            Q[k] = p.q
+        else:
+            assert p.pose is not None
+            T = conv.base @ read.work @ p.pose @ to_model
+            Q[k] = ik_on_branch(robot, T, lambda x, p=p: fmt.matches(robot, p, x), q_plan[k])
+    T_prog = robot.batch_fk_jacobian(Q)[0]
+    T_plan = robot.batch_fk_jacobian(q_plan)[0]
+    pos = np.linalg.norm(T_prog[:, :3, 3] - T_plan[:, :3, 3], axis=1)
+    ang = (Rotation.from_matrix(T_plan[:, :3, :3]).inv()
+           * Rotation.from_matrix(T_prog[:, :3, :3])).magnitude()
+    return RoundTrip(Q, pos, np.atleast_1d(ang), np.max(np.abs(Q - q_plan), axis=1))

@@ -23,13 +23,17 @@ then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...).
 from __future__ import annotations
 
 import csv
+import re
+from collections.abc import Hashable
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
-from rfsw_plan.export.program import Samples
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
+from rfsw_plan.export.program import Program, Samples
 from rfsw_plan.files import atomic_path
 from rfsw_plan.robot.kinematics import Robot
 
@@ -72,3 +76,45 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
         for k in range(len(stream)):
             w.writerow([c[k] if isinstance(c[k], str) else f"{float(c[k]):.6f}" for c in cols])
     return p
+
+
+class StreamFormat(ControllerFormat):
+    """One row per controller cycle (CSV) for real-time interfaces: joint targets only."""
+
+    name = "stream"
+    description = "stream CSV at the controller cycle (KUKA RSI, ABB EGM)"
+    suffix = "_stream.csv"
+
+    def file_name(self, program: Program) -> str:
+        return f"{program.header.name}_stream.csv"
+
+    def posture(self, robot: Robot, q: FloatArray) -> Hashable:
+        return None  # joint values: no posture to state
+
+    def write(self, program: Program, folder: Path) -> list[Path]:
+        assert program.stream is not None
+        return [write_stream(Path(folder) / self.file_name(program), program.robot,
+                             program.stream, program.cycle)]
+
+    def read(self, path: Path) -> ReadProgram:
+        with Path(path).open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+        if len(rows) < 2:
+            raise InputError(path, "", "no rows", "a stream file")
+        cols = [i for i, h in enumerate(rows[0]) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
+        if not cols or "t_s" not in rows[0]:
+            raise InputError(path, "header", "no t_s or joint columns", "a stream file")
+        it = rows[0].index("t_s")
+        try:
+            q = np.radians([[float(r[i]) for i in cols] for r in rows[1:]])
+            t = np.array([float(r[it]) for r in rows[1:]])
+        except (ValueError, IndexError):
+            raise InputError(path, "", "a malformed row", "numbers in every cell") from None
+        dt = np.diff(t, prepend=t[0])
+        pts = [ReadPoint(f"row {k + 2}", q=q[k], kind="joint", duration=float(dt[k]))
+               for k in range(len(q))]
+        return ReadProgram(np.eye(4), np.eye(4), pts, (Path(path),))
+
+    def expected(self, program: Program) -> Samples:
+        assert program.stream is not None
+        return program.stream

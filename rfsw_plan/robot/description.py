@@ -99,6 +99,9 @@ class ControllerConvention:
         flange: Controller flange frame (KUKA FLANGE, FANUC faceplate, ABB tool0) in the
             chain's flange frame (before the tool), shape (4, 4) [m].
         source: Where the convention comes from.
+        maker: The robot maker whose controller runs this convention (``KUKA``, ``FANUC``,
+            ``ABB``), or ``""`` (a program in a maker's language for another robot carries a
+            warning line).
     """
 
     kind: str
@@ -108,6 +111,7 @@ class ControllerConvention:
     base: FloatArray
     flange: FloatArray
     source: str = "not stated"
+    maker: str = ""
 
     @staticmethod
     def chain(n: int) -> ControllerConvention:
@@ -183,6 +187,25 @@ class DeviceFrame:
 
 
 @dataclass(frozen=True)
+class Payload:
+    """The tool's load (spindle and FSW tool) a controller needs for its dynamics and collision
+    detection: the ``[payload]`` table of a robot file, or the ``payload_gravity`` effect.
+
+    Attributes:
+        mass: Mass [kg].
+        com: Centre of mass in the chain's flange frame (before the tool) [m], shape (3,).
+        inertia: Principal moments of inertia about the centre of mass, axes of the flange
+            frame [kg m^2], shape (3,), or None when not known.
+        source: Where the numbers come from (``ASSUMED`` marks assumptions).
+    """
+
+    mass: float
+    com: FloatArray
+    inertia: FloatArray | None
+    source: str
+
+
+@dataclass(frozen=True)
 class RobotDescription:
     """Everything rfsw_plan knows about one robot.
 
@@ -211,6 +234,8 @@ class RobotDescription:
         provenance: Where a derived (re-identified) description came from: ``parent`` (robot
             file), ``data`` and ``data_sha256`` (the measurement file), ``created`` (UTC date)
             and ``command``; empty for a hand-written file. The ``[provenance]`` table.
+        payload: The ``[payload]`` table (:class:`Payload`), or None. Programs prefer the
+            ``payload_gravity`` effect's identified values (:meth:`tool_payload`).
     """
 
     name: str
@@ -233,6 +258,22 @@ class RobotDescription:
     device_frame: DeviceFrame | None = None
     provenance: dict[str, str] = field(default_factory=dict)
     plugins: tuple[PluginSpec, ...] = ()
+    payload: Payload | None = None
+
+    def tool_payload(self) -> Payload | None:
+        """The tool's load for a controller program: the ``payload_gravity`` effect's mass and
+        centre of mass when the file has that effect (its centre of mass is in the tool frame,
+        converted to the flange frame; inertia from ``[payload]`` if given), else the
+        ``[payload]`` table, else None."""
+        spec = next((e for e in self.effects if e.name == "payload_gravity"), None)
+        if spec is None or not spec.params.get("m"):
+            return self.payload
+        m = float(spec.params["m"])
+        r_tool = np.array([spec.params.get(k, 0.0) for k in ("m_rx", "m_ry", "m_rz")]) / m
+        com = self.tool[:3, :3] @ r_tool + self.tool[:3, 3]
+        src = self.sources.get("effects.payload_gravity", "the payload_gravity effect")
+        return Payload(m, com, None if self.payload is None else self.payload.inertia,
+                       f"payload_gravity effect ({src})")
 
     @property
     def convention(self) -> ControllerConvention:
@@ -291,8 +332,12 @@ def load_robot_description(name_or_path: str | Path) -> RobotDescription:
 
 # Keys of every table of a robot file. A new key is declared here and read below.
 TOP_KEYS = ("name", "title", "euler", "kinematics", "tool", "controller", "joints", "stiffness",
-            "effects", "device_frame", "provenance", "effect_plugins")
+            "effects", "device_frame", "provenance", "effect_plugins", "payload")
 PLUGIN_KEYS = ("file", "entry_point", "sha256", "effects")
+PAYLOAD_KEYS = ("mass_kg", "com_mm", "frame", "inertia_kgm2", "source")
+#: Frames a ``[payload]`` centre of mass may be given in.
+PAYLOAD_FRAMES = ("flange", "tool")
+MAX_PAYLOAD_KG = 1e4
 PROVENANCE_KEYS = ("parent", "data", "data_sha256", "forces", "forces_sha256", "created",
                    "command")
 DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
@@ -306,8 +351,8 @@ STIFFNESS_KEYS = ("k_Nm_per_rad", "k_N_per_m", "source")
 DEVICE_FRAME_KEYS = ("base_in_device_xyz_mm", "base_in_device_rpy_deg", "marker_xyz_mm", "std",
                      "source")
 EFFECT_KEYS = ("name", "params", "source")
-CONTROLLER_KEYS = ("axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg", "flange_xyz_mm",
-                   "flange_rpy_deg", "source")
+CONTROLLER_KEYS = ("maker", "axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg",
+                   "flange_xyz_mm", "flange_rpy_deg", "source")
 
 #: Valid ranges of robot-file numbers, in file units (mm, deg, N m/rad). Wider than any real
 #: arm; they catch typos and values that would overflow the model (1e300 mm, 1e-320 N m/rad).
@@ -407,6 +452,7 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
         device_frame=_device_frame(r, sources),
         provenance=_provenance(r),
         plugins=_plugins(r, Path(path)),
+        payload=_payload(r, tool),
     )
 
 
@@ -431,6 +477,22 @@ def _plugins(r: Table, path: Path) -> tuple[PluginSpec, ...]:
         else:
             out.append(PluginSpec("entry_point", t.str_("entry_point"), digest, tuple(names)))
     return tuple(out)
+
+
+def _payload(r: Table, tool: FloatArray) -> Payload | None:
+    """Parse the optional ``[payload]`` table: ``mass_kg``, ``com_mm`` in ``frame`` (``flange``:
+    the chain's flange frame; ``tool``: the TCP frame of ``[tool]``), optional
+    ``inertia_kgm2`` (principal moments about the centre of mass, flange axes), ``source``."""
+    t = r.table("payload", PAYLOAD_KEYS)
+    if t is None:
+        return None
+    mass = t.num("mass_kg", ge=0.0, le=MAX_PAYLOAD_KG)
+    com = t.vec("com_mm", 3, [0.0, 0.0, 0.0], ge=-MAX_TOOL_MM, le=MAX_TOOL_MM) / 1000.0
+    frame = t.str_("frame", "flange", choices=PAYLOAD_FRAMES)
+    if frame == "tool":
+        com = tool[:3, :3] @ com + tool[:3, 3]
+    inertia = (t.vec("inertia_kgm2", 3, ge=0.0, le=1e4) if t.has("inertia_kgm2") else None)
+    return Payload(float(mass), com, inertia, t.str_("source", "not stated"))
 
 
 def _provenance(r: Table) -> dict[str, str]:
@@ -679,7 +741,8 @@ def _controller(r: Table, n: int) -> ControllerConvention:
         return T
 
     return ControllerConvention("controller", tuple(axes), sign, offset, frame("base"),
-                                frame("flange"), t.str_("source", "not stated"))
+                                frame("flange"), t.str_("source", "not stated"),
+                                t.str_("maker", ""))
 
 
 def _is_signed_permutation(G: FloatArray) -> bool:
@@ -807,6 +870,7 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
     conv = desc.convention
     if conv.kind == "controller":
         out["controller"] = {
+            **({"maker": conv.maker} if conv.maker else {}),
             "axes": list(conv.axes),
             "sign": _r(conv.sign),
             "offset_deg": _r(np.degrees(conv.offset)),
@@ -836,6 +900,12 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
         out["effect_plugins"] = [
             {("file" if x.kind == "file" else "entry_point"): x.ref, "sha256": x.sha256,
              "effects": list(x.effects)} for x in desc.plugins]
+    if desc.payload is not None:
+        pl = desc.payload
+        out["payload"] = {"mass_kg": float(f"{pl.mass:.6g}"), "com_mm": _r(pl.com * 1000.0),
+                          "frame": "flange",
+                          **({"inertia_kgm2": _r(pl.inertia)} if pl.inertia is not None else {}),
+                          "source": pl.source}
     if desc.effects:
         out["effects"] = []
         for e in desc.effects:

@@ -24,41 +24,64 @@ HELP = "write KUKA KRL, FANUC TP, ABB RAPID programs and a stream file from a wr
 
 def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
     """The export options shared by ``plan --export`` and ``export --format``."""
-    parser.add_argument(flag, default=None if flag == "--export" else "krl,fanuc_tp,rapid",
+    parser.add_argument(flag, default=None if flag == "--export" else "krl,fanuc_tp,rapid,stream",
                         metavar="FORMATS",
-                        help="comma-separated: krl (.src/.dat), fanuc_tp (.ls), rapid (.mod), "
-                             "stream (CSV at the controller cycle)"
-                             + ("" if flag == "--export" else " (default krl,fanuc_tp,rapid)"))
+                        help="comma-separated formats: krl (.src/.dat), fanuc_tp (.ls), rapid "
+                             "(.mod), stream (CSV), or any registered format"
+                             + ("" if flag == "--export" else
+                                " (default: all of krl,fanuc_tp,rapid,stream)"))
     parser.add_argument("--export-spacing-mm", type=float, default=None,
                         help="program point spacing along the seam [mm] (default: the plan's)")
-    parser.add_argument("--stream-cycle-ms", type=float, default=4.0,
-                        help="controller cycle of the stream file [ms] (default 4, RSI/EGM)")
+    parser.add_argument("--stream-cycle-ms", type=float, default=None,
+                        help="controller cycle of the stream file [ms]; plan --export times the "
+                             "plan at it (default 4, RSI/EGM); export writes the plan's own "
+                             "samples, so it must be the plan's sample time (the default)")
     parser.add_argument("--path-tol-mm", type=float, default=0.01,
-                        help="largest distance of a verified sample from the programmed path "
-                             "[mm] (default 0.01)")
+                        help="largest distance of a verified sample from the path the "
+                             "controller runs, blending included [mm] (default 0.01)")
+    parser.add_argument("--tool-number", type=int, default=1,
+                        help="tool number: KUKA TOOL_DATA/LOAD_DATA[n], FANUC UTOOL n and "
+                             "PAYLOAD[n] (default 1)")
+    parser.add_argument("--base-number", type=int, default=1,
+                        help="base number: KUKA BASE_DATA[n], FANUC UFRAME n (default 1)")
+    parser.add_argument("--hooks", metavar="FILE.toml", default=None,
+                        help="process hook lines per format (home_start, spindle_start, "
+                             "force_on, force_off, spindle_stop, home_end); default: comments "
+                             "saying what belongs there")
 
 
-def _checked(args: argparse.Namespace) -> tuple[float | None, float, float]:
+def _checked(args: argparse.Namespace) -> tuple[float | None, float | None, float]:
     sp = args.export_spacing_mm
     if sp is not None and not 0.01 <= sp <= 1e4:
         raise InputError("--export-spacing-mm", "", f"got {sp:g}", "a number in [0.01, 10000]")
-    if not 0.1 <= args.stream_cycle_ms <= 1000:
-        raise InputError("--stream-cycle-ms", "", f"got {args.stream_cycle_ms:g}",
-                         "a number in [0.1, 1000]")
+    cyc = args.stream_cycle_ms
+    if cyc is not None and not 0.1 <= cyc <= 1000:
+        raise InputError("--stream-cycle-ms", "", f"got {cyc:g}", "a number in [0.1, 1000]")
     if not 1e-4 <= args.path_tol_mm <= 10:
         raise InputError("--path-tol-mm", "", f"got {args.path_tol_mm:g}",
                          "a number in [0.0001, 10]")
-    return (None if sp is None else sp * 1e-3, args.stream_cycle_ms * 1e-3,
+    for opt, v in (("--tool-number", args.tool_number), ("--base-number", args.base_number)):
+        if not 1 <= v <= 32:
+            raise InputError(opt, "", f"got {v}", "a number in 1..32")
+    return (None if sp is None else sp * 1e-3, None if cyc is None else cyc * 1e-3,
             args.path_tol_mm * 1e-3)
+
+
+def _options(args: argparse.Namespace) -> Any:
+    from rfsw_plan.export.program import Hooks, ProgramOptions, read_hooks
+
+    hooks = read_hooks(args.hooks) if args.hooks else Hooks()
+    return ProgramOptions(args.tool_number, args.base_number, hooks)
 
 
 def check_export_arguments(args: argparse.Namespace) -> None:
     """``plan --export``: refuse bad export options before the planning work (exit 2)."""
     if args.export is not None:
-        from rfsw_plan.export.api import parse_formats
+        from rfsw_plan.export.format import parse_formats
 
         parse_formats(args.export, "--export")
         _checked(args)
+        _options(args)
 
 
 def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
@@ -70,13 +93,27 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
     """
     if args.export is None:
         return None
-    from rfsw_plan.export.api import export_programs, parse_formats
+    from rfsw_plan.export.api import export_programs, plate_normal
+    from rfsw_plan.export.format import parse_formats
+    from rfsw_plan.files import sha256_file
+    from rfsw_plan.planfiles.folder import read_plan_samples
 
     formats = parse_formats(args.export, "--export")
     spacing, cycle, tol = _checked(args)
+    cycle = 0.004 if cycle is None else cycle
     stream = _stream_at_cycle(args, result, cycle) if "stream" in formats else None
-    return export_programs(result.model.robot, out / "waypoints.csv", record, formats, out,
-                           spacing, cycle, tol, check=_plan_check(result), stream=stream)
+    d = result.model.robot.description
+    samples = read_plan_samples(out / "waypoints.csv", d.convention.column_names(),
+                                (d.lower, d.upper))
+    normal, _ = plate_normal(str(record.get("problem_file") or args.problem), samples)
+    res = export_programs(result.model.robot, samples, record, formats, out,
+                          plan_sha256=sha256_file(out / "waypoints.csv"), spacing=spacing,
+                          path_tol=tol, check=_plan_check(result), stream=stream,
+                          cycle=cycle, options=_options(args), normal=normal)
+    for note in res.notes:
+        if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT")):
+            print(f"rfsw-plan plan: note: {note}", file=sys.stderr)
+    return res
 
 
 def _stream_at_cycle(args: argparse.Namespace, result: PlanResult, cycle: float) -> Any:
@@ -128,37 +165,58 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("plan_dir", help="folder written by rfsw-plan plan (plan.json, "
                                          "waypoints.csv)")
     parser.add_argument("-o", "--output", default=None,
-                        help="output folder for the programs (default: PLAN_DIR)")
+                        help="output folder for the programs (default: PLAN_DIR, whose "
+                             "plan.json then vouches for them)")
     add_export_arguments(parser, "--format")
     parser.add_argument("--json", action="store_true", help="print the export record")
 
 
 def run(args: argparse.Namespace) -> int:
-    from rfsw_plan.export.api import export_programs, parse_formats
-    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json, write_json
-    from rfsw_plan.planfiles.waypoints import check_plan_folder
-    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.export.api import export_plan_folder
+    from rfsw_plan.export.format import parse_formats
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
 
     folder = Path(args.plan_dir)
     if not folder.is_dir():
         raise InputError(folder, "", "not a folder", "a plan folder written by rfsw-plan plan")
     formats = parse_formats(args.format, "--format")
     spacing, cycle, tol = _checked(args)
-    rec = check_plan_folder(folder)
-    robot = load_robot(rec.get("robot_file") or rec.get("robot") or "")
+    options = _options(args)
     out = prepare_output_dir(args.output if args.output else folder)
     with OutputLock(out):
-        res = export_programs(robot, folder / "waypoints.csv", rec, formats, out, spacing,
-                              cycle, tol)
-        record = {"status": "exported", "plan": str(folder), **res.to_dict()}
-        write_json(out / "export.json", record)
+        if cycle is not None and "stream" in formats:
+            _check_cycle(folder, cycle)
+        res = export_plan_folder(folder, formats, out, spacing=spacing, path_tol=tol,
+                                 options=options)
+    record = {"status": "exported", "plan": str(folder), **res.to_dict()}
+    for note in res.notes:
+        if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT", "plate normal")):
+            print(f"rfsw-plan export: note: {note}", file=sys.stderr)
     if args.json:
         print(strict_json(record), end="")
         return 0
     print(f"{res.header.plan_id}: {res.n_points} points at {res.header.spacing * 1e3:.3g} mm, "
-          f"path within {tol * 1e3:.3g} mm of the verified samples")
+          f"path within {res.max_path_deviation * 1e3:.4f} mm of the verified samples "
+          f"(tolerance {tol * 1e3:.3g} mm, blending included)")
     for fmt, trip in res.round_trips.items():
         print(f"  {fmt:<9} round trip: {trip.summary()}")
     for f in res.files:
-        print(f"  wrote {f}", file=sys.stdout)
+        print(f"  wrote {f}")
     return 0
+
+
+def _check_cycle(folder: Path, cycle: float) -> None:
+    """A stream from a written plan is its samples: the cycle must be their sample time."""
+    import csv
+
+    with (folder / "waypoints.csv").open(newline="", encoding="utf-8") as fh:
+        rows = [r for _, r in zip(range(3), csv.DictReader(fh), strict=False)]
+    try:
+        dt = float(rows[1]["t_s"]) - float(rows[0]["t_s"])
+    except (IndexError, KeyError, ValueError):
+        return  # the strict reader names the damage
+    if abs(dt - cycle) > 1e-6:
+        raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's "
+                         f"sample time {dt * 1e3:g} ms", "the plan's sample time (the "
+                         "default), or plan again with --export stream (it times the plan at "
+                         "the cycle)")

@@ -3,11 +3,11 @@
 OWNER		= MNEDITOR;
 COMMENT		= "golden-000000000";
 PROG_SIZE	= 0;
-CREATE		= DATE 26-01-01  TIME 00:00:00;
-MODIFIED	= DATE 26-01-01  TIME 00:00:00;
+CREATE		= DATE 00-01-01  TIME 00:00:00;
+MODIFIED	= DATE 00-01-01  TIME 00:00:00;
 FILE_NAME	= ;
 VERSION		= 0;
-LINE_COUNT	= 63;
+LINE_COUNT	= 102;
 MEMORY_SIZE	= 0;
 PROTECT		= READ_WRITE;
 TCD:  STACK_SIZE	= 0,
@@ -33,246 +33,309 @@ CONTROL_CODE	= 00000000 00000000;
   12:  ! points: plan samples every 5 mm of seam ;
   13:  ! path within 0.01 mm of every verified sample ;
   14:  ! lengths mm, angles deg, joints = controller axes ;
-  15:  ! UFRAME 1 = seam work object in world: ;
-  16:  !  X=-201.189 Y=-1735.143 Z=1456.988 W=-0.823 P=2.156 R=12.974 ;
-  17:  ! UTOOL 1 = TCP in faceplate: ;
-  18:  !  X=0.000 Y=0.000 Z=390.000 W=0.000 P=0.000 R=0.000 ;
-  19:  UFRAME_NUM=1 ;
-  20:  UTOOL_NUM=1 ;
-  21:  ! ---- phase: approach ;
-  22:J P[1] 10% FINE ;
-  23:L P[2] 0.10sec FINE ;
-  24:L P[3] 0.10sec FINE ;
-  25:L P[4] 0.10sec FINE ;
-  26:L P[5] 0.10sec FINE ;
-  27:L P[6] 0.10sec FINE ;
-  28:  ! ---- phase: plunge ;
-  29:  ! SPINDLE START placeholder: ;
-  30:  !  e.g. DO[1]=ON and WAIT DI[1]=ON ;
-  31:  WAIT 0.60(sec) ;
-  32:  ! ---- phase: dwell ;
-  33:  WAIT 0.60(sec) ;
-  34:  ! ---- phase: accelerate ;
-  35:L P[9] 0.10sec FINE ;
-  36:L P[10] 0.10sec CNT100 ;
-  37:L P[11] 0.10sec CNT100 ;
-  38:  ! ---- phase: weld ;
-  39:L P[12] 0.10sec CNT100 ;
-  40:L P[13] 0.10sec CNT100 ;
-  41:L P[14] 0.10sec CNT100 ;
-  42:L P[15] 0.10sec CNT100 ;
-  43:L P[16] 0.10sec CNT100 ;
-  44:L P[17] 0.10sec CNT100 ;
-  45:L P[18] 0.10sec CNT100 ;
-  46:L P[19] 0.10sec CNT100 ;
-  47:L P[20] 0.10sec CNT100 ;
-  48:L P[21] 0.10sec CNT100 ;
-  49:L P[22] 0.10sec CNT100 ;
-  50:L P[23] 0.10sec CNT100 ;
-  51:L P[24] 0.10sec CNT100 ;
-  52:L P[25] 0.10sec CNT100 ;
-  53:L P[26] 0.10sec CNT100 ;
-  54:L P[27] 0.20sec CNT100 ;
-  55:L P[28] 8mm/sec CNT100 ;
-  56:L P[29] 0.10sec CNT100 ;
-  57:  ! ---- phase: decelerate ;
-  58:L P[30] 0.20sec CNT100 ;
-  59:L P[31] 0.10sec FINE ;
-  60:  ! ---- phase: retract ;
-  61:  ! SPINDLE STOP placeholder: ;
-  62:  !  e.g. DO[1]=OFF ;
+  15:  ! WARNING: robot zk500 is not a FANUC robot (maker not ;
+  16:  !   stated): check axis directions, frames and limits on the ;
+  17:  !   real controller before running ;
+  18:  ! SET ON THE CONTROLLER: UFRAME 1 and UTOOL 1 are written ;
+  19:  !   below (PR[91], PR[92] are overwritten); the spindle I/O ;
+  20:  !   in the hook remarks ;
+  21:  ! PAYLOAD[1] (payload screen): 150.0 kg, centre X 0.00 Y 0.00 ;
+  22:  !   Z 14.00 cm (faceplate), inertia not known (0; identify it) ;
+  23:  ! UFRAME = the plate: origin on the first weld point, +X ;
+  24:  !   along the seam, +Y on the plate. To use a frame taught on ;
+  25:  !   the plate (3-point), replace the PR[91] values with it ;
+  26:  !   and run rfsw-plan check on this file ;
+  27:  ! Termination FINE at every point: FANUC CNT has no published ;
+  28:  !   path bound; each FINE adds the in-position settle time ;
+  29:  ! PR[91] = plate frame in world ;
+  30:  PR[91]=LPOS ;
+  31:  PR[91,1]=-201.1225 ;
+  32:  PR[91,2]=-1735.0983 ;
+  33:  PR[91,3]=1458.9861 ;
+  34:  PR[91,4]=-47.0206 ;
+  35:  PR[91,5]=22.1668 ;
+  36:  PR[91,6]=12.6222 ;
+  37:  ! PR[92] = TCP in faceplate ;
+  38:  PR[92]=LPOS ;
+  39:  PR[92,1]=0.0000 ;
+  40:  PR[92,2]=0.0000 ;
+  41:  PR[92,3]=390.0000 ;
+  42:  PR[92,4]=0.0000 ;
+  43:  PR[92,5]=0.0000 ;
+  44:  PR[92,6]=0.0000 ;
+  45:  UFRAME[1]=PR[91] ;
+  46:  UTOOL[1]=PR[92] ;
+  47:  UFRAME_NUM=1 ;
+  48:  UTOOL_NUM=1 ;
+  49:  PAYLOAD[1] ;
+  50:  ! HOME: move to the cell's home first, ;
+  51:  !  e.g. J PR[1:HOME] 10% FINE ;
+  52:  ! ---- phase: approach ;
+  53:J P[1] 10% FINE ;
+  54:L P[2] 100msec FINE ;
+  55:L P[3] 100msec FINE ;
+  56:L P[4] 100msec FINE ;
+  57:L P[5] 100msec FINE ;
+  58:L P[6] 100msec FINE ;
+  59:  ! SPINDLE START: spindle on and wait at speed, ;
+  60:  !  e.g. DO[1]=ON and WAIT DI[1]=ON ;
+  61:  ! FORCE CONTROL ON here if used ;
+  62:  ! ---- phase: plunge ;
   63:  WAIT 0.60(sec) ;
+  64:  ! ---- phase: dwell ;
+  65:  WAIT 0.60(sec) ;
+  66:  ! ---- phase: accelerate ;
+  67:L P[9] 100msec FINE ;
+  68:L P[10] 100msec FINE ;
+  69:L P[11] 100msec FINE ;
+  70:  ! ---- phase: weld ;
+  71:L P[12] 100msec FINE ;
+  72:L P[13] 100msec FINE ;
+  73:L P[14] 100msec FINE ;
+  74:L P[15] 100msec FINE ;
+  75:L P[16] 100msec FINE ;
+  76:L P[17] 100msec FINE ;
+  77:L P[18] 100msec FINE ;
+  78:L P[19] 100msec FINE ;
+  79:L P[20] 100msec FINE ;
+  80:L P[21] 100msec FINE ;
+  81:L P[22] 100msec FINE ;
+  82:L P[23] 100msec FINE ;
+  83:L P[24] 100msec FINE ;
+  84:L P[25] 100msec FINE ;
+  85:L P[26] 100msec FINE ;
+  86:L P[27] 100msec FINE ;
+  87:L P[28] 100msec FINE ;
+  88:L P[29] 100msec FINE ;
+  89:L P[30] 100msec FINE ;
+  90:L P[31] 100msec FINE ;
+  91:  ! ---- phase: decelerate ;
+  92:L P[32] 100msec FINE ;
+  93:L P[33] 100msec FINE ;
+  94:L P[34] 100msec FINE ;
+  95:  ! FORCE CONTROL OFF here if used ;
+  96:  ! ---- phase: retract ;
+  97:L P[35] 300msec FINE ;
+  98:  ! SPINDLE STOP: the pin has left the material, ;
+  99:  !  e.g. DO[1]=OFF ;
+ 100:L P[36] 300msec FINE ;
+ 101:  ! HOME: back to the cell's home, ;
+ 102:  !  e.g. J PR[1:HOME] 10% FINE ;
 /POS
 P[1]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     2.7166  mm,	Y =    13.7020  mm,	Z =    43.6065  mm,
-	W = -179.93746 deg,	P =   -1.99807 deg,	R = -111.07631 deg
+	UF : 1, UT : 1,
+	J1=   -96.240000 deg,	J2=     3.910000 deg,	J3=    25.450000 deg,
+	J4=    -2.100000 deg,	J5=    57.170000 deg,	J6=     2.900000 deg
 };
 P[2]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     2.0166  mm,	Y =    10.8866  mm,	Z =    34.9224  mm,
-	W = -179.95015 deg,	P =   -1.59846 deg,	R = -111.06360 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    -9.3811  mm,	Y =   -15.2507  mm,	Z =    29.7638  mm,
+	W =  176.88640 deg,	P =   47.69426 deg,	R = -120.97328 deg
 };
 P[3]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     1.3372  mm,	Y =     8.1282  mm,	Z =    26.2184  mm,
-	W = -179.96275 deg,	P =   -1.19885 deg,	R = -111.05097 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    -7.0384  mm,	Y =   -11.0996  mm,	Z =    21.9464  mm,
+	W =  176.86361 deg,	P =   48.09396 deg,	R = -120.98743 deg
 };
 P[4]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     0.6785  mm,	Y =     5.4272  mm,	Z =    17.4948  mm,
-	W = -179.97525 deg,	P =   -0.79924 deg,	R = -111.03844 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    -4.6697  mm,	Y =    -6.9007  mm,	Z =    14.1626  mm,
+	W =  176.84050 deg,	P =   48.49365 deg,	R = -121.00193 deg
 };
 P[5]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     0.0404  mm,	Y =     2.7835  mm,	Z =     8.7522  mm,
-	W = -179.98767 deg,	P =   -0.39962 deg,	R = -111.02599 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    -2.2750  mm,	Y =    -2.6542  mm,	Z =     6.4126  mm,
+	W =  176.81705 deg,	P =   48.89334 deg,	R = -121.01679 deg
 };
 P[6]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    -0.5769  mm,	Y =     0.1974  mm,	Z =    -0.0092  mm,
-	W = -180.00000 deg,	P =    0.00000 deg,	R = -111.01363 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     0.1454  mm,	Y =     1.6398  mm,	Z =    -1.3032  mm,
+	W =  176.79325 deg,	P =   49.29303 deg,	R = -121.03202 deg
 };
 P[7]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    -0.5769  mm,	Y =     0.1974  mm,	Z =    -0.0092  mm,
-	W = -180.00000 deg,	P =    0.00000 deg,	R = -111.01363 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     0.1454  mm,	Y =     1.6398  mm,	Z =    -1.3032  mm,
+	W =  176.79325 deg,	P =   49.29303 deg,	R = -121.03202 deg
 };
 P[8]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    -0.5769  mm,	Y =     0.1974  mm,	Z =    -0.0092  mm,
-	W = -180.00000 deg,	P =    0.00000 deg,	R = -111.01363 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     0.1454  mm,	Y =     1.6398  mm,	Z =    -1.3032  mm,
+	W =  176.79325 deg,	P =   49.29303 deg,	R = -121.03202 deg
 };
 P[9]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     0.0000  mm,	Y =     0.0000  mm,	Z =     0.0000  mm,
-	W = -179.99948 deg,	P =   -0.00010 deg,	R = -110.99363 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     0.6845  mm,	Y =     1.3548  mm,	Z =    -1.3023  mm,
+	W =  176.81699 deg,	P =   49.29404 deg,	R = -121.00140 deg
 };
 P[10]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     0.5828  mm,	Y =    -0.1823  mm,	Z =    -0.0098  mm,
-	W = -179.99899 deg,	P =    0.00080 deg,	R = -110.97360 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     1.2356  mm,	Y =     1.0916  mm,	Z =    -1.3016  mm,
+	W =  176.84067 deg,	P =   49.29605 deg,	R = -120.97081 deg
 };
 P[11]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     1.1714  mm,	Y =    -0.3495  mm,	Z =    -0.0387  mm,
-	W = -179.99853 deg,	P =    0.00270 deg,	R = -110.95354 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     1.7987  mm,	Y =     0.8503  mm,	Z =    -1.3009  mm,
+	W =  176.86429 deg,	P =   49.29905 deg,	R = -120.94025 deg
 };
 P[12]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     1.7659  mm,	Y =    -0.5016  mm,	Z =    -0.0865  mm,
-	W = -179.99810 deg,	P =    0.00559 deg,	R = -110.93345 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     2.3738  mm,	Y =     0.6310  mm,	Z =    -1.3003  mm,
+	W =  176.88786 deg,	P =   49.30303 deg,	R = -120.90973 deg
 };
 P[13]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     2.3662  mm,	Y =    -0.6385  mm,	Z =    -0.1533  mm,
-	W = -179.99770 deg,	P =    0.00949 deg,	R = -110.91333 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     2.9608  mm,	Y =     0.4335  mm,	Z =    -1.2998  mm,
+	W =  176.91138 deg,	P =   49.30801 deg,	R = -120.87923 deg
 };
 P[14]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     2.9724  mm,	Y =    -0.7604  mm,	Z =    -0.2392  mm,
-	W = -179.99733 deg,	P =    0.01438 deg,	R = -110.89317 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     3.5598  mm,	Y =     0.2579  mm,	Z =    -1.2994  mm,
+	W =  176.93484 deg,	P =   49.31398 deg,	R = -120.84877 deg
 };
 P[15]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     3.5843  mm,	Y =    -0.8672  mm,	Z =    -0.3440  mm,
-	W = -179.99699 deg,	P =    0.02028 deg,	R = -110.87299 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     4.1708  mm,	Y =     0.1043  mm,	Z =    -1.2990  mm,
+	W =  176.95825 deg,	P =   49.32094 deg,	R = -120.81833 deg
 };
 P[16]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     4.2020  mm,	Y =    -0.9588  mm,	Z =    -0.4678  mm,
-	W = -179.99669 deg,	P =    0.02717 deg,	R = -110.85277 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     4.7936  mm,	Y =    -0.0274  mm,	Z =    -1.2988  mm,
+	W =  176.98162 deg,	P =   49.32890 deg,	R = -120.78792 deg
 };
 P[17]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     4.8255  mm,	Y =    -1.0352  mm,	Z =    -0.6105  mm,
-	W = -179.99641 deg,	P =    0.03506 deg,	R = -110.83253 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     5.4284  mm,	Y =    -0.1372  mm,	Z =    -1.2986  mm,
+	W =  177.00493 deg,	P =   49.33784 deg,	R = -120.75753 deg
 };
 P[18]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     5.4548  mm,	Y =    -1.0965  mm,	Z =    -0.7723  mm,
-	W = -179.99617 deg,	P =    0.04395 deg,	R = -110.81225 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     6.0750  mm,	Y =    -0.2250  mm,	Z =    -1.2985  mm,
+	W =  177.02820 deg,	P =   49.34777 deg,	R = -120.72716 deg
 };
 P[19]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     6.0898  mm,	Y =    -1.1426  mm,	Z =    -0.9530  mm,
-	W = -179.99595 deg,	P =    0.05384 deg,	R = -110.79194 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     6.7336  mm,	Y =    -0.2909  mm,	Z =    -1.2984  mm,
+	W =  177.05143 deg,	P =   49.35870 deg,	R = -120.69681 deg
 };
 P[20]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     6.7306  mm,	Y =    -1.1735  mm,	Z =    -1.1527  mm,
-	W = -179.99577 deg,	P =    0.06473 deg,	R = -110.77160 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     7.4040  mm,	Y =    -0.3348  mm,	Z =    -1.2983  mm,
+	W =  177.07461 deg,	P =   49.37062 deg,	R = -120.66648 deg
 };
 P[21]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     7.3770  mm,	Y =    -1.1892  mm,	Z =    -1.3713  mm,
-	W = -179.99562 deg,	P =    0.07661 deg,	R = -110.75123 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     8.0863  mm,	Y =    -0.3567  mm,	Z =    -1.2983  mm,
+	W =  177.09774 deg,	P =   49.38352 deg,	R = -120.63616 deg
 };
 P[22]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     8.0292  mm,	Y =    -1.1897  mm,	Z =    -1.6088  mm,
-	W = -179.99550 deg,	P =    0.08950 deg,	R = -110.73083 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     8.7804  mm,	Y =    -0.3566  mm,	Z =    -1.2982  mm,
+	W =  177.12084 deg,	P =   49.39742 deg,	R = -120.60586 deg
 };
 P[23]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     8.6871  mm,	Y =    -1.1749  mm,	Z =    -1.8653  mm,
-	W = -179.99541 deg,	P =    0.10338 deg,	R = -110.71040 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =     9.4863  mm,	Y =    -0.3346  mm,	Z =    -1.2982  mm,
+	W =  177.14390 deg,	P =   49.41231 deg,	R = -120.57557 deg
 };
 P[24]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =     9.3507  mm,	Y =    -1.1448  mm,	Z =    -2.1407  mm,
-	W = -179.99535 deg,	P =    0.11826 deg,	R = -110.68994 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    10.2040  mm,	Y =    -0.2906  mm,	Z =    -1.2981  mm,
+	W =  177.16691 deg,	P =   49.42820 deg,	R = -120.54528 deg
 };
 P[25]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    10.0199  mm,	Y =    -1.0995  mm,	Z =    -2.4350  mm,
-	W = -179.99532 deg,	P =    0.13415 deg,	R = -110.66944 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    10.9335  mm,	Y =    -0.2246  mm,	Z =    -1.2979  mm,
+	W =  177.18990 deg,	P =   49.44507 deg,	R = -120.51501 deg
 };
 P[26]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    10.6949  mm,	Y =    -1.0389  mm,	Z =    -2.7481  mm,
-	W = -179.99532 deg,	P =    0.15103 deg,	R = -110.64892 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    11.6748  mm,	Y =    -0.1365  mm,	Z =    -1.2976  mm,
+	W =  177.21284 deg,	P =   49.46293 deg,	R = -120.48474 deg
 };
 P[27]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    12.0617  mm,	Y =    -0.8716  mm,	Z =    -3.4311  mm,
-	W = -179.99542 deg,	P =    0.18779 deg,	R = -110.60777 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    12.4279  mm,	Y =    -0.0265  mm,	Z =    -1.2973  mm,
+	W =  177.23575 deg,	P =   49.48179 deg,	R = -120.45448 deg
 };
 P[28]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    13.4510  mm,	Y =    -0.6428  mm,	Z =    -4.1894  mm,
-	W = -179.99564 deg,	P =    0.22854 deg,	R = -110.56650 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    13.1927  mm,	Y =     0.1056  mm,	Z =    -1.2968  mm,
+	W =  177.25863 deg,	P =   49.50164 deg,	R = -120.42422 deg
 };
 P[29]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    14.1542  mm,	Y =    -0.5053  mm,	Z =    -4.5968  mm,
-	W = -179.99579 deg,	P =    0.25041 deg,	R = -110.54582 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    13.9693  mm,	Y =     0.2597  mm,	Z =    -1.2962  mm,
+	W =  177.28148 deg,	P =   49.52247 deg,	R = -120.39396 deg
 };
 P[30]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    15.5772  mm,	Y =    -0.1839  mm,	Z =    -5.4680  mm,
-	W = -179.99619 deg,	P =    0.29716 deg,	R = -110.50437 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    14.7576  mm,	Y =     0.4358  mm,	Z =    -1.2954  mm,
+	W =  177.30430 deg,	P =   49.54430 deg,	R = -120.36370 deg
 };
 P[31]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    16.2972  mm,	Y =     0.0000  mm,	Z =    -5.9317  mm,
-	W = -179.99644 deg,	P =    0.32203 deg,	R = -110.48360 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    15.5575  mm,	Y =     0.6340  mm,	Z =    -1.2944  mm,
+	W =  177.32709 deg,	P =   49.56713 deg,	R = -120.33344 deg
 };
 P[32]{
    GP1:
-	UF : 1, UT : 1,		CONFIG : 'N U T, 0, 0, 0',
-	X =    16.2972  mm,	Y =     0.0000  mm,	Z =    -5.9317  mm,
-	W = -179.99644 deg,	P =    0.32203 deg,	R = -110.48360 deg
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    16.3692  mm,	Y =     0.8543  mm,	Z =    -1.2931  mm,
+	W =  177.34985 deg,	P =   49.59094 deg,	R = -120.30318 deg
+};
+P[33]{
+   GP1:
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    17.1926  mm,	Y =     1.0966  mm,	Z =    -1.2916  mm,
+	W =  177.37259 deg,	P =   49.61574 deg,	R = -120.27290 deg
+};
+P[34]{
+   GP1:
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    18.0276  mm,	Y =     1.3610  mm,	Z =    -1.2898  mm,
+	W =  177.39530 deg,	P =   49.64154 deg,	R = -120.24262 deg
+};
+P[35]{
+   GP1:
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    16.4978  mm,	Y =    -1.3211  mm,	Z =     3.4917  mm,
+	W =  177.40724 deg,	P =   49.39168 deg,	R = -120.23702 deg
+};
+P[36]{
+   GP1:
+	UF : 1, UT : 1,		CONFIG : 'F U T, 0, 0, 0',
+	X =    14.9779  mm,	Y =    -3.9847  mm,	Z =     8.2867  mm,
+	W =  177.41908 deg,	P =   49.14182 deg,	R = -120.23153 deg
 };
 /END

@@ -1,8 +1,3 @@
-%%%
-  VERSION:1
-  LANGUAGE:ENGLISH
-%%%
-
 MODULE rfsw_golden
   ! rfsw-plan program rfsw_golden
   ! rfsw-plan version: 0.1.0
@@ -17,127 +12,105 @@ MODULE rfsw_golden
   ! points: plan samples every 5 mm of seam
   ! path within 0.01 mm of every verified sample
   ! lengths mm, angles deg, joints = controller axes
-  PERS tooldata tFSW := [TRUE,[[0.0000,0.0000,390.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[1,[0,0,1],[1,0,0,0],0,0,0]];  ! load data: placeholder, enter the spindle's
-  PERS wobjdata wSeam := [FALSE,TRUE,"",[[-201.1894,-1735.1432,1456.9877],[0.993380660,-0.009262574,0.017880333,0.113090064]],[[0,0,0],[1,0,0,0]]];
-  CONST speeddata vS1 := [91.5588,30,5000,1000];  ! mm/s
-  CONST speeddata vS2 := [6.0981,30,5000,1000];  ! mm/s
-  CONST speeddata vS3 := [6.1071,30,5000,1000];  ! mm/s
-  CONST speeddata vS4 := [6.1261,30,5000,1000];  ! mm/s
-  CONST speeddata vS5 := [6.1550,30,5000,1000];  ! mm/s
-  CONST speeddata vS6 := [6.1937,30,5000,1000];  ! mm/s
-  CONST speeddata vS7 := [6.2419,30,5000,1000];  ! mm/s
-  CONST speeddata vS8 := [6.2996,30,5000,1000];  ! mm/s
-  CONST speeddata vS9 := [6.3663,30,5000,1000];  ! mm/s
-  CONST speeddata vS10 := [6.4419,30,5000,1000];  ! mm/s
-  CONST speeddata vS11 := [6.5260,30,5000,1000];  ! mm/s
-  CONST speeddata vS12 := [6.6183,30,5000,1000];  ! mm/s
-  CONST speeddata vS13 := [6.7185,30,5000,1000];  ! mm/s
-  CONST speeddata vS14 := [6.8261,30,5000,1000];  ! mm/s
-  CONST speeddata vS15 := [6.9410,30,5000,1000];  ! mm/s
-  CONST speeddata vS16 := [7.0627,30,5000,1000];  ! mm/s
-  CONST speeddata vS17 := [7.1908,30,5000,1000];  ! mm/s
-  CONST speeddata vS18 := [7.3251,30,5000,1000];  ! mm/s
-  CONST speeddata vS19 := [7.4651,30,5000,1000];  ! mm/s
-  CONST speeddata vS20 := [7.6854,30,5000,1000];  ! mm/s
-  CONST speeddata vS21 := [7.9965,30,5000,1000];  ! mm/s
-  CONST speeddata vS22 := [8.2417,30,5000,1000];  ! mm/s
-  CONST speeddata vS23 := [8.4960,30,5000,1000];  ! mm/s
-  CONST speeddata vS24 := [8.7587,30,5000,1000];  ! mm/s
-  CONST zonedata zB1 := [FALSE,0.2443,0.3664,0.3664,0.0366,0.3664,0.0366];  ! mm
-  CONST zonedata zB2 := [FALSE,0.2450,0.3675,0.3675,0.0367,0.3675,0.0367];  ! mm
-  CONST zonedata zB3 := [FALSE,0.2462,0.3693,0.3693,0.0369,0.3693,0.0369];  ! mm
-  CONST zonedata zB4 := [FALSE,0.2477,0.3715,0.3715,0.0372,0.3715,0.0372];  ! mm
-  CONST zonedata zB5 := [FALSE,0.2497,0.3745,0.3745,0.0375,0.3745,0.0375];  ! mm
-  CONST zonedata zB6 := [FALSE,0.2520,0.3780,0.3780,0.0378,0.3780,0.0378];  ! mm
-  CONST zonedata zB7 := [FALSE,0.2547,0.3821,0.3821,0.0382,0.3821,0.0382];  ! mm
-  CONST zonedata zB8 := [FALSE,0.2577,0.3865,0.3865,0.0387,0.3865,0.0387];  ! mm
-  CONST zonedata zB9 := [FALSE,0.2610,0.3915,0.3915,0.0391,0.3915,0.0391];  ! mm
-  CONST zonedata zB10 := [FALSE,0.2647,0.3971,0.3971,0.0397,0.3971,0.0397];  ! mm
-  CONST zonedata zB11 := [FALSE,0.2687,0.4031,0.4031,0.0403,0.4031,0.0403];  ! mm
-  CONST zonedata zB12 := [FALSE,0.2730,0.4095,0.4095,0.0410,0.4095,0.0410];  ! mm
-  CONST zonedata zB13 := [FALSE,0.2776,0.4164,0.4164,0.0416,0.4164,0.0416];  ! mm
-  CONST zonedata zB14 := [FALSE,0.2825,0.4237,0.4237,0.0424,0.4237,0.0424];  ! mm
-  CONST zonedata zB15 := [FALSE,0.2876,0.4314,0.4314,0.0431,0.4314,0.0431];  ! mm
-  CONST zonedata zB16 := [FALSE,0.2930,0.4395,0.4395,0.0439,0.4395,0.0439];  ! mm
-  CONST zonedata zB17 := [FALSE,0.2986,0.4479,0.4479,0.0448,0.4479,0.0448];  ! mm
-  CONST zonedata zB18 := [FALSE,0.6148,0.9222,0.9222,0.0922,0.9222,0.0922];  ! mm
-  CONST zonedata zB19 := [FALSE,0.3297,0.4945,0.4945,0.0495,0.4945,0.0495];  ! mm
-  CONST zonedata zB20 := [FALSE,0.3503,0.5254,0.5254,0.0525,0.5254,0.0525];  ! mm
-  CONST robtarget p1 := [[2.7166,13.7020,43.6065],[0.014066949,0.565779037,-0.824372358,0.010315942],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p2 := [[2.0166,10.8866,34.9224],[0.011253765,0.565898661,-0.824356687,0.008252904],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p3 := [[1.3372,8.1282,26.2184],[0.008440444,0.566011390,-0.824330972,0.006189766],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p4 := [[0.6785,5.4272,17.4948],[0.005627020,0.566117222,-0.824295213,0.004126553],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p5 := [[0.0404,2.7835,8.7522],[0.002813527,0.566216157,-0.824249411,0.002063289],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p6 := [[-0.5769,0.1974,-0.0092],[0.000000000,0.566308192,-0.824193564,-0.000000000],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p7 := [[-0.5769,0.1974,-0.0092],[0.000000000,0.566308192,-0.824193564,-0.000000000],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p8 := [[-0.5769,0.1974,-0.0092],[0.000000000,0.566308192,-0.824193564,-0.000000000],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p9 := [[-0.0000,-0.0000,0.0000],[0.000001864,-0.566452026,0.824094717,-0.000004251],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p10 := [[0.5828,-0.1823,-0.0098],[0.000010758,-0.566596065,0.823995691,-0.000003340],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p11 := [[1.1714,-0.3495,-0.0387],[0.000026682,-0.566740308,0.823896488,0.000002737],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p12 := [[1.7659,-0.5016,-0.0865],[0.000049631,-0.566884754,0.823797107,0.000013983],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p13 := [[2.3662,-0.6385,-0.1533],[0.000079603,-0.567029404,0.823697546,0.000030401],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p14 := [[2.9724,-0.7604,-0.2392],[0.000116595,-0.567174258,0.823597805,0.000051997],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p15 := [[3.5843,-0.8672,-0.3440],[0.000160605,-0.567319313,0.823497884,0.000078773],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p16 := [[4.2020,-0.9588,-0.4678],[0.000211629,-0.567464571,0.823397780,0.000110732],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p17 := [[4.8255,-1.0352,-0.6105],[0.000269666,-0.567610029,0.823297492,0.000147880],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p18 := [[5.4548,-1.0965,-0.7723],[0.000334712,-0.567755687,0.823197019,0.000190219],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p19 := [[6.0898,-1.1426,-0.9530],[0.000406765,-0.567901543,0.823096358,0.000237752],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p20 := [[6.7306,-1.1735,-1.1527],[0.000485822,-0.568047597,0.822995509,0.000290485],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p21 := [[7.3770,-1.1892,-1.3713],[0.000571881,-0.568193847,0.822894467,0.000348420],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p22 := [[8.0292,-1.1897,-1.6088],[0.000664937,-0.568340291,0.822793232,0.000411560],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p23 := [[8.6871,-1.1749,-1.8653],[0.000764990,-0.568486928,0.822691800,0.000479911],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p24 := [[9.3507,-1.1448,-2.1407],[0.000872036,-0.568633756,0.822590168,0.000553474],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p25 := [[10.0199,-1.0995,-2.4350],[0.000986072,-0.568780773,0.822488334,0.000632255],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p26 := [[10.6949,-1.0389,-2.7481],[0.001107096,-0.568927977,0.822386295,0.000716257],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p27 := [[12.0617,-0.8716,-3.4311],[0.001370096,-0.569222937,0.822181587,0.000899936],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p28 := [[13.4510,-0.6428,-4.1894],[0.001661013,-0.569518616,0.821976013,0.001104542],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p29 := [[14.1542,-0.5053,-4.5968],[0.001816934,-0.569666719,0.821872893,0.001214702],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p30 := [[15.5772,-0.1839,-5.4680],[0.002149687,-0.569963438,0.821665962,0.001450753],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p31 := [[16.2972,-0.0000,-5.9317],[0.002326513,-0.570112047,0.821562143,0.001576651],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
-  CONST robtarget p32 := [[16.2972,0.0000,-5.9317],[0.002326513,-0.570112047,0.821562143,0.001576651],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  ! WARNING: robot zk500 is not a ABB robot (maker not stated): check axis directions, frames and limits on the real controller before running
+  ! SET ON THE CONTROLLER: the spindle I/O in the hook comments; tFSW and wPlate are this module's own (LOCAL) data
+  ! wPlate = the plate: origin on the first weld point, +X along the seam, +Y on the plate. To use a work object taught on the plate, enter its user frame in wPlate and run rfsw-plan check on this file
+  LOCAL PERS tooldata tFSW := [TRUE,[[0.0000,0.0000,390.0000],[1.000000000,0.000000000,0.000000000,0.000000000]],[150.000,[0.000,0.000,140.000],[1,0,0,0],0.0000,0.0000,0.0000]];  ! inertia not known: 0, identify it
+  LOCAL PERS wobjdata wPlate := [FALSE,TRUE,"",[[-201.1225,-1735.0983,1458.9861],[0.886001721,-0.408478853,0.132177809,0.175142811]],[[0,0,0],[1,0,0,0]]];
+  LOCAL CONST zonedata zB1 := [FALSE,0.2,0.2,0.2,0.2,0.2,0.2];  ! mm
+  LOCAL CONST zonedata zB2 := [FALSE,0.25,0.25,0.25,0.25,0.25,0.25];  ! mm
+  LOCAL CONST zonedata zB3 := [FALSE,0.3,0.3,0.3,0.3,0.3,0.3];  ! mm
+  LOCAL CONST jointtarget jStart := [[-96.240000,3.910000,25.450000,-2.100000,57.170000,2.900000],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p2 := [[-9.3811,-15.2507,29.7638],[0.339465494,-0.459962068,0.790241360,0.220718524],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p3 := [[-7.0384,-11.0996,21.9464],[0.342193676,-0.459310879,0.788979607,0.222369476],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p4 := [[-4.6697,-6.9007,14.1626],[0.344917688,-0.458654093,0.787708241,0.224017718],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p5 := [[-2.2750,-2.6542,6.4126],[0.347637497,-0.457991719,0.786427277,0.225663230],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p6 := [[0.1454,1.6398,-1.3032],[0.350353071,-0.457323764,0.785136730,0.227305993],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p7 := [[0.1454,1.6398,-1.3032],[0.350353071,-0.457323764,0.785136730,0.227305993],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p8 := [[0.1454,1.6398,-1.3032],[0.350353071,-0.457323764,0.785136730,0.227305993],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p9 := [[0.6845,1.3548,-1.3023],[0.350394137,-0.457459385,0.785058245,0.227240866],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p10 := [[1.2356,1.0916,-1.3016],[0.350441974,-0.457593316,0.784976497,0.227179839],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p11 := [[1.7987,0.8503,-1.3009],[0.350496580,-0.457725560,0.784891483,0.227122916],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p12 := [[2.3738,0.6310,-1.3003],[0.350557951,-0.457856117,0.784803204,0.227070099],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p13 := [[2.9608,0.4335,-1.2998],[0.350626086,-0.457984990,0.784711657,0.227021392],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p14 := [[3.5598,0.2579,-1.2994],[0.350700982,-0.458112180,0.784616840,0.226976798],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p15 := [[4.1708,0.1043,-1.2990],[0.350782637,-0.458237687,0.784518751,0.226936321],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p16 := [[4.7936,-0.0274,-1.2988],[0.350871047,-0.458361512,0.784417388,0.226899964],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p17 := [[5.4284,-0.1372,-1.2986],[0.350966210,-0.458483658,0.784312749,0.226867729],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p18 := [[6.0750,-0.2250,-1.2985],[0.351068123,-0.458604124,0.784204831,0.226839620],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p19 := [[6.7336,-0.2909,-1.2984],[0.351176783,-0.458722911,0.784093632,0.226815639],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p20 := [[7.4040,-0.3348,-1.2983],[0.351292188,-0.458840019,0.783979148,0.226795790],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p21 := [[8.0863,-0.3567,-1.2983],[0.351414333,-0.458955451,0.783861377,0.226780076],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p22 := [[8.7804,-0.3566,-1.2982],[0.351543216,-0.459069204,0.783740315,0.226768499],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p23 := [[9.4863,-0.3346,-1.2982],[0.351678833,-0.459181281,0.783615958,0.226761062],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p24 := [[10.2040,-0.2906,-1.2981],[0.351821182,-0.459291681,0.783488304,0.226757768],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p25 := [[10.9335,-0.2246,-1.2979],[0.351970258,-0.459400405,0.783357347,0.226758619],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p26 := [[11.6748,-0.1365,-1.2976],[0.352126059,-0.459507451,0.783223086,0.226763619],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p27 := [[12.4279,-0.0265,-1.2973],[0.352288580,-0.459612821,0.783085514,0.226772769],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p28 := [[13.1927,0.1056,-1.2968],[0.352457818,-0.459716514,0.782944628,0.226786072],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p29 := [[13.9693,0.2597,-1.2962],[0.352633769,-0.459818529,0.782800424,0.226803531],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p30 := [[14.7576,0.4358,-1.2954],[0.352816429,-0.459918867,0.782652896,0.226825148],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p31 := [[15.5575,0.6340,-1.2944],[0.353005794,-0.460017526,0.782502040,0.226850926],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p32 := [[16.3692,0.8543,-1.2931],[0.353201861,-0.460114506,0.782347851,0.226880866],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p33 := [[17.1926,1.0966,-1.2916],[0.353404625,-0.460209806,0.782190323,0.226914971],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p34 := [[18.0276,1.3610,-1.2898],[0.353614081,-0.460303426,0.782029452,0.226953243],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p35 := [[16.4978,-1.3211,3.4917],[0.351924334,-0.460720765,0.782844457,0.225920773],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
+  LOCAL CONST robtarget p36 := [[14.9779,-3.9847,8.2867],[0.350232912,-0.461135912,0.783655736,0.224887228],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
 
-  PROC main()
+  PROC rfsw_golden()
+    ConfJ\On;
+    ConfL\Off;
+    ! HOME: move to the cell's home position first (not known to rfsw-plan),
+    ! e.g. MoveAbsJ jHome,v100,fine,tFSW;
     ! ---- phase: approach
-    MoveJ p1,v100,fine,tFSW\WObj:=wSeam;
-    MoveL p2,vS1,fine,tFSW\WObj:=wSeam;
-    MoveL p3,vS1,fine,tFSW\WObj:=wSeam;
-    MoveL p4,vS1,fine,tFSW\WObj:=wSeam;
-    MoveL p5,vS1,fine,tFSW\WObj:=wSeam;
-    MoveL p6,vS1,fine,tFSW\WObj:=wSeam;
-    ! ---- phase: plunge
-    ! SPINDLE START placeholder: e.g. SetDO doSpindle, 1;
+    MoveAbsJ jStart,v100,fine,tFSW\WObj:=wPlate;
+    MoveL p2,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
+    MoveL p3,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
+    MoveL p4,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
+    MoveL p5,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
+    MoveL p6,v100\V:=91.5588,fine,tFSW\WObj:=wPlate;
+    ! SPINDLE START: spindle on and wait at speed, e.g. SetDO doSpindle, 1;
     ! WaitDI diSpindleAtSpeed, 1;
+    ! FORCE CONTROL ON here if used (e.g. FCAct)
+    ! ---- phase: plunge
     WaitTime\InPos,0.600;
     ! ---- phase: dwell
     WaitTime\InPos,0.600;
     ! ---- phase: accelerate
-    MoveL p9,vS2,fine,tFSW\WObj:=wSeam;
-    MoveL p10,vS3,zB1,tFSW\WObj:=wSeam;
-    MoveL p11,vS4,zB2,tFSW\WObj:=wSeam;
+    MoveL p9,v100\V:=6.0981,fine,tFSW\WObj:=wPlate;
+    MoveL p10,v100\V:=6.1071,zB1,tFSW\WObj:=wPlate;
+    MoveL p11,v100\V:=6.1261,zB1,tFSW\WObj:=wPlate;
     ! ---- phase: weld
-    MoveL p12,vS5,zB3,tFSW\WObj:=wSeam;
-    MoveL p13,vS6,zB4,tFSW\WObj:=wSeam;
-    MoveL p14,vS7,zB5,tFSW\WObj:=wSeam;
-    MoveL p15,vS8,zB6,tFSW\WObj:=wSeam;
-    MoveL p16,vS9,zB7,tFSW\WObj:=wSeam;
-    MoveL p17,vS10,zB8,tFSW\WObj:=wSeam;
-    MoveL p18,vS11,zB9,tFSW\WObj:=wSeam;
-    MoveL p19,vS12,zB10,tFSW\WObj:=wSeam;
-    MoveL p20,vS13,zB11,tFSW\WObj:=wSeam;
-    MoveL p21,vS14,zB12,tFSW\WObj:=wSeam;
-    MoveL p22,vS15,zB13,tFSW\WObj:=wSeam;
-    MoveL p23,vS16,zB14,tFSW\WObj:=wSeam;
-    MoveL p24,vS17,zB15,tFSW\WObj:=wSeam;
-    MoveL p25,vS18,zB16,tFSW\WObj:=wSeam;
-    MoveL p26,vS19,zB17,tFSW\WObj:=wSeam;
-    MoveL p27,vS20,zB18,tFSW\WObj:=wSeam;
-    MoveL p28,vS21,zB19,tFSW\WObj:=wSeam;
-    MoveL p29,vS22,zB19,tFSW\WObj:=wSeam;
+    MoveL p12,v100\V:=6.1550,zB1,tFSW\WObj:=wPlate;
+    MoveL p13,v100\V:=6.1937,zB1,tFSW\WObj:=wPlate;
+    MoveL p14,v100\V:=6.2419,zB1,tFSW\WObj:=wPlate;
+    MoveL p15,v100\V:=6.2996,zB2,tFSW\WObj:=wPlate;
+    MoveL p16,v100\V:=6.3663,zB2,tFSW\WObj:=wPlate;
+    MoveL p17,v100\V:=6.4419,zB2,tFSW\WObj:=wPlate;
+    MoveL p18,v100\V:=6.5260,zB2,tFSW\WObj:=wPlate;
+    MoveL p19,v100\V:=6.6183,zB2,tFSW\WObj:=wPlate;
+    MoveL p20,v100\V:=6.7185,zB2,tFSW\WObj:=wPlate;
+    MoveL p21,v100\V:=6.8261,zB2,tFSW\WObj:=wPlate;
+    MoveL p22,v100\V:=6.9410,zB2,tFSW\WObj:=wPlate;
+    MoveL p23,v100\V:=7.0627,zB2,tFSW\WObj:=wPlate;
+    MoveL p24,v100\V:=7.1908,zB2,tFSW\WObj:=wPlate;
+    MoveL p25,v100\V:=7.3251,zB2,tFSW\WObj:=wPlate;
+    MoveL p26,v100\V:=7.4651,zB2,tFSW\WObj:=wPlate;
+    MoveL p27,v100\V:=7.6107,zB3,tFSW\WObj:=wPlate;
+    MoveL p28,v100\V:=7.7614,zB3,tFSW\WObj:=wPlate;
+    MoveL p29,v100\V:=7.9170,zB3,tFSW\WObj:=wPlate;
+    MoveL p30,v100\V:=8.0772,zB3,tFSW\WObj:=wPlate;
+    MoveL p31,v100\V:=8.2417,zB3,tFSW\WObj:=wPlate;
     ! ---- phase: decelerate
-    MoveL p30,vS23,zB20,tFSW\WObj:=wSeam;
-    MoveL p31,vS24,fine,tFSW\WObj:=wSeam;
+    MoveL p32,v100\V:=8.4103,zB3,tFSW\WObj:=wPlate;
+    MoveL p33,v100\V:=8.5827,zB3,tFSW\WObj:=wPlate;
+    MoveL p34,v100\V:=8.7587,fine,tFSW\WObj:=wPlate;
+    ! FORCE CONTROL OFF here if used (e.g. FCDeact)
     ! ---- phase: retract
-    ! SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;
-    WaitTime\InPos,0.600;
+    MoveL p35,v100\V:=18.9728,fine,tFSW\WObj:=wPlate;
+    ! SPINDLE STOP: the pin has left the material, e.g. SetDO doSpindle, 0;
+    MoveL p36,v100\V:=18.9728,fine,tFSW\WObj:=wPlate;
+    ! HOME: back to the cell's home position here,
+    ! e.g. MoveAbsJ jHome,v100,fine,tFSW;
   ENDPROC
 ENDMODULE

@@ -1,0 +1,216 @@
+"""The contract of a controller format, and the registry every format joins by being defined.
+
+A format is one class in one module (``export/krl.py``, ``export/fanuc_tp.py``,
+``export/rapid.py``, ``export/stream.py``) derived from :class:`ControllerFormat`. It says:
+
+* how it **writes** a vendor-neutral :class:`~rfsw_plan.export.program.Program`
+  (:meth:`ControllerFormat.write`);
+* how it **reads** a file of its own language back (:meth:`ControllerFormat.read`), as the
+  points a controller would move to, so the round trip, ``rfsw-plan check`` and a programmer's
+  touched-up file all go through the same reader;
+* how it **encodes the posture** of a joint vector (:meth:`ControllerFormat.posture`: KUKA S/T,
+  FANUC CONFIG, ABB confdata), which the round trip uses to pick the inverse kinematics branch;
+* its **limits** (:class:`FormatLimits`): name length, lines per program before it is split.
+
+Defining a subclass with a ``name`` registers it in :data:`FORMATS` (``__init_subclass__``); the
+CLI's ``--format`` choices, ``export``'s dispatch and the tests' format matrix all read that
+registry, so a new format is one module and nothing else (``docs/dev/writing-a-format.md``).
+"""
+
+from __future__ import annotations
+
+import abc
+import importlib
+from collections.abc import Hashable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.robot.kinematics import Robot
+
+if TYPE_CHECKING:
+    from rfsw_plan.export.program import Program, Samples
+
+FloatArray = NDArray[np.float64]
+
+#: name -> format class, in registration order (the built-ins first, see :func:`formats`).
+FORMATS: dict[str, type[ControllerFormat]] = {}
+#: Modules of the built-in formats (imported by :func:`formats`).
+BUILTIN_MODULES = ("krl", "fanuc_tp", "rapid", "stream")
+
+
+@dataclass(frozen=True)
+class FormatLimits:
+    """What a controller accepts.
+
+    Attributes:
+        name_length: Longest program or module name [characters].
+        max_lines: Lines of one program file above which the motion part is split into
+            called sub-programs (the vendor's practical limit), or 0 for no limit.
+    """
+
+    name_length: int = 32
+    max_lines: int = 0
+
+
+@dataclass(frozen=True)
+class ReadPoint:
+    """One motion re-read from a program file.
+
+    Attributes:
+        name: The point's name in the program (``XP3``, ``P[3]``, ``p3``).
+        pose: TCP pose in the program's work object frame [m], (4, 4); for a joint target
+            None.
+        config: The posture the program states for a Cartesian point (the format's
+            :meth:`ControllerFormat.posture` value), or None.
+        q: Joint values of a joint target (controller axes) [rad], (n,), or None.
+        speed: Programmed TCP speed of a linear move [m/s] (0: not stated).
+        duration: Programmed duration of a move or wait [s] (0: not stated).
+        kind: ``joint``, ``lin`` or ``wait`` (a wait holds the previous point).
+    """
+
+    name: str
+    pose: FloatArray | None = None
+    config: Hashable | None = None
+    q: FloatArray | None = None
+    speed: float = 0.0
+    duration: float = 0.0
+    kind: str = "lin"
+
+
+@dataclass(frozen=True)
+class ReadProgram:
+    """A program file re-read by its format.
+
+    Attributes:
+        tool: TCP in the controller's flange frame [m], (4, 4).
+        work: Work object (base, user frame, wobjdata) in the controller's base frame [m],
+            (4, 4).
+        motions: Every motion and wait, in program order (sub-programs followed).
+        files: The files read.
+    """
+
+    tool: FloatArray
+    work: FloatArray
+    motions: list[ReadPoint]
+    files: tuple[Path, ...] = field(default=())
+
+    @property
+    def points(self) -> list[ReadPoint]:
+        """The moved-to points (no waits), in program order."""
+        return [m for m in self.motions if m.kind != "wait"]
+
+
+class ControllerFormat(abc.ABC):
+    """One controller language (see the module docstring).
+
+    Class attributes:
+        name: The ``--format`` value.
+        description: One line for ``--help`` and the docs.
+        suffix: Suffix of the main file (``.src``).
+        maker: The robot maker whose controllers run the language (``KUKA``, ``FANUC``,
+            ``ABB``), or ``""`` for a vendor-neutral file: a robot description of another
+            maker gets a warning line in the program header.
+        limits: The controller's limits.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    suffix: ClassVar[str] = ""
+    maker: ClassVar[str] = ""
+    limits: ClassVar[FormatLimits] = FormatLimits()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        # ABCMeta fills __abstractmethods__ only after this hook: look at the methods
+        abstract = [m for m in ("write", "read", "posture")
+                    if getattr(getattr(cls, m, None), "__isabstractmethod__", False)]
+        if cls.name and not abstract:
+            FORMATS[cls.name] = cls
+
+    @abc.abstractmethod
+    def write(self, program: Program, folder: Path) -> list[Path]:
+        """Write the program into ``folder`` (each file atomically); returns the files, the
+        main file (the one :meth:`read` takes) first."""
+
+    @abc.abstractmethod
+    def read(self, path: Path) -> ReadProgram:
+        """Re-read a file of this format (written by :meth:`write` or edited by a programmer).
+
+        Raises:
+            InputError: One line naming the file, line and what was expected.
+        """
+
+    @abc.abstractmethod
+    def posture(self, robot: Robot, q: FloatArray) -> Hashable:
+        """The posture a Cartesian point states for controller joint values q [rad], (n,)."""
+
+    def matches(self, robot: Robot, point: ReadPoint, q: FloatArray) -> bool:
+        """Does ``q`` have the posture ``point`` states? (Joint values at a boundary, where a
+        sign or quadrant changes, match either side:
+        :func:`~rfsw_plan.export.config.configs_near`.)"""
+        from rfsw_plan.export.config import configs_near
+
+        return point.config in configs_near(self.posture, robot, q)
+
+    def expected(self, program: Program) -> Samples:
+        """The plan samples the re-read points must reproduce, in order (default: the
+        samples of the program's moved-to points)."""
+        return program.samples.subset(program.moved_points())
+
+    def file_name(self, program: Program) -> str:
+        """The main file's name."""
+        return program.header.name + self.suffix
+
+
+def formats() -> dict[str, type[ControllerFormat]]:
+    """The registry, with the built-in formats imported."""
+    for mod in BUILTIN_MODULES:
+        importlib.import_module(f"rfsw_plan.export.{mod}")
+    return FORMATS
+
+
+def format_names() -> tuple[str, ...]:
+    """The registered format names (``--format`` choices)."""
+    return tuple(formats())
+
+
+def get_format(name: str, option: str = "--format") -> ControllerFormat:
+    """An instance of the format called ``name``.
+
+    Raises:
+        InputError: Unknown name (lists the known ones).
+    """
+    reg = formats()
+    if name not in reg:
+        raise InputError(option, name, "unknown format", ", ".join(reg))
+    return reg[name]()
+
+
+def parse_formats(text: str, option: str = "--export") -> list[str]:
+    """Comma-separated format list -> names (one-line error naming the bad one)."""
+    names = [f.strip() for f in text.split(",") if f.strip()]
+    reg = formats()
+    bad = [f for f in names if f not in reg]
+    if bad or not names:
+        raise InputError(option, bad[0] if bad else "", "unknown format" if bad else "empty",
+                         ", ".join(reg))
+    return list(dict.fromkeys(names))
+
+
+def format_for_file(path: str | Path) -> ControllerFormat:
+    """The format whose main-file suffix ``path`` ends with (``.src``, ``.ls``, ``.mod``).
+
+    Raises:
+        InputError: No registered format writes that suffix.
+    """
+    name = Path(path).name.lower()
+    for cls in formats().values():
+        if cls.suffix and name.endswith(cls.suffix.lower()):
+            return cls()
+    known = ", ".join(f"{c.suffix} ({n})" for n, c in formats().items() if c.suffix)
+    raise InputError(path, "", f"unknown program suffix '{Path(path).suffix}'", known)

@@ -1,0 +1,303 @@
+"""The one strict reader of a written plan folder: :func:`read_plan_folder` -> :class:`PlanFolder`.
+
+Every command that takes a plan folder (``export``, ``check``, later ``validate-weld``) reads it
+here, so a damaged folder is refused the same way everywhere, with one line naming the file,
+key or row and what was expected:
+
+1. ``plan.json`` is decoded as UTF-8 (a UTF-16 or binary file is refused, not guessed) and
+   parsed as strict JSON (``NaN``, ``Infinity`` and duplicate keys are refused); it must be an
+   object.
+2. Its ``status`` must be a verified plan (``optimal``, ``optimal_nominal``, ``verified``): an
+   ``infeasible`` plan is refused with exit 3 naming its reason, any other status (``failed``,
+   ``incomplete``, missing) with exit 2.
+3. Every file its ``sha256`` table vouches for must be there with those bytes, and
+   ``waypoints.csv`` must be among them.
+4. The samples of ``waypoints.csv`` that the caller will use are re-verified as numbers: every
+   cell of the columns read is a finite number, time never runs backwards, phases are the
+   planner's, and (with the robot) every joint value is inside the joint limits. A ``nan``
+   in a joint cell whose file hash was updated is therefore one line, never a traceback of a
+   later interpolation.
+
+The physical re-verification of the samples (the weld window under the plan's model) is
+:func:`rfsw_plan.planning.verify.verify_samples`; ``rfsw-plan check`` runs it on a program.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InfeasibleError, InputError
+from rfsw_plan.files import sha256_file
+
+FloatArray = NDArray[np.float64]
+
+#: Statuses of a verified plan (``plan.json`` ``status``).
+VERIFIED_STATUSES = ("optimal", "optimal_nominal", "verified")
+#: Phase names of ``waypoints.csv``, in order.
+PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
+#: Largest plan record read [bytes] (a plan of 100k samples writes about 20 MB).
+MAX_RECORD_BYTES = 200_000_000
+#: Joint values may sit this far outside the limits (the CSV's 1e-6 deg rounding) [rad].
+LIMIT_SLACK = 1e-7
+
+
+@dataclass(frozen=True)
+class PlanSamples:
+    """The verified timed samples of a plan (SI, base frame of the robot description).
+
+    Attributes:
+        t: Time [s], (N,).
+        phase: Phase per sample, (N,).
+        s: Pin arc length along the seam [m], (N,).
+        q: Controller joint values [rad], (N, n).
+        wrench: Process wrench on the tool at the TCP, base frame [N, N m], (N, 6).
+        seam: Seam point, base frame [m], (N, 3).
+    """
+
+    t: FloatArray
+    phase: NDArray[np.str_]
+    s: FloatArray
+    q: FloatArray
+    wrench: FloatArray
+    seam: FloatArray
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def subset(self, idx: NDArray[np.int_]) -> PlanSamples:
+        """The samples at indices ``idx``."""
+        return PlanSamples(self.t[idx], self.phase[idx], self.s[idx], self.q[idx],
+                           self.wrench[idx], self.seam[idx])
+
+
+@dataclass(frozen=True)
+class PlanFolder:
+    """A plan folder that passed :func:`read_plan_folder`.
+
+    Attributes:
+        folder: The folder.
+        record: ``plan.json`` (strict JSON object).
+        status: Its status (one of :data:`VERIFIED_STATUSES`).
+        samples: The re-verified samples of ``waypoints.csv``.
+        waypoints_sha256: Hex SHA-256 of ``waypoints.csv`` (the plan id's source).
+        robot_file: The robot description the plan names (``robot_file`` or ``robot``).
+        problem_file: The problem it names (``problem_file`` or ``problem``), or ``""``.
+    """
+
+    folder: Path
+    record: dict[str, Any]
+    status: str
+    samples: PlanSamples = field(repr=False)
+    waypoints_sha256: str
+    robot_file: str
+    problem_file: str
+
+    @property
+    def problem(self) -> str:
+        """The problem's name."""
+        return str(self.record.get("problem", "plan"))
+
+
+def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
+                     limits: tuple[FloatArray, FloatArray] | None = None) -> PlanFolder:
+    """Read and check a plan folder (see the module docstring).
+
+    Args:
+        folder: Output folder of ``rfsw-plan plan``.
+        joint_columns: The joint columns of ``waypoints.csv`` in joint order (the robot's
+            controller axes, ``A1_deg``...); default: every ``<letters><digit>_deg`` column.
+        limits: Joint limits (lower, upper) [rad], (n,) each: every sample must be inside.
+
+    Raises:
+        InputError: A damaged folder (exit 2): one line naming the file and what is wrong.
+        InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise InputError(folder, "", "not a folder", "a plan folder written by rfsw-plan plan")
+    path = folder / "plan.json"
+    record = read_plan_record(path)
+    status = _check_status(path, record)
+    digests = record.get("sha256")
+    if not isinstance(digests, dict) or "waypoints.csv" not in digests:
+        raise InputError(path, "sha256", "does not vouch for waypoints.csv",
+                         "the sha256 table rfsw-plan plan writes")
+    for name, digest in digests.items():
+        _check_vouched(folder, str(name), digest)
+    samples = read_plan_samples(folder / "waypoints.csv", joint_columns, limits)
+    robot = record.get("robot_file") or record.get("robot") or ""
+    problem = record.get("problem_file") or record.get("problem") or ""
+    return PlanFolder(folder, record, status, samples, str(digests["waypoints.csv"]),
+                      str(robot), str(problem))
+
+
+def read_plan_record(path: str | Path) -> dict[str, Any]:
+    """``plan.json`` as a strict-JSON object (UTF-8 only; NaN, Infinity, duplicate keys refused).
+
+    Raises:
+        InputError: Missing, not UTF-8, not strict JSON, or not an object.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(p, "", "missing", "a plan.json written by rfsw-plan plan")
+    data = p.read_bytes()
+    if len(data) > MAX_RECORD_BYTES:
+        raise InputError(p, "", f"{len(data)} bytes", f"at most {MAX_RECORD_BYTES} bytes")
+    if not data.strip():
+        raise InputError(p, "", "empty file", "a plan.json written by rfsw-plan plan")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(p, f"byte {exc.start}", "not UTF-8 text",
+                         "plan.json as rfsw-plan writes it (UTF-8 JSON)") from None
+    try:
+        rec = json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates)
+    except (ValueError, RecursionError) as exc:
+        where = (f"line {exc.lineno} column {exc.colno}"
+                 if isinstance(exc, json.JSONDecodeError) else "")
+        msg = exc.msg if isinstance(exc, json.JSONDecodeError) else str(exc)
+        raise InputError(p, where, f"not strict JSON ({msg})",
+                         "plan.json as rfsw-plan writes it") from None
+    if not isinstance(rec, dict):
+        raise InputError(p, "", f"a JSON {type(rec).__name__}, not an object",
+                         "plan.json as rfsw-plan writes it")
+    return rec
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a JSON number")
+
+
+def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"duplicate key '{k}'")
+        out[k] = v
+    return out
+
+
+def _check_status(path: Path, record: dict[str, Any]) -> str:
+    status = record.get("status")
+    if status in VERIFIED_STATUSES:
+        return str(status)
+    reason = str(record.get("message") or record.get("warning") or "no reason given")
+    reason = " ".join(reason.split())[:300]
+    if status == "infeasible":
+        raise InfeasibleError(f"{path}: status 'infeasible': {reason} (expected a verified "
+                              f"plan: {', '.join(VERIFIED_STATUSES)})", None, "status", None)
+    shown = "missing" if status is None else f"'{status}'"
+    raise InputError(path, "status", f"{shown}: {reason}",
+                     f"a verified plan ({', '.join(VERIFIED_STATUSES)})")
+
+
+def _check_vouched(folder: Path, name: str, digest: Any) -> None:
+    f = folder / name
+    if Path(name).name != name or not isinstance(digest, str) or len(digest) != 64:
+        raise InputError(folder / "plan.json", f"sha256.{name}", "malformed entry",
+                         "a file name in the folder and 64 hex digits")
+    if not f.is_file():
+        raise InputError(f, "", "missing beside plan.json", "the file plan.json vouches for")
+    if sha256_file(f) != digest:
+        raise InputError(f, "", "changed since plan.json was written",
+                         "the bytes plan.json vouches for (sha256)")
+
+
+# --------------------------------------------------------------------------------------------
+# waypoints.csv
+
+
+def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
+                      limits: tuple[FloatArray, FloatArray] | None = None) -> PlanSamples:
+    """The samples of a ``waypoints.csv``, re-verified as numbers (see the module docstring).
+
+    Raises:
+        InputError: One line naming the file, row and column.
+    """
+    p = Path(path)
+    try:
+        text = p.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(p, f"byte {exc.start}", "not UTF-8 text", "waypoints.csv") from None
+    rows = list(csv.reader(io.StringIO(text, newline="")))
+    if len(rows) < 3:
+        raise InputError(p, "", f"{max(len(rows) - 1, 0)} samples",
+                         "a waypoints.csv written by rfsw-plan plan")
+    header, body = rows[0], rows[1:]
+    col = {h: i for i, h in enumerate(header)}
+    joints = joint_columns or _joint_columns(header)
+    need = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", *joints,
+            "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
+    missing = [c for c in need if c not in col]
+    if missing or not joints:
+        raise InputError(p, "header", f"missing column {missing[0] if missing else 'q1_deg'}",
+                         "the columns of waypoints.csv" + (f" ({', '.join(joints)})"
+                                                           if joints else ""))
+    for k, r in enumerate(body):
+        if len(r) != len(header):
+            raise InputError(p, f"row {k + 2}", f"{len(r)} cells", f"{len(header)} cells")
+
+    def num(names: list[str]) -> FloatArray:
+        idx = [col[c] for c in names]
+        try:
+            out = np.array([[r[i] for i in idx] for r in body], dtype=float)
+        except ValueError:
+            out = np.array([[_cell(r[i]) for i in idx] for r in body])
+        bad = ~np.isfinite(out) | (np.abs(out) > 1e12)
+        if np.any(bad):
+            k, j = (int(x[0]) for x in np.nonzero(bad))
+            raise InputError(p, f"row {k + 2}, column {names[j]}",
+                             f"'{body[k][idx[j]][:40]}' is not a finite number", "a number")
+        return out
+
+    phase = np.array([r[col["phase"]] for r in body])
+    bad = [k for k, ph in enumerate(phase) if ph not in PHASES]
+    if bad:
+        raise InputError(p, f"row {bad[0] + 2}, column phase", f"'{phase[bad[0]][:40]}'",
+                         ", ".join(PHASES))
+    t = num(["t_s"])[:, 0]
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        raise InputError(p, f"row {back[0] + 3}, column t_s", "time runs backwards",
+                         "non-decreasing times")
+    q = np.radians(num(joints))
+    if limits is not None:
+        _check_limits(p, q, joints, limits)
+    return PlanSamples(t, phase, num(["s_mm"])[:, 0] * 1e-3, q,
+                       num(["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]),
+                       num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3)
+
+
+def _cell(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
+def _joint_columns(header: list[str]) -> list[str]:
+    import re
+
+    found = [(re.fullmatch(r"[A-Za-z]+(\d+)_deg", h), h) for h in header]
+    return [h for m, h in sorted(((m, h) for m, h in found if m),
+                                 key=lambda x: int(x[0].group(1)))]
+
+
+def _check_limits(p: Path, q: FloatArray, joints: list[str],
+                  limits: tuple[FloatArray, FloatArray]) -> None:
+    lo, hi = (np.asarray(x, dtype=float) for x in limits)
+    out = (q < lo - LIMIT_SLACK) | (q > hi + LIMIT_SLACK)
+    if np.any(out):
+        k, j = (int(x[0]) for x in np.nonzero(out))
+        raise InputError(p, f"row {k + 2}, column {joints[j]}",
+                         f"{math.degrees(q[k, j]):.4f} deg outside the joint limits",
+                         f"{math.degrees(lo[j]):g} .. {math.degrees(hi[j]):g} deg")

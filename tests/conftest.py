@@ -1,0 +1,34 @@
+"""Shared fixtures: the bundled problems planned once per session with every export format
+(``tests/test_export.py`` and ``tests/test_program_checkers.py`` use the same plans)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+#: (problem, robot) of the three bundled plans whose programs are checked.
+PROGRAM_CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "fanuc_s900ib_400"),
+                 ("kr600_curved_seam", "kuka_kr600_r2830")]
+
+_PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
+
+
+@pytest.fixture(scope="session")
+def plan_with_programs(tmp_path_factory: pytest.TempPathFactory):
+    """``plan_with_programs(problem)`` -> (folder, plan.json) of ``rfsw-plan plan PROBLEM
+    --export krl,fanuc_tp,rapid,stream``, planned once per session."""
+    from rfsw_plan.cli.main import main
+
+    def get(problem: str) -> tuple[Path, dict[str, Any]]:
+        if problem not in _PLANS:
+            out = tmp_path_factory.mktemp(problem)
+            code = main(["-q", "plan", problem, "-o", str(out), "--export",
+                         "krl,fanuc_tp,rapid,stream"])
+            assert code == 0
+            _PLANS[problem] = (out, json.loads((out / "plan.json").read_text()))
+        return _PLANS[problem]
+
+    return get
