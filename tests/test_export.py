@@ -30,6 +30,7 @@ from conftest import PROGRAM_CASES
 
 from rfsw_plan import __version__
 from rfsw_plan.cli.main import main
+from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.export.format import ReadProgram, format_names, get_format
 from rfsw_plan.export.program import build_program, path_deviation
 from rfsw_plan.export.readback import ANG_TOL, POS_TOL, round_trip
@@ -178,7 +179,7 @@ def test_spindle_stop_follows_the_move_that_leaves_the_material(planned, fmt: st
 
 def test_payload_matches_the_robot_file(planned) -> None:
     out, robot, _ = planned
-    pl = robot.description.tool_payload()
+    pl = ElastostaticModel(robot).tool_payload()
     assert pl is not None
     if robot.name.startswith("zk500"):
         assert pl.mass == 150.0
@@ -363,7 +364,7 @@ def golden_diff(got: str, want: str) -> str:
 
 def _golden_program():
     robot, samples, header = synthetic()
-    return build_program(robot, samples, header, payload=robot.description.tool_payload())
+    return build_program(robot, samples, header, payload=ElastostaticModel(robot).tool_payload())
 
 
 @pytest.mark.parametrize("name", ["rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls",
@@ -451,7 +452,7 @@ def test_user_hooks_replace_the_default_comments(tmp_path: Path) -> None:
     hooks.write_text('[spindle_start]\nkrl = ["$OUT[1] = TRUE", "WAIT FOR $IN[1]"]\n'
                      'rapid = ["SetDO doSpindle, 1;"]\n[spindle_stop]\nkrl = ["$OUT[1] = FALSE"]\n')
     robot, samples, header = synthetic()
-    program = build_program(robot, samples, header, payload=robot.description.tool_payload(),
+    program = build_program(robot, samples, header, payload=ElastostaticModel(robot).tool_payload(),
                             options=ProgramOptions(3, 2, read_hooks(hooks)))
     src = get_format("krl").write(program, tmp_path)[0].read_text()
     assert "  $OUT[1] = TRUE\n  WAIT FOR $IN[1]\n" in src and "SPINDLE START" not in src

@@ -35,7 +35,7 @@ from rfsw_plan.elastostatics.springs import (
     spring_deflection,
 )
 from rfsw_plan.exceptions import InputError, UnknownNameError
-from rfsw_plan.robot.description import EffectSpec, RobotDescription, check_stiffness
+from rfsw_plan.robot.description import EffectSpec, Payload, RobotDescription, check_stiffness
 from rfsw_plan.robot.kinematics import Robot
 
 #: How a seam's points relate to the robot: taught with this robot and tool, or absolute
@@ -95,6 +95,22 @@ class ElastostaticModel:
         dup = {x for x in labels if labels.count(x) > 1}
         if dup:
             raise InputError("model", ", ".join(sorted(dup)), "effect given more than once")
+
+    def tool_payload(self) -> Payload | None:
+        """The tool's load for a controller program: the mass and centre of mass an effect
+        identifies (:meth:`Effect.tool_load`, e.g. ``payload_gravity``; centre of mass moved
+        from the TCP frame to the flange frame, inertia from ``[payload]`` if given), else the
+        robot file's ``[payload]`` table, else None."""
+        desc = self.robot.description
+        for e in self.effects:
+            load = e.tool_load()
+            if load is not None:
+                m, r_tool = load
+                com = desc.tool[:3, :3] @ r_tool + desc.tool[:3, 3]
+                src = desc.sources.get(f"effects.{e.label}", f"the {e.label} effect")
+                inertia = None if desc.payload is None else desc.payload.inertia
+                return Payload(m, com, inertia, f"{e.label} effect ({src})")
+        return desc.payload
 
     # -- composition -------------------------------------------------------------------------
     @property

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan import __version__
+from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError
 from rfsw_plan.export.format import formats, get_format, parse_formats
 from rfsw_plan.export.program import (
@@ -173,7 +174,7 @@ def export_programs(
 
     with Stages("export", ("points", *fmts)) as stages:
         program = build_program(robot, samples, header, path_tol, normal=normal,
-                                payload=robot.description.tool_payload(), options=options,
+                                payload=ElastostaticModel(robot).tool_payload(), options=options,
                                 stream=stream, cycle=cycle)
         deviation = float(np.max(path_deviation(program)))
         if deviation > path_tol * (1 + 1e-9):

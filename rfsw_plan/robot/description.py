@@ -235,7 +235,8 @@ class RobotDescription:
             file), ``data`` and ``data_sha256`` (the measurement file), ``created`` (UTC date)
             and ``command``; empty for a hand-written file. The ``[provenance]`` table.
         payload: The ``[payload]`` table (:class:`Payload`), or None. Programs prefer the
-            ``payload_gravity`` effect's identified values (:meth:`tool_payload`).
+            ``payload_gravity`` effect's identified values
+            (:meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.tool_payload`).
     """
 
     name: str
@@ -259,21 +260,6 @@ class RobotDescription:
     provenance: dict[str, str] = field(default_factory=dict)
     plugins: tuple[PluginSpec, ...] = ()
     payload: Payload | None = None
-
-    def tool_payload(self) -> Payload | None:
-        """The tool's load for a controller program: the ``payload_gravity`` effect's mass and
-        centre of mass when the file has that effect (its centre of mass is in the tool frame,
-        converted to the flange frame; inertia from ``[payload]`` if given), else the
-        ``[payload]`` table, else None."""
-        spec = next((e for e in self.effects if e.name == "payload_gravity"), None)
-        if spec is None or not spec.params.get("m"):
-            return self.payload
-        m = float(spec.params["m"])
-        r_tool = np.array([spec.params.get(k, 0.0) for k in ("m_rx", "m_ry", "m_rz")]) / m
-        com = self.tool[:3, :3] @ r_tool + self.tool[:3, 3]
-        src = self.sources.get("effects.payload_gravity", "the payload_gravity effect")
-        return Payload(m, com, None if self.payload is None else self.payload.inertia,
-                       f"payload_gravity effect ({src})")
 
     @property
     def convention(self) -> ControllerConvention:

@@ -245,6 +245,12 @@ class Effect(abc.ABC):
         """SI unit of parameter ``name`` (empty if dimensionless or not declared)."""
         return self.param_units.get(name, self.param_units.get(name.rstrip("0123456789"), ""))
 
+    def tool_load(self) -> tuple[float, FloatArray] | None:
+        """The tool's mass [kg] and centre of mass in the TCP frame [m], shape (3,), where this
+        effect identifies them (the spindle's weight); None for every other effect. A
+        controller program's payload comes from here before the robot file's ``[payload]``."""
+        return None
+
     @property
     def label(self) -> str:
         """Effect name with its 1-based joint, e.g. ``tilting_compliance:j2``."""

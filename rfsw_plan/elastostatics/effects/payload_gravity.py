@@ -75,6 +75,11 @@ class PayloadGravity(WrenchEffect):
     def delta_wrench(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         return np.einsum("map,p->ma", self.wrench_regressor(batch, wrench, theta), theta)
 
+    def tool_load(self) -> tuple[float, FloatArray] | None:
+        """Mass m [kg] and centre of mass r_c = s / m in the TCP frame [m] (None if m = 0)."""
+        m = float(self.params[0])
+        return (m, self.centre_of_mass()) if m > 0 else None
+
     def centre_of_mass(self, theta: FloatArray | None = None) -> FloatArray:
         """Centre of mass r_c = s / m in the tool frame [m], shape (3,)."""
         th = self.params if theta is None else theta
