@@ -50,6 +50,7 @@ from rfsw_plan.planning.nlp import (
 )
 from rfsw_plan.planning.options import PlanOptions, check_well_posed
 from rfsw_plan.planning.result import BranchInfo, PlanResult
+from rfsw_plan.planning.robustness import nlp_options
 from rfsw_plan.planning.verify import (
     pin_track,
     predict,
@@ -302,8 +303,9 @@ def _plan_task(
     t_all = t_start if t_start is not None else time.perf_counter()
     check_well_posed(opts, window)
     robot = model.robot
+    nopts = nlp_options(opts)
     start, branch, infos, rotation, q_taught0 = choose_branch(
-        model, task, np.asarray(q_seed, float), opts, window)
+        model, task, np.asarray(q_seed, float), nopts, window)
     stages.start("baselines")
     warm = mirror_compensation(model, task, start.q, rotation)
     # Baselines 1 and 2 are what an engineer gets at the taught tool rotation on this branch;
@@ -319,7 +321,7 @@ def _plan_task(
     stages.start("NLP (first run compiles C)")
 
     t0 = time.perf_counter()
-    sol = _solver_call(solve_plan, model, task, window, warm, opts, compile_c)
+    sol = _solver_call(solve_plan, model, task, window, warm, nopts, compile_c)
     solve_time = time.perf_counter() - t0
     stages.start("verification")
 
