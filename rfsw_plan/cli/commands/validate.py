@@ -41,7 +41,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", required=True, help="bundled robot name or robot TOML file")
     parser.add_argument("--data", required=True, metavar="FILE.csv", help="measurement CSV")
     parser.add_argument("-o", "--output", metavar="DIR",
-                        help="report directory (default: validate_<data file stem>)")
+                        help="report directory (default: out/validate/<data file stem>)")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON object on stdout instead of the text summary")
     parser.add_argument("--noise-mm", type=float, metavar="S",
@@ -89,7 +89,7 @@ def _run(args: argparse.Namespace, stages: Stages) -> int:
     out = None
     if not args.no_report:
         out = prepare_output_dir(args.output if args.output
-                                 else Path(f"validate_{Path(args.data).stem}"))
+                                 else Path("out") / NAME / Path(args.data).stem)
     if args.save_robot:
         prepare_output_file(args.save_robot, "--save-robot")
     robot = load_robot(args.robot)
