@@ -46,8 +46,10 @@ class PlanResult:
     """Everything the planner produces for one problem.
 
     Attributes:
-        status: ``optimal`` (IPOPT converged, verified) or ``verified`` (IPOPT stopped early
-            but the numeric verification holds).
+        status: ``optimal`` (IPOPT converged, verified) or ``verified`` (IPOPT stopped early,
+            or the mirror baseline was written, and the numeric verification holds); with
+            ``_nominal`` when the requested force uncertainty is not held (see
+            :meth:`verdict`).
         problem_name: The problem.
         robot_name: The robot.
         euler: Maker Euler convention of the robot (``none``, ``kuka_abc``, ``fanuc_wpr``).
@@ -59,7 +61,9 @@ class PlanResult:
         tool_rotation: Tool rotation about its axis relative to tcp_orientation at rotation 0
             [rad], (K,).
         verification: The independent numeric verification.
-        baselines: Metrics of ``none``, ``mirror`` and ``nlp``, in that order.
+        baselines: Metrics of ``none``, ``mirror`` and ``nlp`` (the written plan, its samples
+            included), in that order: the one computation behind the table, the verdict,
+            ``plan.json`` and the plots.
         e_none: Predicted lateral error without compensation [m], (K,).
         e_mirror: Predicted lateral error of the mirror baseline [m], (K,).
         branch: Name of the chosen configuration branch.
@@ -76,6 +80,13 @@ class PlanResult:
         model: The elastostatic model the plan was made and verified with; the writers
             predict deflections and errors with it (never with a model rebuilt from the
             robot file, which may differ from a ``plan(model=...)``).
+        samples: The sample-by-sample verification of the written trajectory.
+        source: What was written: ``nlp``, or ``mirror`` when the NLP's plan tolerated less
+            force uncertainty than the mirror baseline (robust first).
+        forces_calibrated: The forces and their uncertainty come from a trial weld's force
+            log (``plan --forces``); the verdict then never advises it.
+        measured_force_uncertainty: That log's uncertainty as a relative box at the plan's
+            poses, or None.
     """
 
     status: str
