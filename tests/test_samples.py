@@ -38,7 +38,7 @@ def test_every_written_in_material_sample_is_inside_the_window(planned, name) ->
     d = planned[name]
     rec = check_plan_folder(d)  # the commit record vouches for the files beside it
     assert set(rec["sha256"]) == {"waypoints.csv", "lateral_error.png",
-                                  "lateral_error_time.png"}
+                                  "lateral_error_time.png", "tradeoff.png"}
     problem = load_problem(name)
     res = plan(problem)
     written = read_waypoints_csv(d / "waypoints.csv")

@@ -61,7 +61,7 @@ def test_go_when_the_request_is_held(tmp_path: Path, capsys) -> None:
     first = capsys.readouterr().out.splitlines()[0]
     rec = json.loads((out / "plan.json").read_text())
     assert rec["verdict"] == GO and rec["levers"] == []
-    assert re.fullmatch(r"GO: holds the weld window at every written sample up to \+-16\.7 % "
+    assert re.fullmatch(r"GO: holds the weld window at every written sample up to \+-16\.[5-7] % "
                         r"force uncertainty; the requested \+-10 % is held", first), first
 
 

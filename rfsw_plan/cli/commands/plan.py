@@ -193,8 +193,8 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
     if verdict.levers and not result.options.robust_hard:
         print("  to refuse such plans instead: --set robust_hard=true")
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
-          f"{result.iterations} IPOPT iterations, branch {result.branch}); robot "
-          f"{problem.robot.name} from {problem.robot.path}")
+          f"{result.iterations} IPOPT iterations, branch {result.branch})")
+    print(f"robot {problem.robot.name} from {problem.robot.path}")
     _print_table(result)
     ww = summary["worst_waypoint"]
     print(f"worst waypoint {ww['waypoint']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm, "
