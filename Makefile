@@ -3,7 +3,10 @@
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
+# .installed: the runtime (what `make demo` needs); .installed-dev: plus the dev extras (pytest,
+# ruff, mypy, hypothesis, radon...) for `make test`, `make lint` and `make bench`.
 STAMP := $(VENV)/.installed
+DEV_STAMP := $(VENV)/.installed-dev
 PROBLEM ?= problems/zk500_table6_seam.toml
 OUT ?= out/demo
 
@@ -13,17 +16,21 @@ $(STAMP): pyproject.toml
 	@echo "Setting up $(VENV) (first run only, about 3 minutes: numpy, scipy, casadi, pinocchio...)"
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --progress-bar on --upgrade pip
-	$(BIN)/pip install --progress-bar on -e '.[dev]'
+	$(BIN)/pip install --progress-bar on -e .
 	touch $(STAMP)
 	@echo "Installed. Run the tool as $(BIN)/rfsw-plan, or 'source $(BIN)/activate' first."
+
+$(DEV_STAMP): $(STAMP)
+	$(BIN)/pip install --progress-bar on -e '.[dev]'
+	touch $(DEV_STAMP)
 
 demo: $(STAMP)
 	$(BIN)/rfsw-plan plan $(PROBLEM) -o $(OUT)
 
-test: $(STAMP)
+test: $(DEV_STAMP)
 	$(BIN)/python -m pytest
 
-lint: $(STAMP)
+lint: $(DEV_STAMP)
 	$(BIN)/ruff check rfsw_plan tests examples benchmarks
 	$(BIN)/mypy
 
@@ -33,7 +40,7 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # Benchmarks print figures; they are never part of the tests.
-bench: $(STAMP)
+bench: $(DEV_STAMP)
 	$(BIN)/python benchmarks/benchmark_foundation.py
 	$(BIN)/python benchmarks/benchmark_planner.py
 	$(BIN)/python benchmarks/benchmark_validate.py

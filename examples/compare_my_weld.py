@@ -16,7 +16,6 @@ Strategies: ``none`` (no compensation), ``offline`` (rfsw-plan's plan, open loop
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
 import rfsw_plan
@@ -27,7 +26,8 @@ def main(problem_path: str | None) -> None:
     if problem_path is None:
         import plan_my_seam  # the example beside this one writes a small problem file
 
-        out = Path(tempfile.mkdtemp(prefix="compare_"))
+        out = Path("out") / "examples" / "compare_my_weld"  # under the gitignored out/
+        out.mkdir(parents=True, exist_ok=True)
         plan_my_seam.write_problem(out)
         problem_path = str(out / "my_weld.toml")
     problem = rfsw_plan.load_problem(problem_path)

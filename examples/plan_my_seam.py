@@ -4,6 +4,8 @@ Copy this script, replace the seam points and force values with yours, and run::
 
     PYTHONPATH=. .venv/bin/python examples/plan_my_seam.py [OUT_DIR]
 
+(default OUT_DIR: ``out/examples/plan_my_seam``, under the git-ignored ``out/``)
+
 It writes ``my_seam.csv`` and ``my_weld.toml`` (a problem file: robot, seam, process, window)
 into OUT_DIR, plans it with :func:`rfsw_plan.plan` and writes the plan folder
 ``OUT_DIR/plan`` exactly as ``rfsw-plan plan OUT_DIR/my_weld.toml -o OUT_DIR/plan`` would:
@@ -14,7 +16,6 @@ Units are in the names (mm, N, s); vectors are in the robot base frame.
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
 import rfsw_plan
@@ -85,4 +86,4 @@ def main(out: Path) -> rfsw_plan.PlanResult:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="my_seam_")))
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "plan_my_seam")

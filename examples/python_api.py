@@ -4,6 +4,8 @@
 
     PYTHONPATH=. .venv/bin/python examples/python_api.py [OUT_DIR]
 
+(default OUT_DIR: ``out/examples/python_api``, under the git-ignored ``out/``)
+
 Everything the CLI does is a function call; the CLI is a thin layer over these. Units: SI in
 the objects (m, rad, N, s), mm and degrees in the files.
 """
@@ -11,7 +13,6 @@ the objects (m, rad, N, s), mm and degrees in the files.
 from __future__ import annotations
 
 import sys
-import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -54,4 +55,4 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(tempfile.mkdtemp(prefix="api_")))
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "python_api")

@@ -13,7 +13,8 @@ For each truth difference (the real robot differs from the model the plan uses):
 
 Prints the share of the weld length inside the window for both welds (measured on the truth
 pin, every 4 ms cycle), and what validate-weld said. Run:
-``PYTHONPATH=. .venv/bin/python examples/trial_weld_loop.py [OUT_DIR]``.
+``PYTHONPATH=. .venv/bin/python examples/trial_weld_loop.py [OUT_DIR]`` (default OUT_DIR:
+``out/examples/trial_weld_loop``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,6 @@ import contextlib
 import io
 import json
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -155,13 +155,8 @@ def run_all(folder: Path) -> list[LoopResult]:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) > 1:
-        out = Path(sys.argv[1])
-        results = run_all(out)
-    else:
-        with tempfile.TemporaryDirectory() as tmp:
-            out = Path(tmp)
-            results = run_all(out)
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "trial_weld_loop"
+    results = run_all(out)
     print(f"problem {PROBLEM}, window [-1.25, +0.7] mm, track noise 0.05 mm, force drift "
           "+-10 %, sensor noise 30 N")
     for r in results:

@@ -4,6 +4,8 @@ Run with your file (the measurement CSV format: docs/formats/measurements.md)::
 
     PYTHONPATH=. .venv/bin/python examples/validate_my_data.py MY_DATA.csv [ROBOT] [OUT_DIR]
 
+(default OUT_DIR: ``out/examples/validate_my_data``, under the git-ignored ``out/``)
+
 Without a file it first simulates one: a small load campaign of the bundled ZK-500 with a
 hidden payload gravity effect (:func:`rfsw_plan.validation.campaign.run_campaign`), so you
 can see the whole loop. The same steps on the command line::
@@ -16,7 +18,6 @@ can see the whole loop. The same steps on the command line::
 from __future__ import annotations
 
 import sys
-import tempfile
 from pathlib import Path
 
 import rfsw_plan
@@ -58,4 +59,4 @@ def main(data_file: Path | None, robot: str, out: Path) -> Path:
 if __name__ == "__main__":
     args = sys.argv[1:]
     main(Path(args[0]) if args and args[0] else None, args[1] if len(args) > 1 else "zk500",
-         Path(args[2]) if len(args) > 2 else Path(tempfile.mkdtemp(prefix="validate_")))
+         Path(args[2]) if len(args) > 2 else Path("out") / "examples" / "validate_my_data")

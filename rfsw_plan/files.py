@@ -220,6 +220,22 @@ class OutputLock:
         self._fd: int | None = None
 
     def __enter__(self) -> OutputLock:
+        # The lock file is removed on exit, so a process that opened it just before may hold a
+        # lock on a file no longer in the folder: it checks that the path is still its file
+        # and otherwise tries again on the new one.
+        for _ in range(20):
+            fd = self._lock_once()
+            if _same_file(fd, self.folder / LOCK_NAME):
+                os.ftruncate(fd, 0)
+                os.write(fd, f"{os.getpid()}\n".encode())
+                self._fd = fd
+                return self
+            os.close(fd)
+        raise OutputPathError(self.option, self.folder,
+                              "cannot be locked (its lock file keeps changing)")
+
+    def _lock_once(self) -> int:
+        """Open and flock the folder's lock file (non-blocking); returns the descriptor."""
         import fcntl
 
         path = self.folder / LOCK_NAME
@@ -239,12 +255,23 @@ class OutputLock:
                     "another folder") from None
             raise OutputPathError(self.option, self.folder,
                                   f"cannot be locked ({exc.strerror or exc})") from None
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
-        self._fd = fd
-        return self
+        return fd
 
     def __exit__(self, *exc: object) -> None:
         if self._fd is not None:
-            os.close(self._fd)  # closing releases the flock; the file itself stays (harmless)
+            # Removed while still locked (nothing is left in the output folder), then closing
+            # releases the lock.
+            with contextlib.suppress(OSError):
+                (self.folder / LOCK_NAME).unlink()
+            os.close(self._fd)
             self._fd = None
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """The open descriptor is the file at ``path`` (not one removed meanwhile)."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return False
+    own = os.fstat(fd)
+    return (st.st_dev, st.st_ino) == (own.st_dev, own.st_ino)

@@ -37,7 +37,8 @@ def _setup(name: str, n_weld: int | None):
     task = task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
                               opts.max_start_waypoints, problem.seam_reference)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
-    start, _, _, rotation, _ = choose_branch(model, task, q_seed, opts, problem.window)
+    choice = choose_branch(model, task, q_seed, opts, problem.window)
+    start, rotation = choice.taught, choice.rotation
     warm = mirror_compensation(model, task, start.q, rotation)
     return problem, opts, model, task, warm
 

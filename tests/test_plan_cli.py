@@ -122,7 +122,7 @@ def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch
     assert {"waypoints.csv", "lateral_error_time.png"} <= set(rec["sha256"])
     assert any(name.endswith(".src") for name in rec["sha256"])  # the KRL program
     assert "lateral_error.png" not in rec["sha256"] and not (out / "lateral_error.png").exists()
-    assert rec["plots"] == {"written": ["lateral_error_time.png"],
+    assert rec["plots"] == {"written": ["lateral_error_time.png", "tradeoff.png"],
                             "failed": [warn[0].split("warning: ")[1].split("; the data")[0]]}
     assert len(wp.read_waypoints_csv(out / "waypoints.csv").t) > 100
 

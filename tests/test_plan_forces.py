@@ -75,6 +75,10 @@ def test_plan_with_forces_stores_uncertainty_next_to_the_plan(tmp_path: Path,
     assert data["force_uncertainty"] == pytest.approx(chk["planned_relative_uncertainty"])
     assert chk["planned_relative_uncertainty"] >= chk["equivalent_relative_uncertainty"] * 0.999
     assert data["problem_file"].endswith("zk500_table6_seam.toml")
+    # The verdict comes first and never advises the calibration that was just used.
+    assert text.splitlines()[0].split(":")[0] in ("GO", "HOLDS NOMINALLY")
+    assert "plan --forces LOG.csv" not in text
+    assert all(lv["done"] for lv in data["levers"] if lv["lever"] == "force_model")
 
 
 def _rewrite(src: Path, dst: Path, fn: object) -> Path:

@@ -1,5 +1,6 @@
 """Property test: random seams for all three bundled robots; what is written re-verifies
-sample by sample, and what cannot hold is refused with exit 3 (issue 9 §5).
+sample by sample, and what cannot hold is refused with exit 3 (issue 9 §5); every written plan
+tolerates at least its mirror baseline's force uncertainty at +-20 % and +-10 % (issue 24).
 
 Seams: straight lines and arcs (spline through points on a circle) through the bundled seam's
 midpoint, 30-800 mm long, turned up to +-30 deg in the surface plane, tilt 0-5 deg, both
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +26,7 @@ from hypothesis import strategies as st
 import rfsw_plan.planning.api as api
 from rfsw_plan.cli.main import main
 from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, read_waypoints_csv
+from rfsw_plan.planning.robustness import DOMINANCE_TOL
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.process.problem import resolve_problem_path
 
@@ -127,6 +130,19 @@ def _check_one(tmp: Path, tally: Tally, monkeypatch: pytest.MonkeyPatch, capsys:
     held = rec["tolerated_force_uncertainty"] is None or (
         rec["tolerated_force_uncertainty"] >= rec["force_uncertainty_requested"] * (1 - 1e-9))
     assert rec["status"].endswith("_nominal") != held
+    assert rec["verdict"] == ("GO" if held else "HOLDS NOMINALLY")
+    # Issue 24: the plan is never beaten by its mirror baseline, at the problem's request (the
+    # CLI run above: +-20 %, +-10 % on kr600_curved_seam) and at the other of +-10 % and
+    # +-20 % (planned again through the API, no files); asking for less is never less robust.
+    by = rec["tolerated_force_uncertainty_by_strategy"]
+    assert by["nlp"] >= by["mirror"] - DOMINANCE_TOL, (case, by)
+    u = rec["force_uncertainty_requested"]
+    assert u in (0.1, 0.2)
+    other = real_plan(path, replace(res.options, force_uncertainty=0.3 - u))
+    t2 = other.tolerated_by_strategy
+    assert t2["nlp"] >= t2["mirror"] - DOMINANCE_TOL, (case, t2)
+    low, high = (t2["nlp"], by["nlp"]) if u > 0.15 else (by["nlp"], t2["nlp"])
+    assert low >= high - 1e-6
 
 
 CASES = st.tuples(

@@ -2,8 +2,10 @@
 
 ``map.png``: over the table plane (x, y of the seam anchor, robot base frame), the best value
 over yaw and height of each index among the feasible placements, with the given placement
-(star) and any candidates (numbered circles) marked, units on every colour bar and the legend
-below the panels, outside the data. ``map_yaw.png``: the tolerated force uncertainty of the
+(star) and any candidates (numbered circles; candidates at one position share a circle) marked,
+units on every colour bar (scaled so outliers do not flatten the informative range; arrows mark
+values beyond it), the requested force uncertainty as a dashed contour, and the legend below
+the panels, outside the data. ``map_yaw.png``: the tolerated force uncertainty of the
 mirror offsets per yaw.
 """
 
@@ -79,15 +81,62 @@ def _extent(m: PlacementMap) -> list[float]:
     return [x0, x1, y0, y1]
 
 
+def colour_limits(Z: FloatArray, key: str, requested: float | None = None
+                  ) -> tuple[float | None, float | None, str]:
+    """Colour-scale limits (vmin, vmax) and the colour bar's ``extend`` of a panel, so a few
+    outliers do not turn the informative range into one shade.
+
+    Tolerated uncertainty [%]: 0 .. max(2 x requested, 90th percentile), never above the
+    largest value (on kr600 maps a few placements reach 100-140 % while the rest lie at
+    10-30 %). Other panels: their 2nd to 98th percentile. Values beyond are drawn in the end
+    colour and the colour bar gets an arrow.
+    """
+    v = Z[np.isfinite(Z)]
+    if not v.size:
+        return None, None, "neither"
+    lo, hi = float(np.min(v)), float(np.max(v))
+    if key.startswith("tolerated"):
+        top = 90.0 if requested is None else max(2 * requested * 100.0,
+                                                 float(np.percentile(v, 90)))
+        vmin, vmax = 0.0, min(hi, top)
+    elif key == "feasible_share":
+        vmin, vmax = 0.0, 100.0
+    else:
+        vmin, vmax = float(np.percentile(v, 2)), float(np.percentile(v, 98))
+    if vmax <= vmin:
+        vmin, vmax = lo, max(hi, lo + 1e-12)
+    ext = {(False, False): "neither", (True, False): "min", (False, True): "max",
+           (True, True): "both"}[(lo < vmin - 1e-12, hi > vmax + 1e-12)]
+    return vmin, vmax, ext
+
+
+def grouped_marks(candidates: Sequence[tuple[str, float, float]], tol: float = 1e-6
+                  ) -> list[tuple[str, float, float]]:
+    """Candidates at the same table position (they differ in yaw or height) as one mark with
+    their labels joined (``1,3``), so no number hides another; first-seen order."""
+    out: list[tuple[list[str], float, float]] = []
+    for lab, x, y in candidates:
+        same = next((o for o in out if abs(o[1] - x) < tol and abs(o[2] - y) < tol), None)
+        if same is None:
+            out.append(([lab], x, y))
+        else:
+            same[0].append(lab)
+    return [(",".join(labs), x, y) for labs, x, y in out]
+
+
 def plot_map(path: str | Path, m: PlacementMap,
-             candidates: Sequence[tuple[str, float, float]] = (), title: str = "") -> Path:
+             candidates: Sequence[tuple[str, float, float]] = (), title: str = "",
+             requested: float | None = None) -> Path:
     """Write the table-plane heat maps of a map.
 
     Args:
         path: PNG file.
         m: The map.
-        candidates: (label, x [m], y [m]) of placements to mark (e.g. the place candidates).
+        candidates: (label, x [m], y [m]) of placements to mark (e.g. the place candidates);
+            candidates at one position share a mark (:func:`grouped_marks`).
         title: Figure title (default: the problem name and grid).
+        requested: The requested force uncertainty (relative): drawn as a contour on the
+            tolerated-uncertainty panels and a line on their colour bars.
     """
     import matplotlib
 
@@ -97,33 +146,14 @@ def plot_map(path: str | Path, m: PlacementMap,
     fig, axes = plt.subplots(2, 4, figsize=(22, 10.5), constrained_layout=True)
     ext = _extent(m)
     handles: list[Any] = []
+    marks = grouped_marks(candidates)
     for ax, (key, ttl, unit, scale, best, cmap) in zip(axes.ravel(), _PANELS, strict=True):
         Z = _reduce(m, key, best) * scale
-        cm = plt.get_cmap(cmap).with_extremes(bad="#d9d9d9")
-        im = ax.imshow(np.ma.masked_invalid(Z.T), origin="lower", extent=ext, cmap=cm,
-                       aspect="equal", interpolation="nearest")
-        cb = fig.colorbar(im, ax=ax, shrink=0.85)
-        cb.set_label(unit)
-        ax.set_title(ttl, fontsize=10)
-        ax.set_xlabel("anchor x [mm] (robot base frame)")
-        ax.set_ylabel("anchor y [mm]")
-        gv = m.given
-        h1 = ax.plot(gv["x_mm"], gv["y_mm"], marker="*", ms=16, mfc="red", mec="white", ls="none",
-                     label="given placement")[0]
-        hs = [h1]
-        for i, (lab, x, y) in enumerate(candidates):
-            h = ax.plot(x * 1e3, y * 1e3, marker="o", ms=12, mfc="none", mec="black", mew=2,
-                        ls="none", label="candidates (rank)" if i == 0 else None)[0]
-            ax.annotate(lab, (x * 1e3, y * 1e3), xytext=(6, 6), textcoords="offset points",
-                        color="black", fontsize=9, fontweight="bold",
-                        bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
-                              "alpha": 0.8})
-            if i == 0:
-                hs.append(h)
+        hs = _panel(fig, ax, m, Z, key, (ttl, unit, cmap), ext, requested, marks)
         if not handles:
             handles = hs
     grey = matplotlib.patches.Patch(color="#d9d9d9", label="no feasible placement")
-    fig.legend(handles=[*handles, grey], loc="outside lower center", ncol=4, frameon=False)
+    fig.legend(handles=[*handles, grey], loc="outside lower center", ncol=5, frameon=False)
     g = m.grid
     fig.suptitle(title or (
         f"{m.name}: {m.grid.size} placements ({len(g.x)} x {len(g.y)} positions, {len(g.yaw)} "
@@ -133,6 +163,58 @@ def plot_map(path: str | Path, m: PlacementMap,
         fig.savefig(tmp, dpi=100, format="png")
     plt.close(fig)
     return Path(path)
+
+
+def _panel(fig: Any, ax: Any, m: PlacementMap, Z: FloatArray, key: str,
+           text: tuple[str, str, str], ext: list[float], requested: float | None,
+           marks: list[tuple[str, float, float]]) -> list[Any]:
+    """One heat map with its colour bar, the requested contour, the given placement and the
+    candidates; returns the legend handles."""
+    import matplotlib.pyplot as plt
+
+    ttl, unit, cmap = text
+    vmin, vmax, extend = colour_limits(Z, key, requested)
+    cm = plt.get_cmap(cmap).with_extremes(bad="#d9d9d9")
+    im = ax.imshow(np.ma.masked_invalid(Z.T), origin="lower", extent=ext, cmap=cm,
+                   vmin=vmin, vmax=vmax, aspect="equal", interpolation="nearest")
+    cb = fig.colorbar(im, ax=ax, shrink=0.85, extend=extend)
+    cb.set_label(unit)
+    hs: list[Any] = []
+    if requested is not None and key.startswith("tolerated"):
+        level = 100.0 * requested
+        cb.ax.axhline(level, color="white", lw=2)
+        cb.ax.axhline(level, color="red", lw=1, ls="--")
+        finite = Z[np.isfinite(Z)]
+        if finite.size and finite.min() < level < finite.max() and min(Z.shape) > 1:
+            xs = np.linspace(ext[0], ext[1], Z.shape[0] + 1)
+            ys = np.linspace(ext[2], ext[3], Z.shape[1] + 1)
+            ax.contour(0.5 * (xs[1:] + xs[:-1]), 0.5 * (ys[1:] + ys[:-1]),
+                       np.ma.masked_invalid(Z.T), levels=[level], colors="red",
+                       linestyles="--", linewidths=1.5)
+        hs.append(matplotlib_line("red", "--", f"requested +-{level:g} % (contour, colour bar)"))
+    ax.set_title(ttl, fontsize=10)
+    ax.set_xlabel("anchor x [mm] (robot base frame)")
+    ax.set_ylabel("anchor y [mm]")
+    gv = m.given
+    hs.insert(0, ax.plot(gv["x_mm"], gv["y_mm"], marker="*", ms=16, mfc="red", mec="white",
+                         ls="none", label="given placement")[0])
+    for i, (lab, x, y) in enumerate(marks):
+        h = ax.plot(x * 1e3, y * 1e3, marker="o", ms=12, mfc="none", mec="black", mew=2,
+                    ls="none", label="candidates (rank; same position: joined)")[0]
+        ax.annotate(lab, (x * 1e3, y * 1e3), xytext=(7, 7), textcoords="offset points",
+                    color="black", fontsize=9, fontweight="bold",
+                    bbox={"boxstyle": "round,pad=0.1", "fc": "white", "ec": "none",
+                          "alpha": 0.8})
+        if i == 0:
+            hs.append(h)
+    return hs
+
+
+def matplotlib_line(colour: str, style: str, label: str) -> Any:
+    """A legend handle for a line that is not plotted as such (a contour)."""
+    from matplotlib.lines import Line2D
+
+    return Line2D([], [], color=colour, ls=style, label=label)
 
 
 def plot_yaw(path: str | Path, m: PlacementMap) -> Path:

@@ -160,9 +160,10 @@ def write_plan_json(path: str | Path, summary: dict[str, Any],
 
 
 #: The files a plan folder holds (``plan.json``, the commit record, is written last).
-PLAN_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png")
+PLAN_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png",
+                "tradeoff.png")
 #: The plots of a plan folder, drawn after ``plan.json`` has committed the data files.
-PLAN_PLOTS = ("lateral_error.png", "lateral_error_time.png")
+PLAN_PLOTS = ("lateral_error.png", "lateral_error_time.png", "tradeoff.png")
 
 
 def write_plan_data(folder: str | Path, result: PlanResult) -> list[Path]:
@@ -191,8 +192,10 @@ def write_plan_plots(folder: str | Path, result: PlanResult) -> tuple[list[Path]
     out = Path(folder)
     written: list[Path] = []
     failed: list[str] = []
-    for name, draw in zip(PLAN_PLOTS, (plot_lateral_error, plot_lateral_error_time),
-                          strict=True):
+    from rfsw_plan.planfiles.tradeoff_plot import plot_tradeoff
+
+    for name, draw in zip(PLAN_PLOTS, (plot_lateral_error, plot_lateral_error_time,
+                                       plot_tradeoff), strict=True):
         try:
             written.append(draw(out / name, result))
         except Exception as exc:  # any plot failure is a warning, never a lost data file
@@ -371,7 +374,9 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
         elif a0 is not None:
             a0.fill_between(t[:m], (e[:m] - r[:m]) * 1e3, (e[:m] + r[:m]) * 1e3,
                             color="tab:blue", alpha=0.15, lw=0)
-    for ek, lab, c in ((result.e_none, "no compensation", "tab:red"),
+    none_max = float(np.max(np.abs(result.e_none))) * 1e3
+    for ek, lab, c in ((result.e_none, f"no compensation (max |e| {none_max:.2f} mm, may run "
+                        "off the axis)", "tab:red"),
                        (result.e_mirror, "mirror fake targets", "tab:orange"),
                        (e, "planned (NLP), waypoints", "tab:blue")):
         a1.plot(s[m:], ek[m:] * 1e3, color=c, label=lab)
@@ -384,6 +389,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
                 label=f"written samples in the material ({int(contact.sum())}, waypoints.csv)")
         if a0 is not None:
             a0.plot(tr.t[start], sv.e_lat[start] * 1e3, ".", color="k", ms=1.5)
+    _clip_to_window(axes, result, u)
     if a0 is not None:
         a0.set_xlabel("time t [s] (clock of waypoints.csv)")
         a0.set_title("plunge and dwell (at s = 0)", fontsize=10)
@@ -401,6 +407,34 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
         fig.savefig(tmp, dpi=100)
     plt.close(fig)
     return p
+
+
+def _clip_to_window(axes: list[Any], result: PlanResult, u: float) -> None:
+    """Scale the error axis to the window and the plan's worst case (15 % padding), so an
+    uncompensated error of several mm does not squash the window; a curve beyond the axis is
+    marked with an arrow at the edge and its extreme value."""
+    w = result.window
+    e = result.e_lat
+    r = result.verification.prediction.worst
+    sv = result.samples
+    lo = min(w.lower, float(np.min(e - r)), float(np.min(result.e_mirror)))
+    hi = max(w.upper, float(np.max(e + r)), float(np.max(result.e_mirror)))
+    if sv is not None and sv.contact.any() and u > 0:
+        c = sv.contact
+        lo = min(lo, float(np.min(sv.e_lat[c] - u * sv.worst_per_unit[c])))
+        hi = max(hi, float(np.max(sv.e_lat[c] + u * sv.worst_per_unit[c])))
+    pad = 0.15 * (hi - lo)
+    ylo, yhi = (lo - pad) * 1e3, (hi + pad) * 1e3
+    for ax in axes:
+        ax.set_ylim(ylo, yhi)
+    en = result.e_none * 1e3
+    for side, ext, off, va in (("above", float(np.max(en)), float(np.max(en)) > yhi, "top"),
+                               ("below", float(np.min(en)), float(np.min(en)) < ylo, "bottom")):
+        if off:
+            axes[-1].annotate(f"no compensation {side} the axis (up to {ext:+.2f} mm)",
+                              xy=(0.01, 0.97 if va == "top" else 0.03),
+                              xycoords="axes fraction", ha="left", va=va, fontsize=9,
+                              color="tab:red")
 
 
 def _lateral_title(result: PlanResult) -> str:
@@ -421,7 +455,7 @@ def _lateral_title(result: PlanResult) -> str:
     elif np.isfinite(tol):
         line2 += (f"; holds up to +-{100 * tol:.3g} % force uncertainty (requested "
                   f"+-{u * 100:g} %{'' if result.robust_held else ': NOT held'})")
-    return f"{result.problem_name}: predicted lateral pin error\n{line2}"
+    return f"{result.problem_name}: {result.verdict().line}\n{line2}"
 
 
 @dataclass(frozen=True)
@@ -472,8 +506,9 @@ def read_waypoints_csv(path: str | Path) -> WrittenSamples:
 
 
 #: Shading of the phases in :func:`plot_lateral_error_time`.
+#: The weld is neutral grey: the window band is green and must stay visible while welding.
 PHASE_COLOURS = {"approach": "0.92", "plunge": "tab:purple", "dwell": "tab:orange",
-                 "accelerate": "tab:cyan", "weld": "tab:green", "decelerate": "tab:cyan",
+                 "accelerate": "tab:cyan", "weld": "0.6", "decelerate": "tab:cyan",
                  "retract": "0.92"}
 
 
@@ -513,6 +548,8 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
         ax.grid(True, alpha=0.3)
     a1.axhspan(w.lower * 1e3, w.upper * 1e3, color="tab:green", alpha=0.15,
                label=f"weld window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm")
+    for bound in (w.lower, w.upper):  # the bounds stay visible over every phase shading
+        a1.axhline(bound * 1e3, color="tab:green", lw=1.2, ls="--")
     if u > 0:
         a1.fill_between(t, e - r, e + r, color="tab:blue", alpha=0.2, lw=0,
                         label=f"worst case under +-{100 * u:g} % force")

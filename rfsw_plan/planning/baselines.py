@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
-from rfsw_plan.planning.verify import predict
+from rfsw_plan.planning.verify import SampleVerification, predict
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
@@ -349,19 +349,25 @@ def shoulder_flip_seeds(robot: Robot, q: FloatArray, iters: int = 40
 
 @dataclass(frozen=True)
 class BaselineMetrics:
-    """Figures of one strategy on the same problem (weld waypoints only).
+    """Figures of one strategy on the same problem: every in-material waypoint (plunge, dwell
+    and weld), and for the plan also every written in-material sample, so the table, the
+    verdict, ``plan.json`` and the plots all quote these numbers.
 
     Attributes:
         name: ``none``, ``mirror`` or ``nlp``.
         max_abs_lateral: max |e_lat| [m].
-        rms_lateral: RMS of e_lat [m].
-        worst_case: max over waypoints of the worst-case |e_lat| under the force uncertainty
-            (|e - centre| + r + |centre|, i.e. the farthest point of e +- r from 0) [m].
+        rms_lateral: RMS of e_lat over the waypoints [m].
+        worst_case: max of the worst-case |e_lat| under the requested force uncertainty
+            (the farthest point of e +- r from 0) [m].
         min_lateral_stiffness: min over waypoints of 1 / (l^T C_tt l) [N/m].
         inside_fraction: Fraction of weld waypoints with e_lat inside the window.
-        robust_margin: min over waypoints of the distance of the worst case e +- r to the
-            nearest window bound [m] (negative: the worst case leaves the window by that much).
-            Unlike ``worst_case`` it accounts for the asymmetric window.
+        robust_margin: min distance of the worst case e +- r to the nearest window bound [m]
+            (negative: the worst case leaves the window by that much). Unlike ``worst_case``
+            it accounts for the asymmetric window.
+        tolerated: The largest uniform relative force uncertainty u whose worst case
+            e +- u R keeps every point in the window (min dist / R; inf if no force reaches
+            the lateral axis, 0 if a nominal error is outside).
+        samples: The figures include the written samples (the plan).
     """
 
     name: str
@@ -371,9 +377,11 @@ class BaselineMetrics:
     min_lateral_stiffness: float
     inside_fraction: float
     robust_margin: float = float("nan")
+    tolerated: float = float("nan")
+    samples: bool = False
 
-    def to_dict(self) -> dict[str, float | str]:
-        """File units: mm and N/mm."""
+    def to_dict(self) -> dict[str, float | str | bool | None]:
+        """File units: mm, N/mm and percent (the tolerated force uncertainty)."""
         return {
             "strategy": self.name,
             "max_abs_lateral_mm": self.max_abs_lateral * 1e3,
@@ -382,23 +390,43 @@ class BaselineMetrics:
             "min_lateral_stiffness_N_mm": self.min_lateral_stiffness * 1e-3,
             "inside_window_fraction": self.inside_fraction,
             "worst_case_window_margin_mm": self.robust_margin * 1e3,
+            "tolerated_force_uncertainty_pct": self.tolerated * 100,
+            "includes_written_samples": self.samples,
         }
 
 
 def metrics(
     name: str, model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
-    uncertainty: float,
+    uncertainty: float, samples: SampleVerification | None = None,
 ) -> BaselineMetrics:
-    """Metrics of joint values q (K, n) on the task's weld waypoints."""
-    pred = predict(model, task, q, uncertainty)
+    """Metrics of joint values q (K, n) [rad] at the task's waypoints (all in the material),
+    and with ``samples`` (the plan's :func:`~rfsw_plan.planning.verify.verify_samples`) at
+    every written in-material sample too.
+
+    At each point e is the lateral pin error and R the worst case per unit force uncertainty,
+    R = sum_i |f_i| |l^T C_tt b_i| (seed 000 eq. 11); the worst case at the requested u is
+    e +- u R and the tolerated uncertainty min dist / R (dist: e to the nearest bound).
+    """
+    pred = predict(model, task, q, 1.0)
+    e, R = pred.e_lat, pred.worst
+    if samples is not None and samples.contact.any():
+        c = samples.contact
+        e_all, R_all = np.concatenate([e, samples.e_lat[c]]), np.concatenate(
+            [R, samples.worst_per_unit[c]])
+    else:
+        e_all, R_all = e, R
+    r = uncertainty * R_all
+    worst = np.maximum(np.abs(e_all + r), np.abs(e_all - r))
     sl = task.weld
-    e, r = pred.e_lat[sl], pred.worst[sl]
-    worst = np.maximum(np.abs(e + r), np.abs(e - r))
-    inside = (e >= window.lower) & (e <= window.upper)
-    robust = np.minimum(e - r - window.lower, window.upper - (e + r))
-    return BaselineMetrics(name, float(np.max(np.abs(e))), float(np.sqrt(np.mean(e ** 2))),
-                           float(np.max(worst)), float(np.min(pred.lateral_stiffness[sl])),
-                           float(np.mean(inside)), float(np.min(robust)))
+    inside = (e[sl] >= window.lower) & (e[sl] <= window.upper)
+    robust = np.minimum(e_all - r - window.lower, window.upper - (e_all + r))
+    dist = np.minimum(e_all - window.lower, window.upper - e_all)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(R_all > 0, np.maximum(dist, 0.0) / R_all, np.where(dist >= 0, np.inf, 0.0))
+    return BaselineMetrics(name, float(np.max(np.abs(e_all))), float(np.sqrt(np.mean(e ** 2))),
+                           float(np.max(worst)), float(np.min(pred.lateral_stiffness)),
+                           float(np.mean(inside)), float(np.min(robust)), float(np.min(u)),
+                           samples is not None)
 
 
 @dataclass(frozen=True)

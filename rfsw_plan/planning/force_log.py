@@ -235,7 +235,9 @@ def plan_with_force_log(
         result = plan(log.problem, replace(options, force_uncertainty=check.u_equivalent),
                       spacing=spacing, model=model)
         check = check_measured_box(result, model, log.uncertainty)
-    return result, check
+    # The verdict reports the calibration as done and never advises it again.
+    return replace(result, forces_calibrated=True,
+                   measured_force_uncertainty=check.u_equivalent), check
 
 
 def force_log_json(log: ForceLog, check: MeasuredBoxCheck | None) -> dict[str, Any]:

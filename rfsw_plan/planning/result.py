@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import BaselineMetrics
 from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.planning.verdict import GO, TradeoffPoint, Verdict, tradeoff, verdict_of
 from rfsw_plan.planning.verify import SampleVerification, Verification
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
@@ -45,8 +46,10 @@ class PlanResult:
     """Everything the planner produces for one problem.
 
     Attributes:
-        status: ``optimal`` (IPOPT converged, verified) or ``verified`` (IPOPT stopped early
-            but the numeric verification holds).
+        status: ``optimal`` (IPOPT converged, verified) or ``verified`` (IPOPT stopped early,
+            or the mirror baseline was written, and the numeric verification holds); with
+            ``_nominal`` when the requested force uncertainty is not held (see
+            :meth:`verdict`).
         problem_name: The problem.
         robot_name: The robot.
         euler: Maker Euler convention of the robot (``none``, ``kuka_abc``, ``fanuc_wpr``).
@@ -58,7 +61,9 @@ class PlanResult:
         tool_rotation: Tool rotation about its axis relative to tcp_orientation at rotation 0
             [rad], (K,).
         verification: The independent numeric verification.
-        baselines: Metrics of ``none``, ``mirror`` and ``nlp``, in that order.
+        baselines: Metrics of ``none``, ``mirror`` and ``nlp`` (the written plan, its samples
+            included), in that order: the one computation behind the table, the verdict,
+            ``plan.json`` and the plots.
         e_none: Predicted lateral error without compensation [m], (K,).
         e_mirror: Predicted lateral error of the mirror baseline [m], (K,).
         branch: Name of the chosen configuration branch.
@@ -75,6 +80,13 @@ class PlanResult:
         model: The elastostatic model the plan was made and verified with; the writers
             predict deflections and errors with it (never with a model rebuilt from the
             robot file, which may differ from a ``plan(model=...)``).
+        samples: The sample-by-sample verification of the written trajectory.
+        source: What was written: ``nlp``, or ``mirror`` when the NLP's plan tolerated less
+            force uncertainty than the mirror baseline (robust first).
+        forces_calibrated: The forces and their uncertainty come from a trial weld's force
+            log (``plan --forces``); the verdict then never advises it.
+        measured_force_uncertainty: That log's uncertainty as a relative box at the plan's
+            poses, or None.
     """
 
     status: str
@@ -104,33 +116,44 @@ class PlanResult:
     trajectory: TimedTrajectory
     model: ElastostaticModel
     samples: SampleVerification | None = None
-    tolerated_force_uncertainty: float = float("nan")
-    tolerated_by_strategy: dict[str, float] = field(default_factory=dict)
+    source: str = "nlp"
+    forces_calibrated: bool = False
+    measured_force_uncertainty: float | None = None
+
+    @property
+    def plan_metrics(self) -> BaselineMetrics:
+        """The written plan's metrics (waypoints and written samples): the one computation
+        the table, the verdict, ``plan.json`` and the plots quote."""
+        return next(b for b in self.baselines if b.name == "nlp")
+
+    @property
+    def tolerated_force_uncertainty(self) -> float:
+        """The largest uniform relative force uncertainty whose worst case keeps every
+        in-material waypoint and written sample in the window (inf: no lateral force)."""
+        return self.plan_metrics.tolerated
+
+    @property
+    def tolerated_by_strategy(self) -> dict[str, float]:
+        """Tolerated relative force uncertainty of ``none``, ``mirror`` and ``nlp``."""
+        return {b.name: b.tolerated for b in self.baselines}
 
     @property
     def robust_held(self) -> bool:
         """The plan holds the window under the requested force uncertainty at every
         in-material waypoint and written sample."""
-        return bool(self.tolerated_force_uncertainty
-                    >= self.options.force_uncertainty * (1 - 1e-9))
+        return self.verdict().word == GO
 
-    def robust_warning(self) -> str:
-        """One line saying what the plan holds, what it does not, by how much and what to do;
-        empty if the requested force uncertainty is held."""
-        if self.robust_held or not np.isfinite(self.tolerated_force_uncertainty):
-            return ""
-        u = self.options.force_uncertainty
-        tol = self.tolerated_force_uncertainty
-        worst = 0.0
-        if self.samples is not None and self.samples.contact.any():
-            c = self.samples.contact
-            worst = float(np.max(u * self.samples.worst_per_unit[c] - self.samples.margin[c]))
-        return (f"the plan holds the weld window nominally and up to +-{100 * tol:.3g} % force "
-                f"uncertainty, not the requested +-{100 * u:.3g} % (the worst case leaves the "
-                f"window by {worst * 1e3:.3f} mm); to refuse such plans use --set "
-                "robust_hard=true; to hold it try a stiffer placement (rfsw-plan place), a force "
-                "model calibrated on a trial weld (plan --forces) or the hybrid strategy of "
-                "rfsw-plan compare")
+    def verdict(self) -> Verdict:
+        """GO, HOLDS NOMINALLY (with the three levers) for this plan
+        (:mod:`rfsw_plan.planning.verdict`)."""
+        return verdict_of(self.baselines, self.options.force_uncertainty,
+                          self.options.robust_first, self.forces_calibrated,
+                          self.measured_force_uncertainty)
+
+    def tradeoff(self) -> tuple[TradeoffPoint, ...]:
+        """Tolerated uncertainty against the weakest lateral stiffness: the plan, the
+        baselines and the requested point (:func:`rfsw_plan.planning.verdict.tradeoff`)."""
+        return tradeoff(self.baselines, self.options.force_uncertainty)
 
     @property
     def e_lat(self) -> FloatArray:
@@ -147,14 +170,19 @@ class PlanResult:
         v = self.verification
         k = self.worst_waypoint
         sl = self.task.weld
+        verdict = self.verdict()
         return {
+            **verdict.to_dict(),
             "status": self.status,
             "problem": self.problem_name,
+            "plan_source": self.source,
+            "robust_first": self.options.robust_first,
             "force_uncertainty_requested": self.options.force_uncertainty,
             "tolerated_force_uncertainty": self.tolerated_force_uncertainty,
             "tolerated_force_uncertainty_by_strategy": dict(self.tolerated_by_strategy),
-            "robust_window_held": self.robust_held,
-            "warning": self.robust_warning() or None,
+            "robust_window_held": verdict.word == GO,
+            "tradeoff": [p.to_dict() for p in self.tradeoff()],
+            "warning": verdict.traded or None,
             "samples": None if self.samples is None else {
                 "n": len(self.samples.e_lat),
                 "in_material": int(np.sum(self.samples.contact)),

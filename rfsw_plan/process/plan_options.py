@@ -66,6 +66,11 @@ class PlanOptions:
             |delta f_i| <= u |f_i| (default 0.2 = +-20 %).
         margin: Margin of the nominal lateral error to the window bounds [m].
         robust_hard: Make the worst-case window a hard constraint (else an exact penalty).
+        robust_first: Maximise the force uncertainty the plan tolerates before stiffness (the
+            NLP pursues the robust window up to ``ROBUST_CEILING`` whatever the request; the
+            request decides the verdict). False trades robustness for stiffness: the NLP
+            holds only the requested uncertainty and spends the rest of the window on
+            stiffness, so the plan may tolerate less than the mirror baseline.
         offset_rate: Bound on the offset change per travel [m/m].
         offset_speed_stationary: Bound on the offset change per time while stationary [m/s].
         offset_speed: Bound on the offset change per time while moving [m/s], beyond the
@@ -107,6 +112,7 @@ class PlanOptions:
     force_uncertainty: float = 0.2
     margin: float = 0.1e-3
     robust_hard: bool = False
+    robust_first: bool = True
     offset_rate: float = 0.2
     offset_speed_stationary: float = 10e-3
     offset_speed: float = 10e-3
@@ -204,6 +210,7 @@ OPTION_KEYS: dict[str, OptionKey] = {
     "force_uncertainty": OptionKey("force_uncertainty", ge=0.0, le=10.0),
     "margin_mm": OptionKey("margin", 1e-3, ge=0.0, le=100.0),
     "robust_hard": OptionKey("robust_hard"),
+    "robust_first": OptionKey("robust_first"),
     "offset_rate_mm_per_mm": OptionKey("offset_rate", ge=1e-6, le=10.0),
     "offset_speed_stationary_mm_s": OptionKey("offset_speed_stationary", 1e-3, ge=1e-3,
                                                       le=1e4),

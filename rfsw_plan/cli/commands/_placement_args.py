@@ -12,7 +12,7 @@ def register_region(parser: argparse.ArgumentParser, shape: str) -> None:
     """The region, yaw, height, grid and waypoint options."""
     parser.add_argument("problem", help="bundled problem name (e.g. zk500_table6_seam) or file")
     parser.add_argument("-o", "--output", default=None,
-                        help="output directory (default: out/<problem>_<command>)")
+                        help="output directory (default: out/<command>/<problem>)")
     parser.add_argument("--region", default=None, metavar="x0,x1,y0,y1[,z0,z1]",
                         help="where the seam anchor (its middle point) may go, robot base frame "
                         "[mm] (default: the reachable part of the workspace around the given "

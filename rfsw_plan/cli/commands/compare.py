@@ -21,7 +21,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("problem", metavar="PROBLEM",
                         help="problem file or bundled stem (e.g. zk500_table6_seam)")
     parser.add_argument("-o", "--output", metavar="DIR", default=None,
-                        help="output folder (default out/<problem>)")
+                        help="output folder (default out/compare/<problem>)")
     parser.add_argument("--truth-effect", action="append", default=[],
                         metavar="NAME[=key=value,...]",
                         help="effect the truth robot has and the model lacks (repeatable), "
@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     )
 
     problem = load_problem(args.problem)
-    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
+    out = prepare_output_dir(args.output if args.output else Path("out") / NAME / problem.name)
     result = compare(problem, options)
     data = result.to_dict()
     files = ["compare.json", "compare.md"]

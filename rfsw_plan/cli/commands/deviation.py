@@ -26,7 +26,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("problem", metavar="PROBLEM",
                         help="problem file or bundled stem (e.g. zk500_table6_seam)")
     parser.add_argument("-o", "--output", metavar="DIR", default=None,
-                        help="output folder (default out/<problem>)")
+                        help="output folder (default out/deviation/<problem>)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--dt", type=float, default=0.1, metavar="S",
                         help="time step of the load schedule [s] (default 0.1, seed 001)")
@@ -65,7 +65,7 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
     )
 
     problem = load_problem(args.problem)
-    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
+    out = prepare_output_dir(args.output if args.output else Path("out") / NAME / problem.name)
     fit_text = ""
     fit_json = None
     if args.forces is not None:

@@ -29,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     over = {} if args.force_uncertainty is None else {"force_uncertainty": args.force_uncertainty}
     opts = options_from_problem(problem, over)
     out = prepare_output_dir(Path(args.output) if args.output else
-                             Path("out") / f"{problem.name}_map")
+                             Path("out") / NAME / problem.name)
     with OutputLock(out):
         s = map_problem(problem, request, opts)
         m = s.map
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
                  "files": [str(out / n) for n in ("map.csv", "map.json", "map.png",
                                                   "map_yaw.png")]}
         write_map_csv(out / "map.csv", m)
-        plot_map(out / "map.png", m)
+        plot_map(out / "map.png", m, requested=opts.force_uncertainty)
         plot_yaw(out / "map_yaw.png", m)
         write_map_json(out / "map.json", m, u, extra)
     summary = map_summary(m, u)
@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
           f"(mirror offsets), {_pct(g.get('tolerated_uncertainty_centred'))} (centred), "
           f"min lateral stiffness {g.get('min_lateral_stiffness_N_per_mm', float('nan')):.0f} "
           "N/mm")
-    print(f"best placement:  tolerated uncertainty "
+    print(f"best placement (rank 1 below): tolerated uncertainty "
           f"{_pct(summary['best_tolerated_uncertainty_mirror'])} (mirror), "
           f"{_pct(summary['best_tolerated_uncertainty_centred'])} (centred); requested "
           f"+-{u * 100:g} % "

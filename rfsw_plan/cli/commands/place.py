@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
     over = {} if args.force_uncertainty is None else {"force_uncertainty": args.force_uncertainty}
     opts = options_from_problem(problem, over)
     out = prepare_output_dir(Path(args.output) if args.output else
-                             Path("out") / f"{problem.name}_place")
+                             Path("out") / NAME / problem.name)
     executor, closer, where = make_executor(args.workers, args.dask)
     try:
         with OutputLock(out):
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
             write_map_csv(out / "map.csv", m)
             marks = [(c.label, c.placement.x, c.placement.y) for c in res.candidates
                      if c.label != "given"]
-            plot_map(out / "map.png", m, marks)
+            plot_map(out / "map.png", m, marks, requested=opts.force_uncertainty)
             plot_yaw(out / "map_yaw.png", m)
             write_map_json(out / "map.json", m, opts.force_uncertainty)
             with atomic_path(out / "candidates.csv") as tmp, open(tmp, "w", newline="") as fh:

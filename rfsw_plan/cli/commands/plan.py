@@ -16,7 +16,7 @@ HELP = "plan poses and fake-target offsets, verify them, time them and write way
 def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("problem", help="bundled problem name (e.g. zk500_table6_seam) or file")
     parser.add_argument("-o", "--output", default=None,
-                        help="output directory (default: out/<problem>)")
+                        help="output directory (default: out/plan/<problem>)")
     parser.add_argument("--json", action="store_true", help="print the plan.json summary")
     parser.add_argument("--spacing-mm", type=float, default=None,
                         help="waypoint spacing along the seam [mm] (default: the problem's)")
@@ -63,24 +63,46 @@ def _overrides(items: list[str], base: Any) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
+    from rfsw_plan.cli.commands.export import check_export_arguments
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
-    from rfsw_plan.planfiles.waypoints import (
-        PLAN_OUTPUTS,
-        commit_plan,
-        mark_outputs_stale,
-        write_plan_data,
-        write_plan_json,
-    )
-    from rfsw_plan.planning.api import plan
-    from rfsw_plan.planning.options import check_well_posed
-    from rfsw_plan.process.plan_options import options_from_table
+    from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, mark_outputs_stale
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.progress import Stages
 
     check_export_arguments(args)
     problem = load_problem(args.problem)
     problem, flog = force_log_cli.prepare(problem, args)
+    opts = _options(args, problem)
+    out = prepare_output_dir(args.output if args.output else default_output(problem.name))
+    with OutputLock(out):
+        # An earlier run's files must never sit beside this run's as if they were its own:
+        # plan.json (the commit record) first becomes "incomplete", the other outputs go.
+        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
+        result, check = _plan_or_record(args, problem, flog, opts, out)
+        summary, written, failed_plots = _write(args, problem, flog, check, result, out)
+    for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
+        print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
+              file=sys.stderr)
+    if args.json:
+        force_log_cli.print_text(flog, check, result, quiet=True)
+        brief = {k: v for k, v in summary.items() if k != "waypoints"}
+        print(strict_json(brief), end="")
+        return 0
+    _print_text(problem, result, summary, written, out)
+    force_log_cli.print_text(flog, check, result)
+    return 0
+
+
+def default_output(name: str) -> Path:
+    """The default output folder of ``plan``: ``out/plan/<problem>``."""
+    return Path("out") / NAME / name
+
+
+def _options(args: argparse.Namespace, problem: Any) -> Any:
+    """The problem's planner options with ``--set`` and ``--force-uncertainty`` applied and
+    checked (one line, exit 2, before any planning)."""
+    from rfsw_plan.planning.options import check_well_posed
+    from rfsw_plan.process.plan_options import options_from_table
+
     opts = _overrides(args.set, problem.planning)
     if args.force_uncertainty is not None:
         opts = options_from_table({"force_uncertainty": args.force_uncertainty},
@@ -89,75 +111,128 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
                          "a number in [0.01, 10000]")
     check_well_posed(opts, problem.window, f"{problem.name}: [planning] and --set")
-    out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
-    with OutputLock(out):
-        # An earlier run's files must never sit beside this run's as if they were its own:
-        # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
-        try:
-            result, check = force_log_cli.plan(problem, flog, opts, None if args.spacing_mm
-                                               is None else args.spacing_mm * 1e-3, plan)
-        except RfswError as exc:
-            record: dict[str, Any] = {"status": "failed", "problem": problem.name,
-                                      "message": str(exc)}
-            if isinstance(exc, InfeasibleError):
-                record.update(
-                    status="infeasible",
-                    waypoint=None if exc.waypoint is None else exc.waypoint + 1,
-                    constraint=exc.constraint,
-                    margin_mm=None if exc.margin is None else exc.margin * 1e3)
-            write_plan_json(out / "plan.json", record)
-            raise
-        summary = result.summary()
-        summary["robot_file"] = str(problem.robot.path)
-        # The planner's own bar has closed; writing and plotting gets a bar of its own.
-        with Stages("plan", ("files", "plots")) as stages:
-            written = write_plan_data(out, result)
-            exported = export_plan_result(args, result, out, summary)
-            if exported is not None:
-                written += list(exported.files)
-                summary["export"] = exported.to_dict()
-            summary.update(force_log_cli.plan_json(problem, args, flog, check))
-            stages.start("plots")
-            # plan.json commits the data files first, then the plots are drawn and committed:
-            # a plot that fails or is killed never costs the waypoints or the programs.
-            _, failed_plots = commit_plan(out, summary, written, result)
-    for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
-        print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
-              file=sys.stderr)
-    force_log_cli.print_text(flog, check, result, quiet=args.json)
-    if result.robust_warning():
-        print(f"rfsw-plan plan: warning: {result.robust_warning()}", file=sys.stderr)
-    if args.json:
-        brief = {k: v for k, v in summary.items() if k != "waypoints"}
-        print(strict_json(brief), end="")
-        return 0
+    return opts
+
+
+#: The unit of an :class:`InfeasibleError` margin by its constraint (file units, key suffix).
+_MARGIN_UNITS = {"weld_speed": (1e3, "mm_s"), "singularity": (1.0, "kappa")}
+
+
+def margin_entry(exc: InfeasibleError) -> dict[str, float | None]:
+    """The ``plan.json`` entry of an infeasible plan's margin, with its unit in the key:
+    ``margin_mm`` (window, pose), ``margin_deg`` (joint checks), ``margin_mm_s`` (weld speed:
+    the feasible speed minus the requested one), ``margin_kappa`` (singularity)."""
+    c = exc.constraint or ""
+    scale, unit = _MARGIN_UNITS.get(c, (180.0 / 3.141592653589793, "deg") if c.startswith(
+        "joint_") else (1e3, "mm"))
+    return {f"margin_{unit}": None if exc.margin is None else exc.margin * scale}
+
+
+def _plan_or_record(args: argparse.Namespace, problem: Any, flog: Any, opts: Any,
+                    out: Path) -> tuple[Any, Any]:
+    """Plan; on a refusal write the ``plan.json`` record (verdict NO), print the verdict
+    first and re-raise (exit 2 or 3)."""
+    from rfsw_plan.cli import plan_forces as force_log_cli
+    from rfsw_plan.planfiles.waypoints import write_plan_json
+    from rfsw_plan.planning.api import plan
+    from rfsw_plan.planning.verdict import no_plan
+
+    try:
+        return force_log_cli.plan(problem, flog, opts, None if args.spacing_mm is None
+                                  else args.spacing_mm * 1e-3, plan)
+    except RfswError as exc:
+        record: dict[str, Any] = {"status": "failed", "problem": problem.name,
+                                  "message": str(exc)}
+        if isinstance(exc, InfeasibleError):
+            verdict = no_plan(str(exc), opts.force_uncertainty)
+            record = {**verdict.to_dict(), **record, "status": "infeasible",
+                      "waypoint": None if exc.waypoint is None else exc.waypoint + 1,
+                      "constraint": exc.constraint, **margin_entry(exc)}
+            if not args.json:
+                print(verdict.line)
+        write_plan_json(out / "plan.json", record)
+        raise
+
+
+def _write(args: argparse.Namespace, problem: Any, flog: Any, check: Any, result: Any,
+           out: Path) -> tuple[dict[str, Any], list[Path], list[str]]:
+    """Write the data files (and programs with ``--export``), commit them in ``plan.json``,
+    draw the plots. Returns the summary, every file written and the plots that failed."""
+    from rfsw_plan.cli import plan_forces as force_log_cli
+    from rfsw_plan.cli.commands.export import export_plan_result
+    from rfsw_plan.planfiles.waypoints import commit_plan, write_plan_data
+    from rfsw_plan.progress import Stages
+
+    summary = result.summary()
+    summary["robot_file"] = str(problem.robot.path)
+    # The planner's own bar has closed; writing and plotting gets a bar of its own.
+    with Stages("plan", ("files", "plots")) as stages:
+        written = write_plan_data(out, result)
+        exported = export_plan_result(args, result, out, summary)
+        if exported is not None:
+            written += list(exported.files)
+            summary["export"] = exported.to_dict()
+        summary.update(force_log_cli.plan_json(problem, args, flog, check))
+        stages.start("plots")
+        # plan.json commits the data files first, then the plots are drawn and committed:
+        # a plot that fails or is killed never costs the waypoints or the programs.
+        path, failed = commit_plan(out, summary, written, result)
+    files = [Path(f) for f in summary.get("files", [])] + [path]
+    return summary, files, failed
+
+
+def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: list[Path],
+                out: Path) -> None:
+    """The verdict first, then the levers, the strategy table, the trade-off and the files."""
+    verdict = result.verdict()
+    print(verdict.line)
+    if verdict.traded:
+        print(f"  note: {verdict.traded}")
+    for k, lever in enumerate(verdict.levers, 1):
+        print(f"  lever {k}: {lever.text()}")
+    if verdict.levers and not result.options.robust_hard:
+        print("  to refuse such plans instead: --set robust_hard=true")
     print(f"{problem.name}: {summary['status']} ({result.solver_status}, "
           f"{result.iterations} IPOPT iterations, branch {result.branch})")
     print(f"robot {problem.robot.name} from {problem.robot.path}")
-    u = result.options.force_uncertainty
-    print(f"{'strategy':<8} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
-          f"{'worst margin mm':>16} {'k_lat N/mm':>11}  {'force uncertainty held':<22}")
-    for b in result.baselines:
-        d = b.to_dict()
-        tol = result.tolerated_by_strategy.get(b.name, float("nan"))
-        print(f"{b.name:<8} {d['max_abs_lateral_mm']:>10.3f} {d['rms_lateral_mm']:>8.3f} "
-              f"{d['worst_case_lateral_mm']:>9.3f} {d['worst_case_window_margin_mm']:>16.3f} "
-              f"{d['min_lateral_stiffness_N_mm']:>11.1f}  {_held(tol):<22}")
-    print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
-          "case to the window, negative = outside; held: the largest uniform +-u on the "
-          "seam-frame force components that keeps every in-material waypoint, and for nlp every "
-          "written sample, in the window)")
+    _print_table(result)
     ww = summary["worst_waypoint"]
     print(f"worst waypoint {ww['waypoint']} ({ww['phase']}, s = {ww['s_mm']:.1f} mm, "
           f"t = {ww['t_s']:.2f} s): e = {ww['e_lat_mm']:+.3f} mm, margin {ww['margin_mm']:.3f} mm")
     if result.samples is not None:
         sv = result.samples
         print(f"written samples: {len(sv.e_lat)} ({int(sv.contact.sum())} in the material), "
-              f"all verified; smallest window margin {sv.min_margin * 1e3:.3f} mm")
-    print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); files in {out}",
-          file=sys.stdout)
-    return 0
+              f"all in the window; smallest window margin {sv.min_margin * 1e3:.3f} mm")
+    print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); wrote "
+          f"{len(written)} files in {out}:")
+    for f in written:
+        print(f"  {f}")
+
+
+def _print_table(result: Any) -> None:
+    """The strategies on the same waypoints (one computation: :class:`BaselineMetrics`) and
+    the trade-off's requested point."""
+    from rfsw_plan.planning.verdict import pct
+
+    u = result.options.force_uncertainty
+    print(f"{'strategy':<10} {'max|e| mm':>10} {'RMS mm':>8} {'worst mm':>9} "
+          f"{'worst margin mm':>16} {'k_lat N/mm':>11}  {'force uncertainty held':<22}")
+    names = {"nlp": "plan", "none": "none", "mirror": "mirror"}
+    for b in result.baselines:
+        d = b.to_dict()
+        print(f"{names.get(b.name, b.name):<10} {d['max_abs_lateral_mm']:>10.3f} "
+              f"{d['rms_lateral_mm']:>8.3f} {d['worst_case_lateral_mm']:>9.3f} "
+              f"{d['worst_case_window_margin_mm']:>16.3f} "
+              f"{d['min_lateral_stiffness_N_mm']:>11.1f}  {_held(b.tolerated):<22}")
+    req = next(p for p in result.tradeoff() if p.name == "requested")
+    k_need = ("" if req.min_lateral_stiffness != req.min_lateral_stiffness
+              else f"{req.min_lateral_stiffness * 1e-3:.1f}")
+    print(f"{'requested':<10} {'':>10} {'':>8} {'':>9} {'':>16} {k_need:>11}  "
+          f"{pct(u)} (k_lat: what the plan's errors need)")
+    print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
+          "case to the window, negative = outside; held: the largest uniform +-u on the "
+          "seam-frame force components that keeps every in-material waypoint, and for the plan "
+          "every written sample, in the window)")
 
 
 def _held(u: float) -> str:

@@ -39,7 +39,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", required=True, help="bundled robot name or robot TOML file")
     parser.add_argument("--data", required=True, metavar="FILE.csv", help="measurement CSV")
     parser.add_argument("-o", "--output", metavar="DIR",
-                        help="report directory (default: validate_<data file stem>)")
+                        help="report directory (default: out/validate/<data file stem>)")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON object on stdout instead of the text summary")
     parser.add_argument("--noise-mm", type=float, metavar="S",
@@ -84,7 +84,7 @@ def _report_folder(args: argparse.Namespace) -> Path | None:
         return None
     if args.output:
         return prepare_output_dir(args.output)
-    return prepare_output_dir(fresh_folder(f"validate_{Path(args.data).stem}"))
+    return prepare_output_dir(fresh_folder(str(Path("out") / NAME / Path(args.data).stem)))
 
 
 def _run(args: argparse.Namespace, report: Path | None, stages: Stages) -> int:

@@ -1,0 +1,221 @@
+"""The verdict on a plan, in words a welding engineer can act on, and the trade-off behind it.
+
+Three verdicts (the first line of ``rfsw-plan plan`` and ``"verdict"`` in ``plan.json``):
+
+* ``GO``: every written in-material sample is in the weld window, and stays there under the
+  requested force uncertainty (the plan tolerates +-x % >= the requested +-y %).
+* ``HOLDS NOMINALLY``: every written sample is in the window, but under force uncertainty only
+  up to +-x % < +-y %. The verdict then names the three levers that raise x, each with what it
+  must achieve (from the same numbers) and its measured gain where one is known.
+* ``NO``: no plan (infeasible window, speed or singularity, exit 3).
+
+Every number comes from the plan's :class:`~rfsw_plan.planning.baselines.BaselineMetrics`
+(one computation over waypoints and written samples), so the verdict, the table, ``plan.json``
+and the plots cannot disagree.
+
+The trade-off. The worst case of the lateral error scales with the compliance: e +- u R with
+R = sum_i |f_i| |l^T C_tt b_i| (seed 000 eq. 11). At the same nominal errors, a robot uniformly
+stiffer by a factor s has R / s and tolerates s u. So the requested +-y % needs the weakest
+lateral stiffness k_plan y / x: the ``requested`` point of the trade-off table and plot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rfsw_plan.planning.baselines import BaselineMetrics
+
+GO = "GO"
+HOLDS_NOMINALLY = "HOLDS NOMINALLY"
+NO = "NO"
+#: Relative tolerance of "the requested uncertainty is held" (the NLP's and the closed form's
+#: rounding).
+HELD_RTOL = 1e-9
+
+
+def pct(u: float) -> str:
+    """A relative uncertainty as a percentage for text: ``+-16.7 %``, ``any``, ``none``."""
+    if u == np.inf:
+        return "any"
+    if not np.isfinite(u) or u <= 0:
+        return "none"
+    return f"+-{100 * u:.3g} %"
+
+
+@dataclass(frozen=True)
+class TradeoffPoint:
+    """One point of the robustness/stiffness trade-off.
+
+    Attributes:
+        name: ``plan``, ``mirror``, ``none`` or ``requested``.
+        tolerated: Tolerated relative force uncertainty (inf: no lateral force).
+        min_lateral_stiffness: Weakest lateral stiffness 1 / (l^T C_tt l) [N/m].
+    """
+
+    name: str
+    tolerated: float
+    min_lateral_stiffness: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """File units: percent and N/mm."""
+        return {"point": self.name, "tolerated_force_uncertainty_pct": self.tolerated * 100,
+                "min_lateral_stiffness_N_mm": self.min_lateral_stiffness * 1e-3}
+
+
+def tradeoff(baselines: tuple[BaselineMetrics, ...], requested: float
+             ) -> tuple[TradeoffPoint, ...]:
+    """The trade-off points: the plan, the baselines, and the requested point (the stiffness
+    the plan's nominal errors need to hold the request: k_plan y / x; NaN if the plan holds
+    any or no uncertainty)."""
+    by = {b.name: b for b in baselines}
+    plan = by["nlp"]
+    pts = [TradeoffPoint("plan", plan.tolerated, plan.min_lateral_stiffness)]
+    pts += [TradeoffPoint(b.name, b.tolerated, b.min_lateral_stiffness)
+            for b in baselines if b.name != "nlp"]
+    x = plan.tolerated
+    k_need = (plan.min_lateral_stiffness * requested / x
+              if np.isfinite(x) and x > 0 else float("nan"))
+    pts.append(TradeoffPoint("requested", requested, k_need))
+    return tuple(pts)
+
+
+@dataclass(frozen=True)
+class Lever:
+    """One way to make a plan hold more force uncertainty.
+
+    Attributes:
+        name: ``placement``, ``force_model`` or ``realtime``.
+        action: What to do (the command).
+        need: What it must achieve, from the plan's numbers.
+        gain: Measured gain in tolerated relative uncertainty (None: not measured).
+        done: Already done for this plan (then it is reported, not advised).
+    """
+
+    name: str
+    action: str
+    need: str
+    gain: float | None = None
+    done: bool = False
+
+    def text(self) -> str:
+        """One line for the CLI."""
+        gain = ("gain not measured by plan" if self.gain is None
+                else f"measured gain {100 * self.gain:+.3g} points")
+        head = "done: " if self.done else ""
+        return f"{head}{self.action}: {self.need} ({gain})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON entry (gain in percentage points, null if not measured)."""
+        return {"lever": self.name, "action": self.action, "need": self.need,
+                "gain_pct_points": None if self.gain is None else 100 * self.gain,
+                "done": self.done}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The verdict on a plan.
+
+    Attributes:
+        word: ``GO``, ``HOLDS NOMINALLY`` or ``NO``.
+        tolerated: Tolerated relative force uncertainty of the written plan.
+        requested: Requested relative force uncertainty.
+        mirror: Tolerated uncertainty of the mirror baseline (NaN if unknown).
+        robust_first: The plan maximised robustness before stiffness.
+        levers: The three levers (HOLDS NOMINALLY), in the order to try them.
+        reason: Why there is no plan (NO).
+    """
+
+    word: str
+    tolerated: float
+    requested: float
+    mirror: float = float("nan")
+    robust_first: bool = True
+    levers: tuple[Lever, ...] = ()
+    reason: str = ""
+
+    @property
+    def line(self) -> str:
+        """The first line of ``rfsw-plan plan``."""
+        if self.word == NO:
+            return f"NO: no plan holds the weld window: {self.reason}"
+        every = "holds the weld window at every written sample"
+        if self.word == GO:
+            upto = ("under any force uncertainty" if self.tolerated == np.inf
+                    else f"up to {pct(self.tolerated)} force uncertainty")
+            return f"GO: {every} {upto}; the requested {pct(self.requested)} is held"
+        return (f"HOLDS NOMINALLY: {every}, but under force uncertainty only up to "
+                f"{pct(self.tolerated)}, not the requested {pct(self.requested)}")
+
+    @property
+    def traded(self) -> str:
+        """A note when the plan tolerates less than the mirror baseline because the user
+        traded robustness for stiffness (``robust_first = false``), else empty."""
+        if self.robust_first or not self.mirror > self.tolerated:
+            return ""
+        return (f"robust_first=false traded robustness for stiffness: the mirror baseline "
+                f"holds {pct(self.mirror)} on the same waypoints")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``plan.json`` entries (percent)."""
+        return {"verdict": self.word, "verdict_text": self.line,
+                "levers": [lv.to_dict() for lv in self.levers]}
+
+
+def levers(plan: BaselineMetrics, requested: float, forces_calibrated: bool = False,
+           measured_uncertainty: float | None = None) -> tuple[Lever, ...]:
+    """The three levers that raise the tolerated force uncertainty x to the requested y.
+
+    1. a stiffer placement: the weakest lateral stiffness must rise by y / x (the trade-off's
+       requested point);
+    2. a force model calibrated on a trial weld (``plan --forces``): the real force spread must
+       be within +-x %; when it was already used, it is reported as done with the measured
+       spread (``measured_uncertainty``);
+    3. real-time compensation on top of the plan (hybrid strategy of ``rfsw-plan compare``):
+       it must remove the share 1 - x / y of the force-induced error.
+    """
+    x = plan.tolerated
+    k = plan.min_lateral_stiffness
+    factor = requested / x if x > 0 else float("inf")
+    stiff = (f"the weakest lateral stiffness must rise from {k * 1e-3:.0f} to "
+             f"{k * factor * 1e-3:.0f} N/mm (x{factor:.2f})" if np.isfinite(factor)
+             else "the nominal error must first come inside the window")
+    out = [Lever("placement", "a stiffer placement (rfsw-plan place)", stiff)]
+    if forces_calibrated:
+        meas = ("" if measured_uncertainty is None
+                else f"; the trial weld measured {pct(measured_uncertainty)}")
+        out.append(Lever("force_model", "force model calibrated on a trial weld (plan --forces)",
+                         f"planned with the calibrated uncertainty{meas}", done=True))
+    else:
+        out.append(Lever("force_model",
+                         "a force model calibrated on a trial weld (plan --forces LOG.csv)",
+                         f"the measured force spread must stay within {pct(x)}"))
+    share = 1 - x / requested if requested > 0 else 0.0
+    out.append(Lever("realtime", "real-time compensation on top of the plan (rfsw-plan "
+                     "compare, hybrid strategy)",
+                     f"it must remove {100 * share:.0f} % of the force-induced error"))
+    return tuple(out)
+
+
+def verdict_of(baselines: tuple[BaselineMetrics, ...], requested: float,
+               robust_first: bool = True, forces_calibrated: bool = False,
+               measured_uncertainty: float | None = None) -> Verdict:
+    """The verdict on a written plan from its metrics (``nlp`` includes the samples)."""
+    by = {b.name: b for b in baselines}
+    plan = by["nlp"]
+    mirror = by["mirror"].tolerated if "mirror" in by else float("nan")
+    if plan.tolerated >= requested * (1 - HELD_RTOL):
+        return Verdict(GO, plan.tolerated, requested, mirror, robust_first)
+    return Verdict(HOLDS_NOMINALLY, plan.tolerated, requested, mirror, robust_first,
+                   levers(plan, requested, forces_calibrated, measured_uncertainty))
+
+
+def no_plan(reason: str, requested: float) -> Verdict:
+    """The verdict when the planner refuses (exit 3)."""
+    return Verdict(NO, float("nan"), requested, reason=reason)
+
+
+__all__ = ["GO", "HOLDS_NOMINALLY", "NO", "Lever", "TradeoffPoint", "Verdict", "levers",
+           "no_plan", "pct", "tradeoff", "verdict_of"]

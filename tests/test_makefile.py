@@ -1,0 +1,32 @@
+"""``make demo`` installs the runtime only, ``make test`` and ``make lint`` add the dev extras
+(issue 24: the demo installed 61 packages, a 1.2 GB venv). Checked with ``make -n`` in a clean
+folder holding the Makefile and pyproject.toml, so nothing is installed."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def dry_run(tmp: Path, target: str) -> str:
+    for f in ("Makefile", "pyproject.toml"):
+        shutil.copy(ROOT / f, tmp / f)
+    proc = subprocess.run(["make", "-n", target], cwd=tmp, capture_output=True, text=True,
+                          check=True)
+    return proc.stdout
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="no make")
+def test_demo_installs_the_runtime_only_and_test_adds_dev(tmp_path: Path) -> None:
+    demo = dry_run(tmp_path, "demo")
+    assert "pip install --progress-bar on -e .\n" in demo and "[dev]" not in demo
+    assert "rfsw-plan plan" in demo
+    for target in ("test", "lint"):
+        out = dry_run(tmp_path, target)
+        assert "-e '.[dev]'" in out, target
+        assert out.index("-e .\n") < out.index("-e '.[dev]'")

@@ -1,0 +1,94 @@
+"""The plan is never beaten by its own baseline (issue 24, :mod:`rfsw_plan.planning.robustness`).
+
+On the same waypoints the written plan tolerates at least the mirror baseline's force
+uncertainty (less 0.1 percentage point), for a requested +-10 % and +-20 %, and asking for less
+never gives a less robust plan. The mission case is zk500_table6_seam (the issue's numbers:
+at +-10 % the plan held +-9.68 % and the mirror +-12 %); the other bundled problems run under
+``-m slow``; the placed problems are checked in ``tests/test_placement.py`` and the property
+seams in ``tests/test_plan_property.py``.
+
+Physics of the zk500 numbers (seed 001 forces, window -1.25 .. +0.7 mm): the worst case per
+unit uncertainty is R = 5.85 mm at every weld waypoint (the mirror's worst case at +-100 %).
+The mirror puts the nominal error at 0, 0.7 mm from the upper bound: it tolerates
+0.7 / 5.85 = 12.0 %. The best a plan can do at the same stiffness is the window centre
+(-0.275 mm), half a width (0.975 mm) from both bounds: 0.975 / 5.85 = 16.7 %.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import pytest
+
+import rfsw_plan.planning.api as api
+from rfsw_plan.planning.robustness import DOMINANCE_TOL, ROBUST_CEILING, nlp_options
+from rfsw_plan.process.problem import load_problem
+
+BUNDLED = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "problems").glob(
+    "*.toml"))
+REQUESTED = (0.1, 0.2)
+
+
+def plan_at(name: str | Path, u: float, **overrides: object) -> api.PlanResult:
+    pb = load_problem(name)
+    return api.plan(pb, dataclasses.replace(pb.planning, force_uncertainty=u, **overrides))
+
+
+def assert_dominates(res: api.PlanResult) -> None:
+    """The acceptance inequality, with the numbers in the message."""
+    tol = res.tolerated_by_strategy
+    assert tol["nlp"] >= tol["mirror"] - DOMINANCE_TOL, (
+        f"{res.problem_name} at +-{100 * res.options.force_uncertainty:g} %: plan holds "
+        f"{100 * tol['nlp']:.3f} %, mirror {100 * tol['mirror']:.3f} %")
+    assert tol["nlp"] >= tol["none"] - DOMINANCE_TOL
+
+
+def test_zk500_plan_dominates_mirror_at_10_and_20_percent_and_is_monotone() -> None:
+    out = {u: plan_at("zk500_table6_seam", u) for u in REQUESTED}
+    for res in out.values():
+        assert_dominates(res)
+        tol = res.tolerated_by_strategy
+        assert tol["mirror"] == pytest.approx(0.7 / 5.845, abs=2e-3)   # 12.0 %
+        assert tol["nlp"] == pytest.approx(0.975 / 5.845, abs=2e-3)    # 16.7 %: the centre
+    # Asking for less never gives a less robust plan.
+    assert out[0.1].tolerated_force_uncertainty >= out[0.2].tolerated_force_uncertainty - 1e-6
+    assert out[0.1].verdict().word == "GO" and out[0.2].verdict().word == "HOLDS NOMINALLY"
+
+
+def test_trading_robustness_for_stiffness_is_explicit_and_said() -> None:
+    """robust_first=false is the old planner: it holds the requested +-10 % at the waypoints
+    and spends the rest of the window, ending below the mirror (the issue's +-9.68 %); the
+    verdict says so."""
+    res = plan_at("zk500_table6_seam", 0.1, robust_first=False)
+    tol = res.tolerated_by_strategy
+    assert tol["nlp"] < tol["mirror"] - DOMINANCE_TOL
+    v = res.verdict()
+    assert "robust_first=false" in v.traded and "+-12 %" in v.traded
+
+
+def test_the_robust_first_nlp_does_not_depend_on_the_request_below_the_ceiling() -> None:
+    pb = load_problem("zk500_table6_seam")
+    opts = {u: nlp_options(dataclasses.replace(pb.planning, force_uncertainty=u))
+            for u in (0.05, 0.1, 0.2, ROBUST_CEILING)}
+    assert len(set(opts.values())) == 1
+    hard = nlp_options(dataclasses.replace(pb.planning, robust_hard=True))
+    assert not hard.robust_hard  # the requested window is checked hard after the solve
+
+
+def test_a_plan_less_robust_than_the_mirror_falls_back_to_the_mirror(monkeypatch) -> None:
+    """If the NLP ends below the mirror (here: made to pursue only the request), the mirror
+    fixed point is verified, timed and written instead, and says so."""
+    monkeypatch.setattr(api, "nlp_options", lambda o: o)
+    res = plan_at("zk500_table6_seam", 0.1)
+    assert res.source == "mirror" and "mirror baseline" in res.solver_status
+    assert_dominates(res)
+    assert res.samples is not None and res.samples.ok
+    assert res.status == "verified"  # not the NLP's optimum
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("u", REQUESTED)
+@pytest.mark.parametrize("name", BUNDLED)
+def test_every_bundled_plan_dominates_its_baselines(name: str, u: float) -> None:
+    assert_dominates(plan_at(name, u))
