@@ -32,6 +32,7 @@ from rfsw_plan.export.config import fanuc_config
 from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.files import write_text
+from rfsw_plan.numfmt import angle, fixed
 
 FloatArray = NDArray[np.float64]
 
@@ -80,7 +81,7 @@ def _speed(speed: float, duration: float) -> str:
     v = speed * 1e3
     if v >= 1.0 and abs(v - round(v)) <= 1e-3 * v and round(v) <= 2000:
         return f"{round(v)}mm/sec"
-    return f"{duration:.2f}sec"
+    return f"{fixed(duration, 2)}sec"
 
 
 def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None) -> list[Path]:
@@ -95,9 +96,11 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
 
     mn = program.header.comments("! ", max_len=60)
     mn += [f"! UFRAME {UFRAME} = seam work object in world:",
-           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", uf, strict=True)),
+           "!  " + " ".join(f"{k}={_num(x, 3) if k in 'XYZ' else angle(x, 3)}"
+                           for k, x in zip("XYZWPR", uf, strict=True)),
            f"! UTOOL {UTOOL} = TCP in faceplate:",
-           "!  " + " ".join(f"{k}={_num(x, 3)}" for k, x in zip("XYZWPR", ut, strict=True)),
+           "!  " + " ".join(f"{k}={_num(x, 3) if k in 'XYZ' else angle(x, 3)}"
+                           for k, x in zip("XYZWPR", ut, strict=True)),
            f"UFRAME_NUM={UFRAME}", f"UTOOL_NUM={UTOOL}"]
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
@@ -107,7 +110,7 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
         if m.kind == "ptp":
             mn.append(f"J {p} {J_PERCENT}% FINE")
         elif m.kind == "wait":
-            mn.append(f"WAIT {m.duration:.2f}(sec)")
+            mn.append(f"WAIT {fixed(m.duration, 2)}(sec)")
         else:
             term = "FINE"
             if m.blend > 0:
@@ -142,9 +145,8 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
 
 
 def _num(x: float, digits: int) -> str:
-    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
-    t = f"{x:.{digits}f}"
-    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+    """Fixed-point text without a negative zero (:func:`rfsw_plan.numfmt.fixed`)."""
+    return fixed(x, digits)
 
 
 def _adjacent(program: Program, i: int) -> list[float]:

@@ -27,6 +27,7 @@ from rfsw_plan.export.config import kuka_status_turn
 from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.files import write_text
+from rfsw_plan.numfmt import angle, fixed
 
 FloatArray = NDArray[np.float64]
 
@@ -65,13 +66,13 @@ def xyzabc_to_frame(v: tuple[float, ...] | list[float]) -> FloatArray:
 
 
 def _num(x: float, digits: int) -> str:
-    """Fixed-point text without a negative zero (identical text for +-1e-17)."""
-    t = f"{x:.{digits}f}"
-    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+    """Fixed-point text without a negative zero (:func:`rfsw_plan.numfmt.fixed`)."""
+    return fixed(x, digits)
 
 
 def _frame(v: tuple[float, ...]) -> str:
-    return "{" + ", ".join(f"{k} {_num(x, 6)}" for k, x in zip("XYZABC", v, strict=True)) + "}"
+    return "{" + ", ".join(f"{k} {_num(x, 6) if k in 'XYZ' else angle(x, 6)}"
+                          for k, x in zip("XYZABC", v, strict=True)) + "}"
 
 
 def krl_name(name: str) -> str:
@@ -90,8 +91,8 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
         s, t = kuka_status_turn(robot, q)
         v = frame_to_xyzabc(pose)
         dat.append(f"DECL E6POS XP{k + 1}={{X {_num(v[0], 4)},Y {_num(v[1], 4)},"
-                   f"Z {_num(v[2], 4)},A {_num(v[3], 5)},B {_num(v[4], 5)},"
-                   f"C {_num(v[5], 5)},S {s},T {t},"
+                   f"Z {_num(v[2], 4)},A {angle(v[3], 5)},B {angle(v[4], 5)},"
+                   f"C {angle(v[5], 5)},S {s},T {t},"
                    "E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
     dat.append("ENDDAT")
 
@@ -115,16 +116,16 @@ def write_krl(program: Program, folder: str | Path) -> list[Path]:
         if m.kind == "ptp":
             src.append(f"  PTP {p}  ; approach point, joint move")
         elif m.kind == "wait":
-            src.append(f"  WAIT SEC {m.duration:.3f}  ; hold {p} ({m.phase})")
+            src.append(f"  WAIT SEC {fixed(m.duration, 3)}  ; hold {p} ({m.phase})")
         else:
             speed = round(float(m.speed), 7)
             if speed != vel:
-                src.append(f"  $VEL.CP = {max(speed, 1e-7):.7f}  ; m/s")
+                src.append(f"  $VEL.CP = {fixed(max(speed, 1e-7), 7)}  ; m/s")
                 vel = speed
             if m.blend > 0:
                 d = round(m.blend * 1e3, 4)
                 if d != cdis:
-                    src.append(f"  $APO.CDIS = {d:.4f}  ; mm")
+                    src.append(f"  $APO.CDIS = {fixed(d, 4)}  ; mm")
                     cdis = d
                 src.append(f"  LIN {p} C_DIS")
             else:

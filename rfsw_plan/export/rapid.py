@@ -29,6 +29,7 @@ from rfsw_plan.export.config import abb_confdata
 from rfsw_plan.export.program import Program, controller_name, phase_comments
 from rfsw_plan.export.readback import ReadPoint
 from rfsw_plan.files import write_text
+from rfsw_plan.numfmt import canonical_quaternion, fixed
 
 FloatArray = NDArray[np.float64]
 
@@ -41,17 +42,17 @@ SPINDLE_STOP = ("SPINDLE STOP placeholder: e.g. SetDO doSpindle, 0;",)
 
 
 def quat_wxyz(R: FloatArray) -> FloatArray:
-    """Rotation matrix -> unit quaternion (w, x, y, z), w >= 0."""
+    """Rotation matrix -> unit quaternion (w, x, y, z), w >= 0 (its first component that is not
+    float noise positive: :func:`rfsw_plan.numfmt.canonical_quaternion`)."""
     x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    return q if w >= 0 else -q
+    return np.asarray(canonical_quaternion([w, x, y, z]))
 
 
 def _pose(T: FloatArray) -> str:
     p = T[:3, 3] * 1e3
     q = quat_wxyz(T[:3, :3])
-    return (f"[[{p[0]:.4f},{p[1]:.4f},{p[2]:.4f}],"
-            f"[{q[0]:.9f},{q[1]:.9f},{q[2]:.9f},{q[3]:.9f}]]")
+    return (f"[[{fixed(p[0], 4)},{fixed(p[1], 4)},{fixed(p[2], 4)}],"
+            f"[{fixed(q[0], 9)},{fixed(q[1], 9)},{fixed(q[2], 9)},{fixed(q[3], 9)}]]")
 
 
 def rapid_name(name: str) -> str:
@@ -79,10 +80,11 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
                 z = round(m.blend * 1e3, 4)
                 zones.setdefault(z, f"zB{len(zones) + 1}")
     for v, nm in speeds.items():
-        out.append(f"  CONST speeddata {nm} := [{max(v, 1e-4):.4f},30,5000,1000];  ! mm/s")
+        out.append(f"  CONST speeddata {nm} := [{fixed(max(v, 1e-4), 4)},30,5000,1000];  ! mm/s")
     for z, nm in zones.items():
-        out.append(f"  CONST zonedata {nm} := [FALSE,{z:.4f},{1.5 * z:.4f},{1.5 * z:.4f},"
-                   f"{0.15 * z:.4f},{1.5 * z:.4f},{0.15 * z:.4f}];  ! mm")
+        out.append(f"  CONST zonedata {nm} := [FALSE,{fixed(z, 4)},{fixed(1.5 * z, 4)},"
+                   f"{fixed(1.5 * z, 4)},{fixed(0.15 * z, 4)},{fixed(1.5 * z, 4)},"
+                   f"{fixed(0.15 * z, 4)}];  ! mm")
     for k, (pose, q) in enumerate(zip(program.poses, program.samples.q, strict=True)):
         cf = abb_confdata(robot, q)
         out.append(f"  CONST robtarget p{k + 1} := {_pose(pose)[:-1]},"
@@ -98,7 +100,7 @@ def write_rapid(program: Program, folder: str | Path) -> list[Path]:
         if m.kind == "ptp":
             out.append(f"    MoveJ {p},{MOVEJ_SPEED},fine,tFSW\\WObj:=wSeam;")
         elif m.kind == "wait":
-            out.append(f"    WaitTime\\InPos,{m.duration:.3f};")
+            out.append(f"    WaitTime\\InPos,{fixed(m.duration, 3)};")
         else:
             vname = speeds[round(m.speed * 1e3, 4)]
             zname = zones[round(m.blend * 1e3, 4)] if m.blend > 0 else "fine"

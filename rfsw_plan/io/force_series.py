@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.numfmt import fixed
 from rfsw_plan.process.force_series import FORCE_FRAMES, ForceSeries
 from rfsw_plan.table import Quantity, read_table
 
@@ -98,15 +99,17 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
 
 def write_force_series(path: str | Path, series: ForceSeries) -> Path:
     """Write a force series in the format read by :func:`read_force_series`."""
+    from rfsw_plan.files import atomic_path
+
     path = Path(path)
     header = list(REQUIRED) + (list(MOMENTS) if series.moment is not None else []) + ["frame"]
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for k in range(len(series)):
-            row = [f"{series.t[k]:.6f}", *(f"{v:.6f}" for v in series.force[k])]
+            row = [fixed(series.t[k], 6), *(fixed(v, 6) for v in series.force[k])]
             if series.moment is not None:
-                row += [f"{v:.6f}" for v in series.moment[k]]
+                row += [fixed(v, 6) for v in series.moment[k]]
             w.writerow([*row, series.frame])
     return path
 

@@ -40,6 +40,7 @@ from rfsw_plan.elastostatics.measurement_set import (
 )
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path
+from rfsw_plan.numfmt import cell, fixed, general
 from rfsw_plan.table import ColumnMap, Quantity, Table, read_column_map, read_table
 
 __all__ = [
@@ -390,22 +391,23 @@ def write_measurements(
         for i in range(len(data)):
             row: list[str] = []
             if data.t is not None:
-                row.append(f"{data.t[i]:.4f}")
+                row.append(fixed(data.t[i], 4))
             if data.pose_id is not None:
                 row.append(str(data.pose_id[i]))
             if data.load_step is not None:
                 row.append(str(int(data.load_step[i])))
-            row += [f"{v * 1000.0:.6f}" if pris[j] else f"{np.degrees(v):.8f}"
+            row += [fixed(v * 1000.0, 6) if pris[j] else fixed(np.degrees(v), 8)
                     for j, v in enumerate(data.q[i])]
-            row += [f"{v:.6f}" for v in data.wrench[i]]
-            row += ["" if not np.isfinite(v) else f"{v * 1000.0:.6f}" for v in data.position[i]]
+            row += [fixed(v, 6) for v in data.wrench[i]]
+            row += [cell(v * 1000.0, 6) for v in data.position[i]]
             if data.rotation is not None:
-                row += [f"{v * 1000.0:.6f}" for v in data.rotation[i]]
+                row += [fixed(v * 1000.0, 6) for v in data.rotation[i]]
             if data.sigma is not None:
-                row.append(f"{data.sigma[i] * 1000.0:.6f}")
+                row.append(fixed(data.sigma[i] * 1000.0, 6))
             if data.frame != "base":
                 row.append(data.frame)
-            row += [f"{data.extra[k][i]:.6g}" for k in data.extra]
+            row += [general(data.extra[k][i], 6) if np.isfinite(data.extra[k][i]) else ""
+                    for k in data.extra]
             w.writerow(row)
     return p
 

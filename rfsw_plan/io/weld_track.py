@@ -128,12 +128,13 @@ def read_weld_track(path: str | Path) -> WeldTrack:
 
 def write_weld_track(path: str | Path, track: WeldTrack) -> Path:
     """Write a track in the format :func:`read_weld_track` reads (atomically); NaN = gap."""
+    from rfsw_plan import numfmt
     from rfsw_plan.files import atomic_path
 
     path = Path(path)
 
     def cell(v: float) -> str:
-        return "" if not np.isfinite(v) else f"{v * 1e3:.5f}"
+        return numfmt.cell(v * 1e3, 5)
 
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

@@ -49,6 +49,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, sha256_file, write_json
+from rfsw_plan.numfmt import canonical_quaternion, cell
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
 
@@ -100,7 +101,9 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     contact = np.isin(tr.phase, CONTACT_PHASES)
     w = result.window
     margin = np.minimum(e_lat - w.lower, w.upper - e_lat)
-    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()  # x, y, z, w
+    # w, x, y, z with a sign no machine's rounding flips, back in SciPy's x, y, z, w order
+    quat = np.roll(canonical_quaternion(np.roll(Rotation.from_matrix(T[:, :3, :3]).as_quat(), 1,
+                                                axis=1)), -1, axis=1)
     header = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm",
               "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
     cols: list[NDArray[Any]] = [tr.t, tr.s * 1e3, tr.phase, *(seam_p * 1e3).T,
@@ -108,7 +111,9 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
                                 quat[:, 2]]
     if result.euler in EULER_COLUMNS:
         header += list(EULER_COLUMNS[result.euler])
-        cols += list(np.rad2deg(maker_euler(T[:, :3, :3], result.euler)).T)
+        euler = np.rad2deg(maker_euler(T[:, :3, :3], result.euler))
+        # The branch cut: -180 and +180 deg are one angle; written as +180 on every machine.
+        cols += list(np.where(np.round(euler, 6) == -180.0, 180.0, euler).T)
     header += robot.description.convention.column_names()
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
@@ -138,10 +143,11 @@ def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
 
 
 def _fmt(v: Any) -> str:
+    """A cell of ``waypoints.csv``: text as is, numbers with 6 decimals and never ``-0.000000``
+    (:func:`rfsw_plan.numfmt.cell`), empty for NaN (no value outside the contact phases)."""
     if isinstance(v, str | np.str_):
         return str(v)
-    x = float(v)
-    return "" if not np.isfinite(x) else f"{x:.6f}"
+    return cell(v, 6)
 
 
 def write_plan_json(path: str | Path, summary: dict[str, Any],

@@ -140,7 +140,10 @@ def _summary(problem: Problem, res: DeviationResult) -> str:
 
 
 def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> None:
-    with path.open("w", newline="") as fh:
+    from rfsw_plan.files import atomic_path
+    from rfsw_plan.numfmt import fixed
+
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         nq = res.q.shape[1]
         w.writerow(["s_mm", "x_mm", "y_mm", "z_mm", "f_t_N", "f_l_N", "f_n_N", "lateral_mm",
@@ -148,25 +151,28 @@ def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> No
                     *joint_columns[:nq]])
         for k in range(len(res.frames)):
             w.writerow([
-                f"{res.frames.s[k] * 1e3:.3f}", *(f"{v * 1e3:.3f}" for v in res.frames.p[k]),
-                *(f"{v:.2f}" for v in res.force_seam[k]), f"{res.lateral[k] * 1e3:.4f}",
-                f"{res.axial[k] * 1e3:.4f}", f"{res.along[k] * 1e3:.4f}",
-                int(res.inside[k]), *(f"{v:.4f}" for v in np.rad2deg(res.q[k])),
+                fixed(res.frames.s[k] * 1e3, 3), *(fixed(v * 1e3, 3) for v in res.frames.p[k]),
+                *(fixed(v, 2) for v in res.force_seam[k]), fixed(res.lateral[k] * 1e3, 4),
+                fixed(res.axial[k] * 1e3, 4), fixed(res.along[k] * 1e3, 4),
+                int(res.inside[k]), *(fixed(v, 4) for v in np.rad2deg(res.q[k])),
             ])
 
 
 def _write_time_csv(path: Path, res: DeviationResult) -> None:
+    from rfsw_plan.files import atomic_path
+    from rfsw_plan.numfmt import fixed
+
     sch = res.schedule
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["t_s", "phase", "s_mm", "depth_mm", "f_t_N", "f_l_N", "f_n_N",
                     "lateral_mm", "axial_mm", "along_mm"])
         F = res.cosim.force_seam if res.cosim is not None else sch.force_seam
         for k in range(len(sch)):
-            w.writerow([f"{sch.t[k]:.3f}", sch.phase[k], f"{sch.s[k] * 1e3:.3f}",
-                        f"{sch.depth[k] * 1e3:.3f}", *(f"{v:.2f}" for v in F[k]),
-                        f"{res.lateral_t[k] * 1e3:.4f}", f"{res.axial_t[k] * 1e3:.4f}",
-                        f"{res.along_t[k] * 1e3:.4f}"])
+            w.writerow([fixed(sch.t[k], 3), sch.phase[k], fixed(sch.s[k] * 1e3, 3),
+                        fixed(sch.depth[k] * 1e3, 3), *(fixed(v, 2) for v in F[k]),
+                        fixed(res.lateral_t[k] * 1e3, 4), fixed(res.axial_t[k] * 1e3, 4),
+                        fixed(res.along_t[k] * 1e3, 4)])
 
 
 def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:

@@ -152,7 +152,9 @@ def _cell(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float):
-        return "" if v != v or v in (float("inf"), float("-inf")) else f"{v:.6g}"
+        from rfsw_plan.numfmt import general
+
+        return "" if v != v or v in (float("inf"), float("-inf")) else general(v, 6)
     return str(v)
 
 
