@@ -66,11 +66,20 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        # No prefix matching: ``--spacing 2`` is an unknown option, never ``--spacing-mm 2``.
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*$")
+        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*( ?%)?$")
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
+
+    def format_help(self) -> str:
+        """The help text; an epilog given as a function (one that needs a heavy import, such as
+        the list of effects) is computed only here, when the help is asked for."""
+        if callable(self.epilog):
+            self.epilog = self.epilog()
+        return super().format_help()
 
 
 def build_parser(only: str | None = None, lazy: bool = False
@@ -88,6 +97,9 @@ def build_parser(only: str | None = None, lazy: bool = False
         "own elasticity.",
     )
     _add_global_options(parser, False)
+    from rfsw_plan import __version__
+
+    parser.add_argument("--version", action="version", version=f"rfsw-plan {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     commands: dict[str, ModuleType] = {}

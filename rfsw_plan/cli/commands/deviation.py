@@ -8,15 +8,14 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from rfsw_plan.process.deviation import DeviationResult, problem_deviation
-from rfsw_plan.process.problem import Problem, load_problem, with_process
+from rfsw_plan.cli.numbers import number
 
 NAME = "deviation"
 HELP = "predict the uncompensated lateral/axial/along-track pin deviation of a problem"
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
+    from rfsw_plan.process.deviation import DeviationResult
+    from rfsw_plan.process.problem import Problem
     from rfsw_plan.progress import Stages
 
 log = logging.getLogger(__name__)
@@ -28,7 +27,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="DIR", default=None,
                         help="output folder (default out/<problem>)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--dt", type=float, default=0.1, metavar="S",
+    parser.add_argument("--dt", type=number(1e-6, 3600, "s", why="at least 1 us; at most the "
+                                            "weld's duration, checked with the problem"),
+                        default=0.1, metavar="S",
                         help="time step of the load schedule [s] (default 0.1, seed 001)")
     parser.add_argument("--cosim", action="store_true",
                         help="solve the axial force with the penetration law of "
@@ -52,10 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
-    from rfsw_plan.exceptions import InputError
-
-    if not (np.isfinite(args.dt) and args.dt > 0):
-        raise InputError("--dt", "", f"got {args.dt:g}", "> 0")
+    from rfsw_plan.cli.numbers import check_samples
     from rfsw_plan.files import (
         OutputLock,
         atomic_path,
@@ -63,8 +61,11 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
         strict_json,
         write_json,
     )
+    from rfsw_plan.process.deviation import problem_deviation
+    from rfsw_plan.process.problem import load_problem
 
     problem = load_problem(args.problem)
+    check_samples("--dt", args.dt, _process_duration(problem), max_samples=100_000)
     out = prepare_output_dir(args.output if args.output else Path("out") / problem.name)
     fit_text = ""
     fit_json = None
@@ -104,7 +105,15 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
     return 0
 
 
+def _process_duration(problem: Problem) -> float:
+    """Duration of the problem's process, approach to retract [s] (what ``--dt`` samples)."""
+    frames = problem.frames()
+    return float(problem.process.phase_times(float(frames.s[-1] - frames.s[0])).total)
+
+
 def _fit(problem: Problem, path: str, frame: str | None) -> tuple[Problem, str, dict[str, object]]:
+    import numpy as np
+
     from rfsw_plan.io.force_series import read_force_series
     from rfsw_plan.process.force_fit import fit_process_forces
 
@@ -115,10 +124,14 @@ def _fit(problem: Problem, path: str, frame: str | None) -> tuple[Problem, str, 
           "rms_N": fit.rms.tolist(), "r2": [None if not np.isfinite(v) else float(v)
                                             for v in fit.r2],
           "rms_total_N": fit.rms_total, "loss_N2": fit.loss, "notes": list(fit.notes)}
+    from rfsw_plan.process.problem import with_process
+
     return with_process(problem, fit.process), fit.summary(), js
 
 
 def _summary(problem: Problem, res: DeviationResult) -> str:
+    import numpy as np
+
     mm = 1e3
     w = res.window
     f = res.force_seam[0]
@@ -140,6 +153,8 @@ def _summary(problem: Problem, res: DeviationResult) -> str:
 
 
 def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> None:
+    import numpy as np
+
     from rfsw_plan.files import atomic_path
     from rfsw_plan.numfmt import fixed
 

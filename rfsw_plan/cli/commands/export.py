@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rfsw_plan.cli.numbers import number
 from rfsw_plan.exceptions import InputError
 
 if TYPE_CHECKING:
@@ -29,11 +30,12 @@ def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
                         help="comma-separated: krl (.src/.dat), fanuc_tp (.ls), rapid (.mod), "
                              "stream (CSV at the controller cycle)"
                              + ("" if flag == "--export" else " (default krl,fanuc_tp,rapid)"))
-    parser.add_argument("--export-spacing-mm", type=float, default=None,
+    parser.add_argument("--export-spacing-mm", type=number(0.01, 1e4, "mm"), default=None,
                         help="program point spacing along the seam [mm] (default: the plan's)")
-    parser.add_argument("--stream-cycle-ms", type=float, default=4.0,
+    parser.add_argument("--stream-cycle-ms",
+                        type=number(0.1, 1000, "ms", why="a robot controller cycle"), default=4.0,
                         help="controller cycle of the stream file [ms] (default 4, RSI/EGM)")
-    parser.add_argument("--path-tol-mm", type=float, default=0.01,
+    parser.add_argument("--path-tol-mm", type=number(1e-4, 10, "mm"), default=0.01,
                         help="largest distance of a verified sample from the programmed path "
                              "[mm] (default 0.01)")
 

@@ -10,14 +10,13 @@ import argparse
 import math
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rfsw_plan.cli import measurement_args
-from rfsw_plan.elastostatics.identification import IdentificationResult, identify
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, UnknownNameError
-from rfsw_plan.robot.description import derived_description, save_robot_description
-from rfsw_plan.robot.kinematics import load_robot
+
+if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
+    from rfsw_plan.elastostatics.identification import IdentificationResult
 
 NAME = "identify"
 HELP = "identify joint stiffness from a measurement CSV and optionally write a new robot file"
@@ -81,7 +80,11 @@ def _report(res: IdentificationResult, robot_name: str, output: Path | None) -> 
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.elastostatics.identification import identify
+    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.files import prepare_output_file, strict_json
+    from rfsw_plan.robot.description import derived_description, save_robot_description
+    from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation.sanity import check_data, check_registered
 
     if args.output:
