@@ -226,11 +226,16 @@ def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Pa
     Returns:
         The path of ``plan.json`` and one line per plot that was not written.
     """
+    from rfsw_plan.files import OutputLock
+
     out = Path(folder)
     record = summary
     record["files"] = [str(p) for p in data_files]
     record["plots"] = {"pending": list(PLAN_PLOTS)}
     path = write_plan_json(out / "plan.json", record, vouches_for=data_files)
+    lock = OutputLock.held(out)
+    if lock is not None:  # committed: an interruption from here on keeps the data files
+        lock.on_abort(None)
     plots, failed = write_plan_plots(out, result)
     record["files"] = [str(p) for p in [*data_files, *plots]]
     record["plots"] = {"written": [p.name for p in plots], "failed": failed}
@@ -276,8 +281,28 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
 def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:
     """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
     so an earlier success record never sits beside removed or new data), then the other
-    outputs of an earlier run are removed. If this run is killed, the folder says so."""
+    outputs of an earlier run are removed, with whatever a killed run left (hidden
+    temporaries, a controller-program staging folder ``.export-*``). If this run is killed,
+    the folder says so.
+
+    If the caller holds the folder's :class:`~rfsw_plan.files.OutputLock`, an interruption
+    (Ctrl-C, SIGTERM) or an error before :func:`commit_plan` removes the data files this run
+    wrote, so the folder holds the ``incomplete`` record alone, never a complete-looking
+    ``waypoints.csv`` or program that nothing vouches for.
+
+    Raises:
+        OutputPathError: One of the output names is taken by a folder (one line, exit 2).
+    """
+    import shutil
+
+    from rfsw_plan.exceptions import OutputPathError
+    from rfsw_plan.files import OutputLock
+
     folder = Path(folder)
+    for name in outputs:
+        if (folder / name).is_dir():
+            raise OutputPathError("-o", folder / name, "is a folder where rfsw-plan writes "
+                                  "its file; move it away or choose another output folder")
     write_json(folder / "plan.json", {
         "status": "incomplete", "problem": problem,
         "message": "a plan was started into this folder and has not finished; the files "
@@ -287,6 +312,24 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
             (folder / name).unlink(missing_ok=True)
         for tmp in folder.glob(f".{name}.*.tmp*"):  # left by a killed (SIGKILL) writer
             tmp.unlink(missing_ok=True)
+    for stage in folder.glob(".export-*"):  # a killed export's staging folder
+        if stage.is_dir():
+            shutil.rmtree(stage, ignore_errors=True)
+    lock = OutputLock.held(folder)
+    if lock is not None:
+        before = {p.name for p in folder.iterdir()}
+        lock.on_abort(lambda: _remove_uncommitted(folder, problem, outputs, before))
+
+
+def _remove_uncommitted(folder: Path, problem: str, outputs: tuple[str, ...],
+                        before: set[str]) -> None:
+    """Remove the data files a run wrote into ``folder`` before it was interrupted: its plan
+    outputs (not the ``incomplete`` plan.json) and new controller programs of the problem."""
+    stem = f"rfsw_{problem}".lower()
+    for p in folder.iterdir():
+        mine = p.name in outputs or (p.name not in before and p.name.lower().startswith(stem))
+        if mine and p.name != "plan.json" and p.is_file():
+            p.unlink(missing_ok=True)
 
 
 def check_plan_folder(folder: str | Path) -> dict[str, Any]:
