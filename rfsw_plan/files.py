@@ -173,6 +173,9 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
             read-only file system, a name too long (one line, exit 2).
     """
     target = Path(target)
+    if target.parent == Path("/proc/self/fd"):  # already an outer atomic_path's temporary
+        yield target
+        return
     fd = None if target.suffix.lower() in _NAMED_FORMATS else _anonymous_file(target.parent)
     if fd is not None:
         tmp_path = Path(f"/proc/self/fd/{fd}")

@@ -256,6 +256,33 @@ class Table:
         return np.array([row[i] if i < len(row) else "" for row in self.rows])
 
 
+def refuse_near_misses(tab: Table, known: list[Quantity], allowed: set[str]) -> None:
+    """Refuse a column that names a known quantity in a spelling the naming rule does not
+    accept (``x__mm``, ``Z_MM``, ``fz_N ``, ``fz_kg``), instead of silently ignoring it.
+
+    Args:
+        tab: The table.
+        known: The quantities the reader understands.
+        allowed: Column names the reader takes (matched ones, text columns...).
+
+    Raises:
+        InputError: Names the column, the quantity it looks like and its accepted names.
+    """
+    for h in tab.header:
+        if h in allowed:
+            continue
+        norm = re.sub(r"_+", "_", re.sub(r"[\s\[\]()]+", "_", h.lower())).strip("_")
+        q = next((q for q in known if norm == q.key.lower()
+                  or norm in (n.lower() for n in q.names())
+                  or re.fullmatch(rf"{re.escape(q.key.lower())}_[a-z]{{1,4}}", norm)), None)
+        if q is None:
+            continue
+        raise InputError(tab.path, f"column '{h}'", f"looks like {q.key} but is not one of its "
+                         "names, so it would be ignored",
+                         f"{' or '.join(repr(n) for n in q.names())} (units in the name), or "
+                         "map it with --columns")
+
+
 def _quantity_of(header: str) -> str:
     """The quantity part of a column name: lower case, before the unit or a bracket."""
     h = header.strip().lower()
@@ -306,6 +333,9 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
                 rows.append([c.strip() for c in row])
                 numbers.append(reader.line_num)
     except csv.Error as exc:
+        if "field larger than field limit" in str(exc):
+            raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
+                             f"{MAX_CELL} characters", "short numeric cells") from None
         raise InputError(p, f"row {reader.line_num}", f"malformed CSV: {exc}") from None
     header = rows[0]
     seen: set[str] = set()
@@ -319,6 +349,12 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
     body, body_rows = rows[1:], numbers[1:]
     if not body:
         raise InputError(p, "", "no samples after the header row")
+    for row, line in zip(body, body_rows, strict=True):
+        if len(row) != len(header):
+            # A cell too few or too many shifts every value after it into the wrong column.
+            raise InputError(p, f"row {line}", f"{len(row)} cells, the header has "
+                             f"{len(header)} ({_NAMES[delimiter]}-separated)",
+                             f"{len(header)} cells per row (an empty cell for no value)")
     decimal = "."
     if delimiter != "," and any(_DECIMAL_COMMA.match(c) for row in body for c in row):
         decimal = ","

@@ -41,7 +41,14 @@ from rfsw_plan.elastostatics.measurement_set import (
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path
 from rfsw_plan.numfmt import cell, fixed, general
-from rfsw_plan.table import ColumnMap, Quantity, Table, read_column_map, read_table
+from rfsw_plan.table import (
+    ColumnMap,
+    Quantity,
+    Table,
+    read_column_map,
+    read_table,
+    refuse_near_misses,
+)
 
 __all__ = [
     "FORCE_COLUMNS",
@@ -265,6 +272,10 @@ def read_measurements(
     quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
     quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME]
     names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
+    # A known quantity under a misspelt name (x__mm, Z_MM) would become an "extra" column and
+    # its axis would silently go missing: refused with the names it may have.
+    known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
+    refuse_near_misses(tab, known, set(names.values()))
     return MeasurementSet(
         q, wrench, position, t, pose_id, sigma, _extras(tab, set(names.values())),
         str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),

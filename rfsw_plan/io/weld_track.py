@@ -61,25 +61,25 @@ class WeldTrack:
         return int(self.xyz.shape[0] if self.xyz is not None else self.s.shape[0])  # type: ignore[union-attr]
 
 
+#: Largest coordinate or offset accepted [mm]: 100 m, beyond any robot cell's reach.
+MAX_MM = 1e5
+
+
 def read_weld_track(path: str | Path) -> WeldTrack:
-    """Read a weld-track CSV (format in the module docstring).
+    """Read a weld-track CSV (format in the module docstring) through the strict table reader
+    (:func:`rfsw_plan.table.read_table`: delimiter and decimal comma detected, duplicated or
+    empty column names, ragged rows and over-long cells refused).
 
     Raises:
-        InputError: Unreadable file, unknown/duplicated/missing columns, a cell that is not a
-            number, fewer than 3 complete rows; the message names the file, row and column.
+        InputError: Unreadable file, unknown/duplicated/missing columns, a row with a cell too
+            few or too many, a cell that is not a number or beyond +-:data:`MAX_MM` mm, fewer
+            than 3 complete rows; the message names the file, row and column.
     """
+    from rfsw_plan.table import read_table
+
     path = Path(path)
-    try:
-        with path.open(newline="") as fh:
-            rows = [r for r in csv.reader(fh) if r and any(c.strip() for c in r)]
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, "", f"cannot read file: {exc}") from None
-    if not rows:
-        raise InputError(path, "", "empty file", _EXPECTED)
-    header = [h.strip() for h in rows[0]]
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise InputError(path, "header", f"duplicated column(s) {', '.join(dup)}", _EXPECTED)
+    tab = read_table(path)
+    header = tab.header
     if set(SEAM_FORM) <= set(header):
         form, cols = "seam", [*SEAM_FORM, *(c for c in SEAM_OPTIONAL if c in header)]
     elif set(BASE_FORM) <= set(header):
@@ -90,28 +90,13 @@ def read_weld_track(path: str | Path) -> WeldTrack:
     if unknown:
         raise InputError(path, "header", f"unknown column(s) {', '.join(unknown)} in a "
                          f"{form}-frame track", ", ".join(cols))
-    col = {h: i for i, h in enumerate(header)}
+    col = [header.index(name) for name in cols]
     data: list[list[float]] = []
     gaps = 0
-    for r, row in enumerate(rows[1:], start=2):
-        vals: list[float] = []
-        gap = False
-        for name in cols:
-            i = col[name]
-            cell = row[i].strip() if i < len(row) else ""
-            if cell == "" or cell.lower() == "nan":
-                gap = True
-                continue
-            try:
-                v = float(cell)
-            except ValueError:
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}' is not a number",
-                                 "a number in mm, or an empty cell for a gap") from None
-            if not math.isfinite(v):
-                raise InputError(path, f"row {r}, column {name}", f"'{cell}'",
-                                 "a finite number in mm")
-            vals.append(v)
-        if gap:
+    for row, line in zip(tab.rows, tab.row_numbers, strict=True):
+        vals = [_cell(path, row[i], line, name, tab.decimal) for i, name in zip(col, cols,
+                                                                             strict=True)]
+        if any(math.isnan(v) for v in vals):
             gaps += 1
         else:
             data.append(vals)
@@ -124,6 +109,21 @@ def read_weld_track(path: str | Path) -> WeldTrack:
     a = a[order]
     e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
     return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(path), gaps)
+
+
+def _cell(path: Path, cell: str, line: int, name: str, decimal: str) -> float:
+    """One track cell [mm]; NaN for a gap (empty or ``nan``)."""
+    if cell == "" or cell.lower() == "nan":
+        return math.nan
+    try:
+        v = float(cell.replace(",", ".") if decimal == "," else cell)
+    except ValueError:
+        raise InputError(path, f"row {line}, column {name}", f"'{cell[:40]}' is not a number",
+                         "a number in mm, or an empty cell for a gap") from None
+    if not math.isfinite(v) or abs(v) > MAX_MM:
+        raise InputError(path, f"row {line}, column {name}", f"'{cell[:40]}'",
+                         f"a finite number in mm within +-{MAX_MM:g} mm")
+    return v
 
 
 def write_weld_track(path: str | Path, track: WeldTrack) -> Path:
