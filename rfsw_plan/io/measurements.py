@@ -276,6 +276,11 @@ def read_measurements(
     # its axis would silently go missing: refused with the names it may have.
     known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
     refuse_near_misses(tab, known, set(names.values()))
+    if mapping is not None:  # a mapped key no reader asks for would be ignored
+        unknown = sorted(set(mapping.columns) - {x.key for x in known})
+        if unknown:
+            raise InputError(mapping.source, f"columns.{unknown[0]}", "not a quantity of a "
+                             "measurement file", ", ".join(x.key for x in known[:-6]))
     return MeasurementSet(
         q, wrench, position, t, pose_id, sigma, _extras(tab, set(names.values())),
         str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),
