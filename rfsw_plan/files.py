@@ -87,10 +87,11 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n"
 
 
-#: Suffixes whose writers pick the format from the file name (matplotlib's ``savefig``): these
-#: get a named temporary, every other target an anonymous one (see :func:`atomic_path`).
-_NAMED_FORMATS = frozenset({".svg", ".pdf", ".jpg", ".jpeg", ".eps", ".ps", ".tif", ".tiff",
-                            ".webp"})
+#: Suffixes whose writers pick the format from the file name (matplotlib's ``savefig`` reads
+#: it, and appends ``.png`` to a name without one): these get a named temporary, every other
+#: target an anonymous one (see :func:`atomic_path`).
+_NAMED_FORMATS = frozenset({".png", ".svg", ".pdf", ".jpg", ".jpeg", ".eps", ".ps", ".tif",
+                            ".tiff", ".webp", ".gif"})
 #: Errors of the file system itself (full, read-only, quota, I/O): a one-line OutputPathError.
 _FS_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG,
                         errno.EACCES, errno.EPERM, errno.ENAMETOOLONG, errno.EISDIR,
@@ -164,9 +165,9 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     Use it for writers that want a path (``savefig``, ``np.savetxt``). On Linux the temporary
     is an unnamed file (``O_TMPFILE``, reached as ``/proc/self/fd/N``): a process killed at any
     moment while writing, SIGKILL included, leaves no temporary file behind. Elsewhere (and for
-    targets whose writer needs the suffix, such as ``.svg``) it is a hidden file beside the
-    target. Either way a reader only ever sees the old file or the complete new one. On any
-    exception the temporary is removed and ``target`` is untouched.
+    images, whose writer needs the suffix) it is a hidden file beside the target, which the
+    next run into the folder removes. Either way a reader only ever sees the old file or the
+    complete new one. On any exception the temporary is removed and ``target`` is untouched.
 
     Raises:
         OutputPathError: The target cannot be written: a folder of that name, a full or
@@ -247,6 +248,8 @@ def prepare_output_dir(path: str | Path, option: str = "-o") -> Path:
             or pseudo file system (``/proc``, ``/sys``), is a symbolic link loop, has a name
             too long, or cannot be written. One line, exit 2.
     """
+    if not str(path).strip():
+        raise OutputPathError(option, repr(str(path)), "is empty; give a folder")
     try:
         return _prepare_output_dir(Path(path), option)
     except OSError as exc:  # whatever the checks below did not foresee: still one line
@@ -296,6 +299,8 @@ def prepare_output_file(path: str | Path, option: str = "-o") -> Path:
     Raises:
         OutputPathError: one line naming the option and the path, exit 2.
     """
+    if not str(path).strip():
+        raise OutputPathError(option, repr(str(path)), "is empty; give a file name")
     try:
         return _prepare_output_file(path, option)
     except OSError as exc:

@@ -67,7 +67,7 @@ def test_units_are_checked_against_the_data(tmp_path: Path) -> None:
         read_force_series(_log(tmp_path, "t_s,fx_N,fy_N,fz_N,frame", 1e-3))
     with pytest.raises(InputError, match="milliseconds in a seconds column"):
         read_force_series(_log(tmp_path, "t_s,fx_N,fy_N,fz_N,frame", t_scale=1e6))
-    with pytest.raises(InputError, match="column 'FZ_N'.*looks like fz"):
+    with pytest.raises(InputError, match=r"column 'FZ_N'.*looks like fz"):
         read_force_series(_renamed(tmp_path), frame="seam")
     ragged = _log(tmp_path, "t_s,fx_N,fy_N,fz_N,frame")
     ragged.write_text(ragged.read_text().replace(",seam\n", ",seam,1\n", 1))

@@ -41,8 +41,8 @@ def negzero(obj: Any) -> Any:
         return -obj if abs(obj) < 1e-12 else obj
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         changes = {f.name: negzero(getattr(obj, f.name)) for f in dataclasses.fields(obj)
-                   if f.init and isinstance(getattr(obj, f.name),
-                                            (np.ndarray, float, tuple, list))
+                   if (f.init and isinstance(getattr(obj, f.name),
+                                            (np.ndarray, float, tuple, list)))
                    or dataclasses.is_dataclass(getattr(obj, f.name))}
         changes = {k: v for k, v in changes.items() if not _is_robot(v)}
         return dataclasses.replace(obj, **changes)

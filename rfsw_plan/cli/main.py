@@ -153,6 +153,17 @@ def _terminated(signum: int, frame: Any) -> NoReturn:
     raise KeyboardInterrupt
 
 
+#: Options that name a file or folder to write: an empty value is a slip, never "here".
+_PATH_OPTIONS = ("output", "save_robot", "save_truth")
+
+
+def _refuse_empty_paths(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    for name in _PATH_OPTIONS:
+        if getattr(args, name, None) is not None and not str(getattr(args, name)).strip():
+            parser.error(f"argument --{name.replace('_', '-')}: an empty path; give a file or "
+                         "folder, or leave the option out for the default")
+
+
 def _main(argv: Sequence[str] | None = None) -> int:
     """The CLI without the signal handling. The parsed namespace also carries ``argv`` (the
     words given, for reports that print the next command) and ``started``
@@ -161,7 +172,11 @@ def _main(argv: Sequence[str] | None = None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
     parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
+        if any(w == "--" or w.endswith("=--") for w in words):
+            # No command takes it; argparse would hand the option an empty list.
+            parser.error("'--' is not an argument of rfsw-plan")
         args = parser.parse_args(words)
+        _refuse_empty_paths(parser, args)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
     args.argv = words
