@@ -310,7 +310,8 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
 
     Raises:
         InputError: Unreadable or empty file, no data rows, a duplicated or empty column name,
-            a cell longer than :data:`MAX_CELL` characters, a malformed CSV row.
+            a cell longer than :data:`MAX_CELL` characters, a row with more or fewer cells than
+            the header, a malformed CSV row.
     """
     p = Path(path)
     try:
@@ -321,31 +322,9 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
     if not first:
         raise InputError(p, "", "file is empty", "a header row and samples")
     delimiter = _detect_delimiter(first)
-    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
-    rows: list[list[str]] = []
-    numbers: list[int] = []
-    try:
-        for row in reader:
-            if any(len(c) > MAX_CELL for c in row):
-                raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
-                                 f"{MAX_CELL} characters", "short numeric cells")
-            if any(c.strip() for c in row):
-                rows.append([c.strip() for c in row])
-                numbers.append(reader.line_num)
-    except csv.Error as exc:
-        if "field larger than field limit" in str(exc):
-            raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
-                             f"{MAX_CELL} characters", "short numeric cells") from None
-        raise InputError(p, f"row {reader.line_num}", f"malformed CSV: {exc}") from None
+    rows, numbers = _rows(p, text, delimiter)
     header = rows[0]
-    seen: set[str] = set()
-    for k, h in enumerate(header):
-        if h == "":
-            raise InputError(p, f"header, column {k + 1}", "empty column name", "a name")
-        if h in seen:
-            raise InputError(p, "header", f"column '{h}' appears twice",
-                             "each column name once")
-        seen.add(h)
+    _check_header(p, header)
     body, body_rows = rows[1:], numbers[1:]
     if not body:
         raise InputError(p, "", "no samples after the header row")
@@ -359,3 +338,34 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
     if delimiter != "," and any(_DECIMAL_COMMA.match(c) for row in body for c in row):
         decimal = ","
     return Table(p, header, body, body_rows, delimiter, decimal, mapping)
+
+
+def _rows(p: Path, text: str, delimiter: str) -> tuple[list[list[str]], list[int]]:
+    """The non-blank rows (cells stripped) and their line numbers."""
+    reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
+    rows: list[list[str]] = []
+    numbers: list[int] = []
+    try:
+        for row in reader:
+            if any(len(c) > MAX_CELL for c in row):
+                raise csv.Error("field larger than field limit")
+            if any(c.strip() for c in row):
+                rows.append([c.strip() for c in row])
+                numbers.append(reader.line_num)
+    except csv.Error as exc:
+        if "field larger than field limit" in str(exc):
+            raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
+                             f"{MAX_CELL} characters", "short numeric cells") from None
+        raise InputError(p, f"row {reader.line_num}", f"malformed CSV: {exc}") from None
+    return rows, numbers
+
+
+def _check_header(p: Path, header: list[str]) -> None:
+    seen: set[str] = set()
+    for k, h in enumerate(header):
+        if h == "":
+            raise InputError(p, f"header, column {k + 1}", "empty column name", "a name")
+        if h in seen:
+            raise InputError(p, "header", f"column '{h}' appears twice",
+                             "each column name once")
+        seen.add(h)

@@ -405,25 +405,30 @@ def write_measurements(
         w = csv.writer(fh)
         w.writerow(header)
         for i in range(len(data)):
-            row: list[str] = []
-            if data.t is not None:
-                row.append(fixed(data.t[i], 4))
-            if data.pose_id is not None:
-                row.append(str(data.pose_id[i]))
-            if data.load_step is not None:
-                row.append(str(int(data.load_step[i])))
-            row += [fixed(v * 1000.0, 6) if pris[j] else fixed(np.degrees(v), 8)
-                    for j, v in enumerate(data.q[i])]
-            row += [fixed(v, 6) for v in data.wrench[i]]
-            row += [cell(v * 1000.0, 6) for v in data.position[i]]
-            if data.rotation is not None:
-                row += [fixed(v * 1000.0, 6) for v in data.rotation[i]]
-            if data.sigma is not None:
-                row.append(fixed(data.sigma[i] * 1000.0, 6))
-            if data.frame != "base":
-                row.append(data.frame)
-            row += [general(data.extra[k][i], 6) if np.isfinite(data.extra[k][i]) else ""
-                    for k in data.extra]
-            w.writerow(row)
+            w.writerow(_row(data, i, pris))
     return p
 
+
+def _row(data: MeasurementSet, i: int, pris: list[bool]) -> list[str]:
+    """Row ``i`` of :func:`write_measurements` in file units (every number through
+    :mod:`rfsw_plan.numfmt`: the same text on every machine)."""
+    row: list[str] = []
+    if data.t is not None:
+        row.append(fixed(data.t[i], 4))
+    if data.pose_id is not None:
+        row.append(str(data.pose_id[i]))
+    if data.load_step is not None:
+        row.append(str(int(data.load_step[i])))
+    row += [fixed(v * 1000.0, 6) if pris[j] else fixed(np.degrees(v), 8)
+            for j, v in enumerate(data.q[i])]
+    row += [fixed(v, 6) for v in data.wrench[i]]
+    row += [cell(v * 1000.0, 6) for v in data.position[i]]
+    if data.rotation is not None:
+        row += [fixed(v * 1000.0, 6) for v in data.rotation[i]]
+    if data.sigma is not None:
+        row.append(fixed(data.sigma[i] * 1000.0, 6))
+    if data.frame != "base":
+        row.append(data.frame)
+    row += [general(data.extra[k][i], 6) if np.isfinite(data.extra[k][i]) else ""
+            for k in data.extra]
+    return row

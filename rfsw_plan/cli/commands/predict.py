@@ -80,37 +80,50 @@ def joint_values(robot: Robot, text: str, option: str) -> FloatArray:
     prismatic = [bool(p) for p in robot.prismatic]
     kinds = ", ".join(f"q{j + 1} {'mm' if p else 'deg'}" for j, p in enumerate(prismatic))
     what = f"{n} joint values for robot {robot.name} ({kinds})"
-    parts = [s.strip() for s in text.split(",")]
     if option == "--q-deg":
-        raw = parse_numbers(text, option, (n,), what)
+        raw = [float(v) for v in parse_numbers(text, option, (n,), what)]
         units = ["mm" if p else "deg" for p in prismatic]
     else:
-        if len(parts) != n:
-            raise InputError(option, "", f"got {len(parts)} values", what)
-        raw, units = np.empty(n), []
-        for j, part in enumerate(parts):
-            m = _VALUE.match(part)
-            if m is None or not _is_float(m.group(1)) or not math.isfinite(float(m.group(1))):
-                raise InputError(option, f"joint {j + 1}", f"'{part}' is not a finite number "
-                                 "with an optional unit", "e.g. 30deg, 0.5rad, 150mm, 0.15m")
-            raw[j] = float(m.group(1))
-            units.append(m.group(2) or ("mm" if prismatic[j] else "deg"))
+        raw, units = _with_units(text, option, prismatic, what)
     q = np.empty(n)
-    d = robot.description
     for j, (v, unit) in enumerate(zip(raw, units, strict=True)):
-        table = LENGTH_UNITS if prismatic[j] else ANGLE_UNITS
-        if unit not in table:
-            kind = "prismatic: a length" if prismatic[j] else "revolute: an angle"
-            raise InputError(option, f"joint {j + 1}", f"unit '{unit}' on a "
-                             f"{'prismatic' if prismatic[j] else 'revolute'} joint",
-                             f"{kind} in {' or '.join(table)}")
-        q[j] = v * table[unit]
-        if not d.lower[j] <= q[j] <= d.upper[j]:
-            scale, shown = (1e3, "mm") if prismatic[j] else (180.0 / math.pi, "deg")
-            raise InputError(option, f"joint {j + 1}",
-                             f"at {q[j] * scale:.6g} {shown} is outside its limits "
-                             f"[{d.lower[j] * scale:.6g}, {d.upper[j] * scale:.6g}] {shown}",
-                             "a value within the robot's joint limits")
+        q[j] = _joint_value(robot, j, v, unit, option)
+    return q
+
+
+def _with_units(text: str, option: str, prismatic: list[bool], what: str
+                ) -> tuple[list[float], list[str]]:
+    """``--q`` values and their units (a bare value: deg, or mm for a prismatic joint)."""
+    parts = [s.strip() for s in text.split(",")]
+    if len(parts) != len(prismatic):
+        raise InputError(option, "", f"got {len(parts)} values", what)
+    raw, units = [], []
+    for j, part in enumerate(parts):
+        m = _VALUE.match(part)
+        if m is None or not _is_float(m.group(1)) or not math.isfinite(float(m.group(1))):
+            raise InputError(option, f"joint {j + 1}", f"'{part}' is not a finite number with "
+                             "an optional unit", "e.g. 30deg, 0.5rad, 150mm, 0.15m")
+        raw.append(float(m.group(1)))
+        units.append(m.group(2) or ("mm" if prismatic[j] else "deg"))
+    return raw, units
+
+
+def _joint_value(robot: Robot, j: int, v: float, unit: str, option: str) -> float:
+    """Joint ``j``'s value in SI (rad, or m for a prismatic joint), within its limits."""
+    prismatic = bool(robot.prismatic[j])
+    table = LENGTH_UNITS if prismatic else ANGLE_UNITS
+    kind = "prismatic" if prismatic else "revolute"
+    if unit not in table:
+        raise InputError(option, f"joint {j + 1}", f"unit '{unit}' on a {kind} joint",
+                         f"{'a length' if prismatic else 'an angle'} in {' or '.join(table)}")
+    q = v * table[unit]
+    d = robot.description
+    if not d.lower[j] <= q <= d.upper[j]:
+        scale, shown = (1e3, "mm") if prismatic else (180.0 / math.pi, "deg")
+        raise InputError(option, f"joint {j + 1}",
+                         f"at {q * scale:.6g} {shown} is outside its limits "
+                         f"[{d.lower[j] * scale:.6g}, {d.upper[j] * scale:.6g}] {shown}",
+                         "a value within the robot's joint limits")
     return q
 
 
