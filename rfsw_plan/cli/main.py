@@ -150,6 +150,9 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _terminated(signum: int, frame: Any) -> NoReturn:
+    # A second SIGTERM while unwinding (a supervisor that repeats it) must not interrupt the
+    # clean-up of the first: ignored until main() restores the previous handler.
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise KeyboardInterrupt
 
 
