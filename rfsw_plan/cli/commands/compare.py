@@ -49,11 +49,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed000-average", type=number(0, 100, "%"), default=50.0,
                         metavar="PERCENT",
                         help="seed 000 averaging percentage (default 50)")
-    parser.add_argument("--seed000-update-ms", type=number(0, 1e4, "ms"), default=250.0,
+    parser.add_argument("--seed000-update-ms", type=number(0, 1e12, "ms"), default=250.0,
                         metavar="MS",
                         help="seed 000 model/average update period [ms] (default 250; 0 = "
                         "every controller cycle)")
-    parser.add_argument("--maf-samples", type=count(1, 100_000), default=320, metavar="N",
+    parser.add_argument("--maf-samples", type=count(1, 10**12), default=320, metavar="N",
                         help="seed 002 moving-average length in 0.5 ms steps (default 320)")
     parser.add_argument("--no-sensitivity", action="store_true",
                         help="skip the reruns with a softer truth, a hidden effect, 3x noise")
