@@ -87,6 +87,7 @@ def run_kills(kind: str, sig: signal.Signals, moments: list[float], old: Path,
     kills = []
     for i, at in enumerate(moments):
         out = work / f"{kind.split()[0]}_{sig.name}_{i}"
+        out.parent.mkdir(parents=True, exist_ok=True)
         shutil.rmtree(out, ignore_errors=True)
         shutil.copytree(old, out)
         proc = subprocess.Popen(_command(kind, out), env=_env(), stdout=subprocess.DEVNULL,
@@ -122,15 +123,23 @@ def old_plan(work: Path) -> Path:
 
 
 def campaign(kills: int, seed: int, work: Path,
-             kinds: tuple[str, ...] = ("plan --export", "export")) -> list[Kill]:
+             kinds: tuple[str, ...] = ("plan --export", "export"),
+             signals: tuple[signal.Signals, ...] = (signal.SIGKILL, signal.SIGTERM),
+             verbose: bool = False) -> list[Kill]:
     old = old_plan(work)
-    rng = random.Random(seed)
     out: list[Kill] = []
     for kind in kinds:
         total = duration(kind, old, work)
-        for sig in (signal.SIGKILL, signal.SIGTERM):
+        for sig in signals:
+            rng = random.Random(f"{seed}:{kind}:{sig.name}")
             moments = sorted(rng.uniform(START_S, total) for _ in range(kills))
-            out += run_kills(kind, sig, moments, old, work)
+            for at in moments:
+                k = run_kills(kind, sig, [at], old, work / f"{sig.name}_{at:.3f}")[0]
+                if verbose:
+                    print(f"{k.kind} | {k.sig} | {k.at_s:.2f} of {total:.1f} s | exit "
+                          f"{k.returncode} | {'ok' if k.ok else 'NOT OK'} | {k.verdict}",
+                          flush=True)
+                out.append(k)
     return out
 
 
@@ -138,10 +147,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--kills", type=int, default=20, help="kills per command and signal")
     ap.add_argument("--seed", type=int, default=25)
+    ap.add_argument("--kinds", default="plan --export,export")
+    ap.add_argument("--signals", default="SIGKILL,SIGTERM")
+    ap.add_argument("--old", default=None, help="a complete plan --export folder to start from")
     args = ap.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="rfsw_kill_"))
+    if args.old:
+        shutil.copytree(args.old, work / "old")
     try:
-        result = campaign(args.kills, args.seed, work)
+        result = campaign(args.kills, args.seed, work, tuple(args.kinds.split(",")),
+                          tuple(signal.Signals[s] for s in args.signals.split(",")),
+                          verbose=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
     print("| command | signal | kills | folder acceptable | SIGTERM exit 130 (or 0) |")
