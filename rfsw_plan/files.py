@@ -44,6 +44,30 @@ __all__ = [
 
 LOCK_NAME = ".rfsw-plan.lock"
 
+#: Set by the CLI when SIGTERM or Ctrl-C arrived (:func:`note_interrupt`). Libraries may swallow
+#: the KeyboardInterrupt the signal raises (CasADi's Python wrappers have bare ``except:``
+#: clauses, and an interrupted IPOPT solve returns as a failed solve), so no file is given its
+#: name after it: :func:`atomic_path` and :class:`OutputLock` raise it again.
+_interrupted = False
+
+
+def note_interrupt() -> None:
+    """Record that the process was asked to stop (SIGTERM, Ctrl-C)."""
+    global _interrupted
+    _interrupted = True
+
+
+def clear_interrupt() -> None:
+    """Forget a recorded interruption (the CLI, when a run has ended)."""
+    global _interrupted
+    _interrupted = False
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt if the process was asked to stop and something swallowed it."""
+    if _interrupted:
+        raise KeyboardInterrupt
+
 
 def to_jsonable(obj: Any) -> Any:
     """A copy of ``obj`` made only of JSON types; NaN and +-inf become ``None``.
@@ -174,6 +198,7 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
             read-only file system, a name too long (one line, exit 2).
     """
     target = Path(target)
+    check_interrupt()
     if target.parent == Path("/proc/self/fd"):  # already an outer atomic_path's temporary
         yield target
         return
@@ -192,6 +217,7 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
         tmp_path = Path(tmp)
     try:
         yield tmp_path
+        check_interrupt()  # never give a file its name after a stop request
         with open(tmp_path, "rb+") as fh:  # flush to disk before the name is given
             os.fsync(fh.fileno())
             os.fchmod(fh.fileno(), 0o644)
@@ -371,6 +397,7 @@ class OutputLock:
     def __enter__(self) -> OutputLock:
         import fcntl
 
+        check_interrupt()
         try:
             fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
         except OSError as exc:

@@ -135,16 +135,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     one line and exit 130, never a traceback."""
     # SIGTERM unwinds like Ctrl-C, so atomic writers remove their temporaries (a file is
     # either the complete new one or not there).
+    from rfsw_plan import files
+
     previous: Any = None
     with contextlib.suppress(ValueError):  # not in the main thread: keep the default
         previous = signal.signal(signal.SIGTERM, _terminated)
+    files.clear_interrupt()
     try:
-        return _main(argv)
+        code = _main(argv)
+        if code != 130:
+            files.check_interrupt()  # a library swallowed the interruption: still exit 130
+        return code
     except KeyboardInterrupt:
         with contextlib.suppress(Exception):
             print("rfsw-plan: interrupted", file=sys.stderr)
         return 130
     finally:
+        files.clear_interrupt()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
@@ -153,6 +160,9 @@ def _terminated(signum: int, frame: Any) -> NoReturn:
     # A second SIGTERM while unwinding (a supervisor that repeats it) must not interrupt the
     # clean-up of the first: ignored until main() restores the previous handler.
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    from rfsw_plan import files
+
+    files.note_interrupt()  # if a library swallows the KeyboardInterrupt, the writers re-raise
     raise KeyboardInterrupt
 
 
