@@ -22,7 +22,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +44,30 @@ __all__ = [
 
 LOCK_NAME = ".rfsw-plan.lock"
 
+#: Set by the CLI when SIGTERM or Ctrl-C arrived (:func:`note_interrupt`). Libraries may swallow
+#: the KeyboardInterrupt the signal raises (CasADi's Python wrappers have bare ``except:``
+#: clauses, and an interrupted IPOPT solve returns as a failed solve), so no file is given its
+#: name after it: :func:`atomic_path` and :class:`OutputLock` raise it again.
+_interrupted = False
+
+
+def note_interrupt() -> None:
+    """Record that the process was asked to stop (SIGTERM, Ctrl-C)."""
+    global _interrupted
+    _interrupted = True
+
+
+def clear_interrupt() -> None:
+    """Forget a recorded interruption (the CLI, when a run has ended)."""
+    global _interrupted
+    _interrupted = False
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt if the process was asked to stop and something swallowed it."""
+    if _interrupted:
+        raise KeyboardInterrupt
+
 
 def to_jsonable(obj: Any) -> Any:
     """A copy of ``obj`` made only of JSON types; NaN and +-inf become ``None``.
@@ -56,7 +80,7 @@ def to_jsonable(obj: Any) -> Any:
     if isinstance(obj, int):
         return int(obj)
     if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
+        return obj + 0.0 if math.isfinite(obj) else None  # + 0.0: never -0.0
     if isinstance(obj, Mapping):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
@@ -87,30 +111,132 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n"
 
 
-@contextlib.contextmanager
-def atomic_path(target: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``target``; on success it replaces ``target`` atomically.
+#: Suffixes whose writers pick the format from the file name (matplotlib's ``savefig`` reads
+#: it, and appends ``.png`` to a name without one): these get a named temporary, every other
+#: target an anonymous one (see :func:`atomic_path`).
+_NAMED_FORMATS = frozenset({".png", ".svg", ".pdf", ".jpg", ".jpeg", ".eps", ".ps", ".tif",
+                            ".tiff", ".webp", ".gif"})
+#: Errors of the file system itself (full, read-only, quota, I/O): a one-line OutputPathError.
+_FS_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG,
+                        errno.EACCES, errno.EPERM, errno.ENAMETOOLONG, errno.EISDIR,
+                        errno.ENOTDIR, errno.ELOOP})
 
-    Use it for writers that want a path (``savefig``, ``np.savetxt``). On any exception the
-    temporary file is removed and ``target`` is untouched.
+
+def _anonymous_file(folder: Path) -> int | None:
+    """An unnamed file in ``folder`` (Linux ``O_TMPFILE``), or None where that is not available.
+
+    It has no name until :func:`_commit_file` links it: a process killed while writing it
+    (SIGKILL included) leaves nothing behind, the kernel frees it.
     """
-    target = Path(target)
-    # The temporary keeps the target's suffix, so writers that infer the format from the name
-    # (matplotlib's savefig) write the right format.
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}",
-                               dir=target.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
+    flag = getattr(os, "O_TMPFILE", None)
+    if flag is None or not os.path.isdir("/proc/self/fd"):
+        return None
     try:
-        yield tmp_path
-        with open(tmp_path, "rb+") as fh:  # flush to disk before the rename
-            os.fsync(fh.fileno())
-        os.chmod(tmp_path, 0o644)
-        os.replace(tmp_path, target)
+        return os.open(folder, flag | os.O_RDWR, 0o644)
+    except OSError:  # a file system without O_TMPFILE support
+        return None
+
+
+def _commit_file(source: Path, target: Path, anonymous: bool) -> None:
+    """Give the finished temporary ``source`` the name ``target`` in one step.
+
+    An anonymous file is linked straight to ``target`` if that name is free (the file appears
+    complete, no other name ever exists); otherwise it gets a temporary name that is renamed
+    over ``target`` at once (``os.replace`` is atomic).
+    """
+    if not anonymous:
+        os.replace(source, target)
+        return
+    try:
+        _link(source, target)
+        return
+    except FileExistsError:
+        pass
+    named = target.parent / f".{target.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp"
+    _link(source, named)
+    try:
+        os.replace(named, target)
     except BaseException:
         with contextlib.suppress(OSError):
-            tmp_path.unlink()
+            named.unlink()
         raise
+
+
+def _link(source: Path, target: Path) -> None:
+    """``linkat(source, target, AT_SYMLINK_FOLLOW)``: the file behind ``/proc/self/fd/N`` gets
+    the name ``target`` (a directory fd makes Python call ``linkat``, not ``link``, which would
+    try to link the /proc entry itself)."""
+    dfd = os.open(target.parent, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        os.link(source, target.name, src_dir_fd=dfd, dst_dir_fd=dfd, follow_symlinks=True)
+    finally:
+        os.close(dfd)
+
+
+def _path_error(target: Path, exc: OSError) -> OutputPathError:
+    why = exc.strerror or str(exc)
+    if exc.errno == errno.EISDIR or (exc.errno in (errno.EEXIST, errno.ENOTEMPTY)
+                                     and target.is_dir()):
+        why = "is a folder; move it away or choose another output folder"
+    return OutputPathError("output", target, f"cannot be written ({why})"
+                           if "folder" not in why else why)
+
+
+@contextlib.contextmanager
+def atomic_path(target: str | Path) -> Iterator[Path]:
+    """Yield a temporary path for ``target``; on success it becomes ``target`` in one step.
+
+    Use it for writers that want a path (``savefig``, ``np.savetxt``). On Linux the temporary
+    is an unnamed file (``O_TMPFILE``, reached as ``/proc/self/fd/N``): a process killed at any
+    moment while writing, SIGKILL included, leaves no temporary file behind. Elsewhere (and for
+    images, whose writer needs the suffix) it is a hidden file beside the target, which the
+    next run into the folder removes. Either way a reader only ever sees the old file or the
+    complete new one. On any exception the temporary is removed and ``target`` is untouched.
+
+    Raises:
+        OutputPathError: The target cannot be written: a folder of that name, a full or
+            read-only file system, a name too long (one line, exit 2).
+    """
+    target = Path(target)
+    check_interrupt()
+    if target.parent == Path("/proc/self/fd"):  # already an outer atomic_path's temporary
+        yield target
+        return
+    fd = None if target.suffix.lower() in _NAMED_FORMATS else _anonymous_file(target.parent)
+    if fd is not None:
+        tmp_path = Path(f"/proc/self/fd/{fd}")
+    else:
+        # The temporary keeps the target's suffix, so writers that infer the format from the
+        # name (matplotlib's savefig) write the right format.
+        try:
+            nfd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}",
+                                        dir=target.parent)
+        except OSError as exc:
+            raise _path_error(target, exc) from None
+        os.close(nfd)
+        tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        check_interrupt()  # never give a file its name after a stop request
+        with open(tmp_path, "rb+") as fh:  # flush to disk before the name is given
+            os.fsync(fh.fileno())
+            os.fchmod(fh.fileno(), 0o644)
+        _commit_file(tmp_path, target, fd is not None)
+    except OSError as exc:
+        if fd is None:
+            with contextlib.suppress(OSError):
+                tmp_path.unlink()
+        if exc.errno in _FS_ERRNOS or isinstance(exc, IsADirectoryError):
+            raise _path_error(target, exc) from None
+        raise
+    except BaseException:
+        if fd is None:
+            with contextlib.suppress(OSError):
+                tmp_path.unlink()
+        raise
+    finally:
+        if fd is not None:
+            os.close(fd)
 
 
 def write_bytes(target: str | Path, data: bytes) -> Path:
@@ -145,9 +271,18 @@ def prepare_output_dir(path: str | Path, option: str = "-o") -> Path:
 
     Raises:
         OutputPathError: the path is an existing file, lies under a file, is on a read-only
-            or pseudo file system (``/proc``, ``/sys``), or cannot be written. One line, exit 2.
+            or pseudo file system (``/proc``, ``/sys``), is a symbolic link loop, has a name
+            too long, or cannot be written. One line, exit 2.
     """
-    p = Path(path)
+    if not str(path).strip():
+        raise OutputPathError(option, repr(str(path)), "is empty; give a folder")
+    try:
+        return _prepare_output_dir(Path(path), option)
+    except OSError as exc:  # whatever the checks below did not foresee: still one line
+        raise OutputPathError(option, path, f"cannot be used ({exc.strerror or exc})") from None
+
+
+def _prepare_output_dir(p: Path, option: str) -> Path:
     resolved = _check_not_pseudo(p, option)
     if p.exists() and not p.is_dir():
         raise OutputPathError(option, p, "is an existing file, not a folder")
@@ -170,7 +305,12 @@ def prepare_output_dir(path: str | Path, option: str = "-o") -> Path:
 
 
 def _check_not_pseudo(p: Path, option: str) -> Path:
-    resolved = p.resolve()
+    try:
+        resolved = p.resolve()
+    except RuntimeError:  # Python < 3.13 reports a symbolic link loop so
+        raise OutputPathError(option, p, "is a symbolic link loop") from None
+    except OSError as exc:
+        raise OutputPathError(option, p, f"cannot be resolved ({exc.strerror or exc})") from None
     if resolved.parts[:2] in (("/", "proc"), ("/", "sys"), ("/", "dev")):
         raise OutputPathError(option, p, "is on a pseudo file system; choose a normal folder")
     return resolved
@@ -185,8 +325,21 @@ def prepare_output_file(path: str | Path, option: str = "-o") -> Path:
     Raises:
         OutputPathError: one line naming the option and the path, exit 2.
     """
+    if not str(path).strip():
+        raise OutputPathError(option, repr(str(path)), "is empty; give a file name")
+    try:
+        return _prepare_output_file(path, option)
+    except OSError as exc:
+        raise OutputPathError(option, path, f"cannot be used ({exc.strerror or exc})") from None
+
+
+def _prepare_output_file(path: str | Path, option: str) -> Path:
     p = Path(path)
     _check_not_pseudo(p, option)
+    if len(p.name.encode()) > 255:
+        raise OutputPathError(option, p.parent / (p.name[:40] + "..."),
+                              f"a file name of {len(p.name.encode())} bytes is too long "
+                              "(at most 255)")
     if p.is_dir():
         raise OutputPathError(option, p, "is a folder; give a file name")
     if str(path).endswith(("/", os.sep)):
@@ -205,6 +358,10 @@ def prepare_output_file(path: str | Path, option: str = "-o") -> Path:
 class OutputLock:
     """An exclusive lock on an output folder, so two writers never mix their files.
 
+    The lock is taken on the folder itself (``flock`` on its descriptor): no lock file is
+    created, so nothing is left behind, not even after a SIGKILL (the kernel drops the lock
+    with the process). A ``.rfsw-plan.lock`` left by an earlier version is removed.
+
     Usage::
 
         with OutputLock(out_dir):
@@ -214,33 +371,35 @@ class OutputLock:
         OutputPathError: another rfsw-plan process holds the folder (one line, exit 2).
     """
 
+    #: The locks this process holds, by resolved folder (see :meth:`held`).
+    _held: dict[Path, OutputLock] = {}  # noqa: RUF012  (a registry, shared on purpose)
+
     def __init__(self, folder: str | Path, option: str = "-o") -> None:
         self.folder = Path(folder)
         self.option = option
         self._fd: int | None = None
+        self._on_abort: list[Callable[[], None]] = []
+
+    @classmethod
+    def held(cls, folder: str | Path) -> OutputLock | None:
+        """The lock this process holds on ``folder``, or None."""
+        return cls._held.get(Path(folder).resolve())
+
+    def on_abort(self, cleanup: Callable[[], None] | None) -> None:
+        """Run ``cleanup`` if the locked block ends with an exception (Ctrl-C and SIGTERM
+        included), before the lock is released; None forgets the registered cleanups (the
+        writer has committed)."""
+        if cleanup is None:
+            self._on_abort.clear()
+        else:
+            self._on_abort.append(cleanup)
 
     def __enter__(self) -> OutputLock:
-        # The lock file is removed on exit, so a process that opened it just before may hold a
-        # lock on a file no longer in the folder: it checks that the path is still its file
-        # and otherwise tries again on the new one.
-        for _ in range(20):
-            fd = self._lock_once()
-            if _same_file(fd, self.folder / LOCK_NAME):
-                os.ftruncate(fd, 0)
-                os.write(fd, f"{os.getpid()}\n".encode())
-                self._fd = fd
-                return self
-            os.close(fd)
-        raise OutputPathError(self.option, self.folder,
-                              "cannot be locked (its lock file keeps changing)")
-
-    def _lock_once(self) -> int:
-        """Open and flock the folder's lock file (non-blocking); returns the descriptor."""
         import fcntl
 
-        path = self.folder / LOCK_NAME
+        check_interrupt()
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+            fd = os.open(self.folder, os.O_RDONLY | os.O_DIRECTORY)
         except OSError as exc:
             raise OutputPathError(self.option, self.folder,
                                   f"cannot be locked ({exc.strerror or exc})") from None
@@ -255,23 +414,21 @@ class OutputLock:
                     "another folder") from None
             raise OutputPathError(self.option, self.folder,
                                   f"cannot be locked ({exc.strerror or exc})") from None
-        return fd
+        self._fd = fd
+        with contextlib.suppress(OSError):
+            (self.folder / LOCK_NAME).unlink()  # an earlier version's lock file
+        OutputLock._held[self.folder.resolve()] = self
+        return self
 
-    def __exit__(self, *exc: object) -> None:
-        if self._fd is not None:
-            # Removed while still locked (nothing is left in the output folder), then closing
-            # releases the lock.
-            with contextlib.suppress(OSError):
-                (self.folder / LOCK_NAME).unlink()
-            os.close(self._fd)
-            self._fd = None
-
-
-def _same_file(fd: int, path: Path) -> bool:
-    """The open descriptor is the file at ``path`` (not one removed meanwhile)."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return False
-    own = os.fstat(fd)
-    return (st.st_dev, st.st_ino) == (own.st_dev, own.st_ino)
+    def __exit__(self, exc_type: object, *exc: object) -> None:
+        try:
+            if exc_type is not None:
+                for cleanup in reversed(self._on_abort):
+                    with contextlib.suppress(Exception):
+                        cleanup()
+        finally:
+            self._on_abort.clear()
+            OutputLock._held.pop(self.folder.resolve(), None)
+            if self._fd is not None:
+                os.close(self._fd)  # closing releases the flock
+                self._fd = None

@@ -256,6 +256,33 @@ class Table:
         return np.array([row[i] if i < len(row) else "" for row in self.rows])
 
 
+def refuse_near_misses(tab: Table, known: list[Quantity], allowed: set[str]) -> None:
+    """Refuse a column that names a known quantity in a spelling the naming rule does not
+    accept (``x__mm``, ``Z_MM``, ``fz_N ``, ``fz_kg``), instead of silently ignoring it.
+
+    Args:
+        tab: The table.
+        known: The quantities the reader understands.
+        allowed: Column names the reader takes (matched ones, text columns...).
+
+    Raises:
+        InputError: Names the column, the quantity it looks like and its accepted names.
+    """
+    for h in tab.header:
+        if h in allowed:
+            continue
+        norm = re.sub(r"_+", "_", re.sub(r"[\s\[\]()]+", "_", h.lower())).strip("_")
+        q = next((q for q in known if norm == q.key.lower()
+                  or norm in (n.lower() for n in q.names())
+                  or re.fullmatch(rf"{re.escape(q.key.lower())}_[a-z]{{1,4}}", norm)), None)
+        if q is None:
+            continue
+        raise InputError(tab.path, f"column '{h}'", f"looks like {q.key} but is not one of its "
+                         "names, so it would be ignored",
+                         f"{' or '.join(repr(n) for n in q.names())} (units in the name), or "
+                         "map it with --columns")
+
+
 def _quantity_of(header: str) -> str:
     """The quantity part of a column name: lower case, before the unit or a bracket."""
     h = header.strip().lower()
@@ -283,7 +310,8 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
 
     Raises:
         InputError: Unreadable or empty file, no data rows, a duplicated or empty column name,
-            a cell longer than :data:`MAX_CELL` characters, a malformed CSV row.
+            a cell longer than :data:`MAX_CELL` characters, a row with more or fewer cells than
+            the header, a malformed CSV row.
     """
     p = Path(path)
     try:
@@ -294,20 +322,45 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
     if not first:
         raise InputError(p, "", "file is empty", "a header row and samples")
     delimiter = _detect_delimiter(first)
+    rows, numbers = _rows(p, text, delimiter)
+    header = rows[0]
+    _check_header(p, header)
+    body, body_rows = rows[1:], numbers[1:]
+    if not body:
+        raise InputError(p, "", "no samples after the header row")
+    for row, line in zip(body, body_rows, strict=True):
+        if len(row) != len(header):
+            # A cell too few or too many shifts every value after it into the wrong column.
+            raise InputError(p, f"row {line}", f"{len(row)} cells, the header has "
+                             f"{len(header)} ({_NAMES[delimiter]}-separated)",
+                             f"{len(header)} cells per row (an empty cell for no value)")
+    decimal = "."
+    if delimiter != "," and any(_DECIMAL_COMMA.match(c) for row in body for c in row):
+        decimal = ","
+    return Table(p, header, body, body_rows, delimiter, decimal, mapping)
+
+
+def _rows(p: Path, text: str, delimiter: str) -> tuple[list[list[str]], list[int]]:
+    """The non-blank rows (cells stripped) and their line numbers."""
     reader = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
     rows: list[list[str]] = []
     numbers: list[int] = []
     try:
         for row in reader:
             if any(len(c) > MAX_CELL for c in row):
-                raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
-                                 f"{MAX_CELL} characters", "short numeric cells")
+                raise csv.Error("field larger than field limit")
             if any(c.strip() for c in row):
                 rows.append([c.strip() for c in row])
                 numbers.append(reader.line_num)
     except csv.Error as exc:
+        if "field larger than field limit" in str(exc):
+            raise InputError(p, f"row {reader.line_num}", "a cell is longer than "
+                             f"{MAX_CELL} characters", "short numeric cells") from None
         raise InputError(p, f"row {reader.line_num}", f"malformed CSV: {exc}") from None
-    header = rows[0]
+    return rows, numbers
+
+
+def _check_header(p: Path, header: list[str]) -> None:
     seen: set[str] = set()
     for k, h in enumerate(header):
         if h == "":
@@ -316,10 +369,3 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
             raise InputError(p, "header", f"column '{h}' appears twice",
                              "each column name once")
         seen.add(h)
-    body, body_rows = rows[1:], numbers[1:]
-    if not body:
-        raise InputError(p, "", "no samples after the header row")
-    decimal = "."
-    if delimiter != "," and any(_DECIMAL_COMMA.match(c) for row in body for c in row):
-        decimal = ","
-    return Table(p, header, body, body_rows, delimiter, decimal, mapping)

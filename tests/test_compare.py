@@ -121,7 +121,7 @@ def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, s
         (["--cycle-ms", "-4"], "cycle"),
         (["--maf-samples", "100000000"], "longer than the weld"),
         (["--seed000-update-ms", "1e9"], "longer than the weld"),
-        (["--truth-stiffness-scale", "0"], "stiffness_scale"),
+        (["--truth-stiffness-scale", "0"], "stiffness-scale"),  # refused by the parser
     ],
 )
 def test_cli_bad_input_is_one_line_and_nonzero(

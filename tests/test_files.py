@@ -60,3 +60,20 @@ def test_second_writer_is_refused(tmp_path) -> None:
         OutputLock(tmp_path).__enter__()
     with OutputLock(tmp_path):  # released after the first one ends
         pass
+
+
+def test_no_file_is_named_after_a_stop_request(tmp_path) -> None:
+    """SIGTERM raises KeyboardInterrupt, which a library may swallow (CasADi's wrappers have
+    bare ``except:``): after the stop request no file gets its name and no lock is taken."""
+    from rfsw_plan import files
+
+    files.note_interrupt()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            write_text(tmp_path / "x.txt", "a")
+        with pytest.raises(KeyboardInterrupt):
+            OutputLock(tmp_path).__enter__()
+    finally:
+        files.clear_interrupt()
+    assert list(tmp_path.iterdir()) == []
+    write_text(tmp_path / "x.txt", "a")

@@ -38,6 +38,10 @@ def test_round_trip_keeps_gaps(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("text,needle", [
     ("s_mm,s_mm,e_lat_mm\n0,0,0\n", "appears twice"),
+    ("s_mm,e_lat_mm\n0,0\n1,0,5\n2,0\n3,0\n", "row 3: 3 cells, the header has 2"),
+    ("s_mm,e_lat_mm\n0,0\n1\n2,0\n3,0\n", "row 3: 1 cells"),
+    ("s_mm,e_lat_mm\n0," + "1" * 140_000 + "\n1,0\n2,0\n", "longer than"),
+    ("x_mm,y_mm,z_mm\n0,-1e308,0\n1,0,0\n2,0,0\n", "within +-100000 mm"),
     ("s_mm,e_lateral_mm\n0,0\n", "expected s_mm, e_lat_mm"),
     ("s_mm,e_lat_mm,quality\n0,0,1\n", "unknown column"),
     ("s_mm,e_lat_mm\n0,abc\n1,0\n2,0\n", "row 2, column 'e_lat_mm'"),

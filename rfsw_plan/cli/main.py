@@ -66,11 +66,20 @@ class OneLineArgumentParser(argparse.ArgumentParser):
     """
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        # No prefix matching: ``--spacing 2`` is an unknown option, never ``--spacing-mm 2``.
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
-        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*$")
+        self._negative_number_matcher = re.compile(r"^-\.?\d[\d.,eE+-]*( ?%)?$")
 
     def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see --help)\n")
+
+    def format_help(self) -> str:
+        """The help text; an epilog given as a function (one that needs a heavy import, such as
+        the list of effects) is computed only here, when the help is asked for."""
+        if callable(self.epilog):
+            self.epilog = self.epilog()
+        return super().format_help()
 
 
 def build_parser(only: str | None = None, lazy: bool = False
@@ -88,6 +97,9 @@ def build_parser(only: str | None = None, lazy: bool = False
         "own elasticity.",
     )
     _add_global_options(parser, False)
+    from rfsw_plan import __version__
+
+    parser.add_argument("--version", action="version", version=f"rfsw-plan {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     commands: dict[str, ModuleType] = {}
@@ -142,22 +154,46 @@ def main(argv: Sequence[str] | None = None) -> int:
     one line and exit 130, never a traceback."""
     # SIGTERM unwinds like Ctrl-C, so atomic writers remove their temporaries (a file is
     # either the complete new one or not there).
+    from rfsw_plan import files
+
     previous: Any = None
     with contextlib.suppress(ValueError):  # not in the main thread: keep the default
         previous = signal.signal(signal.SIGTERM, _terminated)
+    files.clear_interrupt()
     try:
-        return _main(argv)
+        code = _main(argv)
+        if code != 130:
+            files.check_interrupt()  # a library swallowed the interruption: still exit 130
+        return code
     except KeyboardInterrupt:
         with contextlib.suppress(Exception):
             print("rfsw-plan: interrupted", file=sys.stderr)
         return 130
     finally:
+        files.clear_interrupt()
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
 
 
 def _terminated(signum: int, frame: Any) -> NoReturn:
+    # A second SIGTERM while unwinding (a supervisor that repeats it) must not interrupt the
+    # clean-up of the first: ignored until main() restores the previous handler.
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    from rfsw_plan import files
+
+    files.note_interrupt()  # if a library swallows the KeyboardInterrupt, the writers re-raise
     raise KeyboardInterrupt
+
+
+#: Options that name a file or folder to write: an empty value is a slip, never "here".
+_PATH_OPTIONS = ("output", "save_robot", "save_truth")
+
+
+def _refuse_empty_paths(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    for name in _PATH_OPTIONS:
+        if getattr(args, name, None) is not None and not str(getattr(args, name)).strip():
+            parser.error(f"argument --{name.replace('_', '-')}: an empty path; give a file or "
+                         "folder, or leave the option out for the default")
 
 
 def _main(argv: Sequence[str] | None = None) -> int:
@@ -168,7 +204,11 @@ def _main(argv: Sequence[str] | None = None) -> int:
     words = list(sys.argv[1:] if argv is None else argv)
     parser, commands = build_parser(only=_command_word(words), lazy=True)
     try:
+        if any(w == "--" or w.endswith("=--") for w in words):
+            # No command takes it; argparse would hand the option an empty list.
+            parser.error("'--' is not an argument of rfsw-plan")
         args = parser.parse_args(words)
+        _refuse_empty_paths(parser, args)
     except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else 2
     args.argv = words

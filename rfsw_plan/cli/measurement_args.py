@@ -10,15 +10,21 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from rfsw_plan.elastostatics.measurement_set import MEASUREMENT_FRAMES, MeasurementSet
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.io.measurements import WRENCH_FRAMES, read_measurements
-from rfsw_plan.robot.description import DeviceFrame, _rpy_to_matrix
-from rfsw_plan.robot.description import read_device_frame as read_robot_device_frame
+
+if TYPE_CHECKING:  # the parser is built before any heavy import (a bad option answers at once)
+    import numpy as np
+
+    from rfsw_plan.elastostatics.measurement_set import MeasurementSet
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.robot.description import DeviceFrame
+
+#: ``--frame`` and ``--wrench-frame`` choices: the readers' MEASUREMENT_FRAMES and WRENCH_FRAMES
+#: (literal here so the parser needs no import; tests/test_cli_numbers.py checks they agree).
+MEASUREMENT_FRAMES = ("base", "device")
+WRENCH_FRAMES = ("base", "tool", "sensor")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -44,6 +50,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def _numbers(text: str, n: int, option: str, what: str) -> np.ndarray:
+    import numpy as np
+
     try:
         vals = [float(x) for x in text.split(",")]
     except ValueError:
@@ -57,6 +65,10 @@ def sensor_pose(text: str | None) -> np.ndarray | None:
     """``--sensor-pose`` as a 4x4 transform [m], or None."""
     if text is None:
         return None
+    import numpy as np
+
+    from rfsw_plan.robot.description import _rpy_to_matrix
+
     v = _numbers(text, 6, "--sensor-pose", "six numbers X,Y,Z [mm],RX,RY,RZ [deg]")
     T = np.eye(4)
     T[:3, :3] = _rpy_to_matrix(np.radians(v[3:]))
@@ -66,11 +78,15 @@ def sensor_pose(text: str | None) -> np.ndarray | None:
 
 def read_device_frame(path: str) -> DeviceFrame:
     """A ``--device-to-base`` file: a TOML with a ``[device_frame]`` table (or a robot file)."""
+    from rfsw_plan.robot.description import read_device_frame as read_robot_device_frame
+
     return read_robot_device_frame(Path(path))
 
 
 def load(args: argparse.Namespace, model: ElastostaticModel) -> MeasurementSet:
     """Read ``args.data`` for ``model``'s robot with the measurement-file options."""
+    from rfsw_plan.io.measurements import read_measurements
+
     robot = model.robot
     if args.sensor_pose is not None and args.wrench_frame != "sensor":
         raise InputError("--sensor-pose", "", "given without --wrench-frame sensor",

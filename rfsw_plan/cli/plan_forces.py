@@ -13,9 +13,10 @@ import sys
 from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rfsw_plan.process.problem import Problem
+if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
+    from rfsw_plan.process.problem import Problem
 
 
 def register(parser: argparse.ArgumentParser) -> None:

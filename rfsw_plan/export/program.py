@@ -65,6 +65,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation, Slerp
 
 from rfsw_plan.exceptions import InputError
+from rfsw_plan.numfmt import fixed
 from rfsw_plan.planfiles.folder import PlanSamples
 from rfsw_plan.planning.verify import CONTACT_PHASES
 from rfsw_plan.robot.description import Payload
@@ -632,6 +633,6 @@ def tolerated_from_record(rec: dict[str, Any]) -> float:
 
 
 def number(x: float, digits: int) -> str:
-    """Fixed-point text without a negative zero (identical text for +-1e-17 on every machine)."""
-    t = f"{x:.{digits}f}"
-    return t[1:] if t.startswith("-") and float(t) == 0.0 else t
+    """Fixed-point text without a negative zero (identical text for +-1e-17 on every machine):
+    :func:`rfsw_plan.numfmt.fixed`, the one formatter of every writer."""
+    return fixed(x, digits)

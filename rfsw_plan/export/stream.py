@@ -35,6 +35,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
 from rfsw_plan.export.program import Program, Samples
 from rfsw_plan.files import atomic_path
+from rfsw_plan.numfmt import fixed
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -74,7 +75,7 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
         w = csv.writer(fh)
         w.writerow(header)
         for k in range(len(stream)):
-            w.writerow([c[k] if isinstance(c[k], str) else f"{float(c[k]):.6f}" for c in cols])
+            w.writerow([c[k] if isinstance(c[k], str) else fixed(c[k], 6) for c in cols])
     return p
 
 

@@ -42,7 +42,15 @@ from rfsw_plan.elastostatics.measurement_set import (
 )
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path
-from rfsw_plan.table import ColumnMap, Quantity, Table, read_column_map, read_table
+from rfsw_plan.numfmt import cell, fixed, general
+from rfsw_plan.table import (
+    ColumnMap,
+    Quantity,
+    Table,
+    read_column_map,
+    read_table,
+    refuse_near_misses,
+)
 
 __all__ = [
     "FORCE_COLUMNS",
@@ -266,6 +274,15 @@ def read_measurements(
     quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
     quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME]
     names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
+    # A known quantity under a misspelt name (x__mm, Z_MM) would become an "extra" column and
+    # its axis would silently go missing: refused with the names it may have.
+    known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
+    refuse_near_misses(tab, known, set(names.values()))
+    if mapping is not None:  # a mapped key no reader asks for would be ignored
+        unknown = sorted(set(mapping.columns) - {x.key for x in known})
+        if unknown:
+            raise InputError(mapping.source, f"columns.{unknown[0]}", "not a quantity of a "
+                             "measurement file", ", ".join(x.key for x in known[:-6]))
     extra = _extras(tab, set(names.values()))
     approach = _approach(tab, extra, q, t)
     data = MeasurementSet(
@@ -426,23 +443,25 @@ def _header(data: MeasurementSet, pris: list[bool]) -> list[str]:
 
 
 def _row(data: MeasurementSet, i: int, pris: list[bool]) -> list[str]:
-    """Sample ``i`` as the cells of :func:`_header` (mm, deg, N, N m)."""
+    """Row ``i`` of :func:`write_measurements` in file units (every number through
+    :mod:`rfsw_plan.numfmt`: the same text on every machine)."""
     row: list[str] = []
     if data.t is not None:
-        row.append(f"{data.t[i]:.4f}")
+        row.append(fixed(data.t[i], 4))
     if data.pose_id is not None:
         row.append(str(data.pose_id[i]))
     if data.load_step is not None:
         row.append(str(int(data.load_step[i])))
-    row += [f"{v * 1000.0:.6f}" if pris[j] else f"{np.degrees(v):.8f}"
+    row += [fixed(v * 1000.0, 6) if pris[j] else fixed(np.degrees(v), 8)
             for j, v in enumerate(data.q[i])]
-    row += [f"{v:.6f}" for v in data.wrench[i]]
-    row += ["" if not np.isfinite(v) else f"{v * 1000.0:.6f}" for v in data.position[i]]
+    row += [fixed(v, 6) for v in data.wrench[i]]
+    row += [cell(v * 1000.0, 6) for v in data.position[i]]
     if data.rotation is not None:
-        row += [f"{v * 1000.0:.6f}" for v in data.rotation[i]]
+        row += [fixed(v * 1000.0, 6) for v in data.rotation[i]]
     if data.sigma is not None:
-        row.append(f"{data.sigma[i] * 1000.0:.6f}")
+        row.append(fixed(data.sigma[i] * 1000.0, 6))
     if data.frame != "base":
         row.append(data.frame)
-    return row + [f"{data.extra[k][i]:.6g}" for k in data.extra]
-
+    row += [general(data.extra[k][i], 6) if np.isfinite(data.extra[k][i]) else ""
+            for k in data.extra]
+    return row

@@ -18,14 +18,14 @@ else (unknown or duplicated columns, text, inf) is a one-line :class:`InputError
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, replace
+import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.table import Table, read_table
 
 FloatArray = NDArray[np.float64]
 
@@ -61,57 +61,80 @@ class WeldTrack:
         return int(self.xyz.shape[0] if self.xyz is not None else self.s.shape[0])  # type: ignore[union-attr]
 
 
+#: Largest coordinate or offset accepted [mm]: 100 m, beyond any robot cell's reach.
+MAX_MM = 1e5
+
+
 def read_weld_track(path: str | Path) -> WeldTrack:
     """Read a weld-track CSV (format in the module docstring) through the strict table reader
-    (:func:`~rfsw_plan.table.read_table`: delimiter and decimal comma detected).
+    (:func:`rfsw_plan.table.read_table`: delimiter and decimal comma detected, duplicated or
+    empty column names, ragged rows and over-long cells refused).
 
     Raises:
-        InputError: Unreadable file, unknown/duplicated/missing columns, a cell that is not a
-            number, fewer than 3 complete rows; the message names the file, row and column.
+        InputError: Unreadable file, unknown/duplicated/missing columns, a row with a cell too
+            few or too many, a cell that is not a number or beyond +-:data:`MAX_MM` mm, fewer
+            than 3 complete rows; the message names the file, row and column.
     """
+    from rfsw_plan.table import read_table
+
+    path = Path(path)
     tab = read_table(path)
-    form, cols = _form(tab)
-    # An empty cell or NaN is a gap (a scanner drop-out).
-    rows = [[("" if c.lower() == "nan" else c) for c in row] for row in tab.rows]
-    tab = replace(tab, rows=rows)
-    a = np.column_stack([tab.numbers(c, 1e-3, allow_blank=True) for c in cols])
-    complete = np.all(np.isfinite(a), axis=1)
-    gaps = int(np.sum(~complete))
-    a = a[complete]
-    if a.shape[0] < 3:
-        raise InputError(tab.path, "", f"{a.shape[0]} complete row(s)",
-                         "at least 3 measured points")
-    if form == "base":
-        return WeldTrack("base", None, None, None, a, str(tab.path), gaps)
-    a = a[np.argsort(a[:, 0], kind="stable")]
-    e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
-    return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(tab.path), gaps)
-
-
-def _form(tab: Table) -> tuple[str, list[str]]:
-    """The track's form and its columns, from the header (module docstring)."""
     header = tab.header
     if set(SEAM_FORM) <= set(header):
         form, cols = "seam", [*SEAM_FORM, *(c for c in SEAM_OPTIONAL if c in header)]
     elif set(BASE_FORM) <= set(header):
         form, cols = "base", list(BASE_FORM)
     else:
-        raise InputError(tab.path, "header", f"columns {', '.join(header)}", _EXPECTED)
+        raise InputError(path, "header", f"columns {', '.join(header)}", _EXPECTED)
     unknown = [h for h in header if h not in cols]
     if unknown:
-        raise InputError(tab.path, "header", f"unknown column(s) {', '.join(unknown)} in a "
+        raise InputError(path, "header", f"unknown column(s) {', '.join(unknown)} in a "
                          f"{form}-frame track", ", ".join(cols))
-    return form, cols
+    col = [header.index(name) for name in cols]
+    data: list[list[float]] = []
+    gaps = 0
+    for row, line in zip(tab.rows, tab.row_numbers, strict=True):
+        vals = [_cell(path, row[i], line, name, tab.decimal) for i, name in zip(col, cols,
+                                                                             strict=True)]
+        if any(math.isnan(v) for v in vals):
+            gaps += 1
+        else:
+            data.append(vals)
+    if len(data) < 3:
+        raise InputError(path, "", f"{len(data)} complete row(s)", "at least 3 measured points")
+    a = np.asarray(data, dtype=float) * 1e-3
+    if form == "base":
+        return WeldTrack("base", None, None, None, a, str(path), gaps)
+    order = np.argsort(a[:, 0], kind="stable")
+    a = a[order]
+    e_norm = a[:, 2].copy() if a.shape[1] > 2 else None
+    return WeldTrack("seam", a[:, 0].copy(), a[:, 1].copy(), e_norm, None, str(path), gaps)
+
+
+def _cell(path: Path, cell: str, line: int, name: str, decimal: str) -> float:
+    """One track cell [mm]; NaN for a gap (empty or ``nan``)."""
+    if cell == "" or cell.lower() == "nan":
+        return math.nan
+    try:
+        v = float(cell.replace(",", ".") if decimal == "," else cell)
+    except ValueError:
+        raise InputError(path, f"row {line}, column {name}", f"'{cell[:40]}' is not a number",
+                         "a number in mm, or an empty cell for a gap") from None
+    if not math.isfinite(v) or abs(v) > MAX_MM:
+        raise InputError(path, f"row {line}, column {name}", f"'{cell[:40]}'",
+                         f"a finite number in mm within +-{MAX_MM:g} mm")
+    return v
 
 
 def write_weld_track(path: str | Path, track: WeldTrack) -> Path:
     """Write a track in the format :func:`read_weld_track` reads (atomically); NaN = gap."""
+    from rfsw_plan import numfmt
     from rfsw_plan.files import atomic_path
 
     path = Path(path)
 
     def cell(v: float) -> str:
-        return "" if not np.isfinite(v) else f"{v * 1e3:.5f}"
+        return numfmt.cell(v * 1e3, 5)
 
     with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

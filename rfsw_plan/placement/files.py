@@ -18,6 +18,7 @@ import numpy as np
 import tomli_w
 
 from rfsw_plan.files import atomic_path, write_json
+from rfsw_plan.numfmt import general
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap
 
@@ -35,7 +36,7 @@ def _cell(v: Any) -> str:
     if isinstance(v, str):
         return v
     f = float(v)
-    return "" if not np.isfinite(f) else f"{f:.6g}"
+    return "" if not np.isfinite(f) else general(f, 6)
 
 
 def write_map_csv(path: str | Path, m: PlacementMap) -> Path:

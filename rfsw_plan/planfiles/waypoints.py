@@ -49,6 +49,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, sha256_file, write_json
+from rfsw_plan.numfmt import canonical_quaternion, cell
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
 
@@ -100,7 +101,9 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     contact = np.isin(tr.phase, CONTACT_PHASES)
     w = result.window
     margin = np.minimum(e_lat - w.lower, w.upper - e_lat)
-    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()  # x, y, z, w
+    # w, x, y, z with a sign no machine's rounding flips, back in SciPy's x, y, z, w order
+    quat = np.roll(canonical_quaternion(np.roll(Rotation.from_matrix(T[:, :3, :3]).as_quat(), 1,
+                                                axis=1)), -1, axis=1)
     header = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm",
               "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
     cols: list[NDArray[Any]] = [tr.t, tr.s * 1e3, tr.phase, *(seam_p * 1e3).T,
@@ -108,7 +111,9 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
                                 quat[:, 2]]
     if result.euler in EULER_COLUMNS:
         header += list(EULER_COLUMNS[result.euler])
-        cols += list(np.rad2deg(maker_euler(T[:, :3, :3], result.euler)).T)
+        euler = np.rad2deg(maker_euler(T[:, :3, :3], result.euler))
+        # The branch cut: -180 and +180 deg are one angle; written as +180 on every machine.
+        cols += list(np.where(np.round(euler, 6) == -180.0, 180.0, euler).T)
     header += robot.description.convention.column_names()
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
@@ -138,10 +143,11 @@ def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
 
 
 def _fmt(v: Any) -> str:
+    """A cell of ``waypoints.csv``: text as is, numbers with 6 decimals and never ``-0.000000``
+    (:func:`rfsw_plan.numfmt.cell`), empty for NaN (no value outside the contact phases)."""
     if isinstance(v, str | np.str_):
         return str(v)
-    x = float(v)
-    return "" if not np.isfinite(x) else f"{x:.6f}"
+    return cell(v, 6)
 
 
 def write_plan_json(path: str | Path, summary: dict[str, Any],
@@ -223,11 +229,16 @@ def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Pa
     Returns:
         The path of ``plan.json`` and one line per plot that was not written.
     """
+    from rfsw_plan.files import OutputLock
+
     out = Path(folder)
     record = summary
     record["files"] = [str(p) for p in data_files]
     record["plots"] = {"pending": list(PLAN_PLOTS)}
     path = write_plan_json(out / "plan.json", record, vouches_for=data_files)
+    lock = OutputLock.held(out)
+    if lock is not None:  # committed: an interruption from here on keeps the data files
+        lock.on_abort(None)
     plots, failed = write_plan_plots(out, result)
     record["files"] = [str(p) for p in [*data_files, *plots]]
     record["plots"] = {"written": [p.name for p in plots], "failed": failed}
@@ -273,8 +284,28 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
 def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:
     """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
     so an earlier success record never sits beside removed or new data), then the other
-    outputs of an earlier run are removed. If this run is killed, the folder says so."""
+    outputs of an earlier run are removed, with whatever a killed run left (hidden
+    temporaries, a controller-program staging folder ``.export-*``). If this run is killed,
+    the folder says so.
+
+    If the caller holds the folder's :class:`~rfsw_plan.files.OutputLock`, an interruption
+    (Ctrl-C, SIGTERM) or an error before :func:`commit_plan` removes the data files this run
+    wrote, so the folder holds the ``incomplete`` record alone, never a complete-looking
+    ``waypoints.csv`` or program that nothing vouches for.
+
+    Raises:
+        OutputPathError: One of the output names is taken by a folder (one line, exit 2).
+    """
+    import shutil
+
+    from rfsw_plan.exceptions import OutputPathError
+    from rfsw_plan.files import OutputLock
+
     folder = Path(folder)
+    for name in outputs:
+        if (folder / name).is_dir():
+            raise OutputPathError("-o", folder / name, "is a folder where rfsw-plan writes "
+                                  "its file; move it away or choose another output folder")
     write_json(folder / "plan.json", {
         "status": "incomplete", "problem": problem,
         "message": "a plan was started into this folder and has not finished; the files "
@@ -284,6 +315,24 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
             (folder / name).unlink(missing_ok=True)
         for tmp in folder.glob(f".{name}.*.tmp*"):  # left by a killed (SIGKILL) writer
             tmp.unlink(missing_ok=True)
+    for stage in folder.glob(".export-*"):  # a killed export's staging folder
+        if stage.is_dir():
+            shutil.rmtree(stage, ignore_errors=True)
+    lock = OutputLock.held(folder)
+    if lock is not None:
+        before = {p.name for p in folder.iterdir()}
+        lock.on_abort(lambda: _remove_uncommitted(folder, problem, outputs, before))
+
+
+def _remove_uncommitted(folder: Path, problem: str, outputs: tuple[str, ...],
+                        before: set[str]) -> None:
+    """Remove the data files a run wrote into ``folder`` before it was interrupted: its plan
+    outputs (not the ``incomplete`` plan.json) and new controller programs of the problem."""
+    stem = f"rfsw_{problem}".lower()
+    for p in folder.iterdir():
+        mine = p.name in outputs or (p.name not in before and p.name.lower().startswith(stem))
+        if mine and p.name != "plan.json" and p.is_file():
+            p.unlink(missing_ok=True)
 
 
 def check_plan_folder(folder: str | Path) -> dict[str, Any]:

@@ -54,14 +54,12 @@ class TrialWeld:
 
     def write(self, folder: str | Path, stem: str = "trial") -> tuple[Path, Path]:
         """Write ``<stem>_forces.csv`` and ``<stem>_track.csv`` (atomically) into a folder."""
-        from rfsw_plan.files import atomic_path, prepare_output_dir
+        from rfsw_plan.files import prepare_output_dir
         from rfsw_plan.io.force_series import write_force_series
         from rfsw_plan.io.weld_track import write_weld_track
 
         out = prepare_output_dir(folder)
-        f_path = out / f"{stem}_forces.csv"
-        with atomic_path(f_path) as tmp:
-            write_force_series(tmp, self.forces)
+        f_path = write_force_series(out / f"{stem}_forces.csv", self.forces)
         t_path = write_weld_track(out / f"{stem}_track.csv", self.track)
         return f_path, t_path
 

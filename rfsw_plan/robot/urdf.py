@@ -114,6 +114,7 @@ def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSe
 
     where = where or urdf
     check_not_xacro(urdf, where, "kinematics.urdf")
+    check_urdf_numbers(urdf)
     with _captured_stderr() as said:
         try:
             full = pin.buildModelFromUrdf(str(urdf))
@@ -156,6 +157,82 @@ def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSe
     velocity[velocity <= 0] = np.nan
     return UrdfSerialChain(model, names, model.getFrameId(tip_link, pin.FrameType.BODY),
                            lower, upper, velocity)
+
+
+#: Largest |centre of mass| offset of a link [m] and link mass [kg] accepted.
+MAX_URDF_COM_M = 100.0
+MAX_URDF_MASS_KG = 1e5
+
+
+def _vector(text: str | None, n: int, where: str, what: str, urdf: Path) -> list[float]:
+    """``n`` finite numbers from a URDF attribute (``"0 0 1"``)."""
+    parts = (text or "").split()
+    try:
+        vals = [float(x) for x in parts]
+    except ValueError:
+        vals = []
+    if len(vals) != n or not all(np.isfinite(vals)):
+        raise InputError(urdf, where, f"{what} is '{text}'", f"{n} finite numbers")
+    return vals
+
+
+def check_urdf_numbers(urdf: Path) -> None:
+    """Check the numbers of a URDF before Pinocchio reads it (urdfdom accepts a zero axis,
+    swapped limits, a NaN, a fourth coordinate or 1e308 without a word).
+
+    Every joint: ``origin xyz/rpy`` three finite numbers, xyz within
+    :data:`MAX_URDF_OFFSET_M`; ``axis xyz`` three finite numbers, not all zero; ``limit``
+    lower <= upper, both finite. Every link: ``inertial/origin`` as a joint origin with the
+    centre of mass within :data:`MAX_URDF_COM_M`, ``mass`` finite in [0, MAX_URDF_MASS_KG].
+
+    Raises:
+        InputError: One line naming the joint or link, the attribute and what was found.
+    """
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(urdf).getroot()
+    except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
+        raise InputError(urdf, "", f"cannot parse URDF: {exc}") from None
+    for joint in root.iter("joint"):
+        name = f"joint '{joint.get('name')}'"
+        _check_origin(joint.find("origin"), name, MAX_URDF_OFFSET_M, urdf)
+        axis = joint.find("axis")
+        if axis is not None:
+            a = _vector(axis.get("xyz"), 3, name, "axis xyz", urdf)
+            if not np.linalg.norm(a) > 1e-9:
+                raise InputError(urdf, name, f"axis xyz is '{axis.get('xyz')}' (zero)",
+                                 "a non-zero axis, e.g. '0 0 1'")
+        lim = joint.find("limit")
+        if lim is not None and joint.get("type") in ("revolute", "prismatic"):
+            lo, hi = (_vector(lim.get(k, "0"), 1, name, f"limit {k}", urdf)[0]
+                      for k in ("lower", "upper"))
+            if lo > hi:
+                raise InputError(urdf, name, f"limit lower {lo:g} > upper {hi:g} (swapped?)",
+                                 "lower <= upper")
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        name = f"link '{link.get('name')}'"
+        _check_origin(inertial.find("origin"), f"{name} inertial", MAX_URDF_COM_M, urdf)
+        mass = inertial.find("mass")
+        if mass is not None:
+            m = _vector(mass.get("value"), 1, name, "mass", urdf)[0]
+            if not 0.0 <= m <= MAX_URDF_MASS_KG:
+                raise InputError(urdf, name, f"mass {m:g} kg",
+                                 f"a mass in [0, {MAX_URDF_MASS_KG:g}] kg")
+
+
+def _check_origin(origin: object, name: str, max_offset: float, urdf: Path) -> None:
+    if origin is None:
+        return
+    get = origin.get  # type: ignore[attr-defined]
+    xyz = _vector(get("xyz", "0 0 0"), 3, name, "origin xyz", urdf)
+    _vector(get("rpy", "0 0 0"), 3, name, "origin rpy", urdf)
+    if max(abs(v) for v in xyz) > max_offset:
+        raise InputError(urdf, name, f"origin xyz is '{get('xyz')}' m",
+                         f"offsets within {max_offset:g} m")
 
 
 def axis_of(model: pin.Model, jid: int) -> FloatArray:

@@ -99,7 +99,10 @@ def check_positions(model: ElastostaticModel, data: MeasurementSet) -> None:
     res = np.where(ok, meas - pred, np.nan)
     rms = float(np.sqrt(np.nanmean(res**2)))
     if rms <= MAX_RESIDUAL_M:
-        _check_deflection(model, data, meas - fk - zero, loaded - zero)
+        forces_only = data.wrench.copy()
+        forces_only[:, 3:] = 0.0
+        by_force = model.deflection_batch(batch, forces_only)[:, :3] - zero
+        _check_deflection(model, data, meas - fk - zero, by_force, loaded - zero - by_force)
         return
     ratio = med_meas / med_pred if med_pred > 0 else float("nan")
     file_unit = 1e-3 if x_name.endswith("_mm") else 1.0
@@ -119,27 +122,44 @@ def check_positions(model: ElastostaticModel, data: MeasurementSet) -> None:
 
 
 def _check_deflection(
-    model: ElastostaticModel, data: MeasurementSet, measured: np.ndarray, predicted: np.ndarray
+    model: ElastostaticModel, data: MeasurementSet, measured: np.ndarray,
+    by_force: np.ndarray, by_moment: np.ndarray,
 ) -> None:
-    """Measured load deflection vs predicted: a ratio of ~1000 means force units are off."""
-    ok = np.isfinite(measured)
-    d_pred = np.where(ok, predicted, 0.0)
-    d_meas = np.where(ok, measured, 0.0)
-    if not ok.any() or not np.any(d_pred):
+    """Measured load deflection against the model's, force and moment parts apart.
+
+    The measured deflection d is fitted as ``g_f d_f + g_m d_m`` (d_f, d_m: the model's
+    deflection under the logged forces alone and the logged moments alone, [m], shape (m, 3)).
+    A gain of ~1000 on one part means that part is logged in the wrong unit (kN in ``*_N``
+    columns, moments left in N m), even when the other part is right; a gain of ~1000 on both
+    means the stiffness is off or both are. Noise-free truth gives g_f = g_m = 1.
+    """
+    ok = np.isfinite(measured).all(axis=1)
+    if not ok.any():
         return
-    size_pred = float(np.sqrt(np.mean(d_pred[ok] ** 2)))
-    size_meas = float(np.sqrt(np.mean(d_meas[ok] ** 2)))
-    if max(size_pred, size_meas) < 1e-4:  # nothing moves by 0.1 mm: nothing to compare
+    parts = [(name, d[ok].ravel()) for name, d in (("forces", by_force), ("moments", by_moment))
+             if np.any(d[ok])]
+    if not parts:
         return
-    slope = float(np.sum(d_meas * d_pred) / np.sum(d_pred**2))
-    fitted = slope * d_pred
+    d_meas = measured[ok].ravel()
+    A = np.stack([d for _, d in parts], axis=1)
+    gains, *_ = np.linalg.lstsq(A, d_meas, rcond=None)
+    fitted = A @ gains
     r2 = 1.0 - float(np.sum((d_meas - fitted) ** 2)) / max(float(np.sum(d_meas**2)), 1e-300)
-    if r2 > 0.5 and (slope > DEFLECTION_FACTOR or 0 < slope < 1.0 / DEFLECTION_FACTOR):
-        raise InputError(
-            data.source, "forces",
-            f"measured deflections are {slope:.3g}x what robot {model.robot.name} predicts for "
-            f"the logged forces: force units (N vs kN) or the robot's stiffness are off",
-            "forces in N in *_N columns (or name them *_kN)")
+    if r2 <= 0.5:
+        return
+    for (name, d), g in zip(parts, gains, strict=True):
+        size = float(np.sqrt(np.mean((g * d) ** 2)))
+        if size < 1e-4 and float(np.sqrt(np.mean(d**2))) < 1e-4:
+            continue  # this part moves nothing by 0.1 mm either way: nothing to compare
+        if g > DEFLECTION_FACTOR or 0 < g < 1.0 / DEFLECTION_FACTOR:
+            cols = "fx..fz" if name == "forces" else "mx..mz"
+            unit = ("N in *_N columns (or name them *_kN)" if name == "forces"
+                    else "N m in *_Nm columns (or name them *_kNm)")
+            raise InputError(
+                data.source, f"columns {cols}",
+                f"measured deflections are {g:.3g}x what robot {model.robot.name} predicts for "
+                f"the logged {name}: {name[:-1]} units off (kN logged as N?) or the "
+                "robot's stiffness is off", unit)
 
 
 def check_data(model: ElastostaticModel, data: MeasurementSet) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from rfsw_plan.cli.numbers import count, percent
 from rfsw_plan.exceptions import InputError
 
 
@@ -26,10 +27,11 @@ def register_region(parser: argparse.ArgumentParser, shape: str) -> None:
     parser.add_argument("--grid", default=shape, metavar="nx,ny,nyaw[,nz]",
                         help=f"grid points per axis (default {shape}; nz only with a height "
                         "range)")
-    parser.add_argument("--waypoints", type=int, default=50,
+    parser.add_argument("--waypoints", type=count(2, 10_000), default=50,
                         help="weld waypoints evaluated per placement (default 50)")
-    parser.add_argument("--force-uncertainty", type=float, default=None,
-                        help="requested relative force uncertainty (default: the problem's)")
+    parser.add_argument("--force-uncertainty", type=percent(), default=None, metavar="PERCENT",
+                        help="requested relative force uncertainty: 20%%, '20 %%' or the "
+                        "fraction 0.2 (default: the problem's)")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
 
 

@@ -6,6 +6,7 @@ import argparse
 import logging
 from pathlib import Path
 
+from rfsw_plan.cli.numbers import count, number
 from rfsw_plan.exceptions import InputError
 
 NAME = "compare"
@@ -26,28 +27,33 @@ def register(parser: argparse.ArgumentParser) -> None:
                         metavar="NAME[=key=value,...]",
                         help="effect the truth robot has and the model lacks (repeatable), "
                         "e.g. tilting_compliance:j3 or payload_gravity=m=150 (SI values)")
-    parser.add_argument("--truth-stiffness-scale", type=float, default=1.0, metavar="X",
+    parser.add_argument("--truth-stiffness-scale", type=number(0.01, 100), default=1.0, metavar="X",
                         help="truth joint stiffness / model joint stiffness (default 1)")
     parser.add_argument("--strategies", nargs="+", default=list(_STRATEGIES), metavar="NAME",
                         help=f"strategies to run (default all: {', '.join(_STRATEGIES)})")
-    parser.add_argument("--cycle-ms", type=float, default=4.0, metavar="MS",
+    parser.add_argument("--cycle-ms", type=number(0.1, 1000, "ms", why="a controller cycle"),
+                        default=4.0, metavar="MS",
                         help="controller cycle [ms] (default 4, KUKA RSI)")
-    parser.add_argument("--sensor-rate-hz", type=float, default=1000.0, metavar="HZ",
+    parser.add_argument("--sensor-rate-hz", type=number(1, 1e5, "Hz"), default=1000.0,
+                        metavar="HZ",
                         help="force sensor sample rate [Hz] (default 1000)")
-    parser.add_argument("--sensor-delay-ms", type=float, default=4.0, metavar="MS",
+    parser.add_argument("--sensor-delay-ms", type=number(0, 1000, "ms"), default=4.0, metavar="MS",
                         help="force sensor delay [ms] (default 4)")
-    parser.add_argument("--sensor-noise-N", type=float, default=30.0, metavar="N",
+    parser.add_argument("--sensor-noise-N", type=number(0, 1e4, "N"), default=30.0, metavar="N",
                         help="sensor noise std per force component [N] (default 30; moments "
                         "get 0.1 m times this)")
-    parser.add_argument("--force-drift", type=float, default=0.10, metavar="FRACTION",
+    parser.add_argument("--force-drift", type=number(0, 1), default=0.10, metavar="FRACTION",
                         help="slow process-force variation along the seam (default 0.10)")
-    parser.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    parser.add_argument("--seed000-average", type=float, default=50.0, metavar="PERCENT",
+    parser.add_argument("--seed", type=count(0, 2**32 - 1), default=0,
+                        help="noise seed (default 0)")
+    parser.add_argument("--seed000-average", type=number(0, 100, "%"), default=50.0,
+                        metavar="PERCENT",
                         help="seed 000 averaging percentage (default 50)")
-    parser.add_argument("--seed000-update-ms", type=float, default=250.0, metavar="MS",
+    parser.add_argument("--seed000-update-ms", type=number(0, 1e12, "ms"), default=250.0,
+                        metavar="MS",
                         help="seed 000 model/average update period [ms] (default 250; 0 = "
                         "every controller cycle)")
-    parser.add_argument("--maf-samples", type=int, default=320, metavar="N",
+    parser.add_argument("--maf-samples", type=count(1, 10**12), default=320, metavar="N",
                         help="seed 002 moving-average length in 0.5 ms steps (default 320)")
     parser.add_argument("--no-sensitivity", action="store_true",
                         help="skip the reruns with a softer truth, a hidden effect, 3x noise")

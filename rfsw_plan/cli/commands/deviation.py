@@ -8,15 +8,14 @@ import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from rfsw_plan.process.deviation import DeviationResult, problem_deviation
-from rfsw_plan.process.problem import Problem, load_problem, with_process
+from rfsw_plan.cli.numbers import number
 
 NAME = "deviation"
 HELP = "predict the uncompensated lateral/axial/along-track pin deviation of a problem"
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
+    from rfsw_plan.process.deviation import DeviationResult
+    from rfsw_plan.process.problem import Problem
     from rfsw_plan.progress import Stages
 
 log = logging.getLogger(__name__)
@@ -28,7 +27,9 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", metavar="DIR", default=None,
                         help="output folder (default out/deviation/<problem>)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.add_argument("--dt", type=float, default=0.1, metavar="S",
+    parser.add_argument("--dt", type=number(1e-6, 3600, "s", why="at least 1 us; at most the "
+                                            "weld's duration, checked with the problem"),
+                        default=0.1, metavar="S",
                         help="time step of the load schedule [s] (default 0.1, seed 001)")
     parser.add_argument("--cosim", action="store_true",
                         help="solve the axial force with the penetration law of "
@@ -52,10 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
-    from rfsw_plan.exceptions import InputError
-
-    if not (np.isfinite(args.dt) and args.dt > 0):
-        raise InputError("--dt", "", f"got {args.dt:g}", "> 0")
+    from rfsw_plan.cli.numbers import check_samples
     from rfsw_plan.files import (
         OutputLock,
         atomic_path,
@@ -63,8 +61,11 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
         strict_json,
         write_json,
     )
+    from rfsw_plan.process.deviation import problem_deviation
+    from rfsw_plan.process.problem import load_problem
 
     problem = load_problem(args.problem)
+    check_samples("--dt", args.dt, _process_duration(problem), max_samples=100_000)
     out = prepare_output_dir(args.output if args.output else Path("out") / NAME / problem.name)
     fit_text = ""
     fit_json = None
@@ -104,7 +105,15 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
     return 0
 
 
+def _process_duration(problem: Problem) -> float:
+    """Duration of the problem's process, approach to retract [s] (what ``--dt`` samples)."""
+    frames = problem.frames()
+    return float(problem.process.phase_times(float(frames.s[-1] - frames.s[0])).total)
+
+
 def _fit(problem: Problem, path: str, frame: str | None) -> tuple[Problem, str, dict[str, object]]:
+    import numpy as np
+
     from rfsw_plan.io.force_series import read_force_series
     from rfsw_plan.process.force_fit import fit_process_forces
 
@@ -115,10 +124,14 @@ def _fit(problem: Problem, path: str, frame: str | None) -> tuple[Problem, str, 
           "rms_N": fit.rms.tolist(), "r2": [None if not np.isfinite(v) else float(v)
                                             for v in fit.r2],
           "rms_total_N": fit.rms_total, "loss_N2": fit.loss, "notes": list(fit.notes)}
+    from rfsw_plan.process.problem import with_process
+
     return with_process(problem, fit.process), fit.summary(), js
 
 
 def _summary(problem: Problem, res: DeviationResult) -> str:
+    import numpy as np
+
     mm = 1e3
     w = res.window
     f = res.force_seam[0]
@@ -140,7 +153,12 @@ def _summary(problem: Problem, res: DeviationResult) -> str:
 
 
 def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> None:
-    with path.open("w", newline="") as fh:
+    import numpy as np
+
+    from rfsw_plan.files import atomic_path
+    from rfsw_plan.numfmt import fixed
+
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         nq = res.q.shape[1]
         w.writerow(["s_mm", "x_mm", "y_mm", "z_mm", "f_t_N", "f_l_N", "f_n_N", "lateral_mm",
@@ -148,25 +166,28 @@ def _write_csv(path: Path, res: DeviationResult, joint_columns: list[str]) -> No
                     *joint_columns[:nq]])
         for k in range(len(res.frames)):
             w.writerow([
-                f"{res.frames.s[k] * 1e3:.3f}", *(f"{v * 1e3:.3f}" for v in res.frames.p[k]),
-                *(f"{v:.2f}" for v in res.force_seam[k]), f"{res.lateral[k] * 1e3:.4f}",
-                f"{res.axial[k] * 1e3:.4f}", f"{res.along[k] * 1e3:.4f}",
-                int(res.inside[k]), *(f"{v:.4f}" for v in np.rad2deg(res.q[k])),
+                fixed(res.frames.s[k] * 1e3, 3), *(fixed(v * 1e3, 3) for v in res.frames.p[k]),
+                *(fixed(v, 2) for v in res.force_seam[k]), fixed(res.lateral[k] * 1e3, 4),
+                fixed(res.axial[k] * 1e3, 4), fixed(res.along[k] * 1e3, 4),
+                int(res.inside[k]), *(fixed(v, 4) for v in np.rad2deg(res.q[k])),
             ])
 
 
 def _write_time_csv(path: Path, res: DeviationResult) -> None:
+    from rfsw_plan.files import atomic_path
+    from rfsw_plan.numfmt import fixed
+
     sch = res.schedule
-    with path.open("w", newline="") as fh:
+    with atomic_path(path) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["t_s", "phase", "s_mm", "depth_mm", "f_t_N", "f_l_N", "f_n_N",
                     "lateral_mm", "axial_mm", "along_mm"])
         F = res.cosim.force_seam if res.cosim is not None else sch.force_seam
         for k in range(len(sch)):
-            w.writerow([f"{sch.t[k]:.3f}", sch.phase[k], f"{sch.s[k] * 1e3:.3f}",
-                        f"{sch.depth[k] * 1e3:.3f}", *(f"{v:.2f}" for v in F[k]),
-                        f"{res.lateral_t[k] * 1e3:.4f}", f"{res.axial_t[k] * 1e3:.4f}",
-                        f"{res.along_t[k] * 1e3:.4f}"])
+            w.writerow([fixed(sch.t[k], 3), sch.phase[k], fixed(sch.s[k] * 1e3, 3),
+                        fixed(sch.depth[k] * 1e3, 3), *(fixed(v, 2) for v in F[k]),
+                        fixed(res.lateral_t[k] * 1e3, 4), fixed(res.axial_t[k] * 1e3, 4),
+                        fixed(res.along_t[k] * 1e3, 4)])
 
 
 def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:

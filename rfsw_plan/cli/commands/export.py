@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from rfsw_plan.cli.numbers import number
 from rfsw_plan.exceptions import InputError
 
 if TYPE_CHECKING:
@@ -30,13 +31,14 @@ def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
                              "(.mod), stream (CSV), or any registered format"
                              + ("" if flag == "--export" else
                                 " (default: all of krl,fanuc_tp,rapid,stream)"))
-    parser.add_argument("--export-spacing-mm", type=float, default=None,
+    parser.add_argument("--export-spacing-mm", type=number(0.01, 1e4, "mm"), default=None,
                         help="program point spacing along the seam [mm] (default: the plan's)")
-    parser.add_argument("--stream-cycle-ms", type=float, default=None,
+    parser.add_argument("--stream-cycle-ms",
+                        type=number(0.1, 1000, "ms", why="a robot controller cycle"), default=None,
                         help="controller cycle of the stream file [ms]; plan --export times the "
                              "plan at it (default 4, RSI/EGM); export writes the plan's own "
                              "samples, so it must be the plan's sample time (the default)")
-    parser.add_argument("--path-tol-mm", type=float, default=0.01,
+    parser.add_argument("--path-tol-mm", type=number(1e-4, 10, "mm"), default=0.01,
                         help="largest distance of a verified sample from the path the "
                              "controller runs, blending included [mm] (default 0.01)")
     parser.add_argument("--tool-number", type=int, default=1,

@@ -10,8 +10,6 @@ import argparse
 from typing import Any
 
 from rfsw_plan.cli import measurement_args
-from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.robot.kinematics import load_robot
 
 NAME = "identify"
 HELP = "identify joint stiffness from a measurement CSV and optionally write a new robot file"
@@ -38,7 +36,10 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # The heavy libraries load here, so the parser answers a bad option at once.
+    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.files import prepare_output_file, strict_json
+    from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation.identify_robot import identify_robot
 
     if args.output:

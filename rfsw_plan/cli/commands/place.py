@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from rfsw_plan.cli.commands._placement_args import register_region, request_from_args
+from rfsw_plan.cli.numbers import count
 from rfsw_plan.exceptions import InputError
 
 NAME = "place"
@@ -24,10 +25,10 @@ _CSV = ("rank", "label", "chosen", "x_mm", "y_mm", "z_mm", "yaw_deg", "dx_mm", "
 
 def register(parser: argparse.ArgumentParser) -> None:
     register_region(parser, "15,15,8")
-    parser.add_argument("--candidates", type=int, default=4,
+    parser.add_argument("--candidates", type=count(0, 100), default=4,
                         help="screened placements planned in full, besides the given one "
                         "(default 4)")
-    parser.add_argument("--workers", type=int, default=1,
+    parser.add_argument("--workers", type=count(1, 256), default=1,
                         help="local worker processes for the candidate plans (default 1: in "
                         "this process)")
     parser.add_argument("--dask", default=None, metavar="ADDRESS",
@@ -152,7 +153,9 @@ def _cell(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float):
-        return "" if v != v or v in (float("inf"), float("-inf")) else f"{v:.6g}"
+        from rfsw_plan.numfmt import general
+
+        return "" if v != v or v in (float("inf"), float("-inf")) else general(v, 6)
     return str(v)
 
 

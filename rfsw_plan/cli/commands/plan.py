@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rfsw_plan.cli.numbers import number, percent
 from rfsw_plan.exceptions import InfeasibleError, InputError, RfswError
 
 NAME = "plan"
@@ -18,10 +19,11 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", default=None,
                         help="output directory (default: out/plan/<problem>)")
     parser.add_argument("--json", action="store_true", help="print the plan.json summary")
-    parser.add_argument("--spacing-mm", type=float, default=None,
+    parser.add_argument("--spacing-mm", type=number(0.01, 1e4, "mm"), default=None,
                         help="waypoint spacing along the seam [mm] (default: the problem's)")
-    parser.add_argument("--force-uncertainty", type=float, default=None,
-                        help="relative force uncertainty per seam-frame component (0.2 = 20 %%)")
+    parser.add_argument("--force-uncertainty", type=percent(), default=None, metavar="PERCENT",
+                        help="relative force uncertainty per seam-frame component: 20%%, "
+                        "'20 %%' or the fraction 0.2 (default: the problem's)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a [planning] option, file units (e.g. w_stiffness=0)")
     from rfsw_plan.cli.commands.export import add_export_arguments

@@ -4,11 +4,6 @@ from __future__ import annotations
 
 import argparse
 
-import numpy as np
-
-from rfsw_plan.files import strict_json
-from rfsw_plan.robot.description import bundled_robot_names, load_robot_description
-
 NAME = "robots"
 HELP = "list the bundled robots with their source and joint stiffness"
 
@@ -18,6 +13,11 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from rfsw_plan.files import strict_json
+    from rfsw_plan.robot.description import bundled_robot_names, load_robot_description
+
     descriptions = [load_robot_description(name) for name in bundled_robot_names()]
     if args.json:
         rows = [

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 import argparse
 
-from rfsw_plan.robot.description import save_robot_description
-from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import THERMAL_DRIFT, parse_hidden, run_campaign
-from rfsw_plan.validation.candidates import addable_effects
+from rfsw_plan.cli.numbers import count, number
 
 NAME = "simulate-campaign"
 HELP = "write a measurement CSV of a simulated load campaign with hidden effects"
 
-_EPILOG = f"""\
---hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {
-", ".join(addable_effects())}, and {THERMAL_DRIFT} (not in the library:
+
+def _epilog() -> str:
+    """The --help epilog (lists the effects: imported only when the help is shown)."""
+    from rfsw_plan.validation.campaign import THERMAL_DRIFT
+    from rfsw_plan.validation.candidates import addable_effects
+
+    return f"""\
+--hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {", ".join(
+    addable_effects())}, and {THERMAL_DRIFT} (not in the library:
 a TCP drift with time, parameters rate_mm_per_h, dir_x, dir_y, dir_z; it also makes the
 temperature_C column rise). Values are SI (rad, m, kg, N, N m, kg m), missing ones take the
 effect's prior; without '=' the values are random and plausible, scaled up if needed to at
@@ -25,16 +28,19 @@ least 10x the noise. Examples: --hidden payload_gravity=m:150,m_rz:-37.5
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = _EPILOG
+    parser.epilog = _epilog  # type: ignore[assignment]  # computed by format_help
     parser.add_argument("--robot", required=True, help="bundled robot name or robot TOML file")
     parser.add_argument("--hidden", action="append", default=[], metavar="EFFECT[:jN][=PARAMS]",
                         help="hidden effect of the truth model (repeatable)")
-    parser.add_argument("--poses", type=int, default=40, help="number of poses (default 40)")
-    parser.add_argument("--loads-per-pose", type=int, default=8,
+    parser.add_argument("--poses", type=count(1, 10_000), default=40,
+                        help="number of poses (default 40)")
+    parser.add_argument("--loads-per-pose", type=count(1, 100), default=8,
                         help="samples per pose: zero load, +-wrench pairs, zero load (default 8)")
-    parser.add_argument("--noise-mm", type=float, default=0.01,
+    parser.add_argument("--noise-mm", type=number(0, 100, "mm", why="0 = noise-free"),
+                        default=0.01,
                         help="1-sigma position noise per axis [mm] (default 0.01)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=count(0, 2**32 - 1), default=0,
+                        help="random seed (default 0)")
     parser.add_argument("-o", "--output", required=True, metavar="FILE.csv",
                         help="measurement CSV to write")
     parser.add_argument("--save-truth", metavar="FILE.toml",
@@ -45,6 +51,9 @@ def register(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.files import prepare_output_file, strict_json
     from rfsw_plan.io.measurements import write_measurements
+    from rfsw_plan.robot.description import save_robot_description
+    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.validation.campaign import parse_hidden, run_campaign
 
     prepare_output_file(args.output, "-o")
     if args.save_truth:

@@ -7,10 +7,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from rfsw_plan.cli import measurement_args
-from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.cli.numbers import count, number
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.candidates import addable_effects
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
@@ -21,7 +19,11 @@ if TYPE_CHECKING:
 NAME = "validate"
 HELP = "compare the model with measurements, diagnose the missing effect, add it and re-identify"
 
-_EPILOG = f"""\
+def _epilog() -> str:
+    """The --help epilog (lists the effects: imported only when the help is shown)."""
+    from rfsw_plan.validation.candidates import addable_effects
+
+    return f"""\
 Effects for --add: {", ".join(addable_effects())}; per-joint ones
 take :jN (1-based), e.g. --add tilting_compliance:j2 --add payload_gravity.
 Verdicts: adequate (held-out residual at the noise floor), missing (names the effect and
@@ -35,16 +37,18 @@ validate --robot NEW.toml ... until adequate.
 
 def register(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
-    parser.epilog = _EPILOG
+    parser.epilog = _epilog  # type: ignore[assignment]  # computed by format_help
     parser.add_argument("--robot", required=True, help="bundled robot name or robot TOML file")
     parser.add_argument("--data", required=True, metavar="FILE.csv", help="measurement CSV")
     parser.add_argument("-o", "--output", metavar="DIR",
                         help="report directory (default: out/validate/<data file stem>)")
     parser.add_argument("--json", action="store_true",
                         help="print one JSON object on stdout instead of the text summary")
-    parser.add_argument("--noise-mm", type=float, metavar="S",
+    parser.add_argument("--noise-mm", metavar="S",
+                        type=number(1e-4, 100, "mm", why="a position noise a device can have"),
                         help="1-sigma position noise [mm] (default: from repeated samples)")
-    parser.add_argument("--force-noise-N", dest="force_noise_n", type=float, metavar="S",
+    parser.add_argument("--force-noise-N", dest="force_noise_n",
+                        type=number(1e-3, 1e4, "N", why="a force sensor's noise"), metavar="S",
                         help="1-sigma force sensor noise [N] (default: from the spread of "
                         "zero-load readings); propagated through the compliance into the floor")
     parser.add_argument("--add", action="append", default=[], metavar="EFFECT[:jN]",
@@ -54,8 +58,10 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--name", metavar="NAME", default=None,
                         help="robot name in the --save-robot file (default: the robot's name "
                              "plus the added effects, e.g. zk500+payload_gravity)")
-    parser.add_argument("--folds", type=int, default=5, help="cross-validation folds (default 5)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the fold split (default 0)")
+    parser.add_argument("--folds", type=count(2, 1000), default=5,
+                        help="cross-validation folds (default 5)")
+    parser.add_argument("--seed", type=count(0, 2**32 - 1), default=0,
+                        help="seed of the fold split (default 0)")
     parser.add_argument("--no-report", action="store_true",
                         help="do not write report.html, PNGs and validate.json")
     measurement_args.register(parser)
@@ -88,7 +94,9 @@ def _report_folder(args: argparse.Namespace) -> Path | None:
 
 
 def _run(args: argparse.Namespace, report: Path | None, stages: Stages) -> int:
+    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.files import prepare_output_file
+    from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation.commands import run_validate
     from rfsw_plan.validation.report import result_json
 

@@ -7,6 +7,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rfsw_plan.cli.numbers import count
+
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
     from rfsw_plan.validation.scoring import Candidate
@@ -51,7 +53,7 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--name", metavar="NAME", default=None,
                         help="robot name in the --save-robot file (default: the robot's name "
                              "plus the added labels, e.g. zk500+joint_compliance:j1)")
-    parser.add_argument("--blocks", type=int, default=5,
+    parser.add_argument("--blocks", type=count(2, 1000), default=5,
                         help="blocks of s for the cross-validation (default 5)")
 
 
