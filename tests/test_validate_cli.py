@@ -224,10 +224,10 @@ def test_json_writes_no_report_and_a_default_report_never_overwrites(
     assert json.loads(out)["verdict"] == "missing"
     assert sorted(p.name for p in tmp_path.iterdir()) == []
     code, out, _ = _run(base, capsys)
-    assert code == 0 and "report: validate_campaign/report.html" in out
-    first = (tmp_path / "validate_campaign" / "validate.json").read_bytes()
+    assert code == 0 and "report: out/validate/campaign/report.html" in out
+    first = (tmp_path / "out/validate/campaign" / "validate.json").read_bytes()
     code, out, _ = _run(base, capsys)
-    assert code == 0 and "report: validate_campaign_2/report.html" in out
-    assert (tmp_path / "validate_campaign" / "validate.json").read_bytes() == first
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["validate_campaign",
-                                                          "validate_campaign_2"]
+    assert code == 0 and "report: out/validate/campaign_2/report.html" in out
+    assert (tmp_path / "out/validate/campaign" / "validate.json").read_bytes() == first
+    assert sorted(p.name for p in (tmp_path / "out/validate").iterdir()) == ["campaign",
+                                                                          "campaign_2"]
