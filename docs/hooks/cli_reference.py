@@ -92,8 +92,10 @@ def cli_reference() -> str:
         out += [f"## rfsw-plan {name}", "", "```text",
                 _usage(sub), "```", "",
                 _cell(sub.description or ""), "", *_rows(sub, glob), ""]
-        if sub.epilog:
-            out += ["```text", sub.epilog.strip(), "```", ""]
+        # an epilog may be a function (it needs a heavy import: computed only when shown)
+        epilog = sub.epilog() if callable(sub.epilog) else sub.epilog
+        if epilog:
+            out += ["```text", epilog.strip(), "```", ""]
     return "\n".join(out)
 
 
