@@ -12,7 +12,6 @@ import dataclasses
 import json
 import re
 import sys
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -97,25 +96,23 @@ def test_strict_json_has_no_negative_zero() -> None:
 
 
 def _program() -> tuple[Any, Any]:
-    import test_export as te
+    from _programs import synthetic
 
+    from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.export.program import build_program
 
-    robot, samples, header = te._synthetic()
-    return robot, build_program(robot, samples, header)
+    robot, samples, header = synthetic()
+    return robot, build_program(robot, samples, header,
+                                payload=ElastostaticModel(robot).tool_payload())
 
 
 def _write_programs(program: Any, robot: Any, folder: Path) -> dict[str, bytes]:
-    from rfsw_plan.export.fanuc_tp import write_tp
-    from rfsw_plan.export.krl import write_krl
-    from rfsw_plan.export.rapid import write_rapid
-    from rfsw_plan.export.stream import write_stream
+    """Every registered controller format (the stream included) through its own writer."""
+    from rfsw_plan.export.format import formats
 
     folder.mkdir()
-    write_krl(program, folder)
-    write_tp(program, folder, stamp=datetime(2026, 1, 1, tzinfo=UTC))
-    write_rapid(program, folder)
-    write_stream(folder / "stream.csv", robot, program.all_samples, 0.004)
+    for cls in formats().values():
+        cls().write(program, folder)
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
 
 
@@ -123,8 +120,8 @@ def test_controller_programs_are_the_same_with_negative_zeros(tmp_path: Path) ->
     robot, program = _program()
     plain = _write_programs(program, robot, tmp_path / "plain")
     forced = _write_programs(negzero(program), robot, tmp_path / "forced")
-    assert set(plain) == {"rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls",
-                          "rfsw_golden.mod", "stream.csv"}
+    assert {"rfsw_golden.src", "rfsw_golden.dat", "RFSW_GOLDEN.ls",
+            "rfsw_golden.mod"} < set(plain)
     for name, data in plain.items():
         assert forced[name] == data, name
         assert_no_negative_zero(data.decode(), name)
@@ -186,14 +183,18 @@ def test_plan_folder_is_the_same_with_negative_zeros(tmp_path: Path, zk500_plan:
     byte-identical."""
     from rfsw_plan.export import api as export_api
     from rfsw_plan.export.api import export_programs
+    from rfsw_plan.files import sha256_file
     from rfsw_plan.planfiles import waypoints as wp
+    from rfsw_plan.planfiles.folder import read_plan_samples
 
     def write(folder: Path) -> dict[str, bytes]:
         folder.mkdir()
         wp.write_waypoints_csv(folder / "waypoints.csv", zk500_plan)
-        export_programs(zk500_plan.model.robot, folder / "waypoints.csv",
-                        zk500_plan.summary(), ["krl", "fanuc_tp", "rapid"], folder,
-                        None, 0.004, 1e-5)
+        robot = zk500_plan.model.robot
+        samples = read_plan_samples(folder / "waypoints.csv",
+                                    robot.description.convention.column_names())
+        export_programs(robot, samples, zk500_plan.summary(), ["krl", "fanuc_tp", "rapid"],
+                        folder, plan_sha256=sha256_file(folder / "waypoints.csv"))
         return {p.name: p.read_bytes() for p in sorted(folder.iterdir())
                 if p.suffix in (".csv", ".src", ".dat", ".ls", ".mod")}
 

@@ -44,7 +44,7 @@ def test_round_trip_keeps_gaps(tmp_path: Path) -> None:
     ("x_mm,y_mm,z_mm\n0,-1e308,0\n1,0,0\n2,0,0\n", "within +-100000 mm"),
     ("s_mm,e_lateral_mm\n0,0\n", "expected s_mm, e_lat_mm"),
     ("s_mm,e_lat_mm,quality\n0,0,1\n", "unknown column"),
-    ("s_mm,e_lat_mm\n0,abc\n1,0\n2,0\n", "row 2, column 'e_lat_mm'"),
+    ("s_mm,e_lat_mm\n0,abc\n1,0\n2,0\n", "row 2, column e_lat_mm"),
     ("s_mm,e_lat_mm\n0,inf\n1,0\n2,0\n", "finite"),
     ("s_mm,e_lat_mm\n0,0\n1,0\n", "at least 3"),
     ("", "empty"),
