@@ -1,5 +1,7 @@
-"""Shared fixtures: the bundled problems planned once per session with every export format
-(``tests/test_export.py`` and ``tests/test_program_checkers.py`` use the same plans)."""
+"""Shared fixtures: the bundled problems planned once per session, as typed results
+(``planned_result``) and with every export format (``plan_with_programs``: the plans
+``tests/test_export.py`` and ``tests/test_program_checkers.py`` check). Planning is
+deterministic, so one plan per problem stands for every test that only reads it."""
 
 from __future__ import annotations
 
@@ -14,6 +16,22 @@ PROGRAM_CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "
                  ("kr600_curved_seam", "kuka_kr600_r2830")]
 
 _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
+_RESULTS: dict[str, Any] = {}
+
+
+@pytest.fixture(scope="session")
+def planned_result():
+    """``planned_result(problem)`` -> the :class:`~rfsw_plan.planning.result.PlanResult` of
+    ``rfsw_plan.plan(problem)`` with the problem's own options, planned once per session
+    (frozen: tests read it, never change it)."""
+    from rfsw_plan.planning.api import plan
+
+    def get(problem: str) -> Any:
+        if problem not in _RESULTS:
+            _RESULTS[problem] = plan(problem)
+        return _RESULTS[problem]
+
+    return get
 
 
 @pytest.fixture(scope="session")

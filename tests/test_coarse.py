@@ -25,7 +25,9 @@ from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 
 #: Bundled problems and the weld waypoints to plan them with (None: the problem's spacing).
-CASES = [("zk500_table6_seam", 200), ("fanuc_butt_1700mm", None), ("kr600_curved_seam", None)]
+#: The kr600 (the longest full NLP, ~7 s) runs under ``-m slow``.
+CASES = [("zk500_table6_seam", 200), ("fanuc_butt_1700mm", None),
+         pytest.param("kr600_curved_seam", None, marks=pytest.mark.slow)]
 
 
 def _setup(name: str, n_weld: int | None):

@@ -8,12 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from rfsw_plan import write_plan
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, check_plan_folder, read_waypoints_csv
-from rfsw_plan.planning.api import plan
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
-from rfsw_plan.process.problem import load_problem
 from rfsw_plan.timing.trajectory import monotone_interp
 
 BUNDLED = ("zk500_table6_seam", "fanuc_butt_1700mm", "kr600_curved_seam")
@@ -24,23 +23,25 @@ def _reject(c: str) -> float:
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
+def planned(tmp_path_factory, planned_result):
+    """Every bundled plan written by ``rfsw_plan.write_plan`` (what ``rfsw-plan plan -o``
+    calls; tests/test_examples.py shows both write the same files)."""
     out = {}
     for name in BUNDLED:
         d = tmp_path_factory.mktemp(name)
-        assert main(["-q", "plan", name, "-o", str(d)]) == 0
+        write_plan(d, planned_result(name))
         out[name] = d
     return out
 
 
 @pytest.mark.parametrize("name", BUNDLED)
-def test_every_written_in_material_sample_is_inside_the_window(planned, name) -> None:
+def test_every_written_in_material_sample_is_inside_the_window(planned, planned_result,
+                                                               name) -> None:
     d = planned[name]
     rec = check_plan_folder(d)  # the commit record vouches for the files beside it
     assert set(rec["sha256"]) == {"waypoints.csv", "lateral_error.png",
                                   "lateral_error_time.png", "tradeoff.png"}
-    problem = load_problem(name)
-    res = plan(problem)
+    res = planned_result(name)
     written = read_waypoints_csv(d / "waypoints.csv")
     assert len(written.t) == len(res.trajectory)
     sv = verify_samples(res.model, res.task, res.window, written, res.options.margin, res.q,
@@ -58,8 +59,9 @@ def test_every_written_in_material_sample_is_inside_the_window(planned, name) ->
 
 
 @pytest.mark.parametrize("name", BUNDLED)
-def test_plunge_and_dwell_samples_stay_between_their_neighbouring_waypoints(name) -> None:
-    res = plan(load_problem(name))
+def test_plunge_and_dwell_samples_stay_between_their_neighbouring_waypoints(planned_result,
+                                                                          name) -> None:
+    res = planned_result(name)
     tr = res.trajectory
     m = res.task.n_start
     qw = res.q[:m + 1]
@@ -83,10 +85,10 @@ def test_monotone_interp_never_overshoots() -> None:
         assert np.allclose(monotone_interp(xk, yk, xk), yk)
 
 
-def test_a_swinging_dwell_is_refused_naming_the_first_sample() -> None:
+def test_a_swinging_dwell_is_refused_naming_the_first_sample(planned_result) -> None:
     """The old clamped spline swung the fanuc dwell by 15 mm; a swing of that kind is caught
     at its first sample, with time, phase, value and bound."""
-    res = plan(load_problem("fanuc_butt_1700mm"))
+    res = planned_result("fanuc_butt_1700mm")
     tr = res.trajectory
     dw = np.flatnonzero(tr.phase == "dwell")
     q = tr.q.copy()

@@ -9,7 +9,6 @@ import pytest
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.planning.api import plan
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.robot.kinematics import Robot, load_robot
 from rfsw_plan.timing.ruckig_ import profile_1dof
@@ -18,8 +17,8 @@ from rfsw_plan.timing.trajectory import time_parameterise
 
 
 @pytest.fixture(scope="module")
-def result():
-    return plan("zk500_table6_seam")
+def result(planned_result):
+    return planned_result("zk500_table6_seam")
 
 
 def test_every_sample_respects_every_joint_limit(result):
@@ -49,9 +48,8 @@ def _ramp_and_steady(pb, tr, tol_ramp=10.0, tol_steady=1.0):
 
 
 @pytest.fixture(scope="module", params=BUNDLED)
-def bundled(request):
-    pb = load_problem(request.param)
-    return pb, (plan(pb) if request.param != "zk500_table6_seam" else None)
+def bundled(request, planned_result):
+    return load_problem(request.param), planned_result(request.param)
 
 
 def test_weld_keeps_the_predicted_pin_at_the_weld_speed(bundled, result):

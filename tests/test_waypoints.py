@@ -40,9 +40,9 @@ def test_maker_euler_conventions():
 
 
 @pytest.fixture(scope="module")
-def written(tmp_path_factory):
+def written(tmp_path_factory, planned_result):
     out = tmp_path_factory.mktemp("plan")
-    res = plan("zk500_table6_seam")
+    res = planned_result("zk500_table6_seam")
     model = res.model
     write_waypoints_csv(out / "waypoints.csv", res)
     write_plan_json(out / "plan.json", res.summary())
