@@ -1,7 +1,8 @@
 """The plan that was run, read back from its folder (``validate-weld PLAN_DIR``).
 
-:func:`read_plan_dir` is the only place the workbench reads a plan folder: when the one strict
-plan-folder reader of :mod:`rfsw_plan.planfiles` lands, it changes here and nowhere else.
+:func:`read_plan_dir` is the only place the workbench reads a plan folder, through the one strict
+plan-folder reader (:func:`rfsw_plan.planfiles.read_plan_folder`): a damaged or unverified
+folder is refused by ``validate-weld`` exactly as by ``export`` and ``check``.
 """
 
 from __future__ import annotations
@@ -17,9 +18,6 @@ from rfsw_plan.process.forces import FIT_PARAMS
 from rfsw_plan.process.frames import FloatArray
 from rfsw_plan.process.problem import Problem, load_problem, with_process
 from rfsw_plan.realtime.compare import PlannedWaypoints
-
-#: Plan statuses that are not a verified plan.
-UNVERIFIED = ("infeasible", "incomplete", "failed", "unverified", "error", "not_verified")
 
 
 @dataclass(frozen=True)
@@ -50,7 +48,9 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
         problem: Problem file or bundled name (default: the one ``plan.json`` names).
 
     Raises:
-        InputError: No ``plan.json``, not JSON, not a verified plan, or no waypoints.
+        InputError: No ``plan.json``, not strict JSON, a vouched file changed, not a verified
+            plan, or no waypoints (exit 2).
+        InfeasibleError: The folder holds an infeasible plan (exit 3, with its reason).
     """
     folder = Path(folder)
     path = folder / "plan.json"
@@ -62,26 +62,12 @@ def read_plan_dir(folder: str | Path, problem: str | None = None) -> PlanRecord:
 
 
 def _plan_json(folder: Path) -> dict[str, Any]:
-    """``plan.json`` of a verified plan, with its waypoints (the one place that reads a plan
-    folder: the planfiles reader checks the files plan.json vouches for)."""
-    path = folder / "plan.json"
-    if not folder.is_dir():
-        raise InputError(folder, "", "is not a folder", "the output folder of rfsw-plan plan")
-    if not path.is_file():
-        raise InputError(folder, "plan.json", "missing: no plan in this folder",
-                         "the output folder of a successful rfsw-plan plan")
-    from rfsw_plan.planfiles.waypoints import check_plan_folder
+    """``plan.json`` of a verified plan (read by the strict plan-folder reader: strict JSON,
+    a verified status, every file it vouches for whole), with its waypoints."""
+    from rfsw_plan.planfiles.folder import read_plan_folder
 
-    try:
-        data = check_plan_folder(folder)  # status, and the files plan.json vouches for
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(path, "", f"not readable strict JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise InputError(path, "", "not a JSON object", "plan.json of rfsw-plan plan")
-    status = str(data.get("status", ""))
-    if not status or any(u in status.lower() for u in UNVERIFIED):
-        raise InputError(path, "status", f"'{status or 'missing'}': not a verified plan",
-                         "a plan that passed verification (status optimal or verified)")
+    path = folder / "plan.json"
+    data = read_plan_folder(folder).record
     wp = data.get("waypoints")
     if not isinstance(wp, dict) or not all(k in wp for k in ("q_deg", "s_mm", "phase")):
         raise InputError(path, "waypoints", "missing q_deg/s_mm/phase",
@@ -135,4 +121,4 @@ def _with_forces(problem: Problem, x: FloatArray) -> Any:
     return replace(proc, forces=proc.forces.with_vector(x, source="fitted (plan.json)"))
 
 
-__all__ = ["UNVERIFIED", "PlanRecord", "read_plan_dir"]
+__all__ = ["PlanRecord", "read_plan_dir"]
