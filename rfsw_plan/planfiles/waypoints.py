@@ -177,7 +177,7 @@ def write_plan_data(folder: str | Path, result: PlanResult) -> list[Path]:
 
     ``plan.json`` (the commit record that vouches for it) is not written here: the caller adds
     its own files and then calls :func:`commit_plan`, which commits them and draws the plots.
-    Shared by ``rfsw-plan plan`` and :meth:`PlanResult.write`.
+    Shared by ``rfsw-plan plan`` and :func:`rfsw_plan.write_plan`.
 
     Returns:
         The written paths (``waypoints.csv``).
