@@ -470,17 +470,35 @@ def test_user_hooks_replace_the_default_comments(tmp_path: Path) -> None:
         read_hooks(bad)
 
 
-def test_a_killed_exports_staging_folder_is_removed(tmp_path: Path) -> None:
-    """A SIGKILL leaves the private staging folder; the next export removes it, and a
-    successful export leaves none of its own."""
+def test_export_stages_outside_the_output_folder(tmp_path: Path, monkeypatch) -> None:
+    """Programs are staged in the system's temporary directory, so a run killed at any point
+    (SIGKILL included) leaves no stray entry in the output folder; a finished run removes its
+    staging folder, and a staging folder an earlier version left in the output folder
+    (``.export-*``) is removed."""
+    import tempfile
+
     from rfsw_plan.export.api import export_programs
 
-    stale = tmp_path / ".export-killed"
-    stale.mkdir()
+    system_tmp = tmp_path / "system_tmp"
+    system_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    out = tmp_path / "out"
+    stale = out / ".export-killed"
+    stale.mkdir(parents=True)
     (stale / "rfsw_golden.src").write_text("half a program")
+    staged: list[Path] = []
+    krl = type(get_format("krl"))
+    real_write = krl.write
+
+    def spy(self, program, folder):
+        staged.append(Path(folder))
+        return real_write(self, program, folder)
+
+    monkeypatch.setattr(krl, "write", spy)
     robot, samples, _ = synthetic()
     export_programs(robot, samples, {"problem": "golden", "waypoints": {"s_mm": [0.0, 5.0]}},
-                    ["krl"], tmp_path, plan_sha256="0" * 64)
-    assert not list(tmp_path.glob(".export-*"))
-    assert not list(tmp_path.glob(".*.tmp*"))
-    assert (tmp_path / "rfsw_golden.src").is_file()
+                    ["krl"], out, plan_sha256="0" * 64)
+    assert staged and staged[0].parent == system_tmp  # never inside the output folder
+    assert list(system_tmp.iterdir()) == []  # removed when done
+    assert sorted(p.name for p in out.iterdir() if p.name.startswith(".")) == []
+    assert (out / "rfsw_golden.src").is_file()

@@ -1,13 +1,15 @@
 """Export a verified plan as controller programs: build, write, re-read, check, commit.
 
-Every program is first written into a private folder beside the target by its format
-(:mod:`rfsw_plan.export.format`), re-read by the same format and taken through the robot model
-(:func:`rfsw_plan.export.readback.round_trip`): the re-read points must reproduce the plan
-samples they were written from to 0.01 mm and 0.01 deg on the configuration the program
-states, and (``check``) pass the planner's sample-by-sample verification. Only then are the
-files moved to their names; a failure leaves nothing behind and raises
-:class:`~rfsw_plan.exceptions.InfeasibleError` (exit 3). A private folder left by a killed
-run (``.export-*``) is removed by the next run.
+Every program is first written into a private staging folder in the system's temporary
+directory by its format (:mod:`rfsw_plan.export.format`), re-read by the same format and taken
+through the robot model (:func:`rfsw_plan.export.readback.round_trip`): the re-read points must
+reproduce the plan samples they were written from to 0.01 mm and 0.01 deg on the configuration
+the program states, and (``check``) pass the planner's sample-by-sample verification. Only then
+is each file written under its name in the output folder, atomically
+(:func:`rfsw_plan.files.write_bytes`: an unnamed file that gets its name when whole). A failure
+leaves nothing in the output folder and raises :class:`~rfsw_plan.exceptions.InfeasibleError`
+(exit 3); a run killed at any point, ``SIGKILL`` included, leaves no stray entry there (its
+staging folder is in the temporary directory, which the system cleans).
 
 :func:`export_plan_folder` does the same from a written plan folder read by the strict reader
 (:func:`rfsw_plan.planfiles.folder.read_plan_folder`), and makes the programs part of what the
@@ -39,7 +41,7 @@ from rfsw_plan.export.program import (
     tolerated_from_record,
 )
 from rfsw_plan.export.readback import RoundTrip, round_trip
-from rfsw_plan.files import sha256_file
+from rfsw_plan.files import sha256_file, write_bytes
 from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot
 
@@ -182,16 +184,12 @@ def export_programs(
                                   f"{deviation * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)",
                                   None, "path_tolerance", path_tol - deviation)
         out.mkdir(parents=True, exist_ok=True)
-        for old in out.glob(".export-*"):  # left by a killed run
+        for old in out.glob(".export-*"):  # staging folders of versions that staged in `out`
             shutil.rmtree(old, ignore_errors=True)
-        stage = Path(tempfile.mkdtemp(prefix=".export-", dir=out))
+        stage = Path(tempfile.mkdtemp(prefix="rfsw-plan-export-"))
         try:
             staged, trips = _write_all(program, fmts, stage, check, stages)
-            final = []
-            for f in staged:
-                target = out / f.name
-                f.replace(target)
-                final.append(target)
+            final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
         finally:
             shutil.rmtree(stage, ignore_errors=True)
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"

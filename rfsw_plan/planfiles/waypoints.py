@@ -285,8 +285,8 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
     """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
     so an earlier success record never sits beside removed or new data), then the other
     outputs of an earlier run are removed, with whatever a killed run left (hidden
-    temporaries, a controller-program staging folder ``.export-*``). If this run is killed,
-    the folder says so.
+    temporaries, a controller-program staging folder ``.export-*`` of earlier versions). If
+    this run is killed, the folder says so.
 
     If the caller holds the folder's :class:`~rfsw_plan.files.OutputLock`, an interruption
     (Ctrl-C, SIGTERM) or an error before :func:`commit_plan` removes the data files this run
