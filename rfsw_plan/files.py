@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
+import io
 import json
 import math
 import os
@@ -38,6 +39,7 @@ __all__ = [
     "strict_json",
     "to_jsonable",
     "write_bytes",
+    "write_figure",
     "write_json",
     "write_text",
 ]
@@ -111,11 +113,6 @@ def strict_json(obj: Any, indent: int | None = 2) -> str:
     return json.dumps(to_jsonable(obj), indent=indent, allow_nan=False) + "\n"
 
 
-#: Suffixes whose writers pick the format from the file name (matplotlib's ``savefig`` reads
-#: it, and appends ``.png`` to a name without one): these get a named temporary, every other
-#: target an anonymous one (see :func:`atomic_path`).
-_NAMED_FORMATS = frozenset({".png", ".svg", ".pdf", ".jpg", ".jpeg", ".eps", ".ps", ".tif",
-                            ".tiff", ".webp", ".gif"})
 #: Errors of the file system itself (full, read-only, quota, I/O): a one-line OutputPathError.
 _FS_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG,
                         errno.EACCES, errno.EPERM, errno.ENAMETOOLONG, errno.EISDIR,
@@ -186,12 +183,14 @@ def _path_error(target: Path, exc: OSError) -> OutputPathError:
 def atomic_path(target: str | Path) -> Iterator[Path]:
     """Yield a temporary path for ``target``; on success it becomes ``target`` in one step.
 
-    Use it for writers that want a path (``savefig``, ``np.savetxt``). On Linux the temporary
-    is an unnamed file (``O_TMPFILE``, reached as ``/proc/self/fd/N``): a process killed at any
-    moment while writing, SIGKILL included, leaves no temporary file behind. Elsewhere (and for
-    images, whose writer needs the suffix) it is a hidden file beside the target, which the
-    next run into the folder removes. Either way a reader only ever sees the old file or the
-    complete new one. On any exception the temporary is removed and ``target`` is untouched.
+    Use it for writers that want a path (``csv.writer`` on an open file, ``np.savetxt``); a
+    matplotlib figure goes through :func:`write_figure` (``savefig`` picks the format from a
+    path's suffix, which the temporary has not). On Linux the temporary is an unnamed file
+    (``O_TMPFILE``, reached as ``/proc/self/fd/N``): a process killed at any moment while
+    writing, SIGKILL included, leaves no temporary file behind. Elsewhere it is a hidden file
+    beside the target, which the next run into the folder removes. Either way a reader only
+    ever sees the old file or the complete new one. On any exception the temporary is removed
+    and ``target`` is untouched.
 
     Raises:
         OutputPathError: The target cannot be written: a folder of that name, a full or
@@ -202,12 +201,10 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     if target.parent == Path("/proc/self/fd"):  # already an outer atomic_path's temporary
         yield target
         return
-    fd = None if target.suffix.lower() in _NAMED_FORMATS else _anonymous_file(target.parent)
+    fd = _anonymous_file(target.parent)
     if fd is not None:
         tmp_path = Path(f"/proc/self/fd/{fd}")
     else:
-        # The temporary keeps the target's suffix, so writers that infer the format from the
-        # name (matplotlib's savefig) write the right format.
         try:
             nfd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}",
                                         dir=target.parent)
@@ -245,6 +242,19 @@ def write_bytes(target: str | Path, data: bytes) -> Path:
     with atomic_path(target) as tmp:
         tmp.write_bytes(data)
     return target
+
+
+def write_figure(target: str | Path, fig: Any, **savefig: Any) -> Path:
+    """Draw a matplotlib figure into ``target`` atomically, in the format its suffix names.
+
+    The image is rendered in memory (``fig.savefig`` to a buffer) and written by
+    :func:`write_bytes`, so it gets the unnamed temporary of every other file: a process killed
+    while plotting leaves nothing in the folder. ``savefig`` keywords (``dpi``...) are passed on.
+    """
+    target = Path(target)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=target.suffix.lstrip(".").lower() or "png", **savefig)
+    return write_bytes(target, buf.getvalue())
 
 
 def write_text(target: str | Path, text: str) -> Path:

@@ -77,3 +77,30 @@ def test_no_file_is_named_after_a_stop_request(tmp_path) -> None:
         files.clear_interrupt()
     assert list(tmp_path.iterdir()) == []
     write_text(tmp_path / "x.txt", "a")
+
+
+def test_a_figure_is_written_like_every_other_file(tmp_path, monkeypatch) -> None:
+    """Plots are rendered in memory and get the unnamed temporary of every other file (a kill
+    while plotting once left ``.lateral_error_time.png.*.tmp.png`` beside a plan), in the
+    format their suffix names."""
+    import tempfile
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rfsw_plan.files import write_figure
+
+    def no_named_temporary(*args, **kwargs):
+        raise AssertionError("a named temporary was made")
+
+    monkeypatch.setattr(tempfile, "mkstemp", no_named_temporary)
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [0, 1])
+    png = write_figure(tmp_path / "a.png", fig, dpi=50)
+    svg = write_figure(tmp_path / "a.svg", fig)
+    plt.close(fig)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in svg.read_bytes()[:400]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "a.svg"]

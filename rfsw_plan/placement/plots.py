@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.files import atomic_path
+from rfsw_plan.files import write_figure
 from rfsw_plan.placement.map import PlacementMap
 
 FloatArray = NDArray[np.float64]
@@ -159,8 +159,7 @@ def plot_map(path: str | Path, m: PlacementMap,
         f"{m.name}: {m.grid.size} placements ({len(g.x)} x {len(g.y)} positions, {len(g.yaw)} "
         f"yaws {np.rad2deg(g.yaw[0]):.0f}..{np.rad2deg(g.yaw[-1]):.0f} deg, {len(g.z)} "
         f"height(s)); best over yaw and height per position"), fontsize=13)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
+    write_figure(path, fig, dpi=100)
     plt.close(fig)
     return Path(path)
 
@@ -260,7 +259,6 @@ def plot_yaw(path: str | Path, m: PlacementMap) -> Path:
         cb.set_label("tolerated force uncertainty, mirror offsets [%]")
     fig.suptitle(f"{m.name}: tolerated force uncertainty per yaw (red star: given placement, "
                  f"grey: infeasible)", fontsize=13)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=100, format="png")
+    write_figure(path, fig, dpi=100)
     plt.close(fig)
     return Path(path)

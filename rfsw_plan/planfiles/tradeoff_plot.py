@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rfsw_plan.files import atomic_path
+from rfsw_plan.files import write_figure
 from rfsw_plan.planning.result import PlanResult
 
 #: Marker and colour of each trade-off point.
@@ -66,8 +66,7 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     ax.legend(loc="upper left", fontsize=9)
     fig.tight_layout()
     out = Path(path)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, dpi=100)
+    write_figure(out, fig, dpi=100)
     plt.close(fig)
     return out
 

@@ -48,7 +48,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.files import atomic_path, sha256_file, write_json
+from rfsw_plan.files import atomic_path, sha256_file, write_figure, write_json
 from rfsw_plan.numfmt import canonical_quaternion, cell
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
@@ -452,8 +452,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=9, frameon=False)
     fig.subplots_adjust(left=0.06, right=0.99, bottom=0.2, top=0.86)
     p = Path(path)
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, dpi=100)
+    write_figure(p, fig, dpi=100)
     plt.close(fig)
     return p
 
@@ -622,7 +621,6 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     p = Path(path)
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, dpi=100)
+    write_figure(p, fig, dpi=100)
     plt.close(fig)
     return p

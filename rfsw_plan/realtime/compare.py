@@ -24,12 +24,14 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, UnknownNameError
+from rfsw_plan.files import write_figure
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
 from rfsw_plan.process.taught import taught_path
@@ -636,8 +638,9 @@ def format_markdown(result: CompareResult) -> str:
     return "\n".join(out) + "\n"
 
 
-def plot_lateral(result: CompareResult, path: str) -> None:
-    """PNG of the lateral error against seam position, all strategies, with the window band.
+def plot_lateral(result: CompareResult, path: str | Path) -> None:
+    """PNG (written atomically) of the lateral error against seam position, all strategies,
+    with the window band.
 
     Top: the whole weld; bottom: the weld start (first 10 % or 20 mm), where the real-time
     strategies settle.
@@ -666,7 +669,7 @@ def plot_lateral(result: CompareResult, path: str) -> None:
     axes[1].set_title("weld start")
     axes[0].legend(loc="best", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    write_figure(path, fig, dpi=110)
     plt.close(fig)
 
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from rfsw_plan.files import atomic_path, write_text
+from rfsw_plan.files import write_figure, write_text
 from rfsw_plan.validation.diagnosis import Skipped
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
@@ -280,8 +280,7 @@ def make_plots(result: ValidationResult, out_dir: Path) -> dict[str, Path]:
         path = out_dir / f"{name}.png"
         # Figures use constrained layout, which keeps the outside legends in the figure in one
         # drawing pass (bbox_inches="tight" draws twice); PNG_WIDTH_PX wide whatever the size.
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=PNG_WIDTH_PX / fig.get_figwidth(), format="png")
+        write_figure(path, fig, dpi=PNG_WIDTH_PX / fig.get_figwidth())
         plt.close(fig)
         plots[name] = path
     return plots

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rfsw_plan.files import atomic_path, write_json, write_text
+from rfsw_plan.files import write_figure, write_json, write_text
 from rfsw_plan.validation.candidates import PLAUSIBLE_FACTOR
 from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.identifiability import IDENT_RATIO, PARAM_CHANGE
@@ -65,8 +65,7 @@ def make_weld_plots(result: WeldValidation, out: Path) -> dict[str, Path]:
     ax.grid(alpha=0.3)
     ax.legend(fontsize=9, loc="best")
     p = out / "weld_lateral.png"
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, dpi=DPI, format="png")
+    write_figure(p, fig, dpi=DPI)
     plt.close(fig)
     files["lateral"] = p
 
@@ -88,8 +87,7 @@ def make_weld_plots(result: WeldValidation, out: Path) -> dict[str, Path]:
         ax.legend(fontsize=8, loc="best")
     a1.set_title(f"residual: {result.diagnosis.verdict}")
     p = out / "weld_residual.png"
-    with atomic_path(p) as tmp:
-        fig.savefig(tmp, dpi=DPI, format="png")
+    write_figure(p, fig, dpi=DPI)
     plt.close(fig)
     files["residual"] = p
     return files

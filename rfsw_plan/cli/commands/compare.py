@@ -98,7 +98,6 @@ def run(args: argparse.Namespace) -> int:
     )
     from rfsw_plan.files import (
         OutputLock,
-        atomic_path,
         prepare_output_dir,
         strict_json,
         write_json,
@@ -114,8 +113,7 @@ def run(args: argparse.Namespace) -> int:
         write_json(out / "compare.json", data)
         write_text(out / "compare.md", format_markdown(result))
         if not args.no_plot:
-            with atomic_path(out / "compare_lateral.png") as tmp:
-                plot_lateral(result, str(tmp))
+            plot_lateral(result, out / "compare_lateral.png")
             files.append("compare_lateral.png")
     data["files"] = [str(out / f) for f in files]
     if args.json:

@@ -86,8 +86,7 @@ def _run(args: argparse.Namespace, stages: Stages, names: list[str]) -> int:
             _write_time_csv(tmp, res)
         write_json(out / "deviation.json", data)
         if not args.no_plot:
-            with atomic_path(out / "deviation.png") as tmp:
-                plot_deviation(res, tmp, title=problem.title or problem.name)
+            plot_deviation(res, out / "deviation.png", title=problem.title or problem.name)
             files.append("deviation.png")
     data["files"] = [str(out / f) for f in files]
     if args.json:
@@ -191,9 +190,10 @@ def _write_time_csv(path: Path, res: DeviationResult) -> None:
 
 
 def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:
-    """PNG: lateral deviation along the seam with the weld-window band (the window applies to
-    the lateral direction only), axial and along-track deviation in their own panels, and the
-    lateral deviation over time with the phases shaded (matplotlib, Agg backend, imported here).
+    """PNG, written atomically: lateral deviation along the seam with the weld-window band (the
+    window applies to the lateral direction only), axial and along-track deviation in their own
+    panels, and the lateral deviation over time with the phases shaded (matplotlib, Agg
+    backend, imported here).
     """
     import matplotlib
 
@@ -241,7 +241,9 @@ def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:
     a_al.grid(alpha=0.3)
     if title:
         fig.suptitle(title)
-    fig.savefig(path, dpi=100, format="png")
+    from rfsw_plan.files import write_figure
+
+    write_figure(path, fig, dpi=100)
     plt.close(fig)
     return path
 
