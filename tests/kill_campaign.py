@@ -38,8 +38,7 @@ START_S = 0.3
 def _command(kind: str, out: Path) -> list[str]:
     argv = (["plan", PROBLEM, "-o", str(out), "--export", FORMATS] if kind == "plan --export"
             else ["export", str(out), "--format", FORMATS])
-    return [sys.executable, "-c", "import sys; from rfsw_plan.cli.main import main; "
-            "sys.exit(main(sys.argv[1:]))", "-q", *argv]
+    return [sys.executable, "-m", "rfsw_plan.cli.main", "-q", *argv]  # as the rfsw-plan script
 
 
 def _env() -> dict[str, str]:

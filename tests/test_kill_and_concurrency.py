@@ -182,3 +182,18 @@ def test_kill_campaign_sample(tmp_path) -> None:
     kills = campaign(2, seed=3, work=tmp_path)
     bad = [k for k in kills if not k.ok]
     assert not bad, bad
+
+
+def test_a_sigterm_after_the_command_finished_keeps_its_exit_code() -> None:
+    """The kill campaign once hit a finished export in the interpreter's shutdown, where the
+    default SIGTERM action was back: exit -15 for a complete run. The rfsw-plan script ignores
+    SIGTERM once the command has finished (here the signal is sent from an exit hook)."""
+    code = ("import atexit, os, signal, sys\n"
+            "atexit.register(lambda: os.kill(os.getpid(), signal.SIGTERM))\n"
+            "sys.argv = ['rfsw-plan', '--version']\n"
+            "from rfsw_plan.cli.main import console\n"
+            "console()\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=60, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 0, (r.returncode, r.stderr)
+    assert "rfsw-plan" in r.stdout and "Traceback" not in r.stderr

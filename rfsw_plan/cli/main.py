@@ -151,7 +151,21 @@ def _command_word(argv: Sequence[str]) -> str | None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the CLI; returns the process exit code (0 ok, 2 bad input, 3 infeasible, 130
     interrupted). Ctrl-C at any point, start-up (parser, lazy imports) included, ends with
-    one line and exit 130, never a traceback."""
+    one line and exit 130, never a traceback. The SIGTERM handler in place before the call is
+    restored after it."""
+    return _run(argv, after=None)
+
+
+def console() -> NoReturn:
+    """The ``rfsw-plan`` script: :func:`main`, then exit with its code. Once the command has
+    finished, SIGTERM is ignored: a termination that arrives while the interpreter shuts down
+    (a second or so after a plan) does not turn a finished run into a killed one (exit -15);
+    the process ends with the command's own code."""
+    sys.exit(_run(None, after=signal.SIG_IGN))
+
+
+def _run(argv: Sequence[str] | None, after: Any) -> int:
+    """:func:`main` with the SIGTERM handler to leave in place afterwards (None: the previous)."""
     # SIGTERM unwinds like Ctrl-C, so atomic writers remove their temporaries (a file is
     # either the complete new one or not there).
     from rfsw_plan import files
@@ -172,7 +186,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         files.clear_interrupt()
         if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+            signal.signal(signal.SIGTERM, previous if after is None else after)
 
 
 def _terminated(signum: int, frame: Any) -> NoReturn:
@@ -238,4 +252,4 @@ def _main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    console()
