@@ -38,7 +38,9 @@ START_S = 0.3
 def _command(kind: str, out: Path) -> list[str]:
     argv = (["plan", PROBLEM, "-o", str(out), "--export", FORMATS] if kind == "plan --export"
             else ["export", str(out), "--format", FORMATS])
-    return [sys.executable, "-m", "rfsw_plan.cli.main", "-q", *argv]  # as the rfsw-plan script
+    # what the rfsw-plan script runs (its console entry point)
+    return [sys.executable, "-c", "from rfsw_plan.cli.main import console; console()", "-q",
+            *argv]
 
 
 def _env() -> dict[str, str]:

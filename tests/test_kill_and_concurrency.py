@@ -197,3 +197,28 @@ def test_a_sigterm_after_the_command_finished_keeps_its_exit_code() -> None:
                        timeout=60, env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert r.returncode == 0, (r.returncode, r.stderr)
     assert "rfsw-plan" in r.stdout and "Traceback" not in r.stderr
+
+
+def test_an_interrupt_inside_a_callback_is_noted_not_printed() -> None:
+    """A SIGTERM that lands in a weakref callback (seen once in the kill campaign) reaches
+    Python's unraisable hook: it is noted, so the next writer stops the run (exit 130), and
+    no 'Exception ignored ... Traceback' is printed; other unraisable errors pass through."""
+    from types import SimpleNamespace
+
+    from rfsw_plan import files
+    from rfsw_plan.cli.main import _interrupt_in_a_callback
+
+    passed: list[object] = []
+    hook = _interrupt_in_a_callback(passed.append)
+    files.clear_interrupt()
+    try:
+        other = SimpleNamespace(exc_value=ValueError("x"))
+        hook(other)
+        assert passed == [other]
+        files.check_interrupt()  # nothing noted yet
+        hook(SimpleNamespace(exc_value=KeyboardInterrupt()))
+        assert passed == [other]
+        with pytest.raises(KeyboardInterrupt):
+            files.check_interrupt()
+    finally:
+        files.clear_interrupt()

@@ -174,6 +174,8 @@ def _run(argv: Sequence[str] | None, after: Any) -> int:
     with contextlib.suppress(ValueError):  # not in the main thread: keep the default
         previous = signal.signal(signal.SIGTERM, _terminated)
     files.clear_interrupt()
+    hook = sys.unraisablehook
+    sys.unraisablehook = _interrupt_in_a_callback(hook)
     try:
         code = _main(argv)
         if code != 130:
@@ -185,8 +187,25 @@ def _run(argv: Sequence[str] | None, after: Any) -> int:
         return 130
     finally:
         files.clear_interrupt()
+        sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous if after is None else after)
+
+
+def _interrupt_in_a_callback(hook: Any) -> Any:
+    """An unraisable-exception hook: a Ctrl-C or SIGTERM that lands in a callback Python
+    cannot raise from (a weakref callback, a finaliser) is noted, not printed as an ignored
+    traceback; the next writer (or the end of the command) ends the run with exit 130."""
+
+    def unraisable(info: Any) -> None:
+        if isinstance(info.exc_value, KeyboardInterrupt):
+            from rfsw_plan import files
+
+            files.note_interrupt()
+            return
+        hook(info)
+
+    return unraisable
 
 
 def _terminated(signum: int, frame: Any) -> NoReturn:
