@@ -1,6 +1,6 @@
 """rfsw_plan: offline planning of robotic friction stir welding around the robot's elasticity.
 
-Public API (see the README for a tour):
+Public API (a tour: docs/guide/planning.md; every name: docs/reference/api.md):
 
 * robots: :func:`load_robot`, :class:`Robot`, :func:`load_robot_description`
 * elastostatics: :class:`ElastostaticModel`, :func:`identify`

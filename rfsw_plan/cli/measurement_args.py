@@ -31,7 +31,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     """Add the measurement-file options to a command's parser."""
     g = parser.add_argument_group("measurement file")
     g.add_argument("--columns", metavar="FILE.toml",
-                   help="map a lab's own column names and units onto the format (README)")
+                   help="map a lab's own column names and units onto the format "
+                        "(docs/formats/measurements.md)")
     g.add_argument("--frame", choices=MEASUREMENT_FRAMES,
                    help="frame of the measured positions: base (default) or device (a laser "
                    "tracker's or motion-capture frame: registration and marker offset are "

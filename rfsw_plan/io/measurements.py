@@ -1,8 +1,9 @@
 """Measurement files: joint values, wrench at the TCP and measured position (and orientation).
 
-Format (CSV, header row, one sample per row; documented in the README). The delimiter (``,``
-``;`` or tab) and the decimal separator (point or comma) are detected; a lab's own column names
-and units are read through a mapping file (``--columns FILE.toml``, :class:`ColumnMap`).
+Format (CSV, header row, one sample per row; documented in docs/formats/measurements.md).
+The delimiter (``,`` ``;`` or tab) and the decimal separator (point or comma) are detected; a
+lab's own column names and units are read through a mapping file (``--columns FILE.toml``,
+:class:`ColumnMap`).
 
 * ``q1_<u> ... qN_<u>``: encoder joint values; ``<u>`` is ``deg``/``rad`` for a revolute joint,
   ``mm``/``m`` for a prismatic one (each joint its own unit).

@@ -14,7 +14,7 @@
     The same orientation in the maker's convention: R = Rz(A) Ry(B) Rx(C) = Rz(R) Ry(P) Rx(W).
 ``A1_deg ... A6_deg`` (KUKA), ``J1_deg ... J6_deg`` (FANUC, ZK-500), ``q1_deg ...`` (a robot file
 without ``[controller]``)
-    Planned joint values: the controller's axis values (see the README, "Joint values q").
+    Planned joint values: the controller's axis values (docs/formats/units-frames.md).
 ``fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm``
     The process wrench on the tool the plan assumes.
 ``off_lat_mm, off_norm_mm, off_along_mm``

@@ -47,8 +47,9 @@ Units are in the key names (mm, deg, s, N, N m); SI inside. Layout::
 
 Every table rejects unknown keys with a "did you mean" (they are usually typos), and every
 number must be finite and inside its valid range (file units; the ranges are the ``ge``/``gt``/
-``le`` arguments below and in the README). The problem's ``[planning]`` table is parsed here,
-once, into the :class:`~rfsw_plan.process.plan_options.PlanOptions` the planner uses.
+``le`` arguments below and in docs/formats/problem-files.md). The problem's ``[planning]``
+table is parsed here, once, into the
+:class:`~rfsw_plan.process.plan_options.PlanOptions` the planner uses.
 """
 
 from __future__ import annotations

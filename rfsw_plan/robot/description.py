@@ -1,8 +1,8 @@
 """Robot description files: kinematics, limits, coupling, stiffness and elastostatic effects.
 
-A description is a human-readable TOML file (see ``robots/*.toml`` and the README). Lengths are
-in mm and angles in degrees in the file (the unit is in every key name); everything inside the
-code is SI (m, rad, N m/rad).
+A description is a human-readable TOML file (see ``robots/*.toml`` and
+docs/formats/robot-files.md). Lengths are in mm and angles in degrees in the file (the unit is
+in every key name); everything inside the code is SI (m, rad, N m/rad).
 
 Kinematics are either a modified Denavit-Hartenberg table (Craig convention,
 ``T_i = Rx(alpha_{i-1}) Tx(a_{i-1}) Rz(q_i + theta0_i) Tz(d_i)``, seed 001 eq. 1) or a URDF file

@@ -19,7 +19,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", required=True, metavar="NAME|PATH",
                         help="bundled robot name or robot TOML file (its values are the priors)")
     parser.add_argument("--data", required=True, metavar="FILE",
-                        help="measurement CSV (q1_deg.., fx_N.., x_mm..; see the README)")
+                        help="measurement CSV (q1_deg.., fx_N.., x_mm..; format: "
+                             "docs/formats/measurements.md)")
     parser.add_argument("--method", choices=("ols", "wls"), default="ols",
                         help="ordinary (seed 000 eq. 15) or weighted least squares "
                         "(weights from sigma_mm, else from per-axis residuals)")
