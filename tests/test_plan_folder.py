@@ -88,11 +88,22 @@ def _array(p: Path) -> None:
     p.write_text("[1, 2]")
 
 
+def _no_robot(p: Path) -> None:
+    p.write_text(p.read_text().replace('"robot": "zk500", ', ""))
+
+
+def _infeasible_no_robot(p: Path) -> None:
+    _no_robot(p)
+    _infeasible(p)
+
+
 DAMAGE = [("utf16", _utf16, 2, "not UTF-8"), ("random", _random, 2, "plan.json"),
           ("empty", _empty, 2, "empty"), ("nan", _nan, 2, "NaN"),
           ("failed", _failed, 2, "'failed': IPOPT crashed"),
           ("infeasible", _infeasible, 3, "'infeasible': window at wp 3"),
-          ("duplicate", _duplicate, 2, "duplicate key"), ("array", _array, 2, "not an object")]
+          ("duplicate", _duplicate, 2, "duplicate key"), ("array", _array, 2, "not an object"),
+          # the status is named before the robot is looked for (was: "unknown robot ''")
+          ("infeasible, no robot", _infeasible_no_robot, 3, "'infeasible': window at wp 3")]
 
 
 @pytest.mark.parametrize(("damage", "code", "words"), [d[1:] for d in DAMAGE],
@@ -113,6 +124,21 @@ def test_a_damaged_record_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixt
         assert got == code
         assert len(err.splitlines()) == 1, err
     assert not list((tmp_path / "o").glob(".export-*")) if (tmp_path / "o").exists() else True
+
+
+def test_a_plan_naming_no_robot_is_one_line(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """export and check need the plan's robot: a record without one is named (was "unknown
+    robot ''")."""
+    folder = _folder(tmp_path / "p")
+    _no_robot(folder / "plan.json")
+    (tmp_path / "x.src").write_text("DEF x( )\nEND\n")
+    (tmp_path / "x.dat").write_text("DEFDAT x\nENDDAT\n")
+    for cmd in (["export", str(folder), "-o", str(tmp_path / "o")],
+                ["check", str(tmp_path / "x.src"), "--plan", str(folder)]):
+        got, err = _one_line_exit(cmd, capsys)
+        assert got == 2 and len(err.splitlines()) == 1, err
+        assert "robot_file: missing: the plan names no robot" in err
 
 
 def test_nan_in_a_joint_cell_with_the_hash_updated(tmp_path: Path,

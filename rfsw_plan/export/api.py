@@ -237,14 +237,10 @@ def export_plan_folder(
         InfeasibleError: A plan that is not verified, or a program that does not reproduce it.
     """
     from rfsw_plan.files import write_json
-    from rfsw_plan.planfiles.folder import read_plan_folder, read_plan_record
-    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
 
     folder = Path(folder)
-    rec0 = read_plan_record(folder / "plan.json")  # a damaged record is named first
-    robot = load_robot(str(rec0.get("robot_file") or rec0.get("robot") or ""))
-    d = robot.description
-    plan = read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper))
+    plan, robot = read_plan_folder_and_robot(folder)
     normal, why = plate_normal(plan.problem_file, plan.samples)
     target = folder if out is None else Path(out)
     inside = target.resolve() == folder.resolve()

@@ -123,19 +123,15 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         InputError: An unreadable program or plan folder, a point without a joint solution in
             its posture, or a plan whose model cannot be rebuilt (one line).
     """
-    from rfsw_plan.planfiles.folder import read_plan_folder, read_plan_record
+    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
     from rfsw_plan.planning.verify import verify_samples
-    from rfsw_plan.robot.kinematics import load_robot
 
     path = Path(program)
     if not path.is_file():
         raise InputError(path, "", "not a file", "a program written by rfsw-plan export")
     fmt = format_for_file(path)
     folder = Path(plan_dir) if plan_dir is not None else path.parent
-    rec = read_plan_record(folder / "plan.json")
-    robot = load_robot(str(rec.get("robot_file") or rec.get("robot") or ""))
-    d = robot.description
-    plan = read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper))
+    plan, robot = read_plan_folder_and_robot(folder)
     read = fmt.read(path)
     model, task, window = _plan_model(plan, robot)
     base = verify_samples(model, task, window, plan.samples)

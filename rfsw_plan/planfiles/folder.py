@@ -30,13 +30,16 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InfeasibleError, InputError
 from rfsw_plan.files import sha256_file
+
+if TYPE_CHECKING:
+    from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
@@ -138,6 +141,29 @@ def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
     problem = record.get("problem_file") or record.get("problem") or ""
     return PlanFolder(folder, record, status, samples, str(digests["waypoints.csv"]),
                       str(robot), str(problem))
+
+
+def read_plan_folder_and_robot(folder: str | Path) -> tuple[PlanFolder, Robot]:
+    """A plan folder read against the robot it was planned with: ``plan.json`` first (its
+    status before anything else), then the robot it names, then every sample of
+    ``waypoints.csv`` in that robot's joint columns and inside its joint limits.
+
+    Raises:
+        InputError: A damaged folder, no robot named, or an unknown robot (one line, exit 2).
+        InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
+    """
+    from rfsw_plan.robot.kinematics import load_robot
+
+    path = Path(folder) / "plan.json"
+    record = read_plan_record(path)
+    _check_status(path, record)  # an infeasible plan is named before its robot is looked for
+    name = record.get("robot_file") or record.get("robot")
+    if not isinstance(name, str) or not name.strip():
+        raise InputError(path, "robot_file", "missing: the plan names no robot",
+                         "the robot file or bundled name the plan was made with")
+    robot = load_robot(name)
+    d = robot.description
+    return read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper)), robot
 
 
 def read_plan_record(path: str | Path) -> dict[str, Any]:
