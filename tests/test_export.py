@@ -417,15 +417,35 @@ def test_a_long_seam_is_split_into_sub_programs(tmp_path: Path, fmt: str) -> Non
     f = get_format(fmt)
     limit = {"krl": 1400, "fanuc_tp": 9999, "rapid": 5000}[fmt]
     assert f.limits.max_lines == limit
-    if fmt == "fanuc_tp":
-        pytest.skip("one TP file holds 9999 lines: this seam fits; TP splitting not written")
     write = {"krl": "rfsw_plan.export.krl:write_krl",
-             "rapid": "rfsw_plan.export.rapid:write_rapid"}[fmt]
+             "rapid": "rfsw_plan.export.rapid:write_rapid",
+             "fanuc_tp": "rfsw_plan.export.fanuc_tp:write_tp"}[fmt]
     mod, fn = write.split(":")
     import importlib
 
     writer = getattr(importlib.import_module(mod), fn)
-    files = writer(program, tmp_path, max_lines=600)
+    # TP has one line per motion (this seam: ~470), KRL and RAPID several
+    small = 200 if fmt == "fanuc_tp" else 600
+    files = writer(program, tmp_path, max_lines=small)
+    if fmt == "fanuc_tp":  # one file per TP program: the main one calls the others in order
+        main_text = files[0].read_text()
+        calls = re.findall(r"^\s*\d+:\s*CALL (\w+) ;$", main_text, re.M)
+        assert len(calls) >= 2 and calls == [f.stem for f in files[1:]]
+        for part in files:
+            text = part.read_text()
+            mn = text.split("/MN", 1)[1].split("/POS", 1)[0].strip().splitlines()
+            assert len(mn) <= small
+            assert f"LINE_COUNT\t= {len(mn)};" in text
+            used = set(re.findall(r"^\s*\d+:[JL] P\[(\d+)\]", text, re.M))
+            assert used == set(re.findall(r"^P\[(\d+)\]\{", text, re.M))  # its own points
+        (tmp_path / "one").mkdir()
+        unsplit = f.read(writer(program, tmp_path / "one")[0])
+        split = f.read(files[0])
+        assert [m.name for m in split.motions] == [m.name for m in unsplit.motions]
+        assert split.files == tuple(files)
+        trip = round_trip(robot, f, split, f.expected(program))
+        assert trip.ok, trip.summary()
+        return
     text = files[0].read_text()
     subs = re.findall(r"^\s*(?:LOCAL )?(?:DEF|PROC) (\w+_[sS]\d+)\(", text, re.M)
     assert len(subs) >= 2

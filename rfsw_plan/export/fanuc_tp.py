@@ -27,6 +27,12 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
 
 W, P, R (R = Rz(R) Ry(P) Rx(W), deg) are unwrapped along the program: each angle is moved by
 whole turns to be within 180 deg of the previous point's.
+
+A program longer than :data:`MAX_LINES` lines of ``/MN`` keeps its header, frames and payload
+in the main program and moves its motions, in order, into called programs ``<NAME>_S1``,
+``<NAME>_S2``... (``CALL <NAME>_S1 ;``), one ``.ls`` file each, with the points they move to
+(their global ``P[n]`` numbers) in their own ``/POS``. Load every file; run the main one.
+:func:`read_tp` follows the calls.
 """
 
 from __future__ import annotations
@@ -50,6 +56,8 @@ from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
+#: Lines of ``/MN`` one TP program holds (R-30iB), before its motions move into called programs.
+MAX_LINES = 9999
 #: Position registers the program writes the user frame and tool frame into.
 PR_UFRAME = 91
 PR_UTOOL = 92
@@ -114,7 +122,7 @@ class FanucTpFormat(ControllerFormat):
     description = "FANUC TP ASCII (.ls, R-30iB)"
     suffix = ".ls"
     maker = "FANUC"
-    limits = FormatLimits(name_length=36, max_lines=9999)
+    limits = FormatLimits(name_length=36, max_lines=MAX_LINES)
 
     def file_name(self, program: Program) -> str:
         return tp_name(program.header.name) + ".ls"
@@ -167,43 +175,73 @@ def _header_extra(program: Program) -> list[str]:
     return out
 
 
-def _mn(program: Program) -> list[str]:
-    mn = program.header.comments("! ", max_len=60, extra=_header_extra(program))
-    mn += _frames(program)
+def _mn(program: Program) -> tuple[list[str], list[str]]:
+    """The ``/MN`` lines: (header, frames and payload; the motions with their hooks)."""
+    head = program.header.comments("! ", max_len=60, extra=_header_extra(program))
+    head += _frames(program)
+    body: list[str] = []
     marks = program.phase_changes()
     for i, m in enumerate(program.motions):
         if i in marks:
-            mn.append(f"! ---- phase: {marks[i]}")
+            body.append(f"! ---- phase: {marks[i]}")
         p = f"P[{m.point + 1}]"
         if m.kind == "hook":
-            mn += program.options.hooks.render(m.hook, "fanuc_tp", DEFAULT_HOOKS[m.hook], "",
-                                               "!")
+            body += program.options.hooks.render(m.hook, "fanuc_tp", DEFAULT_HOOKS[m.hook], "",
+                                                 "!")
         elif m.kind == "joint":
-            mn.append(f"J {p} {J_PERCENT}% FINE")
+            body.append(f"J {p} {J_PERCENT}% FINE")
         elif m.kind == "wait":
-            mn.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
+            body.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
         else:
-            mn.append(f"L {p} {_speed(m.speed, m.duration)} FINE")
-    return mn
+            body.append(f"L {p} {_speed(m.speed, m.duration)} FINE")
+    return head, body
 
 
-def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None) -> list[Path]:
-    """Write ``<name>.ls`` atomically; returns its path (``stamp``: CREATE/MODIFIED time,
-    default :data:`STAMP`)."""
+def sub_name(name: str, k: int) -> str:
+    """Name of the k-th called program (1-based) of the TP program ``name``."""
+    suffix = f"_S{k}"
+    return name[:FanucTpFormat.limits.name_length - len(suffix)] + suffix
+
+
+_POINT = re.compile(r"^[JL] P\[(\d+)\]")
+
+
+def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None,
+             max_lines: int = MAX_LINES) -> list[Path]:
+    """Write ``<NAME>.ls`` (and its called programs ``<NAME>_S<k>.ls`` when the motions do not
+    fit in ``max_lines`` lines) atomically; returns their paths, the main program first
+    (``stamp``: CREATE/MODIFIED time, default :data:`STAMP`)."""
     name = tp_name(program.header.name)
-    robot = program.robot
-    o = program.options
+    head, body = _mn(program)
+    if len(head) + len(body) <= max_lines:
+        parts = [(name, head + body)]
+    else:
+        size = max_lines - 1  # each called program opens with one remark
+        chunks = [body[i:i + size] for i in range(0, len(body), size)]
+        subs = [sub_name(name, k + 1) for k in range(len(chunks))]
+        main = [*head, f"! motions in {len(subs)} called programs (a TP program holds "
+                       f"{max_lines} lines)", *(f"CALL {n}" for n in subs)]
+        if len(main) > max_lines:
+            raise InputError("--format", "fanuc_tp", f"{len(main)} lines of calls, a TP "
+                             f"program holds {max_lines}",
+                             "a larger --export-spacing-mm or --path-tol-mm")
+        parts = [(name, main), *((n, [f"! part {k + 1} of {name}, called by it", *c])
+                                 for k, (n, c) in enumerate(zip(subs, chunks, strict=True)))]
+    when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
     xyzwpr = np.array([frame_to_xyzwpr(p) for p in program.poses])
-    xyzwpr[:, 3:] = unwrap_wpr(xyzwpr[:, 3:])
-    mn = _mn(program)
-    if len(mn) > FanucTpFormat.limits.max_lines:
-        raise InputError("--format", "fanuc_tp", f"{len(mn)} lines, a TP program holds "
-                         f"{FanucTpFormat.limits.max_lines}",
-                         "a larger --export-spacing-mm or --path-tol-mm (TP splitting into "
-                         "called programs is not written)")
+    xyzwpr[:, 3:] = unwrap_wpr(xyzwpr[:, 3:])  # along the whole program, across its parts
+    return [write_text(Path(folder) / f"{n}.ls",
+                       _listing(program, n, mn, when, xyzwpr, len(parts) == 1))
+            for n, mn in parts]
+
+
+def _listing(program: Program, name: str, mn: list[str], when: str,
+             xyzwpr: FloatArray, whole: bool) -> str:
+    """The text of one ``.ls`` file: ``/PROG`` ... ``/END`` with every point (``whole``: the
+    program is not split) or the points its ``/MN`` moves to (``xyzwpr``: every point's X, Y,
+    Z [mm], W, P, R [deg] in the plate frame)."""
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;",
              f"COMMENT\t\t= \"{program.header.plan_id[:16]}\";", "PROG_SIZE\t= 0;"]
-    when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
     lines += [f"CREATE\t\t= {when};", f"MODIFIED\t= {when};", "FILE_NAME\t= ;",
               "VERSION\t\t= 0;", f"LINE_COUNT\t= {len(mn)};", "MEMORY_SIZE\t= 0;",
               "PROTECT\t\t= READ_WRITE;",
@@ -214,23 +252,34 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     for n, text in enumerate(mn, start=1):
         lines.append(f"{n:4d}:{'  ' if text[0] not in 'JL' else ''}{text} ;")
     lines.append("/POS")
-    q0 = np.degrees(program.samples.q[0])
-    lines += ["P[1]{", "   GP1:", f"\tUF : {o.base_number}, UT : {o.tool_number},",
-              "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3)) + ",",
-              "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3, 6)),
-              "};"]
-    for k in range(1, len(xyzwpr)):
-        v, q = xyzwpr[k], program.samples.q[k]
-        lines += [f"P[{k + 1}]{{", "   GP1:",
-                  f"\tUF : {o.base_number}, UT : {o.tool_number},\t\t"
-                  f"CONFIG : '{fanuc_config(robot, q)}',",
-                  f"\tX = {number(v[0], 4):>10}  mm,\tY = {number(v[1], 4):>10}  mm,"
-                  f"\tZ = {number(v[2], 4):>10}  mm,",
-                  f"\tW = {number(v[3], 5):>10} deg,\tP = {number(v[4], 5):>10} deg,"
-                  f"\tR = {number(v[5], 5):>10} deg",
-                  "};"]
+    if whole:  # one program: every point of the plan, as always
+        used = list(range(1, len(xyzwpr) + 1))
+    else:  # one of a split program's files: the points its /MN moves to
+        used = sorted({int(m.group(1)) for t in mn if (m := _POINT.match(t)) is not None})
+    lines += [line for k in used for line in _position(program, k - 1, xyzwpr[k - 1])]
     lines.append("/END")
-    return [write_text(Path(folder) / f"{name}.ls", "\n".join(lines) + "\n")]
+    return "\n".join(lines) + "\n"
+
+
+def _position(program: Program, k: int, v: FloatArray) -> list[str]:
+    """The ``/POS`` entry of point ``k`` (0-based): joint values for the first, else Cartesian
+    ``v`` (X, Y, Z [mm], W, P, R [deg]) in the plate frame with its CONFIG."""
+    o = program.options
+    frame = f"\tUF : {o.base_number}, UT : {o.tool_number},"
+    if k == 0:
+        q0 = np.degrees(program.samples.q[0])
+        return ["P[1]{", "   GP1:", frame,
+                "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3))
+                + ",",
+                "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3, 6)),
+                "};"]
+    return [f"P[{k + 1}]{{", "   GP1:",
+            f"{frame}\t\tCONFIG : '{fanuc_config(program.robot, program.samples.q[k])}',",
+            f"\tX = {number(v[0], 4):>10}  mm,\tY = {number(v[1], 4):>10}  mm,"
+            f"\tZ = {number(v[2], 4):>10}  mm,",
+            f"\tW = {number(v[3], 5):>10} deg,\tP = {number(v[4], 5):>10} deg,"
+            f"\tR = {number(v[5], 5):>10} deg",
+            "};"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -247,6 +296,7 @@ _JPOS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
 _MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)\s*;\s*$")
 _WAIT = re.compile(rf"^\s*\d+:\s*WAIT\s+({_NUM})\(sec\)\s*;\s*$")
 _PR = re.compile(rf"^\s*\d+:\s*PR\[(\d+),(\d)\]=({_NUM})\s*;\s*$")
+_CALL = re.compile(r"^\s*\d+:\s*CALL\s+(\w+)\s*;\s*$")
 _SET = re.compile(r"^\s*\d+:\s*(UFRAME|UTOOL)\[(\d+)\]=PR\[(\d+)\]\s*;\s*$")
 
 
@@ -263,12 +313,25 @@ def _speed_of(text: str) -> tuple[float, float]:
 
 
 def read_tp(path: str | Path) -> ReadProgram:
-    """Re-read a ``.ls``: frames from the ``PR[i,j]`` lines, every motion and wait.
+    """Re-read a ``.ls``: frames from the ``PR[i,j]`` lines, every motion and wait, following
+    ``CALL`` into the called programs beside it (``<NAME>.ls`` in the same folder).
 
-    Checks the section order ``/PROG``, ``/ATTR``, ``/MN``, ``/POS``, ``/END``, the line
-    numbering of ``/MN`` and that every moved-to ``P[n]`` is defined in ``/POS``.
+    Checks in every file the section order ``/PROG``, ``/ATTR``, ``/MN``, ``/POS``, ``/END``,
+    the line numbering of ``/MN`` and that every moved-to ``P[n]`` is defined in its ``/POS``.
     """
     p = Path(path)
+    text, mn = _read_ls(p)
+    frames = _tp_frames(p, mn)
+    files = [p]
+    motions = _tp_motions(p, text, mn, files)
+    return ReadProgram(frames["UTOOL"], frames["UFRAME"], motions, tuple(files))
+
+
+def _read_ls(p: Path) -> tuple[str, list[str]]:
+    """The text of a ``.ls`` file and its ``/MN`` lines, with the sections and the line
+    numbering checked."""
+    if not p.is_file():
+        raise InputError(p, "", "missing", "a TP program written by rfsw-plan export")
     text = p.read_text(encoding="utf-8")
     heads = [line.split()[0] for line in text.splitlines() if line.startswith("/")]
     if heads != ["/PROG", "/ATTR", "/MN", "/POS", "/END"]:
@@ -277,8 +340,7 @@ def read_tp(path: str | Path) -> ReadProgram:
     for n, line in enumerate(mn, start=1):
         if not re.match(rf"^\s*{n}:.*;\s*$", line):
             raise InputError(p, f"/MN line {n}", f"got {line.strip()[:40]!r}", f"'{n:4d}: ... ;'")
-    frames = _tp_frames(p, mn)
-    return ReadProgram(frames["UTOOL"], frames["UFRAME"], _tp_motions(p, text, mn), (p,))
+    return text, mn
 
 
 def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
@@ -299,12 +361,22 @@ def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
     return frames
 
 
-def _tp_motions(p: Path, text: str, mn: list[str]) -> list[ReadPoint]:
-    """Every motion and wait of /MN with its /POS target."""
+def _tp_motions(p: Path, text: str, mn: list[str], files: list[Path]) -> list[ReadPoint]:
+    """Every motion and wait of /MN with its /POS target, a called program's in its place
+    (``files``: the files read so far; a program calling itself again is refused)."""
     cart = {int(m.group(1)): m.groups() for m in _POS.finditer(text)}
     joint = {int(m.group(1)): m.groups() for m in _JPOS.finditer(text)}
     motions: list[ReadPoint] = []
     for line in mn:
+        if (c := _CALL.match(line)) is not None:
+            sub = p.with_name(f"{c.group(1)}.ls")
+            if sub in files:
+                raise InputError(p, c.group(0).strip()[:40], "calls a program already read",
+                                 "each called program once")
+            files.append(sub)
+            sub_text, sub_mn = _read_ls(sub)
+            motions += _tp_motions(sub, sub_text, sub_mn, files)
+            continue
         if (w := _WAIT.match(line)) is not None:
             motions.append(ReadPoint("WAIT", kind="wait", duration=float(w.group(1))))
             continue
