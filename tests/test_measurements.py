@@ -112,6 +112,23 @@ def test_nan_position_is_an_error_but_blank_is_unmeasured(tmp_path: Path) -> Non
     assert np.isnan(d.position[0, 1])
 
 
+def test_a_device_frame_row_with_a_blank_axis_is_refused(tmp_path: Path) -> None:
+    """In the base frame a blank axis is simply not measured; in the device frame a position
+    becomes a base position as a whole, so a partial row was silently lost (all NaN): now one
+    line naming the row and the blank axis."""
+    cells = ROW.split(",")
+    cells[10] = ""
+    text = f"{HEADER}\n{ROW}\n{','.join(cells)}\n"
+    d = read_measurements(write(tmp_path, text), n_joints=6)  # base frame: fine
+    assert np.isnan(d.position[1, 1]) and np.isfinite(d.position[1, 0])
+    with pytest.raises(InputError, match=r"row 3: y_mm blank while the other axes are given, "
+                                         r"in the device frame \(1 row like it\)"):
+        read_measurements(write(tmp_path, text), n_joints=6, frame="device")
+    whole = read_measurements(write(tmp_path, f"{HEADER}\n{ROW}\n"), n_joints=6,
+                              frame="device")
+    assert whole.frame == "device" and np.all(np.isfinite(whole.position))
+
+
 def test_wrong_number_of_joint_values(tmp_path: Path) -> None:
     header = HEADER.replace("q6_deg,", "")
     row = ",".join(c for i, c in enumerate(ROW.split(",")) if i != 5)

@@ -14,7 +14,7 @@ lab's own column names and units are read through a mapping file (``--columns FI
   a file without any force column is a no-load session (all wrenches 0).
 * ``x_mm, y_mm, z_mm`` (or ``_m``): measured position of the tracked point; a blank cell means
   "not measured". Robot base frame, or the measuring device's frame (``frame`` column or
-  option ``device``).
+  option ``device``), where a row gives all three axes or none.
 * Optional orientation of the tool frame, in the same frame as the positions: a rotation
   vector ``rx_mrad, ry_mrad, rz_mrad`` (or ``_rad``/``_deg``), or a unit quaternion
   ``quat_w, quat_x, quat_y, quat_z``. All components or none.
@@ -286,9 +286,12 @@ def read_measurements(
                              "measurement file", ", ".join(x.key for x in known[:-6]))
     extra = _extras(tab, set(names.values()))
     approach = _approach(tab, extra, q, t)
+    measured_in = _frame(tab, frame, mapping)
+    if measured_in == "device":
+        _whole_positions(tab, position)
     data = MeasurementSet(
         q, wrench, position, t, pose_id, sigma, extra,
-        str(tab.path), frame=_frame(tab, frame, mapping), rotation=_orientation(tab),
+        str(tab.path), frame=measured_in, rotation=_orientation(tab),
         load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
     )
     return replace(data, load_change=data.load_changes())
@@ -361,6 +364,21 @@ def _positions(tab: Table) -> FloatArray:
         raise InputError(tab.path, "columns x_mm, y_mm, z_mm", "every position cell is blank",
                          "at least one measured value")
     return position
+
+
+def _whole_positions(tab: Table, position: FloatArray) -> None:
+    """In the device frame a position is turned into the base frame as a whole (every base
+    axis mixes all three device axes), so a row with some axes blank cannot be used: refused,
+    naming the first such row (a base-frame file may leave single axes blank)."""
+    given = np.isfinite(position)
+    partial = np.flatnonzero(given.any(axis=1) & ~given.all(axis=1))
+    if partial.size:
+        k = int(partial[0])
+        blank = ", ".join(f"{a}_mm" for a, g in zip("xyz", given[k], strict=True) if not g)
+        raise InputError(tab.path, f"row {tab.row_numbers[k]}", f"{blank} blank while the other "
+                         f"axes are given, in the device frame ({partial.size} "
+                         f"row{'s' if partial.size > 1 else ''} like it)",
+                         "all three axes of a device-frame position, or none")
 
 
 def _optional(tab: Table) -> tuple[FloatArray | None, FloatArray | None,
