@@ -95,3 +95,45 @@ def test_plan_prints_the_robot_file_it_used(tmp_path: Path,
     assert main(["plan", "zk500_table6_seam", "-o", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert re.search(r"^robot zk500_seed001 from .*robots/zk500_seed001\.toml$", out, re.M)
+
+
+def test_a_robot_the_reader_would_refuse_is_never_written(tmp_path: Path) -> None:
+    """--save-robot could write an identified parameter outside its effect's physical range
+    (a negative tilting compliance), a file that reading then refused. The writer checks what
+    the reader will, before the file exists: one line naming the effect parameter, no file."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.validation.derived_robot import save_derived_robot
+
+    parent = load_robot_description("zk500")
+    model = ElastostaticModel(load_robot("zk500")).with_effect(
+        "tilting_compliance:j2", {"c_t1": -1e-7, "c_t2": 1e-8})
+    target = tmp_path / "refit.toml"
+    with pytest.raises(InputError, match=r"refit.toml: tilting_compliance:j2.c_t1: not "
+                                         r"written: got -1e-07, and a robot file with it"):
+        save_derived_robot(model, target, parent=parent, note="test", data="campaign.csv",
+                           command="rfsw-plan validate")
+    assert list(tmp_path.iterdir()) == []
+    ok = ElastostaticModel(load_robot("zk500")).with_effect("tilting_compliance:j2")
+    save_derived_robot(ok, target, parent=parent, note="test", data="campaign.csv",
+                       command="rfsw-plan validate")
+    assert load_robot_description(target).effects[-1].name == "tilting_compliance:j2"
+
+
+def test_the_robot_writer_reads_its_text_with_the_strict_reader_first(tmp_path: Path) -> None:
+    """save_robot_description parses its own text with the strict reader before the file
+    exists: a description the reader refuses (here a negative joint stiffness) is not
+    written."""
+    from dataclasses import replace
+
+    from rfsw_plan.exceptions import InputError
+
+    d = load_robot_description("zk500")
+    k = d.stiffness.copy()
+    k[1] = -k[1]
+    target = tmp_path / "bad.toml"
+    with pytest.raises(InputError, match=r"bad.toml: .*not written: the robot file would not "
+                                         r"load"):
+        save_robot_description(replace(d, stiffness=k), target)
+    assert list(tmp_path.iterdir()) == []

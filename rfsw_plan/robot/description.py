@@ -907,8 +907,13 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     """Write a description as compact TOML (atomically); returns the path written.
 
     One line per key: lists on one line, the joint coupling matrix as one row per line, effect
-    parameters as an inline table. The text is parsed back and compared with what was meant
-    before the file exists.
+    parameters as an inline table. Before the file exists, the text is parsed back and compared
+    with what was meant, and read by the strict reader (:func:`parse_robot_description`), so a
+    file that the tool would refuse to load (an identified parameter outside its effect's
+    physical range) is never written.
+
+    Raises:
+        InputError: The description would not load (one line naming the key and its range).
     """
     import tomllib
 
@@ -919,6 +924,11 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     if tomllib.loads(text) != d:  # pragma: no cover - a bug in the emitter, never a user error
         raise RuntimeError("robot TOML emitter does not round-trip")
     p = Path(path)
+    try:
+        parse_robot_description(tomllib.loads(text), p)
+    except InputError as exc:
+        raise InputError(p, exc.where, f"not written: the robot file would not load: "
+                         f"{exc.problem}", exc.expected) from None
     p.parent.mkdir(parents=True, exist_ok=True)
     return write_text(p, text)
 

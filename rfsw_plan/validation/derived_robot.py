@@ -16,6 +16,7 @@ from pathlib import Path
 from rfsw_plan.elastostatics.identification import ParameterEstimate
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
+from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import (
     RobotDescription,
     derived_description,
@@ -55,19 +56,34 @@ def save_derived_robot(
 
     Returns:
         The path written.
+
+    Raises:
+        InputError: An identified parameter outside its effect's physical range: the robot
+            file would not load, so it is not written (one line naming the effect parameter).
     """
     if setup is None:
-        desc = model.to_description(note)
-        robot_model = model
+        robot_model, desc = model, model.to_description(note)
     else:
         robot_model, frame = setup.fold(model, tuple(estimates))
         desc = replace(robot_model.to_description(note), device_frame=frame)
         if device_note and (setup.fit_registration or setup.fit_marker):
             desc.sources["device_frame"] = device_note
+    _check_loadable(robot_model, path)
     added = tuple(added) if added is not None else added_effects(robot_model, parent)
     desc = derived_description(desc, name=name, parent=parent.path, data=data, command=command,
                                added=added, forces=forces)
     return save_robot_description(desc, path)
+
+
+def _check_loadable(model: ElastostaticModel, path: str | Path) -> None:
+    """What reading the robot file will check of its effects, before the file exists."""
+    for effect in model.effects:
+        try:
+            effect.check_params()
+        except InputError as exc:
+            raise InputError(path, exc.where, f"not written: {exc.problem}, and a robot file "
+                             "with it would not load", f"{exc.expected}; see the report's "
+                             "plausibility column, or fit without this effect") from None
 
 
 __all__ = ["added_effects", "save_derived_robot"]
