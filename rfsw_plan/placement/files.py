@@ -141,7 +141,8 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
     else:
         pl.pop("q_seed_deg", None)
     if force_uncertainty is not None:
-        pl["force_uncertainty"] = float(force_uncertainty)
+        # rounded like every number of this file (0.2 + 0.01 is 0.21000000000000002 in binary)
+        pl["force_uncertainty"] = round(float(force_uncertainty), 6)
     data["planning"] = pl
     header = "".join(f"# {line}\n" for line in note.splitlines())
     return header + tomli_w.dumps(data)
