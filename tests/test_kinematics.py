@@ -190,15 +190,3 @@ def test_urdf_with_unknown_tip_link_names_it(tmp_path: Path) -> None:
 def test_bare_urdf_asks_for_stiffness_file() -> None:
     with pytest.raises(InputError, match="stiffness"):
         load_robot(DATA / "zk500_like.urdf")
-
-
-def test_batch_joint_frames_of_a_prismatic_joint_are_pinocchios() -> None:
-    """The batch joint frame of a prismatic joint is placed after its slide, as Pinocchio's
-    ``oMi`` (the TIAGo torso lift was off by its stroke, up to 0.3 m): the frames effects use
-    (tilting compliance, link errors) are the same in the batch and the single-pose path."""
-    robot = load_robot("tiago_arm")
-    assert robot.geometry.prismatic.any()
-    Q = random_q(robot, 10, seed=3)
-    _, _, F = robot.batch_fk_jacobian_frames(Q)
-    for i, q in enumerate(Q):
-        np.testing.assert_allclose(F[i], robot.joint_frames(q), rtol=0, atol=1e-9)

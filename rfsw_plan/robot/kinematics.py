@@ -62,14 +62,9 @@ class ChainChunk:
         R: TCP rotation in the base frame, R[a, b, k] for pose k, shape (3, 3, m).
         p: TCP position in the base frame [m], shape (3, m).
         z: Chain joint axes in the base frame (unit), shape (n, 3, m).
-        o: Chain joint origins in the base frame [m], shape (n, 3, m): where each joint's
-            axis passes, before the joint's own motion (for a prismatic joint, before its
-            slide; the Jacobian's lever arms start there).
+        o: Chain joint frame origins in the base frame [m], shape (n, 3, m).
         frames: Chain joint frame rotations in the base frame, shape (n, 3, 3, m), or None
             when not requested.
-        frame_origins: Chain joint frame origins after each joint's motion (Pinocchio's
-            ``oMi``) [m], shape (n, 3, m), or None when frames are not requested. Equal to
-            ``o`` for a revolute joint; ``o + q z`` for a prismatic one.
         u: Requested extra axes (fixed in joint frames) in the base frame, unit, shape
             (s, 3, m).
     """
@@ -80,7 +75,6 @@ class ChainChunk:
     o: FloatArray
     frames: FloatArray | None
     u: FloatArray
-    frame_origins: FloatArray | None = None
 
 
 def _mdh_placement(alpha: float, a: float, theta0: float, d: float) -> pin.SE3:
@@ -399,7 +393,6 @@ class Robot:
         o = np.empty((n, 3, m))
         tmp = np.empty((3, m))
         Rf = np.empty((n, 3, 3, m)) if frames else None  # joint frame rotations
-        Of = np.empty((n, 3, m)) if frames else None  # joint frame origins (after a slide)
         for i in range(n):
             if i > 0:
                 p += np.matmul(trans[i], R)  # p += R t_i
@@ -415,9 +408,8 @@ class Robot:
                 x += y * sq[i]
                 y *= cq[i]
                 y -= tmp
-            if Rf is not None and Of is not None:
+            if Rf is not None:
                 Rf[i] = R if aligned[i] else np.matmul(A[i], R)
-                Of[i] = p
             for k, b in extra.get(i, ()):
                 unit = np.flatnonzero(b)
                 if len(unit) == 1 and b[unit[0]] == 1.0:  # a frame axis: copy the column
@@ -428,7 +420,7 @@ class Robot:
                     u[k] += R[:, 2] * b[2]
         p = p + np.matmul(trans[n], R)
         R = np.matmul(rot[n].T, R)
-        return ChainChunk(R, p, z, o, Rf, u, Of)
+        return ChainChunk(R, p, z, o, Rf, u)
 
     def _batch_chunk(
         self, Q: FloatArray, T_out: FloatArray, J_out: FloatArray, F_out: FloatArray | None
@@ -452,9 +444,9 @@ class Robot:
         if not self._z_aligned_chain[4]:
             Jd = np.matmul(self.coupling.T, Jd)  # J_ctrl = J_chain G, per row
         J_out[:] = Jd.transpose(2, 0, 1)
-        if F_out is not None and c.frames is not None and c.frame_origins is not None:
+        if F_out is not None and c.frames is not None:
             F_out[:, :, :3, :3] = c.frames.transpose(3, 0, 1, 2)
-            F_out[:, :, :3, 3] = c.frame_origins.transpose(2, 0, 1)
+            F_out[:, :, :3, 3] = c.o.transpose(2, 0, 1)
 
     def jacobian_derivatives(self, q: FloatArray) -> FloatArray:
         """Partial derivatives of the TCP Jacobian, dJ/dq_k, shape (n, 6, n).
