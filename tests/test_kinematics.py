@@ -190,3 +190,21 @@ def test_urdf_with_unknown_tip_link_names_it(tmp_path: Path) -> None:
 def test_bare_urdf_asks_for_stiffness_file() -> None:
     with pytest.raises(InputError, match="stiffness"):
         load_robot(DATA / "zk500_like.urdf")
+
+
+def test_batch_frame_of_a_prismatic_joint_is_before_its_slide() -> None:
+    """The batch joint frames (PoseBatch.frames) put a prismatic joint's origin before its
+    slide (where its link placement ends; tests/test_link_errors.py needs exactly that), and
+    differ from Pinocchio's oMi by q_i along the joint axis there and nowhere else."""
+    robot = load_robot("tiago_arm")
+    slide = robot.geometry.prismatic
+    assert slide.any()
+    Q = random_q(robot, 6, seed=3)
+    _, _, F = robot.batch_fk_jacobian_frames(Q)
+    for i, q in enumerate(Q):
+        oMi = robot.joint_frames(q)
+        np.testing.assert_allclose(F[i][:, :3, :3], oMi[:, :3, :3], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(F[i][~slide], oMi[~slide], rtol=0, atol=1e-9)
+        for j in np.flatnonzero(slide):
+            step = oMi[j, :3, 3] - F[i][j, :3, 3]
+            np.testing.assert_allclose(step, robot.chain_q(q)[j] * oMi[j, :3, 2], atol=1e-9)

@@ -77,7 +77,10 @@ class PoseBatch:
         q: Controller joint values [rad], shape (m, n).
         T: TCP poses in the base frame [m], shape (m, 4, 4).
         J: TCP Jacobians (base frame, wrt controller joints), shape (m, 6, n).
-        frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4).
+        frames: Chain joint frames in the base frame [m], shape (m, n, 4, 4): joint i's
+            frame after its rotation but, for a prismatic joint, before its slide (the origin
+            its link placement ends at, where a link error acts). For a revolute joint this
+            is Pinocchio's ``oMi``; for a prismatic one ``oMi`` is further along z by q_i.
         approach: Direction each joint last moved in before reaching the sample, shape
             (m, n): +1, -1, or 0 (unknown: the first sample, or no motion yet). None when
             the samples carry no history (a planned path): effects that need it take 0.
