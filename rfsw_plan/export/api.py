@@ -30,7 +30,7 @@ import numpy as np
 
 from rfsw_plan import __version__
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import InfeasibleError, InputError
+from rfsw_plan.exceptions import InfeasibleError, InputError, OutputPathError
 from rfsw_plan.export.format import formats, get_format, parse_formats
 from rfsw_plan.export.program import (
     Program,
@@ -186,7 +186,12 @@ def export_programs(
         out.mkdir(parents=True, exist_ok=True)
         for old in out.glob(".export-*"):  # staging folders of versions that staged in `out`
             shutil.rmtree(old, ignore_errors=True)
-        stage = Path(tempfile.mkdtemp(prefix="rfsw-plan-export-"))
+        try:
+            stage = Path(tempfile.mkdtemp(prefix="rfsw-plan-export-"))
+        except OSError as exc:  # a full or read-only temporary directory: one line, exit 2
+            raise OutputPathError("TMPDIR", tempfile.gettempdir(),
+                                  f"cannot stage the programs ({exc.strerror}); set TMPDIR to "
+                                  "a writable folder") from None
         try:
             staged, trips = _write_all(program, fmts, stage, check, stages)
             final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
