@@ -14,6 +14,7 @@ tests skip with the reason :data:`SKIP_REASON` where no Chromium is installed.
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
 import os
 import queue
@@ -203,10 +204,8 @@ class Page:
     def close(self) -> None:
         try:
             if self._proc.poll() is None:
-                try:
+                with contextlib.suppress(BrowserError):
                     self.send("Browser.close")
-                except BrowserError:
-                    pass
                 try:
                     self._proc.wait(timeout=10)
                 except subprocess.TimeoutExpired:

@@ -52,6 +52,7 @@ from rfsw_plan.files import atomic_path, sha256_file, write_figure, write_json
 from rfsw_plan.numfmt import canonical_quaternion, cell
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
+from rfsw_plan.process.seam import Seam
 
 log = logging.getLogger(__name__)
 
@@ -166,23 +167,41 @@ def write_plan_json(path: str | Path, summary: dict[str, Any],
 
 
 #: The files a plan folder holds (``plan.json``, the commit record, is written last).
-PLAN_OUTPUTS = ("waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png",
-                "tradeoff.png")
+PLAN_OUTPUTS = ("waypoints.csv", "plan.html", "plan.json", "lateral_error.png",
+                "lateral_error_time.png", "tradeoff.png")
 #: The plots of a plan folder, drawn after ``plan.json`` has committed the data files.
 PLAN_PLOTS = ("lateral_error.png", "lateral_error_time.png", "tradeoff.png")
 
 
-def write_plan_data(folder: str | Path, result: PlanResult) -> list[Path]:
-    """Write a plan's data file into ``folder``: ``waypoints.csv`` (atomically).
+def write_plan_data(folder: str | Path, result: PlanResult, seam: Seam | None = None
+                    ) -> list[Path]:
+    """Write a plan's data files into ``folder``: ``waypoints.csv`` and ``plan.html`` (the plan
+    in 3-D, built from the written ``waypoints.csv``, :mod:`rfsw_plan.planfiles.page3d`), each
+    atomically.
 
-    ``plan.json`` (the commit record that vouches for it) is not written here: the caller adds
+    ``plan.json`` (the commit record that vouches for them) is not written here: the caller adds
     its own files and then calls :func:`commit_plan`, which commits them and draws the plots.
     Shared by ``rfsw-plan plan`` and :func:`rfsw_plan.write_plan`.
 
+    Args:
+        folder: The plan folder.
+        result: The plan.
+        seam: The problem's seam (``plan.html`` takes its frames from it, as ``rfsw-plan view``
+            does); default: the plan's waypoint frames, interpolated.
+
     Returns:
-        The written paths (``waypoints.csv``).
+        The written paths (``waypoints.csv``, ``plan.html``).
     """
-    return [write_waypoints_csv(Path(folder) / "waypoints.csv", result)]
+    from rfsw_plan.planfiles.page3d import task_frames, write_plan_page
+
+    out = Path(folder)
+    csv_path = write_waypoints_csv(out / "waypoints.csv", result)
+    w = result.window
+    page = write_plan_page(out, result.model.robot,
+                           seam.frames_at if seam is not None else task_frames(result.task),
+                           (w.lower * 1e3, w.upper * 1e3), result.problem_name,
+                           result.verdict().line)
+    return [csv_path, page]
 
 
 def write_plan_plots(folder: str | Path, result: PlanResult) -> tuple[list[Path], list[str]]:

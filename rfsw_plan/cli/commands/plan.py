@@ -169,7 +169,7 @@ def _write(args: argparse.Namespace, problem: Any, flog: Any, check: Any, result
     summary["robot_file"] = str(problem.robot.path)
     # The planner's own bar has closed; writing and plotting gets a bar of its own.
     with Stages("plan", ("files", "plots")) as stages:
-        written = write_plan_data(out, result)
+        written = write_plan_data(out, result, problem.seam)
         exported = export_plan_result(args, result, out, summary)
         if exported is not None:
             written += list(exported.files)

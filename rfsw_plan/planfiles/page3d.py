@@ -1,0 +1,382 @@
+"""``plan.html``: the plan in 3-D, one self-contained page (issue 35).
+
+The page shows the robot posed at a selected sample (its links drawn from the kinematic model:
+the joint frames of every shown sample are computed here with Pinocchio), the spindle, the
+plate with the seam, the taught seam, the commanded TCP path (the fake targets) and the
+predicted pin path with every deviation from the seam magnified by a factor the user sets
+(x1 ... x200), the weld window as a band around the seam, the process force and the deflection
+as arrows, a time slider with play, a readout of the sample (row of ``waypoints.csv``, t, s,
+phase, lateral and depth error, margin) and the worst sample one click away. Samples are
+coloured by their margin with :func:`margin_colours`, the colours of the margin panel of
+``lateral_error_time.png``.
+
+Technology (docs/guide/plan-3d.md): three.js, vendored from its npm package (``web/``), carried
+inline as ``data:`` URLs of an import map, so the page opens from ``file://`` with no server
+and no network. The numbers go through :mod:`rfsw_plan.numfmt`: the same plan gives the same
+bytes.
+
+The page is built from the written ``waypoints.csv`` (not from the planner's memory), the robot
+and the seam, so ``rfsw-plan view PLAN_FOLDER`` rebuilds the same bytes from a plan folder.
+"""
+
+from __future__ import annotations
+
+import base64
+import csv
+import html
+import io
+import json
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from rfsw_plan.exceptions import InputError
+from rfsw_plan.numfmt import canonical_quaternion, fixed
+from rfsw_plan.process.frames import SeamFrames
+from rfsw_plan.process.task import PlanTask
+from rfsw_plan.robot.kinematics import Robot
+
+FloatArray = NDArray[np.float64]
+
+#: The vendored three.js release (rfsw_plan/planfiles/web/README.md).
+THREE_VERSION = "0.170.0"
+#: At most this many samples are carried by the page (every phase's first and last sample and
+#: the worst one are always among them).
+MAX_SAMPLES = 900
+#: Phases in which the pin is in the material (``e_lat_mm`` and ``margin_mm`` are written).
+CONTACT = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+#: A depth-error column of ``waypoints.csv`` read when present (else the error is computed).
+DEPTH_COLUMNS = ("e_depth_mm", "depth_error_mm", "e_norm_mm")
+#: Colour of a sample without a margin (the pin out of the material).
+NO_MARGIN_COLOUR = "#9a9a9a"
+#: Colour map of the margin (matplotlib name): red at the bound, green at the window's centre.
+MARGIN_CMAP = "RdYlGn"
+
+
+def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
+    """Colour of each sample by its margin to the window (hex ``#rrggbb``).
+
+    The one margin colour scale of the plan's pictures: ``plan.html`` colours its samples with
+    it and ``lateral_error_time.png`` its margin panel. :data:`MARGIN_CMAP` from margin 0 (on a
+    bound, and beyond: outside the window) to ``half_width`` (the window's centre); a sample
+    without a margin (NaN: the pin is not in the material) is :data:`NO_MARGIN_COLOUR`.
+
+    Args:
+        margin: Margin to the nearest window bound, any unit, (N,).
+        half_width: Half the window's width, same unit, > 0.
+    """
+    from matplotlib import colormaps
+
+    cmap = colormaps[MARGIN_CMAP]
+    m = np.asarray(margin, dtype=float)
+    x = np.clip(np.nan_to_num(m / half_width, nan=0.0), 0.0, 1.0)
+    rgb = np.rint(np.asarray(cmap(x))[:, :3] * 255).astype(int)
+    return [NO_MARGIN_COLOUR if not np.isfinite(v) else "#{:02x}{:02x}{:02x}".format(*c)
+            for v, c in zip(m, rgb, strict=True)]
+
+
+@dataclass(frozen=True)
+class CsvTable:
+    """``waypoints.csv`` as read for the page: its header and text cells."""
+
+    path: Path
+    header: list[str]
+    rows: list[list[str]]
+
+    def col(self, name: str) -> FloatArray:
+        """A numeric column (NaN for an empty cell)."""
+        if name not in self.header:
+            raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
+        j = self.header.index(name)
+        return np.array([float(r[j]) if r[j] else np.nan for r in self.rows])
+
+    def text(self, name: str) -> list[str]:
+        j = self.header.index(name)
+        return [r[j] for r in self.rows]
+
+
+def read_table(path: Path) -> CsvTable:
+    """The header and cells of a written ``waypoints.csv``."""
+    rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"), newline="")))
+    if len(rows) < 3:
+        raise InputError(path, "", f"{max(len(rows) - 1, 0)} samples", "a waypoints.csv")
+    return CsvTable(path, rows[0], rows[1:])
+
+
+def shown_samples(phase: Sequence[str], worst: int | None, limit: int = MAX_SAMPLES
+                  ) -> NDArray[np.int_]:
+    """Indices of the samples the page carries: evenly spread over the plan, with the first and
+    last sample of every phase and the worst sample, sorted."""
+    n = len(phase)
+    keep = set(np.linspace(0, n - 1, min(n, limit)).round().astype(int).tolist())
+    for k in range(n):
+        if k == 0 or k == n - 1 or phase[k] != phase[k - 1] or phase[k] != phase[k + 1]:
+            keep.add(k)
+    if worst is not None:
+        keep.add(worst)
+    return np.array(sorted(keep), dtype=int)
+
+
+def _nums(a: FloatArray, digits: int) -> str:
+    """A JSON array of numbers with ``digits`` decimals (numfmt: no ``-0``); NaN is null."""
+    flat = np.asarray(a, dtype=float).ravel()
+    return "[" + ",".join(fixed(v, digits) if np.isfinite(v) else "null" for v in flat) + "]"
+
+
+@cache
+def _asset(name: str) -> bytes:
+    return resources.files("rfsw_plan.planfiles").joinpath("web", name).read_bytes()
+
+
+def _data_url(name: str) -> str:
+    return "data:text/javascript;base64," + base64.b64encode(_asset(name)).decode("ascii")
+
+
+def page_scripts(app: str) -> str:
+    """The page's scripts: the import map carrying three.js and its orbit controls inline, the
+    licence notice, and ``app`` (a ``web/`` file) as a module."""
+    imports = json.dumps({"imports": {"three": _data_url("three.module.min.js"),
+                                      "three/OrbitControls": _data_url("OrbitControls.js")}})
+    licence = _asset("THREE_LICENSE").decode("utf-8").replace("--", "- -")
+    return (f"<!-- three.js {THREE_VERSION} (npm package three), inline below:\n{licence}-->\n"
+            f"<script type='importmap'>{imports}</script>\n"
+            f"<script type='module'>\n{_asset(app).decode('utf-8')}</script>\n")
+
+
+def chain_drawing(robot: Robot) -> dict[str, str]:
+    """The robot's links as the page draws them (mm): per joint, the corner of its link in the
+    parent frame (the joint placement without its part along the joint axis, so that a
+    modified-DH link is drawn as its ``a`` then its ``d``), the joint axis in its own frame,
+    and the TCP in the last joint frame."""
+    g = robot.geometry
+    corners, axes = [], []
+    for i in range(robot.nq):
+        P = g.placements[i]
+        p = P[:3, 3]
+        ax = P[:3, :3] @ g.axes[i]
+        corners.append((p - ax * float(ax @ p)) * 1e3)
+        axes.append(g.axes[i])
+    return {"corner": _nums(np.array(corners), 1), "axis": _nums(np.array(axes), 4),
+            "tcp_pos": _nums(g.tcp[:3, 3] * 1e3, 1),
+            "tcp_quat": _nums(_quat(g.tcp[None, :3, :3])[0], 5)}
+
+
+def _quat(R: FloatArray) -> FloatArray:
+    """Quaternions (x, y, z, w) of rotation matrices (m, 3, 3), with a sign rounding cannot
+    flip (three.js order)."""
+    from scipy.spatial.transform import Rotation
+
+    wxyz = canonical_quaternion(np.roll(Rotation.from_matrix(R).as_quat(), 1, axis=1))
+    return np.roll(np.atleast_2d(wxyz), -1, axis=1)
+
+
+def link_frames(robot: Robot, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Joint frames of every sample in the base frame, from Pinocchio
+    (:meth:`~rfsw_plan.robot.kinematics.Robot.joint_frames`): positions [mm] (m, n, 3) and
+    quaternions (x, y, z, w) (m, n, 4)."""
+    F = np.stack([robot.joint_frames(qk) for qk in q])
+    m, n = F.shape[:2]
+    quat = _quat(F[:, :, :3, :3].reshape(-1, 3, 3)).reshape(m, n, 4)
+    return F[:, :, :3, 3] * 1e3, quat
+
+
+def task_frames(task: PlanTask) -> Callable[[FloatArray], SeamFrames]:
+    """Seam frames at arc lengths, interpolated between a plan's waypoint frames (its moving
+    ones: the stationary start repeats the first)."""
+    from rfsw_plan.process.seam import interpolate_frames
+
+    m = task.n_start
+    fr = task.frames
+    moving = SeamFrames(fr.s[m:], fr.p[m:], fr.t[m:], fr.l[m:], fr.n[m:])
+    return lambda s: interpolate_frames(moving, s)
+
+
+def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArray], SeamFrames],
+              window_mm: tuple[float, float], title: str, verdict: str = "") -> str:
+    """The text of ``plan.html`` for a written ``waypoints.csv``.
+
+    Args:
+        waypoints: The plan's ``waypoints.csv``.
+        robot: The robot the plan was made for (its joint columns, Pinocchio model).
+        frames_at: Seam frames at arc lengths [m] (the problem's seam).
+        window_mm: Lower and upper lateral bound of the weld window [mm].
+        title: The problem's name.
+        verdict: The plan's verdict line.
+
+    Raises:
+        InputError: A column the page needs is missing from ``waypoints.csv``.
+    """
+    tab = read_table(Path(waypoints))
+    phase = tab.text("phase")
+    margin = tab.col("margin_mm")
+    contact = np.isfinite(margin)
+    worst = int(np.flatnonzero(contact)[np.argmin(margin[contact])]) if contact.any() else None
+    idx = shown_samples(phase, worst)
+    cols = robot.description.convention.column_names()
+    q = np.deg2rad(np.column_stack([tab.col(c) for c in cols]))[idx]
+    s_mm = tab.col("s_mm")[idx]
+    fr = frames_at(s_mm * 1e-3)
+    seam = np.column_stack([tab.col(f"seam_{a}_mm") for a in "xyz"])[idx]
+    tcp = np.column_stack([tab.col(f"{a}_mm") for a in "xyz"])[idx]
+    defl = np.column_stack([tab.col(f"d{a}_mm") for a in "xyz"])[idx]
+    force = np.column_stack([tab.col(f"f{a}_N") for a in "xyz"])[idx]
+    pin = tcp + defl
+    # The nominal target: the commanded TCP without its fake-target offsets along l, n, t (the
+    # seam point, raised along n before and while plunging).
+    off = np.column_stack([tab.col(f"off_{a}_mm") for a in ("lat", "norm", "along")])[idx]
+    target = tcp - (off[:, :1] * fr.l + off[:, 1:2] * fr.n + off[:, 2:] * fr.t)
+    ph = [phase[k] for k in idx]
+    e_lat = tab.col("e_lat_mm")[idx]
+    depth_col = next((c for c in DEPTH_COLUMNS if c in tab.header), None)
+    if depth_col is not None:
+        e_depth = tab.col(depth_col)[idx]
+        depth_note = f"Depth error: column {depth_col} of waypoints.csv."
+    else:
+        e_depth = np.where(np.isfinite(margin[idx]),
+                           np.einsum("ki,ki->k", fr.n, pin - target), np.nan)
+        depth_note = ("Depth error: n . (predicted pin - nominal target) along the tool axis n "
+                      "(+ out of the plate), computed from waypoints.csv in the material.")
+    # The plate's surface normal: the tool axis without its tilt (normal to the seam tangent).
+    ts = np.diff(seam, axis=0)
+    good = np.linalg.norm(ts, axis=1) > 1e-6
+    tangent = (ts[good].sum(axis=0) if good.any() else fr.t.sum(axis=0))
+    tangent /= np.linalg.norm(tangent)
+    nrm = fr.n.mean(axis=0)
+    nrm = nrm - tangent * float(nrm @ tangent)
+    nrm /= np.linalg.norm(nrm)
+    pos, quat = link_frames(robot, q)
+    lo, hi = window_mm
+    phases = list(dict.fromkeys(ph))
+    rows = idx + 2  # the line of waypoints.csv (its header is line 1)
+    data = {
+        "title": json.dumps(title), "verdict": json.dumps(verdict),
+        "window": _nums(np.array([lo, hi]), 4), "n": str(len(idx)),
+        "row": "[" + ",".join(str(int(r)) for r in rows) + "]",
+        "phases": json.dumps(phases),
+        "phase": "[" + ",".join(str(phases.index(p)) for p in ph) + "]",
+        "t": _nums(tab.col("t_s")[idx], 3), "s": _nums(s_mm, 3),
+        "e_lat": _nums(e_lat, 4), "e_depth": _nums(e_depth, 4),
+        "margin": _nums(margin[idx], 4),
+        "colour": json.dumps(margin_colours(margin[idx], 0.5 * (hi - lo))),
+        "cbar": json.dumps(margin_colours(np.linspace(0.0, 0.5 * (hi - lo), 7), 0.5 * (hi - lo))),
+        "worst": "null" if worst is None else str(int(np.searchsorted(idx, worst))),
+        "seam": _nums(seam, 3), "target": _nums(target, 3), "tcp_off": _nums(tcp - target, 4),
+        "pin_off": _nums(pin - target, 4),
+        "lat": _nums(fr.l, 5), "force": _nums(force, 1), "defl": _nums(defl, 4),
+        "normal": _nums(nrm, 5), "tangent": _nums(tangent, 5),
+        "link_pos": _nums(pos, 1), "link_quat": _nums(quat, 5),
+        "depth_note": json.dumps(depth_note),
+        **{f"chain_{k}": v for k, v in chain_drawing(robot).items()},
+    }
+    body = ",\n".join(f'"{k}":{v}' for k, v in data.items())
+    return "".join([
+        "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>\n",
+        f"<title>{html.escape(title)}: plan in 3-D</title>\n",
+        f"<style>{_asset('plan_view.css').decode('utf-8')}</style>\n</head><body>\n",
+        _asset("plan_view.html").decode("utf-8"),
+        f"<script type='application/json' id='plan-data'>{{\n{body}\n}}</script>\n",
+        page_scripts("plan_view.js"),
+        "</body></html>\n",
+    ])
+
+
+def write_plan_page(folder: str | Path, robot: Robot,
+                    frames_at: Callable[[FloatArray], SeamFrames],
+                    window_mm: tuple[float, float], title: str, verdict: str = "") -> Path:
+    """Write ``plan.html`` into a plan folder beside its ``waypoints.csv``, atomically."""
+    from rfsw_plan.files import write_text
+
+    out = Path(folder)
+    text = plan_page(out / "waypoints.csv", robot, frames_at, window_mm, title, verdict)
+    path = out / "plan.html"
+    write_text(path, text)
+    return path
+
+
+@dataclass(frozen=True)
+class ViewResult:
+    """What :func:`rebuild_plan_page` did.
+
+    Attributes:
+        path: The page.
+        changed: The page's bytes differ from the file that was there (or none was).
+        size: Its size [bytes].
+    """
+
+    path: Path
+    changed: bool
+    size: int
+
+
+def rebuild_plan_page(folder: str | Path, output: str | Path | None = None) -> ViewResult:
+    """``rfsw-plan view``: build a plan folder's ``plan.html`` again from its files.
+
+    The folder is read strictly (``plan.json`` a verified plan whose ``waypoints.csv`` is the
+    one it vouches for; the robot and the problem it names), the page is built as
+    ``rfsw-plan plan`` builds it and written atomically. Into the plan folder (the default), a
+    page whose bytes changed (a plan of an older version) is committed in ``plan.json``'s
+    ``sha256`` table; the folder is locked while it is written.
+
+    Args:
+        folder: A plan folder.
+        output: Where to write the page (default: ``plan.html`` in the folder).
+
+    Raises:
+        InputError: A damaged folder, or a robot or problem file that cannot be read (exit 2).
+        InfeasibleError: The plan is infeasible (exit 3).
+    """
+    from rfsw_plan.files import OutputLock, sha256_file, write_json, write_text
+    from rfsw_plan.planfiles.folder import _check_status, _check_vouched, read_plan_record
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.robot.kinematics import load_robot
+
+    folder = Path(folder)
+    record_path = folder / "plan.json"
+    record = read_plan_record(record_path)
+    _check_status(record_path, record)
+    digests = record.get("sha256")
+    if not isinstance(digests, dict) or "waypoints.csv" not in digests:
+        raise InputError(record_path, "sha256", "does not vouch for waypoints.csv",
+                         "the sha256 table rfsw-plan plan writes")
+    _check_vouched(folder, "waypoints.csv", digests["waypoints.csv"])
+    robot_name = record.get("robot_file") or record.get("robot")
+    problem_name = record.get("problem_file") or record.get("problem")
+    for key, value in (("robot_file", robot_name), ("problem_file", problem_name)):
+        if not isinstance(value, str) or not value.strip():
+            raise InputError(record_path, key, "missing", "the file the plan was made with")
+    window = record.get("window_mm")
+    if (not isinstance(window, list) or len(window) != 2
+            or not all(isinstance(v, int | float) for v in window)):
+        raise InputError(record_path, "window_mm", f"{window!r}", "[lower, upper] in mm")
+    robot = load_robot(str(robot_name))
+    problem = load_problem(str(problem_name))
+    text = plan_page(folder / "waypoints.csv", robot, problem.seam.frames_at,
+                     (float(window[0]), float(window[1])), str(record.get("problem", "plan")),
+                     str(record.get("verdict_text") or ""))
+    data = text.encode("utf-8")
+    target = folder / "plan.html" if output is None else Path(output)
+    changed = not target.is_file() or target.read_bytes() != data
+    if output is not None:
+        if changed:
+            write_text(target, text)
+        return ViewResult(target, changed, len(data))
+    with OutputLock(folder, "PLAN_FOLDER"):
+        if changed:
+            write_text(target, text)
+        if digests.get("plan.html") != sha256_file(target):
+            record["sha256"] = {**digests, "plan.html": sha256_file(target)}
+            files = record.get("files")
+            if isinstance(files, list) and not any(Path(str(f)).name == "plan.html"
+                                                   for f in files):
+                record["files"] = [*files, str(target)]
+            write_json(record_path, record)
+    return ViewResult(target, changed, len(data))
+
+
+__all__ = ["ViewResult", "margin_colours", "page_scripts", "plan_page", "rebuild_plan_page",
+           "task_frames", "write_plan_page"]
