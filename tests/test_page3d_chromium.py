@@ -96,3 +96,53 @@ def test_plan_page_in_chromium(tmp_path: Path) -> None:
         if os.environ.get("RFSW_UPDATE_SCREENSHOT"):
             SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
             SCREENSHOT.write_bytes(page.screenshot())
+
+
+def test_validate_report_3d_view_in_chromium(tmp_path: Path) -> None:
+    """The validate report's residual view: it loads offline with no console error and no
+    request, draws arrows, and switching from "before" to "after" the named effect redraws
+    them and shows the held-out RMS validate.json states for that model."""
+    import json
+
+    from rfsw_plan.io.measurements import write_measurements
+    from rfsw_plan.validation.campaign import run_campaign
+
+    data = run_campaign("zk500", ["payload_gravity"], poses=24, loads_per_pose=4,
+                        noise_mm=0.01, seed=7).data
+    csv_path = write_measurements(tmp_path / "campaign.csv", data)
+    out = tmp_path / "validate"
+    assert main(["-q", "validate", "--robot", "zk500", "--data", str(csv_path), "--folds", "3",
+                 "-o", str(out), "--add", "payload_gravity"]) == 0
+    add = json.loads((out / "validate.json").read_text())["add"]
+    with Page(1400, 900) as page:
+        page.open(out / "report.html")
+        assert page.wait_js("window.residualView && window.residualView.ready", "the view")
+        assert page.console_errors == [] and page.exceptions == []
+        assert page.network_requests() == []
+        page.eval("document.getElementById('residual-scene').scrollIntoView()")
+
+        def shot() -> np.ndarray:
+            import matplotlib.image as mpimg
+
+            x, y, w, h = page.eval(
+                "(() => { const r = document.getElementById('residual-scene')"
+                ".getBoundingClientRect(); return [r.x, r.y, r.width, r.height]; })()")
+            img = np.asarray(mpimg.imread(io.BytesIO(page.screenshot()), format="png"))[..., :3]
+            return img[int(y):int(y + h), int(x):int(x + w)]
+
+        def rms_shown() -> float:
+            text = page.eval("document.getElementById('residual-readout').textContent")
+            return float(text.split("RMS ")[1].split(" mm")[0])
+
+        before = shot()
+        assert before.shape[0] > 300 and np.mean(before.mean(axis=2) < 0.9) > 0.001
+        assert rms_shown() == pytest.approx(add["heldout_rms_before_mm"], abs=6e-5)
+        drawn = page.eval("(() => { const c = document.getElementById('residual-set');"
+                          " c.value = '1'; c.dispatchEvent(new Event('change'));"
+                          " return window.residualView.set; })()")
+        assert drawn == 1
+        assert rms_shown() == pytest.approx(add["heldout_rms_after_mm"], abs=6e-5)
+        after = shot()
+        assert np.mean(np.abs(after - before).max(axis=2) > 0.1) > 0.0005
+        assert page.console_errors == [] and page.exceptions == []
+        assert page.network_requests() == []

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _browser import CHROMIUM, FLAGS, SKIP_REASON
 
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
@@ -26,13 +27,9 @@ from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign import run_campaign
 from rfsw_plan.validation.weld import read_plan_dir
 
-CHROMIUM = next((p for p in (shutil.which(n) for n in ("chromium", "chromium-browser",
-                                                           "google-chrome")) if p), None)
-
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(CHROMIUM is None,
-                       reason="headless Chromium not installed (apt-get install chromium)"),
+    pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON),
 ]
 
 #: Browser window in CSS pixels (a laptop screen).
@@ -57,11 +54,12 @@ CHECK_SCRIPT = """<script>window.addEventListener("load", function () {
 
 def _chromium(*args: str) -> subprocess.CompletedProcess[str]:
     assert CHROMIUM is not None
-    # --no-sandbox: the test may run as root (CI containers); offline: only file:// URLs.
-    return subprocess.run(
-        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-         f"--window-size={WIDTH},{HEIGHT}", "--virtual-time-budget=10000", *args],
-        capture_output=True, text=True, timeout=180)
+    # The shared flags (tests/_browser.py): headless, offline, a fresh profile.
+    with tempfile.TemporaryDirectory(prefix="rfsw-chromium-") as profile:
+        return subprocess.run(
+            [CHROMIUM, *FLAGS, f"--user-data-dir={profile}", f"--window-size={WIDTH},{HEIGHT}",
+             "--virtual-time-budget=10000", *args],
+            capture_output=True, text=True, timeout=180)
 
 
 def _check_in_browser(report: Path, tmp: Path) -> dict[str, object]:

@@ -298,6 +298,56 @@ def write_plan_page(folder: str | Path, robot: Robot,
     return path
 
 
+#: Largest number of poses the residual view carries (a seeded choice beyond it).
+MAX_RESIDUAL_POSES = 3000
+#: Colours of the residual views' sets, in order (the reports' before / after bars).
+RESIDUAL_COLOURS = ("#d62728", "#2ca02c", "#1f77b4", "#9467bd")
+
+
+def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray]],
+                     heading: str, note: str) -> str:
+    """An HTML section with a 3-D view of residual arrows, for the validation reports: one
+    arrow per pose from its nominal TCP along its residual (measured - predicted), magnified
+    by a factor the reader sets; a choice between sets (the model before and after an effect).
+
+    Args:
+        points_mm: Where the arrows start (the nominal TCP of each pose) [mm], (m, 3).
+        sets: ``(label, residuals [mm] (m, 3))`` per model; NaN components are drawn as 0.
+        heading: The section's heading.
+        note: A sentence under it (what the arrows are).
+    """
+    pts = np.asarray(points_mm, dtype=float)
+    keep = np.arange(len(pts))
+    if len(pts) > MAX_RESIDUAL_POSES:
+        keep = np.sort(np.random.default_rng(0).choice(len(pts), MAX_RESIDUAL_POSES,
+                                                       replace=False))
+    size = float(np.linalg.norm(np.ptp(pts[keep], axis=0))) if len(keep) else 1.0
+    largest = max((float(np.nanmax(np.linalg.norm(np.nan_to_num(v[keep]), axis=1)))
+                   for _, v in sets if len(keep)), default=0.0)
+    # arrows of the largest residual about a tenth of the cloud, a round factor
+    mag = 1.0 if largest <= 0 else float(np.clip(10 ** np.floor(np.log10(
+        0.1 * max(size, 100.0) / largest)), 1.0, 1e5))
+    entries = []
+    for j, (label, vec) in enumerate(sets):
+        v = np.nan_to_num(np.asarray(vec, dtype=float)[keep])
+        finite = np.asarray(vec, dtype=float)[keep]
+        rms = float(np.sqrt(np.nanmean(finite**2))) if np.isfinite(finite).any() else 0.0
+        entries.append(f'{{"label":{json.dumps(label)},"colour":"{RESIDUAL_COLOURS[j % 4]}",'
+                       f'"rms":"{fixed(rms, 4)}","vectors":{_nums(v, 5)}}}')
+    data = (f'{{"points":{_nums(pts[keep], 2)},"mag":{fixed(mag, 0)},'
+            f'"sets":[{",".join(entries)}]}}')
+    return "".join([
+        f"<h2>{html.escape(heading)}</h2>\n<p>{html.escape(note)} Drag to turn the view, scroll "
+        "to zoom.</p>\n<div class='residual3d'><label>model <select id='residual-set'></select>"
+        "</label> <label>arrows magnified &times;<input type='number' id='residual-mag' min='1' "
+        "max='100000' step='1'></label>\n<canvas id='residual-scene' style='width:100%;"
+        "height:520px;display:block;border:1px solid #ccc'></canvas>\n"
+        "<p id='residual-readout'></p></div>\n",
+        f"<script type='application/json' id='residual-data'>{data}</script>\n",
+        page_scripts("residual_view.js"),
+    ])
+
+
 @dataclass(frozen=True)
 class ViewResult:
     """What :func:`rebuild_plan_page` did.
@@ -379,4 +429,4 @@ def rebuild_plan_page(folder: str | Path, output: str | Path | None = None) -> V
 
 
 __all__ = ["ViewResult", "margin_colours", "page_scripts", "plan_page", "rebuild_plan_page",
-           "task_frames", "write_plan_page"]
+           "residual_section", "task_frames", "write_plan_page"]

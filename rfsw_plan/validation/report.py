@@ -406,6 +406,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         *_candidates_html(result, plots),
         *_correlations_html(result, plots),
         *_where_html(result),
+        *_residual_3d_html(result),
     ]
     for name, alt in (
         ("residual_histogram", "residual histogram"),
@@ -554,6 +555,27 @@ def _where_html(result: ValidationResult) -> list[str]:
               _f(j.rms_tau_pos), _f(j.rms_tau_neg)] for j in an.per_joint],
         ),
     ]
+
+
+def _residual_3d_html(result: ValidationResult) -> list[str]:
+    """The residual per pose in 3-D (issue 35): arrows from the nominal TCP, magnified, before
+    and after the named effect (held-out residuals of both forms) when effects were added,
+    else the residual of the model."""
+    from rfsw_plan.planfiles.page3d import residual_section
+
+    ad = result.add
+    if ad is not None:
+        after = "+".join(ad.added) if ad.added else "nothing added"
+        sets = [("before: " + "+".join(ad.before.labels), ad.before.heldout_residual * 1e3),
+                (f"after: + {after}", ad.after.heldout_residual * 1e3)]
+        note = ("One arrow per measured sample, at its nominal TCP (base frame), along its "
+                "held-out residual (measured - predicted, predicted by the fit of the other "
+                "folds), before and after the named effect.")
+    else:
+        sets = [("model: " + ", ".join(result.model.labels), result.analysis.residual * 1e3)]
+        note = ("One arrow per measured sample, at its nominal TCP (base frame), along its "
+                "residual (measured - predicted).")
+    return [residual_section(result.analysis.tcp * 1e3, sets, "Residual per pose in 3-D", note)]
 
 
 def _next_step_html(result: ValidationResult, argv: list[str] | None) -> list[str]:
