@@ -143,8 +143,8 @@ def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
     monkeypatch.setattr(wp, "plot_lateral_error", spy)
     res = plan("zk500_table6_seam")
     path = wp.write_plan_folder(tmp_path / "p", res)
-    assert set(seen[0]["sha256"]) == {"waypoints.csv"}
+    assert set(seen[0]["sha256"]) == {"waypoints.csv", "plan.html"}
     assert seen[0]["plots"] == {"pending": list(wp.PLAN_PLOTS)}
     rec = wp.check_plan_folder(path.parent)
-    assert set(rec["sha256"]) == {"waypoints.csv", *wp.PLAN_PLOTS}
+    assert set(rec["sha256"]) == {"waypoints.csv", "plan.html", *wp.PLAN_PLOTS}
     assert rec["plots"] == {"written": list(wp.PLAN_PLOTS), "failed": []}

@@ -93,8 +93,8 @@ def test_every_bundled_problem_plans_kr600_forming_contour(tmp_path: Path, capsy
     assert rec["weld_speed_mm_s"] == pytest.approx(5.0)
     assert rec["max_feasible_weld_speed_mm_s"] > 5.0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["waypoints.csv", "plan.json", "lateral_error.png", "lateral_error_time.png",
-         "tradeoff.png"])  # no lock file left behind
+        ["waypoints.csv", "plan.html", "plan.json", "lateral_error.png",
+         "lateral_error_time.png", "tradeoff.png"])  # no lock file left behind
 
 
 def test_advice_is_never_what_was_already_done() -> None:
