@@ -125,6 +125,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
             ["noise floor (successive differences) [mm]", _mm(dg.sigma)],
         ]),
         *(figure(p, k) for k, p in plots.items()),
+        *_residual_3d_html(result),
         "<h2>What this weld can identify</h2>",
         f"<p>{e(dg.identifiability.text()).replace(chr(10), '<br>')}</p>",
         "<p>A straight weld at one pose sees only a few directions of the compliance: the "
@@ -164,6 +165,26 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
                      + "</ul>")
     parts.append(PAGE_END)
     return "\n".join(parts)
+
+
+def _residual_3d_html(result: WeldValidation) -> list[str]:
+    """The residual at each track point in 3-D (issue 35): an arrow from the seam point along
+    the lateral (and normal, if measured) residual, magnified; before and after ``--add``."""
+    from rfsw_plan.planfiles.page3d import residual_section
+
+    sm = result.samples
+    before = result.residual_lat[:, None] * sm.l
+    if result.residual_norm is not None:
+        before = before + result.residual_norm[:, None] * sm.n
+    sets = [("model as given: " + ", ".join(result.model.labels), before * 1e3)]
+    if result.add is not None and result.predicted_after is not None:
+        after = (result.track.e_lat - result.predicted_after)[:, None] * sm.l
+        sets.append(("re-identified: + " + ", ".join(result.add.labels) + " (lateral)",
+                     after * 1e3))
+    return [residual_section(sm.p * 1e3, sets, "Residual along the seam in 3-D",
+                             "One arrow per track point, at the seam point (base frame), along "
+                             "the measured - predicted lateral offset (and normal offset where "
+                             "the track has one).")]
 
 
 def write_weld_report(result: WeldValidation, out: Path, next_cmd: str,
