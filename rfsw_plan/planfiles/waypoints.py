@@ -623,6 +623,12 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     a1.plot(t, e, color="tab:blue", lw=1, label="predicted lateral pin error (every sample)")
     a1.set_ylabel("lateral pin error [mm]\n(+ advancing side)")
     a2.plot(t, marg, color="k", lw=1, label="margin to the nearest window bound")
+    # every written sample in the margin colours of plan.html (page3d.margin_colours)
+    from rfsw_plan.planfiles.page3d import margin_colours
+
+    a2.scatter(t[c], marg[c], s=4, lw=0, zorder=3,
+               c=margin_colours(marg[c], 0.5 * (w.upper - w.lower) * 1e3),
+               label="samples, coloured by margin (as in plan.html)")
     if u > 0:
         a2.plot(t, marg - r, color="tab:red", lw=0.8,
                 label=f"margin of the worst case (+-{100 * u:g} % force)")
