@@ -11,7 +11,7 @@ a second run of the CLI):
 * **page alone**: :func:`rfsw_plan.planfiles.page3d.plan_page` on the written folder (read
   ``waypoints.csv``, Pinocchio link frames, numbers through numfmt, the inline three.js).
 
-It prints the best of ``REPEAT`` wall times of each, their difference and the page's size.
+It prints the best of ``REPEAT`` wall (and CPU) times of each and the page's size.
 Timings depend on the machine and its load.
 """
 
@@ -31,10 +31,15 @@ from rfsw_plan.robot.kinematics import load_robot
 REPEAT = 3
 
 
-def _plan(problem: str, out: Path) -> float:
-    t0 = time.perf_counter()
-    assert main(["-q", "plan", problem, "-o", str(out)]) == 0
-    return time.perf_counter() - t0
+def _plan(problem: str, out: Path) -> tuple[float, float]:
+    """Wall and CPU time [s] of one ``rfsw-plan -q plan`` (its output swallowed)."""
+    import contextlib
+    import io
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["-q", "plan", problem, "-o", str(out)]) == 0
+    return time.perf_counter() - t0, time.process_time() - c0
 
 
 def bench(problem: str) -> None:
@@ -53,12 +58,13 @@ def bench(problem: str) -> None:
         w = (pb.window.lower * 1e3, pb.window.upper * 1e3)
         alone = []
         for _ in range(REPEAT):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             text = page3d.plan_page(out / "waypoints.csv", robot, pb.seam.frames_at, w, problem)
-            alone.append(time.perf_counter() - t0)
+            alone.append((time.perf_counter() - t0, time.process_time() - c0))
         size = (out / "plan.html").stat().st_size
-    print(f"{problem}: plan with plan.html {with_page:.2f} s, without {without:.2f} s "
-          f"(+{with_page - without:.2f} s); page alone {min(alone):.3f} s; "
+    print(f"{problem}: rfsw-plan plan with plan.html {with_page[0]:.2f} s wall "
+          f"({with_page[1]:.2f} s CPU), without {without[0]:.2f} s ({without[1]:.2f} s CPU); "
+          f"page alone {min(alone)[0]:.3f} s wall ({min(alone)[1]:.3f} s CPU); "
           f"plan.html {size / 1e6:.2f} MB ({len(text)} characters)")
 
 

@@ -22,7 +22,7 @@ import math
 import re
 from typing import Any, SupportsFloat
 
-__all__ = ["angle", "canonical_quaternion", "cell", "fixed", "general"]
+__all__ = ["angle", "canonical_quaternion", "cell", "fixed", "fixed_many", "general"]
 
 _NONZERO = frozenset("123456789")
 _MINUS_180 = re.compile(r"-180(\.0*)?")
@@ -100,3 +100,29 @@ def canonical_quaternion(q: Any) -> Any:
     first = np.argmax(np.abs(flat) > 1e-12, axis=1)
     sign = np.where(flat[np.arange(len(flat)), first] < 0, -1.0, 1.0)
     return (flat * sign[:, None]).reshape(a.shape)
+
+
+def fixed_many(values: Any, digits: int) -> list[str]:
+    """:func:`fixed` of every number of ``values`` (any array-like, flattened), many times
+    faster for long arrays (pages that carry 10^5 numbers): the same text for every finite
+    number; NaN becomes ``None`` (the caller writes its "no value"), infinity is refused.
+
+    Raises:
+        ValueError: A value is infinite.
+    """
+    import numpy as np
+
+    flat = np.asarray(values, dtype=float).ravel()
+    if np.isinf(flat).any():
+        raise ValueError("cannot write an infinite number as text")
+    fmt = f"{{:.{digits}f}}".format
+    zero = fmt(0.0)
+    minus_zero = "-" + zero
+    out: list[str] = []
+    for v in flat.tolist():
+        if v != v:  # NaN
+            out.append(None)  # type: ignore[arg-type]
+            continue
+        t = fmt(v)
+        out.append(zero if t == minus_zero else t)
+    return out

@@ -220,3 +220,19 @@ def test_plan_folder_is_the_same_with_negative_zeros(tmp_path: Path, zk500_plan:
             data = re.sub(rb"(CREATE|MODIFIED)\s*= DATE [^;]*;", b"", data)
             forced[name] = re.sub(rb"(CREATE|MODIFIED)\s*= DATE [^;]*;", b"", forced[name])
         assert forced[name] == data, name
+
+
+def test_fixed_many_is_fixed_for_every_number() -> None:
+    """The array formatter of the 3-D pages gives :func:`fixed`'s text for every number
+    (negative zeros, values that round to zero from below, halves, large and tiny values)."""
+    from rfsw_plan.numfmt import fixed, fixed_many
+
+    rng = np.random.default_rng(3)
+    values = np.concatenate([
+        [0.0, -0.0, -1e-17, 1e-17, -0.00049, -0.0005, 0.0005, 0.125, -0.125, 2.5, -2.5, 1e12],
+        rng.normal(size=500) * 10.0 ** rng.integers(-8, 5, 500)])
+    for digits in (0, 1, 3, 4, 5):
+        assert fixed_many(values, digits) == [fixed(v, digits) for v in values], digits
+    assert fixed_many(np.array([[1.0, np.nan]]), 2) == ["1.00", None]
+    with pytest.raises(ValueError):
+        fixed_many([1.0, np.inf], 2)

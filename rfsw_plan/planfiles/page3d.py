@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.numfmt import canonical_quaternion, fixed
+from rfsw_plan.numfmt import canonical_quaternion, fixed, fixed_many
 from rfsw_plan.process.frames import SeamFrames
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.robot.kinematics import Robot
@@ -82,30 +82,39 @@ def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
 
 @dataclass(frozen=True)
 class CsvTable:
-    """``waypoints.csv`` as read for the page: its header and text cells."""
+    """``waypoints.csv`` as read for the page: its header and text cells (rows, columns)."""
 
     path: Path
     header: list[str]
-    rows: list[list[str]]
+    cells: NDArray[np.str_]
 
     def col(self, name: str) -> FloatArray:
         """A numeric column (NaN for an empty cell)."""
         if name not in self.header:
             raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
-        j = self.header.index(name)
-        return np.array([float(r[j]) if r[j] else np.nan for r in self.rows])
+        c = self.cells[:, self.header.index(name)]
+        out = np.full(c.shape, np.nan)
+        given = c != ""
+        try:
+            out[given] = c[given].astype(float)
+        except ValueError:
+            raise InputError(self.path, f"column {name}", "a cell that is not a number",
+                             "numbers") from None
+        return out
 
     def text(self, name: str) -> list[str]:
-        j = self.header.index(name)
-        return [r[j] for r in self.rows]
+        """A text column."""
+        if name not in self.header:
+            raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
+        return [str(v) for v in self.cells[:, self.header.index(name)]]
 
 
 def read_table(path: Path) -> CsvTable:
     """The header and cells of a written ``waypoints.csv``."""
     rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"), newline="")))
-    if len(rows) < 3:
-        raise InputError(path, "", f"{max(len(rows) - 1, 0)} samples", "a waypoints.csv")
-    return CsvTable(path, rows[0], rows[1:])
+    if len(rows) < 3 or any(len(r) != len(rows[0]) for r in rows):
+        raise InputError(path, "", "not a table of at least two samples", "a waypoints.csv")
+    return CsvTable(path, rows[0], np.array(rows[1:], dtype=str))
 
 
 def shown_samples(phase: Sequence[str], worst: int | None, limit: int = MAX_SAMPLES
@@ -124,8 +133,8 @@ def shown_samples(phase: Sequence[str], worst: int | None, limit: int = MAX_SAMP
 
 def _nums(a: FloatArray, digits: int) -> str:
     """A JSON array of numbers with ``digits`` decimals (numfmt: no ``-0``); NaN is null."""
-    flat = np.asarray(a, dtype=float).ravel()
-    return "[" + ",".join(fixed(v, digits) if np.isfinite(v) else "null" for v in flat) + "]"
+    return "[" + ",".join("null" if t is None else t
+                          for t in fixed_many(a, digits)) + "]"
 
 
 @cache
