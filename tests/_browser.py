@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import fcntl
 import json
 import os
 import queue
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -41,14 +43,16 @@ FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
 LOCAL_SCHEMES = ("file:", "data:", "blob:", "about:")
 
 
-def _pipe_fds(cmd_r: int, out_w: int) -> None:
-    """In the browser's process before it starts: its command pipe on fd 3, its answers on 4
-    (via fresh copies first, so that neither end overwrites the other)."""
-    a, b = os.dup(cmd_r), os.dup(out_w)
-    os.dup2(a, 3)
-    os.dup2(b, 4)
-    os.close(a)
-    os.close(b)
+#: Run as ``python -c``: fds argv[1], argv[2] onto 3 and 4, then exec argv[3:] (Chromium).
+_TRAMPOLINE = ("import os, sys; r, w = int(sys.argv[1]), int(sys.argv[2]); os.dup2(r, 3); "
+               "os.dup2(w, 4); os.close(r); os.close(w); os.execv(sys.argv[3], sys.argv[3:])")
+
+
+def _stderr() -> int | object:
+    """Where the browser's own log goes: ``$RFSW_CHROMIUM_LOG`` when set (to debug a start),
+    else nowhere."""
+    path = os.environ.get("RFSW_CHROMIUM_LOG")
+    return open(path, "ab") if path else subprocess.DEVNULL
 
 
 class BrowserError(RuntimeError):
@@ -70,13 +74,21 @@ class Page:
         self._profile = tempfile.TemporaryDirectory(prefix="rfsw-chromium-")
         cmd_r, self._cmd_w = os.pipe()
         self._out_r, out_w = os.pipe()
-        self._proc = subprocess.Popen(
-            [CHROMIUM, *FLAGS, f"--window-size={width},{height}", "--remote-debugging-pipe",
-             f"--user-data-dir={self._profile.name}", "about:blank"],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            close_fds=False, preexec_fn=lambda: _pipe_fds(cmd_r, out_w))
+        # The browser's ends, moved above 9 (so that neither is 3 or 4 itself); a small Python
+        # trampoline puts them on fds 3 and 4 and becomes Chromium (no preexec_fn in this
+        # process, whose threads a fork would copy mid-flight).
+        theirs = [fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, 10) for fd in (cmd_r, out_w)]
         os.close(cmd_r)
         os.close(out_w)
+        r, w = theirs
+        argv = [CHROMIUM, *FLAGS, f"--window-size={width},{height}", "--remote-debugging-pipe",
+                f"--user-data-dir={self._profile.name}", "about:blank"]
+        self._proc = subprocess.Popen(
+            [sys.executable, "-c", _TRAMPOLINE, str(r), str(w), *argv],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=_stderr(),
+            pass_fds=(r, w))
+        for fd in theirs:
+            os.close(fd)
         self._next_id = 0
         self._answers: dict[int, dict[str, Any]] = {}
         self._events: queue.Queue[dict[str, Any] | None] = queue.Queue()

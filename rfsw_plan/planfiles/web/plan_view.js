@@ -261,7 +261,7 @@ const wholeRobot = () => {
   const pts = [new THREE.Vector3(), ...seamPts, poseTcp];
   for (let i = 0; i < NJ; i++) pts.push(frame(index, i)[0]);
   const box = new THREE.Box3().setFromPoints(pts);
-  look(box.getCenter(new THREE.Vector3()), 1.25 * box.getSize(new THREE.Vector3()).length());
+  look(box.getCenter(new THREE.Vector3()), 1.45 * box.getSize(new THREE.Vector3()).length());
 };
 $("cam-robot").addEventListener("click", wholeRobot);
 $("cam-seam").addEventListener("click", () => look(seamMid, 2.2 * seamLen + 400));
