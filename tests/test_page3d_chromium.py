@@ -146,3 +146,53 @@ def test_validate_report_3d_view_in_chromium(tmp_path: Path) -> None:
         assert np.mean(np.abs(after - before).max(axis=2) > 0.1) > 0.0005
         assert page.console_errors == [] and page.exceptions == []
         assert page.network_requests() == []
+
+
+@pytest.mark.slow
+def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
+    """The validate-weld report's residual view (a simulated trial weld with a softer joint 1,
+    re-identified with --add): no console error, no request, one arrow per track point, and
+    the RMS it shows before and after is the one of validate_weld.json's samples."""
+    import json
+
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.realtime.trial_weld import simulate_trial_weld
+    from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.validation.weld import read_plan_dir
+
+    pb = load_problem(PROBLEM)
+    model = ElastostaticModel(load_robot(pb.robot))
+    truth = model.copy()
+    c = np.array(truth.joint_compliance.params)
+    c[0] /= 0.8
+    truth.joint_compliance.params = c
+    assert main(["-q", "plan", PROBLEM, "-o", str(tmp_path / "plan")]) == 0
+    weld = simulate_trial_weld(pb, read_plan_dir(tmp_path / "plan").waypoints, model, truth)
+    forces, track = weld.write(tmp_path / "weld")
+    out = tmp_path / "validate_weld"
+    assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),
+                 "--forces", str(forces), "-o", str(out), "--add", "joint_compliance:j1"]) == 0
+    with Page(1400, 900) as page:
+        page.open(out / "report.html")
+        assert page.wait_js("window.residualView && window.residualView.ready", "the view")
+        assert page.console_errors == [] and page.exceptions == []
+        assert page.network_requests() == []
+        smp = json.loads((out / "validate_weld.json").read_text())["samples"]
+        measured = np.array(smp["measured_lat_mm"])
+
+        def shown() -> tuple[int, float]:
+            text = page.eval("document.getElementById('residual-readout').textContent")
+            return (int(text.split("; ")[1].split(" arrows")[0]),
+                    float(text.split("RMS ")[1].split(" mm")[0]))
+
+        # model as given: measured - predicted at every track point, from the written json
+        n, rms = shown()
+        assert n == measured.size
+        want = np.sqrt(np.mean((measured - np.array(smp["predicted_lat_mm"]))**2))
+        assert rms == pytest.approx(want, abs=6e-5)
+        assert page.eval("window.residualView.sets") == 2
+        assert page.eval("window.residualView.select(1)") > 0
+        want = np.sqrt(np.mean((measured - np.array(smp["predicted_after_lat_mm"]))**2))
+        assert shown()[1] == pytest.approx(want, abs=6e-5)
+        assert page.console_errors == [] and page.exceptions == []

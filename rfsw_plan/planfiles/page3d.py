@@ -313,7 +313,7 @@ MAX_RESIDUAL_POSES = 3000
 RESIDUAL_COLOURS = ("#d62728", "#2ca02c", "#1f77b4", "#9467bd")
 
 
-def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray]],
+def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray, str]],
                      heading: str, note: str) -> str:
     """An HTML section with a 3-D view of residual arrows, for the validation reports: one
     arrow per pose from its nominal TCP along its residual (measured - predicted), magnified
@@ -321,7 +321,9 @@ def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray
 
     Args:
         points_mm: Where the arrows start (the nominal TCP of each pose) [mm], (m, 3).
-        sets: ``(label, residuals [mm] (m, 3))`` per model; NaN components are drawn as 0.
+        sets: ``(label, residuals [mm] (m, 3), score)`` per model, ``score`` the text the
+            readout gives for it (e.g. ``held-out RMS 0.0107 mm``); NaN components are drawn
+            as 0.
         heading: The section's heading.
         note: A sentence under it (what the arrows are).
     """
@@ -332,17 +334,18 @@ def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray
                                                        replace=False))
     size = float(np.linalg.norm(np.ptp(pts[keep], axis=0))) if len(keep) else 1.0
     largest = max((float(np.nanmax(np.linalg.norm(np.nan_to_num(v[keep]), axis=1)))
-                   for _, v in sets if len(keep)), default=0.0)
-    # arrows of the largest residual about a tenth of the cloud, a round factor
-    mag = 1.0 if largest <= 0 else float(np.clip(10 ** np.floor(np.log10(
-        0.1 * max(size, 100.0) / largest)), 1.0, 1e5))
+                   for _, v, _ in sets if len(keep)), default=0.0)
+    # the largest arrow about a quarter of the cloud, at a round factor (1, 2, 5 x 10^k)
+    mag = 1.0
+    if largest > 0:
+        want = 0.25 * max(size, 100.0) / largest
+        steps = [f * 10.0**k for k in range(6) for f in (1.0, 2.0, 5.0)]
+        mag = max([m for m in steps if m <= want], default=1.0)
     entries = []
-    for j, (label, vec) in enumerate(sets):
+    for j, (label, vec, score) in enumerate(sets):
         v = np.nan_to_num(np.asarray(vec, dtype=float)[keep])
-        finite = np.asarray(vec, dtype=float)[keep]
-        rms = float(np.sqrt(np.nanmean(finite**2))) if np.isfinite(finite).any() else 0.0
         entries.append(f'{{"label":{json.dumps(label)},"colour":"{RESIDUAL_COLOURS[j % 4]}",'
-                       f'"rms":"{fixed(rms, 4)}","vectors":{_nums(v, 5)}}}')
+                       f'"score":{json.dumps(score)},"vectors":{_nums(v, 5)}}}')
     data = (f'{{"points":{_nums(pts[keep], 2)},"mag":{fixed(mag, 0)},'
             f'"sets":[{",".join(entries)}]}}')
     return "".join([

@@ -566,13 +566,16 @@ def _residual_3d_html(result: ValidationResult) -> list[str]:
     ad = result.add
     if ad is not None:
         after = "+".join(ad.added) if ad.added else "nothing added"
-        sets = [("before: " + "+".join(ad.before.labels), ad.before.heldout_residual * 1e3),
-                (f"after: + {after}", ad.after.heldout_residual * 1e3)]
+        sets = [("before: " + "+".join(ad.before.labels), ad.before.heldout_residual * 1e3,
+                 f"held-out RMS {ad.before.heldout_rms * 1e3:.4f} mm"),
+                (f"after: + {after}", ad.after.heldout_residual * 1e3,
+                 f"held-out RMS {ad.after.heldout_rms * 1e3:.4f} mm")]
         note = ("One arrow per measured sample, at its nominal TCP (base frame), along its "
                 "held-out residual (measured - predicted, predicted by the fit of the other "
                 "folds), before and after the named effect.")
     else:
-        sets = [("model: " + ", ".join(result.model.labels), result.analysis.residual * 1e3)]
+        sets = [("model: " + ", ".join(result.model.labels), result.analysis.residual * 1e3,
+                 f"RMS {result.rms * 1e3:.4f} mm")]
         note = ("One arrow per measured sample, at its nominal TCP (base frame), along its "
                 "residual (measured - predicted).")
     return [residual_section(result.analysis.tcp * 1e3, sets, "Residual per pose in 3-D", note)]

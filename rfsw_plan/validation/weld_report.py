@@ -173,14 +173,19 @@ def _residual_3d_html(result: WeldValidation) -> list[str]:
     from rfsw_plan.planfiles.page3d import residual_section
 
     sm = result.samples
+
+    def lateral_rms(r: np.ndarray) -> str:
+        return f"lateral residual RMS {_mm(float(np.sqrt(np.mean(r**2))))} mm"
+
     before = result.residual_lat[:, None] * sm.l
     if result.residual_norm is not None:
         before = before + result.residual_norm[:, None] * sm.n
-    sets = [("model as given: " + ", ".join(result.model.labels), before * 1e3)]
+    sets = [("model as given: " + ", ".join(result.model.labels), before * 1e3,
+             lateral_rms(result.residual_lat))]
     if result.add is not None and result.predicted_after is not None:
-        after = (result.track.e_lat - result.predicted_after)[:, None] * sm.l
-        sets.append(("re-identified: + " + ", ".join(result.add.labels) + " (lateral)",
-                     after * 1e3))
+        after = result.track.e_lat - result.predicted_after
+        sets.append(("re-identified: + " + ", ".join(result.add.labels), after[:, None] * sm.l
+                     * 1e3, lateral_rms(after)))
     return [residual_section(sm.p * 1e3, sets, "Residual along the seam in 3-D",
                              "One arrow per track point, at the seam point (base frame), along "
                              "the measured - predicted lateral offset (and normal offset where "

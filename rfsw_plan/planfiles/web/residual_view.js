@@ -64,8 +64,8 @@ function draw() {
   lineGeo.setAttribute("position", new THREE.Float32BufferAttribute(pos, 3));
   lineGeo.setAttribute("color", new THREE.Float32BufferAttribute(col, 3));
   lineGeo.computeBoundingSphere();
-  $("residual-readout").textContent = D.sets[set].label + ": RMS " + D.sets[set].rms +
-    " mm over " + M + " poses; arrows x" + mag + " (1 mm of residual = " + mag + " mm drawn).";
+  $("residual-readout").textContent = D.sets[set].label + ": " + D.sets[set].score +
+    "; " + M + " arrows, x" + mag + " (1 mm of residual = " + mag + " mm drawn).";
   render();
   return shown;
 }
