@@ -177,3 +177,19 @@ def test_page_under_5_mb_for_every_bundled_problem(problem: str, planned_result:
     assert page.stat().st_size < 5e6
     d = page_data(page.read_text(encoding="utf-8"))
     assert d["n"] >= 100
+
+
+def test_a_name_cannot_close_the_pages_script(plan_dir: Path) -> None:
+    from rfsw_plan.planfiles.page3d import plan_page
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.robot.kinematics import load_robot
+
+    pb = load_problem(PROBLEM)
+    evil = "x</script><script>alert(1)</script>"
+    page = plan_page(plan_dir / "waypoints.csv", load_robot(pb.robot), pb.seam.frames_at,
+                     (-1.25, 0.7), evil, evil)
+    normal = plan_page(plan_dir / "waypoints.csv", load_robot(pb.robot), pb.seam.frames_at,
+                       (-1.25, 0.7), "x", "x")
+    assert page.count("</script>") == normal.count("</script>")
+    d = page_data(page)
+    assert d["title"] == d["verdict"] == evil

@@ -251,12 +251,16 @@ def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArr
         depth_note = ("Depth error: n . (predicted pin - nominal target) along the tool axis n "
                       "(+ out of the plate), computed from waypoints.csv in the material.")
     # The plate's surface normal: the tool axis without its tilt (normal to the seam tangent).
-    ts = np.diff(seam, axis=0)
-    good = np.linalg.norm(ts, axis=1) > 1e-6
-    tangent = (ts[good].sum(axis=0) if good.any() else fr.t.sum(axis=0))
-    tangent /= np.linalg.norm(tangent)
+    # The plate is drawn along the seam's overall direction (its chord; for a closed seam, the
+    # first frame's travel direction).
+    tangent = seam[-1] - seam[0]
+    if np.linalg.norm(tangent) < 1e-3:
+        tangent = fr.t[0]
+    tangent = tangent / np.linalg.norm(tangent)
     nrm = fr.n.mean(axis=0)
     nrm = nrm - tangent * float(nrm @ tangent)
+    if np.linalg.norm(nrm) < 1e-6:
+        nrm = fr.n[0] - tangent * float(fr.n[0] @ tangent)
     nrm /= np.linalg.norm(nrm)
     pos, quat = link_frames(robot, q)
     lo, hi = window_mm
@@ -282,7 +286,8 @@ def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArr
         "depth_note": json.dumps(depth_note),
         **{f"chain_{k}": v for k, v in chain_drawing(robot).items()},
     }
-    body = ",\n".join(f'"{k}":{v}' for k, v in data.items())
+    # "</" never inside a script element (a name cannot close it): JSON's own escape "<\\/"
+    body = ",\n".join(f'"{k}":{v}' for k, v in data.items()).replace("</", "<\\/")
     return "".join([
         "<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>\n",
         f"<title>{html.escape(title)}: plan in 3-D</title>\n",
@@ -347,7 +352,7 @@ def residual_section(points_mm: FloatArray, sets: Sequence[tuple[str, FloatArray
         entries.append(f'{{"label":{json.dumps(label)},"colour":"{RESIDUAL_COLOURS[j % 4]}",'
                        f'"score":{json.dumps(score)},"vectors":{_nums(v, 5)}}}')
     data = (f'{{"points":{_nums(pts[keep], 2)},"mag":{fixed(mag, 0)},'
-            f'"sets":[{",".join(entries)}]}}')
+            f'"sets":[{",".join(entries)}]}}').replace("</", "<\\/")
     return "".join([
         f"<h2>{html.escape(heading)}</h2>\n<p>{html.escape(note)} Drag to turn the view, scroll "
         "to zoom.</p>\n<div class='residual3d'><label>model <select id='residual-set'></select>"
