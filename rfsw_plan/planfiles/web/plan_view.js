@@ -151,12 +151,14 @@ function drawPaths() {
 
 // -- the selected sample: markers, force and deflection arrows ---------------------------------
 const ball = (c, r) => {
-  const m = new THREE.Mesh(new THREE.SphereGeometry(r, 20, 14), new THREE.MeshBasicMaterial({ color: c }));
+  const m = new THREE.Mesh(new THREE.SphereGeometry(r, 20, 14),
+    new THREE.MeshBasicMaterial({ color: c, depthTest: false }));
+  m.renderOrder = 2;
   scene.add(m);
   return m;
 };
 const pinMark = ball(0x000000, 0.3 * R), tcpMark = ball(0xff7f0e, 0.25 * R);
-const worstMark = new THREE.Mesh(new THREE.TorusGeometry(0.9 * R, 0.12 * R, 10, 40),
+const worstMark = new THREE.Mesh(new THREE.TorusGeometry(0.5 * R, 0.08 * R, 10, 40),
   new THREE.MeshBasicMaterial({ color: 0xd62728 }));
 scene.add(worstMark);
 const forceArrow = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 1, 0x1f77b4);
@@ -250,9 +252,9 @@ $("play").addEventListener("click", () => {
 });
 
 // -- views ---------------------------------------------------------------------------------
-function look(target, dist) {
+function look(target, dist, from) {
   controls.target.copy(target);
-  const dir = new THREE.Vector3(0.9, -1.3, 0.8).normalize();
+  const dir = (from || new THREE.Vector3(0.9, -1.3, 0.8)).clone().normalize();
   camera.position.copy(target).addScaledVector(dir, dist);
   controls.update();
   render();
@@ -263,8 +265,22 @@ const wholeRobot = () => {
   const box = new THREE.Box3().setFromPoints(pts);
   look(box.getCenter(new THREE.Vector3()), 1.45 * box.getSize(new THREE.Vector3()).length());
 };
-$("cam-robot").addEventListener("click", wholeRobot);
-$("cam-seam").addEventListener("click", () => look(seamMid, 2.2 * seamLen + 400));
+// close to the seam the robot turns translucent, so that it hides none of the paths
+function seeThrough(on) {
+  for (const m of [linkMat, jointMat, toolMat]) {
+    m.transparent = on;
+    m.opacity = on ? 0.25 : 1;
+    m.depthWrite = !on;
+    m.needsUpdate = true;
+  }
+}
+$("cam-robot").addEventListener("click", () => { seeThrough(false); wholeRobot(); });
+// close to the seam: from the side and low, so that the spindle hides little of the paths
+const side = L.clone().add(Nrm.clone().multiplyScalar(0.6)).addScaledVector(T, -0.5);
+$("cam-seam").addEventListener("click", () => {
+  seeThrough(true);
+  look(seamMid, 1.6 * seamLen + 300, side);
+});
 
 function resize() {
   const w = canvas.clientWidth, h = canvas.clientHeight;
