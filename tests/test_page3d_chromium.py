@@ -4,8 +4,8 @@ error and no network request, its canvas is not blank, and moving the time slide
 sample (found here from ``waypoints.csv``) moves the drawn robot and shows that row's values.
 
 Skipped, with the reason, only where no Chromium is installed (CI installs it: ``.ci/run``).
-With ``RFSW_UPDATE_SCREENSHOT=1`` the test also writes the manual's screenshot
-(``docs/images/plan3d_zk500_table6_seam.png``).
+With ``RFSW_UPDATE_SCREENSHOT=1`` the test also writes the manual's screenshots
+(``docs/images/plan3d_zk500_table6_seam.png`` and ``..._seam.png``, close to the seam).
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ pytestmark = pytest.mark.skipif(CHROMIUM is None, reason=SKIP_REASON)
 
 PROBLEM = "zk500_table6_seam"
 SCREENSHOT = Path(__file__).parents[1] / "docs" / "images" / f"plan3d_{PROBLEM}.png"
+CLOSE_UP = SCREENSHOT.with_name(f"plan3d_{PROBLEM}_seam.png")
 
 
 def canvas_pixels(page: Page, png: bytes) -> np.ndarray:
@@ -96,6 +97,14 @@ def test_plan_page_in_chromium(tmp_path: Path) -> None:
         if os.environ.get("RFSW_UPDATE_SCREENSHOT"):
             SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
             SCREENSHOT.write_bytes(page.screenshot())
+        # close to the seam: the same sample, the robot translucent, the view redrawn
+        page.eval("document.getElementById('cam-seam').click()")
+        close = canvas_pixels(page, page.screenshot())
+        assert np.mean(np.abs(close - after).max(axis=2) > 0.1) > 0.05
+        assert readout(page)["row"] == str(worst + 2)
+        assert page.console_errors == [] and page.exceptions == []
+        if os.environ.get("RFSW_UPDATE_SCREENSHOT"):
+            CLOSE_UP.write_bytes(page.screenshot())
 
 
 def test_validate_report_3d_view_in_chromium(tmp_path: Path) -> None:
