@@ -66,7 +66,7 @@ def _overrides(items: list[str], base: Any) -> Any:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.cli.commands.export import check_export_arguments
-    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.files import OutputLock, created_this_run, prepare_output_dir, strict_json
     from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, mark_outputs_stale
     from rfsw_plan.process.problem import load_problem
 
@@ -75,12 +75,17 @@ def run(args: argparse.Namespace) -> int:
     problem, flog = force_log_cli.prepare(problem, args)
     opts = _options(args, problem)
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
-    with OutputLock(out):
-        # An earlier run's files must never sit beside this run's as if they were its own:
-        # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
-        result, check = _plan_or_record(args, problem, flog, opts, out)
-        summary, written, failed_plots = _write(args, problem, flog, check, result, out)
+    try:
+        with OutputLock(out):
+            # An earlier run's files must never sit beside this run's as if they were its own:
+            # plan.json (the commit record) first becomes "incomplete", the other outputs go.
+            mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
+            result, check = _plan_or_record(args, problem, flog, opts, out)
+            summary, written, failed_plots = _write(args, problem, flog, check, result, out)
+    except KeyboardInterrupt:
+        if created_this_run(out):  # Ctrl-C into a new folder writes nothing (main removes it)
+            (out / "plan.json").unlink(missing_ok=True)
+        raise
     for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
               file=sys.stderr)
