@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
+import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -75,7 +77,50 @@ def test_site_builds_with_warnings_as_errors(tmp_path: Path) -> None:
                            "-d", str(tmp_path / "site")], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert (tmp_path / "site" / "reference" / "cli" / "index.html").is_file()
+    assert (tmp_path / "site" / "reference" / "cli.html").is_file()
+
+
+CHROMIUM = next((p for p in (shutil.which(n) for n in ("chromium", "chromium-browser",
+                                                           "google-chrome")) if p), None)
+
+#: Appended to a copy of the built home page: after ``load``, follow the navigation's link to
+#: the planning guide, as a reader's click does.
+FOLLOW_NAV = """<script>window.addEventListener("load", function () {
+  var a = Array.from(document.querySelectorAll("nav a[href]")).find(function (e) {
+    return e.getAttribute("href").indexOf("guide/planning") === 0; });
+  document.title = a ? "following " + a.getAttribute("href") : "no nav link to guide/planning";
+  if (a) { window.location.href = a.href; }
+});</script>"""
+
+
+@pytest.mark.skipif(CHROMIUM is None,
+                    reason="headless Chromium not installed (apt-get install chromium)")
+def test_built_manual_navigates_from_a_file_url(tmp_path: Path) -> None:
+    """``make docs``'s site opened from disk (``file://``, no web server): the home page's
+    navigation link to a guide opens that page, not a directory listing (issue 33, wall 2)."""
+    assert CHROMIUM is not None
+    site = tmp_path / "site"
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1", "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "-q", "-d", str(site)],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    home = (site / "index.html").read_text(encoding="utf-8")
+    probe = site / "probe_follow_nav.html"  # beside index.html: the same relative links
+    probe.write_text(home.replace("</body>", FOLLOW_NAV + "</body>"), encoding="utf-8")
+    dom = subprocess.run(
+        [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+         "--no-first-run", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", f"--user-data-dir={tmp_path / 'chromium'}",
+         "--virtual-time-budget=10000", "--dump-dom", probe.as_uri()],
+        capture_output=True, text=True, timeout=180)
+    assert dom.returncode == 0, dom.stderr[-2000:]
+    page = dom.stdout
+    assert "Index of" not in page and "addRow(" not in page, "a directory listing opened"
+    assert "no nav link" not in page
+    # The planning guide itself, with its own title and the site's navigation around it.
+    title = re.search(r"<title>(.*?)</title>", page, re.S)
+    assert title and title.group(1).startswith("Planning a weld"), page[:600]
+    assert 'class="md-nav' in page and "<h1" in page
 
 
 def test_sphinx_roles_become_inline_code_on_the_api_page() -> None:
