@@ -55,4 +55,16 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "python_api")
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out_dir", nargs="?", type=Path,
+                    default=Path("out") / "examples" / "python_api",
+                    help="plan folder to write (default: out/examples/python_api)")
+    args = ap.parse_args()
+    try:
+        main(args.out_dir)
+    except rfsw_plan.RfswError as exc:
+        print(f"python_api: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))
