@@ -223,8 +223,10 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     # The next command names the file after the robot it will hold.
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v0")]) == 0
-    assert "--save-robot zk500_seed001+joint_compliance:j1.toml" in capsys.readouterr().out
-    saved = tmp_path / "robots" / "zk500_seed001+joint_compliance:j1.toml"  # folder made on the way
+    # Under out/ and without a colon in the file name (issue 33, wall 5).
+    assert ("--save-robot out/robots/zk500_seed001+joint_compliance-j1.toml"
+            in capsys.readouterr().out)
+    saved = tmp_path / "robots" / "zk500_seed001+joint_compliance-j1.toml"  # folder made on the way
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v1"), "--add", "joint_compliance:j1",
                  "--save-robot", str(saved)]) == 0

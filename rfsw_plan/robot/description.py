@@ -501,6 +501,14 @@ def derived_name(parent: str, added: tuple[str, ...] | list[str] = ()) -> str:
     return "+".join([base, *old, *new]) if added else f"{base}+identified"
 
 
+def derived_file(name: str) -> str:
+    """Where a proposed next command saves the robot ``name``: under ``out/robots/`` (never the
+    repository's own ``robots/`` or the folder the command runs in), with the ``:`` of a
+    joint label written ``-`` (``zk500+joint_compliance:j1`` ->
+    ``out/robots/zk500+joint_compliance-j1.toml``), a file name every file system takes."""
+    return f"out/robots/{name.replace(':', '-').replace('/', '_')}.toml"
+
+
 def derived_description(desc: RobotDescription, *, name: str | None, parent: Path | None,
                         data: str | Path | None, command: str,
                         added: tuple[str, ...] = (),

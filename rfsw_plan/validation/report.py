@@ -358,8 +358,10 @@ def next_command(result: ValidationResult, argv: list[str] | None) -> str:
         extra: list[str] = []
         for lab in labels:
             extra += ["--add", lab]
+        from rfsw_plan.robot.description import derived_file
+
         stem = result.robot.replace("/", "_").removesuffix(".toml")
-        extra += ["--save-robot", f"{stem}+{'+'.join(labels)}.toml"]
+        extra += ["--save-robot", derived_file(f"{stem}+{'+'.join(labels)}")]
         return "rfsw-plan " + " ".join(shlex.quote(a) for a in [*base, *extra])
     if dg.verdict == "undetermined":
         return ("rfsw-plan " + " ".join(shlex.quote(a) for a in base)
