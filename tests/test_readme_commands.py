@@ -243,3 +243,31 @@ def test_block_runs(block: Block, fresh_copy: Path) -> None:
     status = subprocess.run(["git", "status", "--porcelain"], cwd=fresh_copy,
                             capture_output=True, text=True, check=True).stdout
     assert status == "", f"{block.page}: `{block.key}` left files outside out/:\n{status}"
+
+
+#: Options of rfsw-plan that name a file or folder it writes.
+_WRITE_OPTIONS = re.compile(r"(?:^|\s)(?:-o|--output|--save-robot|--save-truth)[ =](\S+)")
+#: Example scripts whose positional arguments name the folder they write (after the inputs).
+_EXAMPLE_OUT = re.compile(r"examples/(?:plan_my_seam|python_api|trial_weld_loop)\.py\s+(\S+)"
+                          r"|examples/virtual_trial_weld\.py\s+\S+\s+(\S+)")
+
+
+def _written_paths(text: str) -> list[str]:
+    found = [m[1] for m in _WRITE_OPTIONS.finditer(text)]
+    found += [a or b for a, b in _EXAMPLE_OUT.findall(text)]
+    return [p.strip("`'\"") for p in found]
+
+
+def test_documented_commands_write_only_under_out() -> None:
+    """Every command a page shows, run or not (any code block and any inline command), writes
+    under ``out/``, or names a placeholder the reader fills in (``DIR``, ``NEW.toml``,
+    ``OUT_DIR``: upper case): never the repository's ``robots/`` or the folder it runs in
+    (issue 33, wall 5)."""
+    bad = []
+    for page in PAGES:
+        text = page.read_text().replace("\\\n", " ")
+        for path in _written_paths(text):
+            placeholder = re.search(r"[A-Z]{2,}", path.split(".")[0]) is not None
+            if not (path.startswith("out/") or placeholder or path in ('""', "")):
+                bad.append(f"{page.relative_to(ROOT)}: {path}")
+    assert not bad, "documented outputs outside out/:\n" + "\n".join(bad)
