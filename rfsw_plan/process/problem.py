@@ -334,6 +334,8 @@ def _value(tab: Table | None, k: str, prior: float | None, scale: float = 1.0, *
         InputError: Out of range, or absent with no prior.
     """
     if tab is not None and tab.has(k):
+        if k.endswith("_fraction"):  # a relative amount: "did you mean N %?" above le
+            return tab.fraction(k, le=le if le is not None else 1.0) * scale
         return tab.num(k, ge=ge, gt=gt, le=le) * scale
     if prior is None:
         where = tab.key(k) if tab is not None else f"process.forces.{k}"

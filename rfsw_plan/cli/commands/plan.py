@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -108,12 +109,10 @@ def _options(args: argparse.Namespace, problem: Any) -> Any:
     """The problem's planner options with ``--set`` and ``--force-uncertainty`` applied and
     checked (one line, exit 2, before any planning)."""
     from rfsw_plan.planning.options import check_well_posed
-    from rfsw_plan.process.plan_options import options_from_table
 
     opts = _overrides(args.set, problem.planning)
-    if args.force_uncertainty is not None:
-        opts = options_from_table({"force_uncertainty": args.force_uncertainty},
-                                  "--force-uncertainty", opts, prefix="", what="option")
+    if args.force_uncertainty is not None:  # a fraction, range-checked by its parser
+        opts = replace(opts, force_uncertainty=args.force_uncertainty)
     if args.spacing_mm is not None and not 0.01 <= args.spacing_mm <= 1e4:
         raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
                          "a number in [0.01, 10000]")
