@@ -511,3 +511,71 @@ def test_a_urdf_with_xacro_elements_is_refused(tmp_path: Path) -> None:
                                   "--wrench", "0,0,-10"])
         assert code == 2 and out == "" and err.count("\n") == 1, err
         assert needle in err and f"arm{i}.urdf" in err, err
+
+
+# -- unit slips that passed (issue 33, wall 8) -------------------------------------------------
+
+
+def _problem_with_robot(tmp_path: Path, robot_text: str) -> Path:
+    (tmp_path / "robot.toml").write_text(robot_text)
+    text = (ROOT / "problems" / "zk500_table6_seam.toml").read_text()
+    text = re.sub(r'^robot = "[^"]*"', f'robot = "{tmp_path / "robot.toml"}"', text, flags=re.M)
+    (tmp_path / "p.toml").write_text(text)
+    return tmp_path / "p.toml"
+
+
+def test_a_tool_in_metres_is_refused(tmp_path: Path) -> None:
+    text = (ROOT / "robots" / "zk500.toml").read_text()
+    assert "xyz_mm = [0, 0, 390]" in text
+    p = tmp_path / "zk.toml"
+    p.write_text(text.replace("xyz_mm = [0, 0, 390]", "xyz_mm = [0, 0, 0.39]"))
+    code, out, err = run_cli(["predict", "--robot", str(p), f"--q-deg={_pose('zk500')}",
+                              "--wrench", WRENCH])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "tool.xyz_mm: the TCP is 0.39 mm from the flange: metres instead of mm?" in err, err
+
+
+def test_process_forces_in_kilonewtons_are_refused(tmp_path: Path) -> None:
+    text = (ROOT / "problems" / "zk500_table6_seam.toml").read_text()
+    assert re.search(r"^axial_N = ", text, re.M)
+    p = tmp_path / "p.toml"
+    p.write_text(re.sub(r"^axial_N = .*$", "axial_N = 4.84258", text, flags=re.M))
+    code, out, err = run_cli(["plan", str(p), "-o", str(tmp_path / "out")])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "process.forces.axial_N: got 4.84258 N" in err and "kN instead of N?" in err, err
+
+
+def test_joint_stiffness_in_kilonewton_metres_is_refused(tmp_path: Path) -> None:
+    """``k_Nm_per_rad`` written in kN m/rad was planned and reported "unreachable ... by 502 mm";
+    now one line naming the key, the joint and the likely unit, before any planning."""
+    text = (ROOT / "robots" / "zk500_seed001.toml").read_text()
+    m = re.search(r"k_Nm_per_rad = \[([^\]]*)\]", text)
+    assert m
+    kn = ", ".join(f"{float(x) / 1e3:g}" for x in m[1].split(","))
+    p = _problem_with_robot(tmp_path, text.replace(m[0], f"k_Nm_per_rad = [{kn}]"))
+    code, out, err = run_cli(["plan", str(p), "-o", str(tmp_path / "out")])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "stiffness.k_Nm_per_rad: joint" in err and "kN m/rad instead of N m/rad?" in err, err
+    assert not (tmp_path / "out" / "waypoints.csv").exists()
+
+
+def test_a_weld_track_in_metres_is_refused(tmp_path: Path) -> None:
+    """Lateral offsets in metres in ``e_lat_mm`` were "100.0 % inside the window"."""
+    from rfsw_plan.io.weld_track import read_weld_track
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.validation.track import track_on_seam
+
+    pb = load_problem("zk500_table6_seam")
+    length_mm = float(pb.frames().s[-1] - pb.frames().s[0]) * 1e3
+    s = np.linspace(0.0, length_mm, 200)
+    e_mm = 0.3 * np.sin(s / 20.0) - 0.2  # a plausible weld, in mm
+    for scale, ok in ((1.0, True), (1e-3, False)):
+        p = tmp_path / f"track_{scale:g}.csv"
+        p.write_text("s_mm,e_lat_mm\n" + "".join(f"{a:.4f},{b * scale:.9f}\n"
+                                                 for a, b in zip(s, e_mm, strict=True)))
+        if ok:
+            track_on_seam(read_weld_track(p), pb)
+            continue
+        with pytest.raises(Exception, match=r"column e_lat_mm: every offset is below 0\.005 mm "
+                                            r"\(largest 0\.0005 mm\): metres instead of mm\?"):
+            track_on_seam(read_weld_track(p), pb)
