@@ -80,7 +80,8 @@ def main(out: Path) -> rfsw_plan.PlanResult:
     result = rfsw_plan.plan(problem)                 # raises InfeasibleError if it cannot hold
     plan_json = rfsw_plan.write_plan(out / "plan", result, robot_file=problem.robot.path)
 
-    print(f"{result.status}: max |lateral error| {result.summary()['max_abs_lateral_mm']:.3f} mm "
+    print(f"{result.status}: max |lateral error| "
+          f"{result.summary()['samples']['max_abs_lateral_mm']:.3f} mm in the material "
           f"(uncompensated {abs(result.e_none).max() * 1e3:.3f} mm), tolerates "
           f"+-{result.tolerated_force_uncertainty * 100:.3g} % force")
     print(f"files: {plan_json.parent}")

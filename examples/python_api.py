@@ -39,10 +39,12 @@ def main(out: Path) -> None:
     options = replace(problem.planning, force_uncertainty=0.1)
     result = rfsw_plan.plan(problem, options)
     s = result.summary()
-    print(f"{result.status}: max |e| {s['max_abs_lateral_mm']:.3f} mm, tolerated force "
+    print(f"{result.status}: max |e| while travelling {s['max_abs_lateral_weld_mm']:.3f} mm, "
+          f"in the material (plunge and dwell too) {s['samples']['max_abs_lateral_mm']:.3f} mm, "
+          "tolerated force "
           f"uncertainty +-{result.tolerated_force_uncertainty * 100:.3g} %, "
           f"{len(result.task)} waypoints, {result.trajectory.t[-1]:.1f} s")
-    for b in result.baselines:  # none, mirror and nlp on the same waypoints
+    for b in result.baselines:  # none, mirror and nlp on the same waypoints (in the material)
         print(f"  {b.name:<7} max |e| {b.to_dict()['max_abs_lateral_mm']:.3f} mm")
 
     # 4. Write the plan folder exactly as `rfsw-plan plan -o DIR` does (atomic files, plan.json

@@ -235,8 +235,8 @@ def _print_table(result: Any) -> None:
               else f"{req.min_lateral_stiffness * 1e-3:.1f}")
     print(f"{'requested':<10} {'':>10} {'':>8} {'':>9} {'':>16} {k_need:>11}  "
           f"{pct(u)} (k_lat: what the plan's errors need)")
-    print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
-          "case to the window, negative = outside; held: the largest uniform +-u on the "
+    print(f"(worst: largest |e| under +-{u * 100:.3g} % force; worst margin: distance of that "
+          "worst case to the window, negative = outside; held: the largest uniform +-u on the "
           "seam-frame force components that keeps every in-material waypoint, and for the plan "
           "every written sample, in the window)")
 
