@@ -145,7 +145,7 @@ def output_matches(quoted: str, actual: str) -> str | None:
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
 
 
-def requote(quoted: str, actual: str, max_inserted: int = 15) -> str:
+def requote(quoted: str, actual: str, max_inserted: int = 8) -> str:
     """The quote re-measured from ``actual``: each quoted line is looked for, in order, among the
     output lines with its numbers free (a line with ``...`` keeps its elisions and takes the new
     numbers; a line without takes the output line as it is); output lines the quote skipped
@@ -191,8 +191,10 @@ def requote(quoted: str, actual: str, max_inserted: int = 15) -> str:
             out.append(lines[found])
         pos, gap = found + 1, False
     rest = lines[pos:]
-    if rest and not gap:
-        out += rest if len(rest) <= max_inserted else ["..."]
+    if rest and not gap:  # the quote stopped early: a few plain lines are put in (a robot
+        # added to a list); times, paths of written files or a long tail are left to "..."
+        volatile = any(re.search(r"\btime\b|\d\.\d+ s\b|^\s+\S+/", ln) for ln in rest)
+        out += rest if len(rest) <= 4 and not volatile else ["..."]
     return "\n".join(out) + "\n"
 
 
