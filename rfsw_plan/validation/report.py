@@ -104,7 +104,8 @@ def _histogram(plt: Any, res_mm: np.ndarray, noise_mm: float | None) -> Any:
         ax.axvline(noise_mm, color="k", ls="--", lw=0.8)
         lo, hi = ax.get_xlim()
         ax.set_xlim(min(lo, -1.2 * noise_mm), max(hi, 1.2 * noise_mm))
-        ax.set_title(f"Residual distribution (dashed: +-1 sigma noise floor, {noise_mm:.3g} mm)")
+        # two lines: on one, the title was wider than the 6-inch figure and clipped
+        ax.set_title(f"Residual distribution\n(dashed: +-1 sigma noise floor, {noise_mm:.3g} mm)")
     else:
         ax.set_title("Residual distribution (noise floor unknown)")
     ax.set_xlabel("residual measured - predicted [mm]")
