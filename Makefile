@@ -12,16 +12,21 @@ OUT ?= out/demo
 
 .PHONY: demo test lint docs bench clean
 
+# The installs are quiet (their log goes to .venv/install.log, shown if one fails): pip's
+# hundreds of lines buried the verdict of the first `make demo`.
+LOG := $(VENV)/install.log
+
 $(STAMP): pyproject.toml
-	@echo "Setting up $(VENV) (first run only, about 3 minutes: numpy, scipy, casadi, pinocchio...)"
+	@echo "Setting up $(VENV) (first run only, about 3 minutes: numpy, scipy, casadi, pinocchio...; log in $(LOG))"
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install --progress-bar on --upgrade pip
-	$(BIN)/pip install --progress-bar on -e .
+	$(BIN)/pip install -q --upgrade pip > $(LOG) 2>&1 || { tail -n 40 $(LOG); exit 1; }
+	$(BIN)/pip install -q -e . >> $(LOG) 2>&1 || { tail -n 40 $(LOG); exit 1; }
 	touch $(STAMP)
 	@echo "Installed. Run the tool as $(BIN)/rfsw-plan, or 'source $(BIN)/activate' first."
 
 $(DEV_STAMP): $(STAMP)
-	$(BIN)/pip install --progress-bar on -e '.[dev]'
+	@echo "Adding the dev extras (pytest, ruff, mypy...; log in $(LOG))"
+	$(BIN)/pip install -q -e '.[dev]' >> $(LOG) 2>&1 || { tail -n 40 $(LOG); exit 1; }
 	touch $(DEV_STAMP)
 
 demo: $(STAMP)

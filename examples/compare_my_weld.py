@@ -15,6 +15,7 @@ Strategies: ``none`` (no compensation), ``offline`` (rfsw-plan's plan, open loop
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -41,5 +42,15 @@ def main(problem_path: str | None) -> None:
 
 
 if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("problem", nargs="?", default=None,
+                    help="bundled problem name or problem file (default: plan_my_seam's 60 mm "
+                         "seam, written under out/examples/compare_my_weld)")
+    args = ap.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    main(sys.argv[1] if len(sys.argv) > 1 else None)
+    try:
+        main(args.problem)
+    except rfsw_plan.RfswError as exc:  # a wrong name or file: one line, as the CLI says it
+        print(f"compare_my_weld: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))

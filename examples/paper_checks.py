@@ -21,6 +21,7 @@ taken as 1e4 N m/rad (the wrist joints 4-6 share one value, the list lost a repe
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -803,24 +804,38 @@ def checks(n_points: int = 41) -> list[Check]:
     return [*_seed001_rows(), *_seed000_rows(n_points), *_seed002_rows()]
 
 
+#: Width of the printed report [characters]: it fits a terminal and the manual's page (the
+#: rows were once 250 characters wide and ran off the page).
+WIDTH = 96
+
+
+def _wrapped(text: str, indent: str = "  ") -> list[str]:
+    return textwrap.wrap(text, WIDTH, initial_indent=indent, subsequent_indent=indent + "  ",
+                         break_on_hyphens=False)
+
+
 def main() -> None:
     rows = checks()
-    w1 = max(len(r.paper) for r in rows)
-    w2 = max(len(r.project) for r in rows)
-    print(f"{'paper':<{w1}}  {'project':<{w2}}  status")
-    for r in rows:
+    for r in rows:  # one block per number: the paper's, the project's, the status and why
         status = "reproduced" if r.reproduced else "NOT reproduced"
-        print(f"{r.paper:<{w1}}  {r.project:<{w2}}  {status}: {r.why}")
-    print("\nSeed 000, 1700 mm weld: lateral deviation at the first / last waypoint [mm] with one "
-          "assumption changed")
+        print("\n".join(_wrapped(r.paper, "")))
+        print("\n".join(_wrapped(f"project: {r.project}")))
+        print("\n".join(_wrapped(f"{status}: {r.why}")))
+    print("\nSeed 000, 1700 mm weld: lateral deviation at the first / last waypoint [mm], with one "
+          "\nassumption changed")
     sens = fanuc_1700_sensitivity()
-    w = max(len(s.variant) for s in sens)
-    print(f"{'assumption':<16}  {'variant':<{w}}  {'y+ start':>8}  {'y+ end':>8}  {'y- start':>8}  "
-          f"{'y- end':>8}")
+    print(f"{'y+ start':>8}  {'y+ end':>8}  {'y- start':>8}  {'y- end':>8}  assumption: variant")
     for s in sens:
-        print(f"{s.assumption:<16}  {s.variant:<{w}}  {s.y_plus_mm[0]:+8.2f}  "
-              f"{s.y_plus_mm[1]:+8.2f}  {s.y_minus_mm[0]:+8.2f}  {s.y_minus_mm[1]:+8.2f}")
+        head = (f"{s.y_plus_mm[0]:+8.2f}  {s.y_plus_mm[1]:+8.2f}  {s.y_minus_mm[0]:+8.2f}  "
+                f"{s.y_minus_mm[1]:+8.2f}  ")
+        print("\n".join(textwrap.wrap(f"{s.assumption}: {s.variant}", WIDTH,
+                                       initial_indent=head, subsequent_indent=" " * len(head),
+                                       break_on_hyphens=False)))
 
 
 if __name__ == "__main__":
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
     main()

@@ -15,10 +15,12 @@ Units are in the names (mm, N, s); vectors are in the robot base frame.
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
 import rfsw_plan
+from rfsw_plan.files import prepare_output_dir
 
 # Your taught seam: points in travel order, robot base frame [mm]. Here a 60 mm straight seam
 # in front of the bundled ZK-500 (the seed 001 cell). Add nx,ny,nz columns for a per-point
@@ -62,7 +64,7 @@ force_uncertainty = 0.2         # keep the pin in the window for +-20 % on every
 
 def write_problem(out: Path) -> Path:
     """Write ``my_seam.csv`` and the problem file ``my_weld.toml`` into ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
+    out = prepare_output_dir(out, "OUT_DIR")  # a file or unwritable folder: one line, exit 2
     rows = ["x_mm,y_mm,z_mm"] + [f"{x},{y},{z}" for x, y, z in SEAM_MM]
     (out / "my_seam.csv").write_text("\n".join(rows) + "\n")
     problem_file = out / "my_weld.toml"
@@ -78,7 +80,8 @@ def main(out: Path) -> rfsw_plan.PlanResult:
     result = rfsw_plan.plan(problem)                 # raises InfeasibleError if it cannot hold
     plan_json = rfsw_plan.write_plan(out / "plan", result, robot_file=problem.robot.path)
 
-    print(f"{result.status}: max |lateral error| {result.summary()['max_abs_lateral_mm']:.3f} mm "
+    print(f"{result.status}: max |lateral error| "
+          f"{result.summary()['samples']['max_abs_lateral_mm']:.3f} mm in the material "
           f"(uncompensated {abs(result.e_none).max() * 1e3:.3f} mm), tolerates "
           f"+-{result.tolerated_force_uncertainty * 100:.3g} % force")
     print(f"files: {plan_json.parent}")
@@ -86,4 +89,15 @@ def main(out: Path) -> rfsw_plan.PlanResult:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "plan_my_seam")
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out_dir", nargs="?", type=Path,
+                    default=Path("out") / "examples" / "plan_my_seam",
+                    help="folder for my_seam.csv, my_weld.toml and the plan folder "
+                         "(default: out/examples/plan_my_seam)")
+    args = ap.parse_args()
+    try:
+        main(args.out_dir)
+    except rfsw_plan.RfswError as exc:
+        print(f"plan_my_seam: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))

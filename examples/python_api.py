@@ -39,10 +39,12 @@ def main(out: Path) -> None:
     options = replace(problem.planning, force_uncertainty=0.1)
     result = rfsw_plan.plan(problem, options)
     s = result.summary()
-    print(f"{result.status}: max |e| {s['max_abs_lateral_mm']:.3f} mm, tolerated force "
+    print(f"{result.status}: max |e| while travelling {s['max_abs_lateral_weld_mm']:.3f} mm, "
+          f"in the material (plunge and dwell too) {s['samples']['max_abs_lateral_mm']:.3f} mm, "
+          "tolerated force "
           f"uncertainty +-{result.tolerated_force_uncertainty * 100:.3g} %, "
           f"{len(result.task)} waypoints, {result.trajectory.t[-1]:.1f} s")
-    for b in result.baselines:  # none, mirror and nlp on the same waypoints
+    for b in result.baselines:  # none, mirror and nlp on the same waypoints (in the material)
         print(f"  {b.name:<7} max |e| {b.to_dict()['max_abs_lateral_mm']:.3f} mm")
 
     # 4. Write the plan folder exactly as `rfsw-plan plan -o DIR` does (atomic files, plan.json
@@ -55,4 +57,16 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "python_api")
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out_dir", nargs="?", type=Path,
+                    default=Path("out") / "examples" / "python_api",
+                    help="plan folder to write (default: out/examples/python_api)")
+    args = ap.parse_args()
+    try:
+        main(args.out_dir)
+    except rfsw_plan.RfswError as exc:
+        print(f"python_api: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))

@@ -30,6 +30,7 @@ import numpy as np
 
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.exceptions import RfswError
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
@@ -79,12 +80,16 @@ class LoopResult:
         return self.truth_label == self.best or self.truth_label in self.ties
 
 
+class LoopError(Exception):
+    """A step of the loop (an rfsw-plan command) failed; its own error line went to stderr."""
+
+
 def _cli(args: list[str]) -> None:
     buf = io.StringIO()
     with contextlib.redirect_stdout(buf):
         code = main(["-q", *args])
     if code != 0:
-        raise RuntimeError(f"rfsw-plan {' '.join(args)} exited {code}")
+        raise LoopError(f"rfsw-plan {' '.join(args)} exited {code}")
 
 
 def run_loop(folder: Path, name: str, joint: int | None, hidden: str | None,
@@ -155,8 +160,19 @@ def run_all(folder: Path) -> list[LoopResult]:
 
 
 if __name__ == "__main__":
-    out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("out") / "examples" / "trial_weld_loop"
-    results = run_all(out)
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out_dir", nargs="?", type=Path,
+                    default=Path("out") / "examples" / "trial_weld_loop",
+                    help="folder for both loops (default: out/examples/trial_weld_loop)")
+    out = ap.parse_args().out_dir
+    try:
+        results = run_all(out)
+    except (RfswError, LoopError) as exc:  # one line, as the CLI says it
+        print(f"trial_weld_loop: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))
     print(f"problem {PROBLEM}, window [-1.25, +0.7] mm, track noise 0.05 mm, force drift "
           "+-10 %, sensor noise 30 N")
     for r in results:

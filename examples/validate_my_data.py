@@ -57,6 +57,20 @@ def main(data_file: Path | None, robot: str, out: Path) -> Path:
 
 
 if __name__ == "__main__":
-    args = sys.argv[1:]
-    main(Path(args[0]) if args and args[0] else None, args[1] if len(args) > 1 else "zk500",
-         Path(args[2]) if len(args) > 2 else Path("out") / "examples" / "validate_my_data")
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("data", nargs="?", default="",
+                    help="your measurement CSV ('' or left out: simulate one first)")
+    ap.add_argument("robot", nargs="?", default="zk500",
+                    help="bundled robot name or robot file (default zk500)")
+    ap.add_argument("out_dir", nargs="?", type=Path,
+                    default=Path("out") / "examples" / "validate_my_data",
+                    help="output folder (default: out/examples/validate_my_data)")
+    args = ap.parse_args()
+    try:
+        main(Path(args.data) if args.data else None, args.robot, args.out_dir)
+    except rfsw_plan.RfswError as exc:
+        print(f"validate_my_data: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))

@@ -52,6 +52,10 @@ LOCK_NAME = ".rfsw-plan.lock"
 #: name after it: :func:`atomic_path` and :class:`OutputLock` raise it again.
 _interrupted = False
 
+#: Folders :func:`prepare_output_dir` created in this run (outermost first); an interrupted
+#: command removes those left empty (:func:`remove_created_dirs`), so Ctrl-C writes nothing.
+_created_dirs: list[Path] = []
+
 
 def note_interrupt() -> None:
     """Record that the process was asked to stop (SIGTERM, Ctrl-C)."""
@@ -69,6 +73,25 @@ def check_interrupt() -> None:
     """Raise KeyboardInterrupt if the process was asked to stop and something swallowed it."""
     if _interrupted:
         raise KeyboardInterrupt
+
+
+def created_this_run(path: str | Path) -> bool:
+    """Whether :func:`prepare_output_dir` created the folder ``path`` in this run."""
+    return Path(path) in _created_dirs
+
+
+def forget_created_dirs() -> None:
+    """Start a run: no folder is counted as created by it yet."""
+    _created_dirs.clear()
+
+
+def remove_created_dirs() -> None:
+    """Remove the folders :func:`prepare_output_dir` created in this run that are empty
+    (innermost first), then forget them: an interrupted command leaves no new empty folder."""
+    for d in reversed(_created_dirs):
+        with contextlib.suppress(OSError):
+            d.rmdir()  # only if empty
+    _created_dirs.clear()
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -301,10 +324,12 @@ def _prepare_output_dir(p: Path, option: str) -> Path:
             if not parent.is_dir():
                 raise OutputPathError(option, p, f"lies under the file {parent}")
             break
+    new = [d for d in (*reversed(p.parents), p) if not d.exists()]
     try:
         p.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputPathError(option, p, f"cannot be created ({exc.strerror or exc})") from None
+    _created_dirs.extend(d for d in new if d not in _created_dirs)
     try:
         fd, probe = tempfile.mkstemp(prefix=".rfsw-probe.", dir=p)
         os.close(fd)

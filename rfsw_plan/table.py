@@ -283,6 +283,48 @@ def refuse_near_misses(tab: Table, known: list[Quantity], allowed: set[str]) -> 
                          "map it with --columns")
 
 
+def refuse_group_near_misses(tab: Table, groups: list[tuple[Quantity, ...]],
+                             allowed: set[str]) -> None:
+    """Refuse a column that stands for the missing member of a group whose other members are
+    there: ``ym_m`` beside ``x_mm`` and ``z_mm`` (a renamed position axis), which would
+    otherwise be kept as an extra column while that axis silently goes unmeasured.
+
+    A column is taken for the missing member when its unit is one the member accepts and its
+    name before the unit is one edit (a letter added, dropped or changed) from the member's.
+
+    Raises:
+        InputError: Names the column, the member it looks like and the members present.
+    """
+    for group in groups:
+        present = [q for q in group if tab.find(q) is not None]
+        if not present or len(present) == len(group):
+            continue
+        for q in group:
+            if q in present:
+                continue
+            for h in tab.header:
+                if h in allowed:
+                    continue
+                stem, _, unit = h.strip().rpartition("_")
+                if unit not in q.units or not stem or not _one_edit(stem.lower(), q.key):
+                    continue
+                raise InputError(tab.path, f"column '{h}'", f"looks like {q.key}, which is "
+                                 f"missing while {', '.join(p.key for p in present)} "
+                                 "are given; it would be ignored",
+                                 f"{' or '.join(repr(n) for n in q.names())}, or map it with "
+                                 "--columns")
+
+
+def _one_edit(a: str, b: str) -> bool:
+    """``a`` and ``b`` differ by one inserted, deleted or changed character."""
+    if a == b or abs(len(a) - len(b)) > 1:
+        return False
+    if len(a) == len(b):
+        return sum(x != y for x, y in zip(a, b, strict=True)) == 1
+    short, long_ = (a, b) if len(a) < len(b) else (b, a)
+    return any(long_[:i] + long_[i + 1:] == short for i in range(len(long_)))
+
+
 def _quantity_of(header: str) -> str:
     """The quantity part of a column name: lower case, before the unit or a bracket."""
     h = header.strip().lower()

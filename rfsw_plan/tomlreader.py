@@ -189,6 +189,41 @@ class Table:
             raise self.error(k, f"got {float(v):g}", expected)
         return float(v)
 
+    def fraction(self, k: str, default: float | None = None, *, le: float = 1.0,
+                 le_percent: float | None = None) -> float:
+        """A relative amount as a fraction: the number ``0.2`` or the string ``"20 %"``;
+        ``default`` if absent. A number above ``le`` is refused with the fix, as the CLI's
+        percent options do: ``force_uncertainty = 10`` is never read as +-1000 %.
+
+        Args:
+            le: Largest number (a fraction) accepted.
+            le_percent: Largest percentage accepted as a string (default ``100 * le``).
+        """
+        top = 100.0 * le if le_percent is None else le_percent
+        expected = f"a fraction in [0, {le:g}] or a percentage \"0 %\" .. \"{top:g} %\""
+        v = self._get(k, default, expected)
+        if isinstance(v, str):
+            text = v.strip()
+            try:
+                pct = float(text.removesuffix("%").strip()) if text.endswith("%") else None
+            except ValueError:
+                pct = None
+            if pct is None or not math.isfinite(pct):
+                raise self.error(k, f"got {_fmt(v)}", expected)
+            if not 0.0 <= pct <= top:
+                raise self.error(k, f"got {pct:g} %", expected)
+            return pct / 100.0
+        if not _is_number(v) or not math.isfinite(float(v)):
+            raise self.error(k, f"got {_fmt(v)}", expected)
+        f = float(v)
+        if f > le and f <= 100.0 * max(top, 100.0):
+            raise self.error(k, f"got {f:g}, a fraction above {le:g} (+-{100 * f:g} %); did "
+                                f"you mean {f:g} %?", f"the fraction {f / 100:g} or the string "
+                                f"\"{f:g} %\"")
+        if not 0.0 <= f <= le:
+            raise self.error(k, f"got {f:g}", expected)
+        return f
+
     def int_(self, k: str, default: int | None = None, *, ge: int | None = None,
              le: int | None = None) -> int:
         """An integer inside the range; ``default`` if absent (``2.0`` is accepted as 2)."""

@@ -88,3 +88,48 @@ def test_virtual_trial_weld_refuses_a_folder_without_a_plan(tmp_path: Path) -> N
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "plan.json" in proc.stderr
     assert not (tmp_path / "weld").exists()
+
+
+#: Every script under examples/ (the plug-in module too: run, it says how to load it).
+SCRIPTS = sorted(str(p.relative_to(ROOT / "examples")) for p in (ROOT / "examples").rglob("*.py"))
+
+
+def _tracked_state() -> str:
+    return subprocess.run(["git", "status", "--porcelain", "--untracked-files=all", "--",
+                           "robots", "problems", "examples", "docs"], cwd=ROOT,
+                          capture_output=True, text=True, check=True).stdout
+
+
+@pytest.mark.parametrize("script", SCRIPTS)
+def test_every_example_answers_help_without_side_effects(tmp_path: Path, script: str) -> None:
+    """``--help`` prints a usage and does nothing else: no folder named ``--help``, no run
+    (issue 33, wall 3). Run from an empty folder, which stays empty."""
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
+    before = _tracked_state()
+    proc = subprocess.run([sys.executable, str(ROOT / "examples" / script), "--help"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stdout.startswith("usage: "), proc.stdout[:500]
+    assert "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []  # nothing written where it was run
+    assert _tracked_state() == before  # nor into the repository's tracked folders
+
+
+@pytest.mark.parametrize("argv, names", [
+    (["compare_my_weld.py", "no_such_problem"], "no_such_problem"),
+    (["validate_my_data.py", "no_such_file.csv"], "no_such_file.csv"),
+    (["plan_my_seam.py", "{out}/a_file"], "a_file"),
+    (["trial_weld_loop.py", "{out}/a_file"], "a_file"),
+])
+def test_examples_end_a_wrong_input_in_one_line(tmp_path: Path, argv: list[str],
+                                                names: str) -> None:
+    """A wrong name or an output that is a file: one error line naming it, exit 2, never a
+    traceback (issue 33, wall 3)."""
+    (tmp_path / "a_file").write_text("not a folder\n")
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "MPLBACKEND": "Agg"}
+    args = [a.replace("{out}", str(tmp_path)) for a in argv]
+    proc = subprocess.run([sys.executable, str(ROOT / "examples" / args[0]), *args[1:]],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 2, (proc.stdout[-1000:], proc.stderr[-2000:])
+    assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert names in proc.stderr and "error" in proc.stderr, proc.stderr[-2000:]

@@ -537,3 +537,21 @@ def test_an_unwritable_temporary_directory_is_one_line(tmp_path: Path, monkeypat
     assert main(["-q", "export", str(plan), "--format", "krl", "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "TMPDIR" in err and "Traceback" not in err, err
+
+
+def test_export_names_its_two_point_counts(plan_with_programs, tmp_path: Path, capsys) -> None:
+    """``export`` said "57 points" and its round trip "56 points" (issue 33, wall 7): the
+    program's points and the points a motion moves to (a wait holds one) are both named, and
+    match the .dat file and ``check``."""
+    folder, _ = plan_with_programs("zk500_table6_seam")
+    assert main(["-q", "export", str(folder), "--format", "krl", "-o", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    m = re.search(r": (\d+) points \((\d+) moved to, (\d+) held by a wait\)", out)
+    assert m, out
+    total, moved, held = map(int, m.groups())
+    assert total == moved + held
+    dat = next(tmp_path.glob("*.dat")).read_text()
+    assert len(re.findall(r"^DECL E6(?:POS|AXIS) XP\d+=", dat, re.M)) == total, dat[:400]
+    assert f"round trip: {moved} moved-to points" in out
+    assert main(["check", str(next(tmp_path.glob("*.src"))), "--plan", str(folder)]) == 0
+    assert f"holds ({moved} points" in capsys.readouterr().out

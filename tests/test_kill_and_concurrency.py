@@ -222,3 +222,71 @@ def test_an_interrupt_inside_a_callback_is_noted_not_printed() -> None:
             files.check_interrupt()
     finally:
         files.clear_interrupt()
+
+
+# Ctrl-C in a terminal while IPOPT runs (issue 33, wall 1). CasADi catches the
+# KeyboardInterrupt inside IPOPT's callbacks and returns the iterate it had; the run must still
+# stop with exit 130 and write nothing. The child announces each solve on stderr; the parent
+# types ^C on the pseudo-terminal (the terminal driver sends SIGINT to the foreground process
+# group, as a user's Ctrl-C does) shortly after, while IPOPT is inside that solve.
+PTY_CHILD = r"""
+import sys
+import rfsw_plan.planning.nlp as nlp
+orig = nlp.single_thread_blas
+def announced():
+    sys.stderr.write("\nIPOPT-SOLVE-STARTS\n")
+    sys.stderr.flush()
+    return orig()
+nlp.single_thread_blas = announced
+from rfsw_plan.cli.main import console
+sys.argv = ["rfsw-plan", *sys.argv[1:]]
+console()
+"""
+
+
+def _ctrl_c_in_a_terminal(argv: list[str], delay_s: float) -> tuple[int, str]:
+    """Run ``rfsw-plan argv`` on a pseudo-terminal, type ^C ``delay_s`` after the first IPOPT
+    solve starts; the exit code and what the terminal showed."""
+    import pty
+    import select
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    pid, fd = pty.fork()
+    if pid == 0:  # the child: a new session whose controlling terminal is the pty
+        signal.signal(signal.SIGINT, signal.SIG_DFL)  # as in a user's interactive shell
+        os.execve(sys.executable, [sys.executable, "-c", PTY_CHILD, *argv], env)
+    shown, sent_at, deadline = b"", None, time.monotonic() + 300
+    try:
+        while time.monotonic() < deadline:
+            if sent_at is None and b"IPOPT-SOLVE-STARTS" in shown:
+                time.sleep(delay_s)
+                os.write(fd, b"\x03")
+                sent_at = time.monotonic()
+            ready, _, _ = select.select([fd], [], [], 0.05)
+            if ready:
+                try:
+                    chunk = os.read(fd, 4096)
+                except OSError:  # the child closed the terminal
+                    break
+                if not chunk:
+                    break
+                shown += chunk
+    finally:
+        _, status = os.waitpid(pid, 0)
+        os.close(fd)
+    assert sent_at is not None, shown.decode(errors="replace")[-2000:]
+    return os.waitstatus_to_exitcode(status), shown.decode(errors="replace")
+
+
+@pytest.mark.parametrize("command, delay_s", [
+    (["plan", "kr600_curved_seam"], 0.3),  # its first solve takes about 1.3 s
+    pytest.param(["place", PROBLEM, "--candidates", "2"], 0.02, marks=pytest.mark.slow),
+])
+def test_ctrl_c_in_a_terminal_stops_with_130_and_writes_nothing(tmp_path, command,
+                                                                 delay_s) -> None:
+    out = tmp_path / "new" / "folder"
+    code, shown = _ctrl_c_in_a_terminal([*command, "-q", "-o", str(out)], delay_s)
+    assert code == 130, shown[-2000:]
+    assert "rfsw-plan: interrupted" in shown
+    assert "wrote" not in shown and "GO" not in shown, shown[-2000:]
+    assert not (tmp_path / "new").exists(), sorted(map(str, tmp_path.rglob("*")))

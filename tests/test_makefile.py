@@ -24,9 +24,24 @@ def dry_run(tmp: Path, target: str) -> str:
 @pytest.mark.skipif(shutil.which("make") is None, reason="no make")
 def test_demo_installs_the_runtime_only_and_test_adds_dev(tmp_path: Path) -> None:
     demo = dry_run(tmp_path, "demo")
-    assert "pip install --progress-bar on -e .\n" in demo and "[dev]" not in demo
+    assert "pip install -q -e . >>" in demo and "[dev]" not in demo
     assert "rfsw-plan plan" in demo
     for target in ("test", "lint"):
         out = dry_run(tmp_path, target)
         assert "-e '.[dev]'" in out, target
-        assert out.index("-e .\n") < out.index("-e '.[dev]'")
+        assert out.index("-e . >>") < out.index("-e '.[dev]'")
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="no make")
+def test_first_demo_shows_the_verdict_not_pip(tmp_path: Path) -> None:
+    """``make demo``'s first run printed pip's progress bars and hundreds of lines before the
+    plan's verdict (issue 33, wall 10): every install is quiet, into .venv/install.log (shown
+    when it fails), and the plan is the last command, so its verdict is the output."""
+    demo = dry_run(tmp_path, "demo")
+    commands = [ln for ln in demo.splitlines() if ln.strip() and not ln.startswith("echo")]
+    pips = [ln for ln in commands if "pip install" in ln]
+    assert len(pips) >= 2
+    for ln in pips:
+        assert " -q " in ln and "install.log 2>&1" in ln and "--progress-bar on" not in ln, ln
+        assert "tail -n 40 .venv/install.log" in ln, ln  # a failed install shows its log
+    assert "rfsw-plan plan" in commands[-1]

@@ -163,3 +163,46 @@ def test_coupling_calibration_and_plunge_cases(tmp_path: Path) -> None:
                                 "\npenetration_stiffness_N_per_mm = 1000"))
     with pytest.raises(InputError, match="together with 'calibration'"):
         load_problem(bad)
+
+
+#: Every key of a problem file that is a relative amount (a fraction), with the table it is in.
+FRACTION_KEYS = [("planning", "force_uncertainty"), ("planning", "det_fraction"),
+                 ("planning", "min_stiffness_share"), ("process.forces", "dwell_lateral_fraction")]
+
+
+def _with(table: str, line: str) -> str:
+    if table == "planning":
+        return GOOD + line + "\n"
+    return GOOD.replace('preset = "seed001_aa6061_5mm"\n',
+                        f'preset = "seed001_aa6061_5mm"\n[process.forces]\n{line}\n')
+
+
+@pytest.mark.parametrize(("table", "key"), FRACTION_KEYS)
+def test_a_percent_written_as_a_number_is_refused_with_the_fix(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], table: str, key: str) -> None:
+    """``force_uncertainty = 10`` means 10 %, never +-1000 %: one line naming the key, with the
+    fix, as ``--force-uncertainty 10`` says on the command line (issue 33, wall 6)."""
+    path = _write(tmp_path, _with(table, f"{key} = 10"))
+    with pytest.raises(InputError, match=rf"{table}\.{key}: got 10, a fraction above .*did you "
+                                         r"mean 10 %\?.*the fraction 0\.1 or the string \"10 %\""):
+        load_problem(path)
+    assert main(["-q", "plan", str(path), "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "did you mean 10 %?" in err
+    # The percentage as a string, and the fraction, both mean 10 %.
+    for text in (f'{key} = "10 %"', f'{key} = "10%"', f"{key} = 0.1"):
+        pb = load_problem(_write(tmp_path, _with(table, text), "ok.toml"))
+        field = {"force_uncertainty": pb.planning.force_uncertainty,
+                 "det_fraction": pb.planning.det_fraction,
+                 "min_stiffness_share": pb.planning.min_stiffness_share,
+                 "dwell_lateral_fraction": pb.process.forces.dwell_lateral_fraction}[key]
+        assert field == pytest.approx(0.1), text
+
+
+def test_force_uncertainty_above_100_percent_only_as_a_percentage(tmp_path: Path) -> None:
+    pb = load_problem(_write(tmp_path, GOOD + 'force_uncertainty = "150 %"\n'))
+    assert pb.planning.force_uncertainty == pytest.approx(1.5)
+    with pytest.raises(InputError, match=r"force_uncertainty: got 1\.5, a fraction above 1"):
+        load_problem(_write(tmp_path, GOOD + "force_uncertainty = 1.5\n", "b.toml"))
+    with pytest.raises(InputError, match="force_uncertainty: got 2000 %"):
+        load_problem(_write(tmp_path, GOOD + 'force_uncertainty = "2000 %"\n', "c.toml"))

@@ -421,3 +421,161 @@ def test_mutated_problem_files_long() -> None:
 @pytest.mark.slow
 def test_mutated_seam_csv_long() -> None:
     _fuzz(lambda m, f: check_problem_case(m, f, True), seam_cases, 150, "seam CSV")
+
+
+# -- the fuzz findings of issue 33 (wall 9) ----------------------------------------------------
+
+
+def test_a_problem_file_the_user_may_not_read_is_one_line(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A problem file in a folder the user may not search: Python 3.11's ``Path.is_file``
+    raises PermissionError. One line naming the file, exit 2 (as root every file is readable,
+    so the denial is simulated for that folder; as a user the folder is really locked)."""
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    problem = locked / "p.toml"
+    problem.write_text((ROOT / "problems" / "zk500_table6_seam.toml").read_text())
+    if os.geteuid() != 0:
+        locked.chmod(0)
+    else:
+        real_stat = os.stat
+
+        def stat(path: object, *a: object, **k: object) -> os.stat_result:
+            if not isinstance(path, int) and str(path).startswith(str(locked) + os.sep):
+                raise PermissionError(13, "Permission denied", str(path))
+            return real_stat(path, *a, **k)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(os, "stat", stat)
+    try:
+        for argv in (["plan", str(problem), "-o", str(tmp_path / "out")],
+                     ["deviation", str(problem), "--no-plot", "-o", str(tmp_path / "dev")]):
+            code, out, err = run_cli(argv)
+            assert code == 2 and out == "" and err.count("\n") == 1, err
+            assert f"{problem}: cannot read file: Permission denied" in err, err
+    finally:
+        locked.chmod(0o755)
+
+
+def test_negative_zero_noise_is_zero(tmp_path: Path) -> None:
+    """``simulate-campaign --noise-mm -0`` was a ``ValueError: scale < 0`` traceback."""
+    out = tmp_path / "c.csv"
+    code, _, err = run_cli(["simulate-campaign", "--robot", "zk500", "--poses", "3",
+                            "--noise-mm", "-0", "-o", str(out)])
+    assert code == 0 and "Traceback" not in err, err
+    assert out.is_file()
+
+
+def test_a_renamed_position_column_is_named_not_ignored(tmp_path: Path) -> None:
+    """``y_mm`` renamed ``ym_m`` (a slip of the fingers): the y axis went unmeasured and the
+    column became an unused extra. One line naming the column and what it looks like."""
+    text = (ROOT / "examples" / "seed001" / "measurements.csv").read_text()
+    for old, new in ((",y_mm,", ",ym_m,"), (",y_mm,", ",yy_mm,"), (",x_mm,", ",xm_mm,")):
+        p = tmp_path / f"{new.strip(',')}.csv"
+        p.write_text(text.replace(old, new, 1))
+        code, out, err = run_cli(["validate", "--robot", "zk500", "--data", str(p),
+                                  "-o", str(tmp_path / "v")])
+        assert code == 2 and out == "" and err.count("\n") == 1, err
+        assert f"column '{new.strip(',')}'" in err, err
+    # An extra column that is nobody's near miss stays an extra (temperature, a lab's own).
+    p = tmp_path / "extra.csv"
+    p.write_text(text.replace(",sigma_mm\n", ",sigma_mm,temp_C\n", 1).replace(
+        "\n", ",21.5\n").replace(",sigma_mm,temp_C,21.5\n", ",sigma_mm,temp_C\n", 1))
+    from rfsw_plan.io.measurements import read_measurements
+
+    assert "temp_C" in read_measurements(p, n_joints=6).extra
+
+
+def test_a_urdf_with_xacro_elements_is_refused(tmp_path: Path) -> None:
+    """A ``.urdf`` that still holds ``<xacro:…>`` elements or ``${…}`` expressions was read as
+    if they were not there (only the ``.xacro`` suffix was checked): one line naming the
+    element."""
+    urdf = (ROOT / "robots" / "tiago_arm.urdf").read_text()
+    robot = (ROOT / "robots" / "tiago_arm.toml").read_text()
+    ns = '<robot xmlns:xacro="http://www.ros.org/wiki/xacro" '
+    cases = [
+        (urdf.replace("<robot ", ns, 1).replace(
+            "</robot>", '  <xacro:include filename="gripper.urdf.xacro"/>\n</robot>'),
+         "<xacro:include>: an unexpanded xacro element"),
+        (urdf.replace("<robot ", ns, 1).replace(
+            "</robot>", '  <xacro:property name="l" value="0.3"/>\n</robot>'),
+         "<xacro:property>: an unexpanded xacro element"),
+        (re.sub(r'(<origin xyz=")[^"]*', r"\g<1>${l} 0 0", urdf, count=1),
+         "an unexpanded xacro expression"),
+    ]
+    for i, (text, needle) in enumerate(cases):
+        assert text != urdf
+        (tmp_path / f"arm{i}.urdf").write_text(text)
+        p = tmp_path / f"arm{i}.toml"
+        p.write_text(robot.replace('"tiago_arm.urdf"', f'"arm{i}.urdf"'))
+        code, out, err = run_cli(["predict", "--robot", str(p), "--q-deg=100,0,0,0,0,0,0,0",
+                                  "--wrench", "0,0,-10"])
+        assert code == 2 and out == "" and err.count("\n") == 1, err
+        assert needle in err and f"arm{i}.urdf" in err, err
+
+
+# -- unit slips that passed (issue 33, wall 8) -------------------------------------------------
+
+
+def _problem_with_robot(tmp_path: Path, robot_text: str) -> Path:
+    (tmp_path / "robot.toml").write_text(robot_text)
+    text = (ROOT / "problems" / "zk500_table6_seam.toml").read_text()
+    text = re.sub(r'^robot = "[^"]*"', f'robot = "{tmp_path / "robot.toml"}"', text, flags=re.M)
+    (tmp_path / "p.toml").write_text(text)
+    return tmp_path / "p.toml"
+
+
+def test_a_tool_in_metres_is_refused(tmp_path: Path) -> None:
+    text = (ROOT / "robots" / "zk500.toml").read_text()
+    assert "xyz_mm = [0, 0, 390]" in text
+    p = tmp_path / "zk.toml"
+    p.write_text(text.replace("xyz_mm = [0, 0, 390]", "xyz_mm = [0, 0, 0.39]"))
+    code, out, err = run_cli(["predict", "--robot", str(p), f"--q-deg={_pose('zk500')}",
+                              "--wrench", WRENCH])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "tool.xyz_mm: the TCP is 0.39 mm from the flange: metres instead of mm?" in err, err
+
+
+def test_process_forces_in_kilonewtons_are_refused(tmp_path: Path) -> None:
+    text = (ROOT / "problems" / "zk500_table6_seam.toml").read_text()
+    assert re.search(r"^axial_N = ", text, re.M)
+    p = tmp_path / "p.toml"
+    p.write_text(re.sub(r"^axial_N = .*$", "axial_N = 4.84258", text, flags=re.M))
+    code, out, err = run_cli(["plan", str(p), "-o", str(tmp_path / "out")])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "process.forces.axial_N: got 4.84258 N" in err and "kN instead of N?" in err, err
+
+
+def test_joint_stiffness_in_kilonewton_metres_is_refused(tmp_path: Path) -> None:
+    """``k_Nm_per_rad`` written in kN m/rad was planned and reported "unreachable ... by 502 mm";
+    now one line naming the key, the joint and the likely unit, before any planning."""
+    text = (ROOT / "robots" / "zk500_seed001.toml").read_text()
+    m = re.search(r"k_Nm_per_rad = \[([^\]]*)\]", text)
+    assert m
+    kn = ", ".join(f"{float(x) / 1e3:g}" for x in m[1].split(","))
+    p = _problem_with_robot(tmp_path, text.replace(m[0], f"k_Nm_per_rad = [{kn}]"))
+    code, out, err = run_cli(["plan", str(p), "-o", str(tmp_path / "out")])
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "stiffness.k_Nm_per_rad: joint" in err and "kN m/rad instead of N m/rad?" in err, err
+    assert not (tmp_path / "out" / "waypoints.csv").exists()
+
+
+def test_a_weld_track_in_metres_is_refused(tmp_path: Path) -> None:
+    """Lateral offsets in metres in ``e_lat_mm`` were "100.0 % inside the window"."""
+    from rfsw_plan.io.weld_track import read_weld_track
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.validation.track import track_on_seam
+
+    pb = load_problem("zk500_table6_seam")
+    length_mm = float(pb.frames().s[-1] - pb.frames().s[0]) * 1e3
+    s = np.linspace(0.0, length_mm, 200)
+    e_mm = 0.3 * np.sin(s / 20.0) - 0.2  # a plausible weld, in mm
+    for scale, ok in ((1.0, True), (1e-3, False)):
+        p = tmp_path / f"track_{scale:g}.csv"
+        p.write_text("s_mm,e_lat_mm\n" + "".join(f"{a:.4f},{b * scale:.9f}\n"
+                                                 for a, b in zip(s, e_mm, strict=True)))
+        if ok:
+            track_on_seam(read_weld_track(p), pb)
+            continue
+        with pytest.raises(Exception, match=r"column e_lat_mm: every offset is below 0\.005 mm "
+                                            r"\(largest 0\.0005 mm\): metres instead of mm\?"):
+            track_on_seam(read_weld_track(p), pb)

@@ -39,7 +39,8 @@ def test_next_command_and_wall_time(reports: tuple[Path, Path]) -> None:
     html = (reports[0] / "report.html").read_text()
     # The verdict names payload gravity; the report gives the command that adds it.
     assert "<pre>rfsw-plan -q validate --robot zk500" in html
-    assert "--add payload_gravity --save-robot zk500+payload_gravity.toml</pre>" in html
+    # Under out/, never the repository's robots/ or the folder it runs in (issue 33, wall 5).
+    assert "--add payload_gravity --save-robot out/robots/zk500+payload_gravity.toml</pre>" in html
     assert "Wall time:" in html and "whole command" in html
 
 

@@ -8,6 +8,7 @@ import json
 import sys
 from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -223,8 +224,10 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     # The next command names the file after the robot it will hold.
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v0")]) == 0
-    assert "--save-robot zk500_seed001+joint_compliance:j1.toml" in capsys.readouterr().out
-    saved = tmp_path / "robots" / "zk500_seed001+joint_compliance:j1.toml"  # folder made on the way
+    # Under out/ and without a colon in the file name (issue 33, wall 5).
+    assert ("--save-robot out/robots/zk500_seed001+joint_compliance-j1.toml"
+            in capsys.readouterr().out)
+    saved = tmp_path / "robots" / "zk500_seed001+joint_compliance-j1.toml"  # folder made on the way
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v1"), "--add", "joint_compliance:j1",
                  "--save-robot", str(saved)]) == 0
@@ -255,3 +258,68 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
                      capsys.readouterr().out, re.M)
     # --name without --save-robot is a one-line error.
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--name", "x"]) == 2
+
+
+def _texts_inside(fig: Any) -> list[str]:
+    """The figure's titles, axis labels and legend texts that reach past its edges (clipped),
+    after a draw."""
+    fig.canvas.draw()
+    box = fig.bbox
+    renderer = fig.canvas.get_renderer()
+    texts = [fig._suptitle] if fig._suptitle is not None else []
+    for ax in fig.axes:
+        texts += [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+        leg = ax.get_legend()
+        texts += list(leg.get_texts()) if leg is not None else []
+    for leg in fig.legends:
+        texts += list(leg.get_texts())
+    out = []
+    for t in texts:
+        if not t.get_visible() or not t.get_text().strip():
+            continue
+        e = t.get_window_extent(renderer)
+        if e.x0 < box.x0 - 1 or e.x1 > box.x1 + 1 or e.y0 < box.y0 - 1 or e.y1 > box.y1 + 1:
+            out.append(t.get_text())
+    return out
+
+
+def test_weld_report_plots_say_what_they_show(weld: tuple[Path, Path, Path], tmp_path: Path,
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    """weld_residual.png was titled "residual: missing" (issue 33, wall 10): its title says
+    what is plotted and the verdict with its best candidate; no text of either plot is clipped."""
+    from rfsw_plan.validation import weld_report
+
+    plan, _, track = weld
+    res = validate_weld(read_plan_dir(plan), read_weld_track(track))
+    figs: dict[str, Any] = {}
+    real = weld_report.write_figure
+
+    def capture(path: Path, fig: Any, **kw: Any) -> Path:
+        figs[Path(path).name] = fig
+        assert not _texts_inside(fig), (Path(path).name, _texts_inside(fig))
+        return real(path, fig, **kw)
+
+    monkeypatch.setattr(weld_report, "write_figure", capture)
+    weld_report.make_weld_plots(res, tmp_path)
+    title = figs["weld_residual.png"].axes[0].get_title()
+    assert title.startswith("Lateral residual, measured - predicted"), title
+    assert f"verdict {res.diagnosis.verdict}" in title
+    if res.diagnosis.best is not None:
+        assert res.diagnosis.best.label in title
+
+
+def test_residual_histogram_title_is_not_clipped() -> None:
+    """The validate report's residual_histogram.png had its title cut at both edges."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from rfsw_plan.validation.report import _histogram
+
+    rng = np.random.default_rng(3)
+    fig = _histogram(plt, rng.normal(0.0, 0.05, (200, 3)), 0.0331)
+    try:
+        assert not _texts_inside(fig), _texts_inside(fig)
+    finally:
+        plt.close(fig)

@@ -48,3 +48,12 @@ class LinkBending(ComplianceEffect):
 
     def deflection(self, batch: PoseBatch, wrench, theta) -> np.ndarray:
         return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * theta[0]
+
+
+if __name__ == "__main__":  # a plug-in module: running it only explains how to load it
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter).parse_args()
+    print("link_bending.py is an effect plug-in: load it with rfsw-plan validate --effects "
+          "examples/effects/link_bending.py")

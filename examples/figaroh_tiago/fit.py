@@ -204,4 +204,12 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("train", help="training recording (CSV)")
+    ap.add_argument("fitted", help="robot file to write (TOML)")
+    ap.add_argument("other", nargs="*", help="held-out recordings to score")
+    a = ap.parse_args()
+    sys.exit(main([sys.argv[0], a.train, a.fitted, *a.other]))

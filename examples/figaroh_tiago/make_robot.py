@@ -136,4 +136,10 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("table", nargs="?", default=str(DEFAULT_TABLE),
+                    help="the chain table (default: FIGAROH's tiago_arm_chain.json)")
+    sys.exit(main([sys.argv[0], ap.parse_args().table]))

@@ -171,18 +171,27 @@ def _run(argv: Sequence[str] | None, after: Any) -> int:
     from rfsw_plan import files
 
     previous: Any = None
+    previous_int: Any = None
     with contextlib.suppress(ValueError):  # not in the main thread: keep the default
         previous = signal.signal(signal.SIGTERM, _terminated)
+        # Ctrl-C is noted too: CasADi catches the KeyboardInterrupt inside IPOPT's callbacks
+        # and returns a normal-looking solve, so the raise alone would be lost.
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            previous_int = signal.signal(signal.SIGINT, _interrupted)
     files.clear_interrupt()
+    files.forget_created_dirs()
     hook = sys.unraisablehook
     sys.unraisablehook = _interrupt_in_a_callback(hook)
     try:
         code = _main(argv)
         if code != 130:
             files.check_interrupt()  # a library swallowed the interruption: still exit 130
+        else:
+            files.remove_created_dirs()
         return code
     except KeyboardInterrupt:
         with contextlib.suppress(Exception):
+            files.remove_created_dirs()  # an interrupted run leaves no new empty folder
             print("rfsw-plan: interrupted", file=sys.stderr)
         return 130
     finally:
@@ -190,6 +199,8 @@ def _run(argv: Sequence[str] | None, after: Any) -> int:
         sys.unraisablehook = hook
         if previous is not None:
             signal.signal(signal.SIGTERM, previous if after is None else after)
+        if previous_int is not None:
+            signal.signal(signal.SIGINT, previous_int)
 
 
 def _interrupt_in_a_callback(hook: Any) -> Any:
@@ -215,6 +226,15 @@ def _terminated(signum: int, frame: Any) -> NoReturn:
     from rfsw_plan import files
 
     files.note_interrupt()  # if a library swallows the KeyboardInterrupt, the writers re-raise
+    raise KeyboardInterrupt
+
+
+def _interrupted(signum: int, frame: Any) -> NoReturn:
+    # Ctrl-C: Python's own KeyboardInterrupt, noted first so that a library that swallows it
+    # (CasADi inside IPOPT) cannot turn the interruption into a finished run.
+    from rfsw_plan import files
+
+    files.note_interrupt()
     raise KeyboardInterrupt
 
 

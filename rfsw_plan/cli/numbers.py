@@ -50,7 +50,7 @@ def _float(text: str) -> float:
         raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f"'{text}' is not a finite number")
-    return v
+    return v + 0.0  # -0 is 0: a negative zero passes ">= 0" but numpy refuses it as a scale
 
 
 def _fmt(v: float, unit: str) -> str:

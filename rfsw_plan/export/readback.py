@@ -55,7 +55,7 @@ class RoundTrip:
 
     def summary(self) -> str:
         """One line with the largest errors."""
-        return (f"{len(self.q)} points, max {np.max(self.pose_error) * 1e3:.2e} mm, "
+        return (f"{len(self.q)} moved-to points, max {np.max(self.pose_error) * 1e3:.2e} mm, "
                 f"{math.degrees(np.max(self.angle_error)):.2e} deg, joints "
                 f"{math.degrees(np.max(self.joint_error)):.2e} deg")
 

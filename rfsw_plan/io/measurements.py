@@ -50,6 +50,7 @@ from rfsw_plan.table import (
     Table,
     read_column_map,
     read_table,
+    refuse_group_near_misses,
     refuse_near_misses,
 )
 
@@ -279,6 +280,8 @@ def read_measurements(
     # its axis would silently go missing: refused with the names it may have.
     known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
     refuse_near_misses(tab, known, set(names.values()))
+    refuse_group_near_misses(tab, [FORCES, MOMENTS, POSITIONS, ROTVEC, QUATERNION],
+                             set(names.values()))
     if mapping is not None:  # a mapped key no reader asks for would be ignored
         unknown = sorted(set(mapping.columns) - {x.key for x in known})
         if unknown:

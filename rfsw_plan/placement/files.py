@@ -142,7 +142,9 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
         pl.pop("q_seed_deg", None)
     if force_uncertainty is not None:
         # rounded like every number of this file (0.2 + 0.01 is 0.21000000000000002 in binary)
-        pl["force_uncertainty"] = round(float(force_uncertainty), 6)
+        u = round(float(force_uncertainty), 6)
+        # above 100 % only a percentage reads back (a number above 1 is a slip, refused)
+        pl["force_uncertainty"] = u if u <= 1.0 else f"{u * 100:.4g} %"
     data["planning"] = pl
     header = "".join(f"# {line}\n" for line in note.splitlines())
     return header + tomli_w.dumps(data)

@@ -47,7 +47,7 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
                 label="the plan's nominal errors on a uniformly stiffer/softer robot")
     req = by["requested"]
     ax.axhline(100 * req.tolerated, color="k", lw=0.8, ls=":",
-               label=f"requested +-{100 * req.tolerated:g} %")
+               label=f"requested +-{100 * req.tolerated:.3g} %")
     for p in finite:
         marker, colour, label = STYLE.get(p.name, ("x", "0.3", p.name))
         x, y = p.min_lateral_stiffness * 1e-3, 100 * p.tolerated

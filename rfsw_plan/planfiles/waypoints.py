@@ -428,13 +428,14 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     start = np.zeros(0, bool)
     if sv is not None:
         start = sv.contact & np.isin(tr.phase, ("plunge", "dwell"))
-        # The written samples run on the trajectory's clock (approach first): shift the
-        # schedule's waypoint times onto it at the start of the plunge.
+        # The written samples run on the trajectory's clock (approach first, the dwell as
+        # lengthened for the joint limits): the waypoints where the samples pass them.
         if start.any():
-            t = t - t[0] + float(tr.t[np.argmax(tr.phase == "plunge")])
+            t = result.waypoint_times()
     if u > 0:
         a1.fill_between(s[m:], (e[m:] - r[m:]) * 1e3, (e[m:] + r[m:]) * 1e3, color="tab:blue",
-                        alpha=0.15, lw=0, label=f"planned, worst case under +-{u * 100:g} % force")
+                        alpha=0.15, lw=0,
+                        label=f"planned, worst case under +-{u * 100:.3g} % force")
         if a0 is not None and sv is not None and start.any():
             es, rs = sv.e_lat[start], u * sv.worst_per_unit[start]
             a0.fill_between(tr.t[start], (es - rs) * 1e3, (es + rs) * 1e3, color="tab:blue",
@@ -514,14 +515,14 @@ def _lateral_title(result: PlanResult) -> str:
     if nlp is not None:
         line2 = f"planned: max |e| {nlp.max_abs_lateral * 1e3:.3f} mm nominal"
         if u > 0:
-            line2 += f", {nlp.worst_case * 1e3:.3f} mm worst case under +-{u * 100:g} % force"
+            line2 += f", {nlp.worst_case * 1e3:.3f} mm worst case under +-{u * 100:.3g} % force"
         line2 += f"; window [{w.lower * 1e3:g}, {w.upper * 1e3:+g}] mm"
     tol = result.tolerated_force_uncertainty
     if tol == np.inf:
         line2 += "; holds any force uncertainty"
     elif np.isfinite(tol):
         line2 += (f"; holds up to +-{100 * tol:.3g} % force uncertainty (requested "
-                  f"+-{u * 100:g} %{'' if result.robust_held else ': NOT held'})")
+                  f"+-{u * 100:.3g} %{'' if result.robust_held else ': NOT held'})")
     return f"{result.problem_name}: {result.verdict().line}\n{line2}"
 
 
@@ -619,7 +620,7 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
         a1.axhline(bound * 1e3, color="tab:green", lw=1.2, ls="--")
     if u > 0:
         a1.fill_between(t, e - r, e + r, color="tab:blue", alpha=0.2, lw=0,
-                        label=f"worst case under +-{100 * u:g} % force")
+                        label=f"worst case under +-{100 * u:.3g} % force")
     a1.plot(t, e, color="tab:blue", lw=1, label="predicted lateral pin error (every sample)")
     a1.set_ylabel("lateral pin error [mm]\n(+ advancing side)")
     a2.plot(t, marg, color="k", lw=1, label="margin to the nearest window bound")
@@ -631,7 +632,7 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
                label="samples, coloured by margin (as in plan.html)")
     if u > 0:
         a2.plot(t, marg - r, color="tab:red", lw=0.8,
-                label=f"margin of the worst case (+-{100 * u:g} % force)")
+                label=f"margin of the worst case (+-{100 * u:.3g} % force)")
     a2.axhline(result.options.margin * 1e3, color="tab:red", ls="--", lw=0.8,
                label=f"required margin {result.options.margin * 1e3:g} mm")
     a2.axhline(0.0, color="k", lw=0.5)
@@ -641,7 +642,7 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     held = ("any force uncertainty" if tol == np.inf
             else f"force uncertainty up to +-{100 * tol:.3g} %")
     fig.suptitle(f"{result.problem_name}: {int(c.sum())} written in-material samples, all in "
-                 f"the window; holds {held} (requested +-{100 * u:g} %)", fontsize=11)
+                 f"the window; holds {held} (requested +-{100 * u:.3g} %)", fontsize=11)
     for ax in (a1, a2):
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
     fig.tight_layout(rect=(0, 0, 1, 0.97))

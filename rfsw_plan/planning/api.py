@@ -65,7 +65,7 @@ from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Stages
-from rfsw_plan.robot.kinematics import Robot, load_robot
+from rfsw_plan.robot.kinematics import Robot, check_stiffness_scale, load_robot
 from rfsw_plan.timing.trajectory import TimedTrajectory, TimingLimits, time_parameterise
 from rfsw_plan.tomlreader import unknown_name_error
 
@@ -329,7 +329,13 @@ def plan_task(
     timing: TimingLimits | None = None, t_start: float | None = None,
 ) -> PlanResult:
     """The pipeline of :func:`plan` on an explicit task (see there), with a progress bar over
-    its stages on stderr (:mod:`rfsw_plan.progress`: only on a terminal, not with ``-q``)."""
+    its stages on stderr (:mod:`rfsw_plan.progress`: only on a terminal, not with ``-q``).
+
+    Raises:
+        InputError: A joint stiffness so soft under the task's loads that it can only be in
+            the wrong unit (:func:`~rfsw_plan.robot.kinematics.check_stiffness_scale`).
+    """
+    check_stiffness_scale(model.robot, q_seed, task.wrench_base)
     with Stages("plan", _STAGES) as stages:
         return _plan_task(model, task, window, q_seed, opts, name, compile_c, timing, t_start,
                           stages)

@@ -79,6 +79,7 @@ import casadi as ca
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan import files
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning import rows
 from rfsw_plan.planning.casadi_ import compile_functions, single_thread_blas
@@ -874,9 +875,14 @@ def solve_plan_nlp(nlp: PlanNLP, x0: FloatArray | None = None) -> NLPSolution:
                          lbg=nlp.lbg, ubg=nlp.ubg)
     dt = time.perf_counter() - t0
     stats = nlp.solver.stats()
+    status = str(stats.get("return_status", "unknown"))
+    # CasADi catches a Ctrl-C inside IPOPT's callbacks and returns the iterate it had: stop
+    # here rather than plan on from a solve the user asked to stop.
+    files.check_interrupt()
+    if status == "User_Requested_Stop":
+        raise KeyboardInterrupt
     x = np.asarray(res["x"]).ravel()
     parts = nlp.unpack(x)
-    status = str(stats.get("return_status", "unknown"))
     log.info("NLP K=%d: %s in %d iterations, %.3f s", nlp.n_waypoints, status,
              stats.get("iter_count", -1), dt)
     return NLPSolution(x, parts["q"], parts["offsets"], parts["sigma"] * 1e-3,

@@ -160,6 +160,31 @@ class PlanResult:
         """Verified predicted lateral pin error of the plan [m], (K,)."""
         return self.verification.prediction.e_lat
 
+    def waypoint_times(self) -> FloatArray:
+        """When the written samples pass each waypoint, on the clock of ``waypoints.csv``
+        (``t_s``: approach first, the dwell as lengthened for the joint limits) [s], (K,).
+
+        The schedule's own times (:attr:`PlanTask.time`, from the plunge start, the dwell as
+        scheduled) are another clock; a time printed beside the files is this one. A travel
+        waypoint is passed where the samples' arc length is its own; a plunge or dwell
+        waypoint at the sample of its phase nearest to its joint values (the samples rest
+        there).
+        """
+        tr, task = self.trajectory, self.task
+        out = np.empty(len(task))
+        travel = np.isin(tr.phase, ("accelerate", "weld", "decelerate"))
+        for k in range(len(task)):
+            ph = str(task.phase[k])
+            if ph in ("accelerate", "weld", "decelerate") and travel.any():
+                idx = np.flatnonzero(travel)
+                out[k] = tr.t[idx[np.argmin(np.abs(tr.s[idx] - task.s[k]))]]
+                continue
+            idx = np.flatnonzero(tr.phase == ph)
+            if not len(idx):
+                idx = np.arange(len(tr.t))
+            out[k] = tr.t[idx[np.argmin(np.linalg.norm(tr.q[idx] - self.q[k], axis=1))]]
+        return out
+
     @property
     def worst_waypoint(self) -> int:
         """Waypoint with the smallest window margin."""
@@ -217,12 +242,14 @@ class PlanResult:
             "baselines": [b.to_dict() for b in self.baselines],
             "worst_waypoint": {
                 "waypoint": k + 1, "index": k, "phase": str(self.task.phase[k]),
-                "s_mm": self.task.s[k] * 1e3, "t_s": float(self.task.time[k]),
+                "s_mm": self.task.s[k] * 1e3, "t_s": float(self.waypoint_times()[k]),
                 "e_lat_mm": v.prediction.e_lat[k] * 1e3, "margin_mm": v.margin[k] * 1e3,
                 "worst_case_mm": v.prediction.worst[k] * 1e3,
                 "robust_margin_mm": v.robust_margin[k] * 1e3,
             },
-            "max_abs_lateral_mm": float(np.max(np.abs(v.prediction.e_lat[sl]))) * 1e3,
+            # The travel waypoints only (named so: samples.max_abs_lateral_mm and the plan's
+            # baseline row also count the plunge and dwell in the material).
+            "max_abs_lateral_weld_mm": float(np.max(np.abs(v.prediction.e_lat[sl]))) * 1e3,
             "min_margin_mm": float(np.min(v.margin)) * 1e3,
             "robust_window_held_fraction": float(np.mean(v.robust_margin >= -1e-9)),
             "weld_speed_mm_s": self.trajectory.weld_speed * 1e3,

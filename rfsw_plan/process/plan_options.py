@@ -198,6 +198,11 @@ class OptionKey:
     gt: float | None = None
     le: float | None = None
     choices: tuple[str, ...] | None = None
+    #: A relative amount: the number is a fraction in [ge, le], or a string "N %"; a number
+    #: above ``le`` is refused with "did you mean N %?" (:meth:`Table.fraction`).
+    fraction: bool = False
+    #: Largest percentage a "N %" string may give (default 100 * le).
+    le_percent: float | None = None
 
 
 #: Values of ``solver``: the coarse-to-fine solve or the NLP on every waypoint.
@@ -207,7 +212,8 @@ _DEG = float(np.pi / 180)
 
 #: Keys of the ``[planning]`` table and of ``plan --set``, with their valid ranges (file units).
 OPTION_KEYS: dict[str, OptionKey] = {
-    "force_uncertainty": OptionKey("force_uncertainty", ge=0.0, le=10.0),
+    "force_uncertainty": OptionKey("force_uncertainty", ge=0.0, le=1.0, fraction=True,
+                                   le_percent=1000.0),
     "margin_mm": OptionKey("margin", 1e-3, ge=0.0, le=100.0),
     "robust_hard": OptionKey("robust_hard"),
     "robust_first": OptionKey("robust_first"),
@@ -217,7 +223,7 @@ OPTION_KEYS: dict[str, OptionKey] = {
     "offset_speed_mm_s": OptionKey("offset_speed", 1e-3, ge=1e-3, le=1e4),
     "joint_step_deg": OptionKey("joint_step", _DEG, ge=1e-3, le=360.0),
     "kappa_max": OptionKey("kappa_max", gt=1.0, le=1e12),
-    "det_fraction": OptionKey("det_fraction", ge=0.0, le=1.0),
+    "det_fraction": OptionKey("det_fraction", ge=0.0, le=1.0, fraction=True),
     "length_scale_mm": OptionKey("length_scale", 1e-3, ge=1.0, le=1e5),
     "q_seed_deg": OptionKey("q_seed", _DEG, ge=-720.0, le=720.0),
     "tool_rotation_deg": OptionKey("tool_rotation", _DEG, ge=-720.0, le=720.0),
@@ -230,7 +236,7 @@ OPTION_KEYS: dict[str, OptionKey] = {
     "max_iter": OptionKey("max_iter", ge=1, le=1000000),
     "solver": OptionKey("solver", choices=SOLVERS),
     "coarse_waypoints": OptionKey("coarse_waypoints", ge=2, le=100000),
-    "min_stiffness_share": OptionKey("min_stiffness_share", ge=0.0, le=1.0),
+    "min_stiffness_share": OptionKey("min_stiffness_share", ge=0.0, le=1.0, fraction=True),
     **{w: OptionKey(w, ge=0.0, le=1e9) for w in (
         "w_stiffness", "w_worst", "w_robust", "w_centre", "w_depth", "w_smooth_q", "w_smooth_o",
         "w_proximity")},
@@ -263,7 +269,10 @@ def options_from_table(table: Mapping[str, Any], source: str | Path = "planning"
         if not tab.has(key):
             continue
         default = getattr(PlanOptions, spec.field)
-        if key == "q_seed_deg":
+        if spec.fraction:
+            kw[spec.field] = tab.fraction(key, le=spec.le if spec.le is not None else 1.0,
+                                          le_percent=spec.le_percent)
+        elif key == "q_seed_deg":
             kw["q_seed"] = tuple(float(x) * spec.factor for x in tab.vec(
                 key, None, ge=spec.ge, le=spec.le))
         elif isinstance(default, bool):

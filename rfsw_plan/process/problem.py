@@ -334,6 +334,8 @@ def _value(tab: Table | None, k: str, prior: float | None, scale: float = 1.0, *
         InputError: Out of range, or absent with no prior.
     """
     if tab is not None and tab.has(k):
+        if k.endswith("_fraction"):  # a relative amount: "did you mean N %?" above le
+            return tab.fraction(k, le=le if le is not None else 1.0) * scale
         return tab.num(k, ge=ge, gt=gt, le=le) * scale
     if prior is None:
         where = tab.key(k) if tab is not None else f"process.forces.{k}"
@@ -381,6 +383,22 @@ def _numbers(tab: Table | None, spec: dict[str, tuple[str, float, dict[str, floa
             for key, (field, scale, rng) in spec.items()}
 
 
+#: A friction stir weld presses the tool with kilonewtons (seed 001 Table 6: 4-9 kN axial): an
+#: axial force below this [N] is kN written in an ``_N`` key.
+MIN_AXIAL_N = 100.0
+
+
+def _refuse_kilonewtons(ftab: Table) -> None:
+    """``axial_N = 4.8`` (kN in an N key): one line naming the key and the likely unit."""
+    for key in ("axial_N", "plunge_peak_axial_N"):
+        if ftab.has(key):
+            v = ftab.num(key, ge=0.0, le=MAX_FORCE_N)
+            if 0.0 < v < MIN_AXIAL_N:
+                raise ftab.error(key, f"got {v:g} N, which presses no friction stir weld: kN "
+                                 "instead of N?", f"newtons (x1000: {v * 1e3:g} N); an axial "
+                                 f"force of at least {MIN_AXIAL_N:g} N")
+
+
 def _forces(path: Path, ftab: Table | None, base: ProcessForces | None) -> ProcessForces:
     """``[process.forces]`` over the preset's forces (every key optional with a preset)."""
     peak = _prior(base, ProcessForces, "plunge_peak_axial")
@@ -394,6 +412,7 @@ def _forces(path: Path, ftab: Table | None, base: ProcessForces | None) -> Proce
             raise ftab.error("lateral_sign", f"got {sign:g}",
                              "+1 (toward the advancing side) or -1")
         source = ftab.str_("source", "") or source
+        _refuse_kilonewtons(ftab)
     return ProcessForces(**_numbers(ftab, FORCE_NUMBERS, base, ProcessForces),
                          lateral_sign=sign, plunge_peak_axial=peak, source=source)
 

@@ -22,11 +22,16 @@ def resolve_bundled(kind: str, folder: Path, name_or_path: str | Path) -> Path:
         UnknownNameError: A bare name that is neither a file nor bundled; the message lists the
             bundled stems of ``kind``.
         InputError: A path with a folder part (``problems/nope.toml``) that does not exist,
-            or that is a folder ("no such file"; a typo in a path is not an unknown name).
+            or that is a folder ("no such file"; a typo in a path is not an unknown name); a
+            path the user may not look at (a folder without search permission).
     """
     p = Path(name_or_path)
-    if p.is_file():
-        return p
+    try:
+        if p.is_file():
+            return p
+    except OSError as exc:  # Python 3.11's is_file raises EACCES (an unsearchable folder)
+        raise InputError(p, "", f"cannot read file: {exc.strerror or exc}",
+                         f"a {kind} file you may read") from None
     bundled = folder / f"{p.stem}.toml"
     if p.suffix in ("", ".toml") and p.parent == Path(".") and bundled.is_file():
         return bundled

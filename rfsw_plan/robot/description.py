@@ -344,6 +344,7 @@ CONTROLLER_KEYS = ("maker", "axes", "sign", "offset_deg", "base_xyz_mm", "base_r
 #: arm; they catch typos and values that would overflow the model (1e300 mm, 1e-320 N m/rad).
 MAX_LENGTH_MM = 1e5          # a link or DH offset of at most 100 m
 MAX_TOOL_MM = 1e4            # flange to TCP at most 10 m
+MIN_TOOL_MM = 1.0            # a TCP off the flange is at least 1 mm away (less: metres?)
 MAX_ANGLE_DEG = 360.0        # DH twist and zero offset, tool rpy
 MAX_JOINT_DEG = 720.0        # joint limits: at most two turns either way
 MAX_TRAVEL_MM = 1e5          # prismatic joint limits: at most 100 m
@@ -387,8 +388,13 @@ def parse_robot_description(data: dict[str, Any], path: Path | str) -> RobotDesc
     tool = np.eye(4)
     tool_t = r.table("tool", TOOL_KEYS)
     if tool_t is not None:
-        tool[:3, 3] = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0],
-                                 ge=-MAX_TOOL_MM, le=MAX_TOOL_MM) / 1000.0
+        xyz_mm = tool_t.vec("xyz_mm", 3, [0.0, 0.0, 0.0], ge=-MAX_TOOL_MM, le=MAX_TOOL_MM)
+        length = float(np.linalg.norm(xyz_mm))
+        if 0.0 < length < MIN_TOOL_MM:  # [0, 0, 0.39]: a 390 mm tool written in metres
+            raise tool_t.error("xyz_mm", f"the TCP is {length:.3g} mm from the flange: metres "
+                               "instead of mm?", f"mm (x1000: {_r(xyz_mm * 1e3)}), or 0 for a "
+                               f"TCP on the flange; a tool is at least {MIN_TOOL_MM:g} mm long")
+        tool[:3, 3] = xyz_mm / 1000.0
         tool[:3, :3] = _rpy_to_matrix(np.radians(tool_t.vec(
             "rpy_deg", 3, [0.0, 0.0, 0.0], ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)))
         sources["tool"] = tool_t.str_("source", "not stated")
@@ -499,6 +505,14 @@ def derived_name(parent: str, added: tuple[str, ...] | list[str] = ()) -> str:
     base, *old = parent.split("+")
     new = [a for a in added if a not in old]
     return "+".join([base, *old, *new]) if added else f"{base}+identified"
+
+
+def derived_file(name: str) -> str:
+    """Where a proposed next command saves the robot ``name``: under ``out/robots/`` (never the
+    repository's own ``robots/`` or the folder the command runs in), with the ``:`` of a
+    joint label written ``-`` (``zk500+joint_compliance:j1`` ->
+    ``out/robots/zk500+joint_compliance-j1.toml``), a file name every file system takes."""
+    return f"out/robots/{name.replace(':', '-').replace('/', '_')}.toml"
 
 
 def derived_description(desc: RobotDescription, *, name: str | None, parent: Path | None,

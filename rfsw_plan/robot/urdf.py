@@ -20,7 +20,7 @@ import tempfile
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -96,6 +96,27 @@ def check_not_xacro(path: Path, where: Path | str, key: str = "") -> None:
                          f"a URDF: expand it first with the xacro command "
                          f"(xacro {path.name} > {path.name.removesuffix('.xacro')}"
                          f"{'' if path.name.endswith('.urdf.xacro') else '.urdf'})")
+
+
+#: The xacro XML namespace (``xmlns:xacro="http://www.ros.org/wiki/xacro"``).
+XACRO_NAMESPACE = "http://www.ros.org/wiki/xacro"
+
+
+def _refuse_xacro_elements(root: Any, urdf: Path) -> None:
+    """A ``.urdf`` that still holds xacro (``<xacro:include>``, ``<xacro:macro>``, a
+    ``${...}`` or ``$(...)`` attribute) is an unexpanded macro file under another name: the
+    URDF parser would drop those parts and read a different robot. One line naming the first
+    such element."""
+    hint = f"a URDF: expand it first with the xacro command (xacro FILE.xacro > {urdf.name})"
+    for el in root.iter():
+        tag = el.tag if isinstance(el.tag, str) else ""
+        if tag.startswith(f"{{{XACRO_NAMESPACE}}}") or tag.startswith("xacro:"):
+            name = tag.rsplit("}", 1)[-1]
+            raise InputError(urdf, f"<xacro:{name}>", "an unexpanded xacro element", hint)
+        for attr, value in el.attrib.items():
+            if "${" in value or "$(" in value:
+                raise InputError(urdf, f"<{tag} {attr}=\"{value[:40]}\">",
+                                 "an unexpanded xacro expression", hint)
 
 
 def load_urdf_chain(urdf: Path, tip_link: str, where: Path | str = "") -> UrdfSerialChain:
@@ -194,6 +215,7 @@ def check_urdf_numbers(urdf: Path) -> None:
         root = ET.parse(urdf).getroot()
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
         raise InputError(urdf, "", f"cannot parse URDF: {exc}") from None
+    _refuse_xacro_elements(root, urdf)
     for joint in root.iter("joint"):
         name = f"joint '{joint.get('name')}'"
         _check_origin(joint.find("origin"), name, MAX_URDF_OFFSET_M, urdf)

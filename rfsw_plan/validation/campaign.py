@@ -289,7 +289,7 @@ def run_campaign(
         if v < 3.0 * noise_mm:
             log.warning("hidden %s contributes %.3g mm RMS, below 3x the noise (%.3g mm)",
                         lab, v, noise_mm)
-    position = position + rng.normal(0.0, noise_mm * 1e-3, position.shape)
+    position = position + rng.normal(0.0, abs(noise_mm) * 1e-3, position.shape)  # abs: -0.0
     pose_id: NDArray[np.str_] = np.array([f"P{i + 1:04d}" for i in pose_idx])
     data = MeasurementSet(
         q=q, wrench=wrench, position=position, t=t, pose_id=pose_id,

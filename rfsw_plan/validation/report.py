@@ -104,7 +104,8 @@ def _histogram(plt: Any, res_mm: np.ndarray, noise_mm: float | None) -> Any:
         ax.axvline(noise_mm, color="k", ls="--", lw=0.8)
         lo, hi = ax.get_xlim()
         ax.set_xlim(min(lo, -1.2 * noise_mm), max(hi, 1.2 * noise_mm))
-        ax.set_title(f"Residual distribution (dashed: +-1 sigma noise floor, {noise_mm:.3g} mm)")
+        # two lines: on one, the title was wider than the 6-inch figure and clipped
+        ax.set_title(f"Residual distribution\n(dashed: +-1 sigma noise floor, {noise_mm:.3g} mm)")
     else:
         ax.set_title("Residual distribution (noise floor unknown)")
     ax.set_xlabel("residual measured - predicted [mm]")
@@ -358,8 +359,10 @@ def next_command(result: ValidationResult, argv: list[str] | None) -> str:
         extra: list[str] = []
         for lab in labels:
             extra += ["--add", lab]
+        from rfsw_plan.robot.description import derived_file
+
         stem = result.robot.replace("/", "_").removesuffix(".toml")
-        extra += ["--save-robot", f"{stem}+{'+'.join(labels)}.toml"]
+        extra += ["--save-robot", derived_file(f"{stem}+{'+'.join(labels)}")]
         return "rfsw-plan " + " ".join(shlex.quote(a) for a in [*base, *extra])
     if dg.verdict == "undetermined":
         return ("rfsw-plan " + " ".join(shlex.quote(a) for a in base)

@@ -20,6 +20,9 @@ from rfsw_plan.process.problem import Problem
 
 #: A median |offset| above this is not a weld deviation: wrong units or wrong frame [m].
 MAX_MEDIAN_OFFSET = 20e-3
+#: A track whose largest |offset| is below this [m] is in metres in ``_mm`` columns (a weld
+#: wanders by tenths of a millimetre, a scanner resolves about 0.01 mm).
+MIN_PEAK_OFFSET = 5e-6
 #: The track must overlap at least this share of the seam.
 MIN_OVERLAP_SHARE = 0.25
 
@@ -90,6 +93,12 @@ def track_on_seam(track: WeldTrack, problem: Problem) -> TrackOnSeam:
                          "joint line: wrong units or wrong frame",
                          f"offsets of a few mm at most (window {problem.window.lower * 1e3:g}.."
                          f"{problem.window.upper * 1e3:g} mm), in mm")
+    peak = float(np.max(np.abs(e_lat)))
+    if 0.0 < peak < MIN_PEAK_OFFSET:  # 0.0008 "mm": 0.8 mm written in metres
+        raise InputError(src, where, f"every offset is below {MIN_PEAK_OFFSET * 1e3:g} mm "
+                         f"(largest {peak * 1e3:.3g} mm): metres instead of mm?",
+                         f"offsets in mm (x1000: largest {peak * 1e6:.3g} mm); no weld and no "
+                         "scanner is that exact")
     lo, hi = max(float(s[0]), 0.0), min(float(s[-1]), length)
     ov = max(hi - lo, 0.0)
     inside = (s >= -1e-9) & (s <= length + 1e-9)

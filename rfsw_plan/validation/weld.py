@@ -185,11 +185,11 @@ def next_command(result: WeldValidation, plan_dir: str, track: str, forces: str 
         return f"rfsw-plan plan {problem}{f} --robot {saved} -o {plan_dir.rstrip('/')}_2"
     dg = result.diagnosis
     if dg.verdict == "missing" and dg.best is not None:
-        from rfsw_plan.robot.description import derived_name
+        from rfsw_plan.robot.description import derived_file, derived_name
 
         new = derived_name(result.model.robot.name, [dg.best.label])
         return (f"rfsw-plan validate-weld {plan_dir} --track {track}{f} --add "
-                f"{dg.best.label} --save-robot {shlex.quote(new + '.toml')}")
+                f"{dg.best.label} --save-robot {shlex.quote(derived_file(new))}")
     if dg.verdict == "adequate":
         return f"rfsw-plan plan {problem}{f} -o {plan_dir.rstrip('/')}_2  (the model holds)"
     return ("measure more (another weld at a different pose or direction separates the "

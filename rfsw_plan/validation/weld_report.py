@@ -85,7 +85,10 @@ def make_weld_plots(result: WeldValidation, out: Path) -> dict[str, Path]:
         ax.set_ylabel("residual [mm]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="best")
-    a1.set_title(f"residual: {result.diagnosis.verdict}")
+    dg = result.diagnosis
+    best = f", best candidate {dg.best.label}" if dg.best is not None else ""
+    a1.set_title(f"Lateral residual, measured - predicted, along the seam and in time "
+                 f"(verdict {dg.verdict}{best})")
     p = out / "weld_residual.png"
     write_figure(p, fig, dpi=DPI)
     plt.close(fig)

@@ -197,7 +197,13 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(strict_json(record), end="")
         return 0
-    print(f"{res.header.plan_id}: {res.n_points} points at {res.header.spacing * 1e3:.3g} mm, "
+    # The round trips and `check` count the points a motion moves to; a point held by a wait
+    # (the dwell) is one of the program's points but not a move: both numbers, named.
+    moved = min((len(t.q) for t in res.round_trips.values()), default=res.n_points)
+    held = res.n_points - moved
+    points = f"{res.n_points} points" + (f" ({moved} moved to, {held} held by a wait)"
+                                         if 0 < held < res.n_points else "")
+    print(f"{res.header.plan_id}: {points} at {res.header.spacing * 1e3:.3g} mm, "
           f"path within {res.max_path_deviation * 1e3:.4f} mm of the verified samples "
           f"(tolerance {tol * 1e3:.3g} mm, blending included)")
     for fmt, trip in res.round_trips.items():

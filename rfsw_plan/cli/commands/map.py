@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"best placement (rank 1 below): tolerated uncertainty "
           f"{_pct(summary['best_tolerated_uncertainty_mirror'])} (mirror), "
           f"{_pct(summary['best_tolerated_uncertainty_centred'])} (centred); requested "
-          f"+-{u * 100:g} % "
+          f"+-{u * 100:.3g} % "
           f"{'reached' if summary['requested_reached_somewhere'] else 'NOT reached'} in this "
           "region (centred estimate)")
     print(f"{'rank':>4} {'x mm':>8} {'y mm':>8} {'z mm':>7} {'yaw deg':>8} {'u mirror':>9} "

@@ -128,8 +128,8 @@ def run(args: argparse.Namespace) -> int:
                         f"{summary['chosen']['yaw_deg']:+.1f} deg.\nPlanned tolerated force "
                         f"uncertainty {chosen.tolerated_uncertainty * 100:.1f} % (given placement:"
                         f" {summary['given']['tolerated_uncertainty'] * 100:.1f} %), planned "
-                        f"for {res.planned_for * 100:g} % (requested "
-                        f"{opts.force_uncertainty * 100:g} % plus headroom for the planner's "
+                        f"for {res.planned_for * 100:.3g} % (requested "
+                        f"{opts.force_uncertainty * 100:.3g} % plus headroom for the planner's "
                         f"fine projection).")
                 q_seed = chosen.q_start
                 write_placed_problem(toml, problem, chosen.placement, m.anchor, q_seed, note,
@@ -169,10 +169,10 @@ def _summary(problem: Any, res: Any, rows: list[dict[str, Any]], m: Any, request
         verdict = "no candidate could be planned: " + "; ".join(
             f"{r['label']}: {r['message']}" for r in rows)
     elif reached:
-        verdict = (f"+-{requested * 100:g} % holds at the chosen placement (tolerated "
+        verdict = (f"+-{requested * 100:.3g} % holds at the chosen placement (tolerated "
                    f"{best_u * 100:.1f} %); the stiffest such placement was chosen")
     else:
-        verdict = (f"+-{requested * 100:g} % is reached by no planned candidate in this region; "
+        verdict = (f"+-{requested * 100:.3g} % is reached by no planned candidate in this region; "
                    f"the largest is {best_u * 100:.1f} % (given placement "
                    f"{given['tolerated_uncertainty'] * 100:.1f} %); the worst-case spread there "
                    f"comes mostly from the compliance of {chosen['dominant_compliance']}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -66,7 +67,7 @@ def _overrides(items: list[str], base: Any) -> Any:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.cli.commands.export import check_export_arguments
-    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.files import OutputLock, created_this_run, prepare_output_dir, strict_json
     from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, mark_outputs_stale
     from rfsw_plan.process.problem import load_problem
 
@@ -75,12 +76,17 @@ def run(args: argparse.Namespace) -> int:
     problem, flog = force_log_cli.prepare(problem, args)
     opts = _options(args, problem)
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
-    with OutputLock(out):
-        # An earlier run's files must never sit beside this run's as if they were its own:
-        # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-        mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
-        result, check = _plan_or_record(args, problem, flog, opts, out)
-        summary, written, failed_plots = _write(args, problem, flog, check, result, out)
+    try:
+        with OutputLock(out):
+            # An earlier run's files must never sit beside this run's as if they were its own:
+            # plan.json (the commit record) first becomes "incomplete", the other outputs go.
+            mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
+            result, check = _plan_or_record(args, problem, flog, opts, out)
+            summary, written, failed_plots = _write(args, problem, flog, check, result, out)
+    except KeyboardInterrupt:
+        if created_this_run(out):  # Ctrl-C into a new folder writes nothing (main removes it)
+            (out / "plan.json").unlink(missing_ok=True)
+        raise
     for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
               file=sys.stderr)
@@ -103,12 +109,10 @@ def _options(args: argparse.Namespace, problem: Any) -> Any:
     """The problem's planner options with ``--set`` and ``--force-uncertainty`` applied and
     checked (one line, exit 2, before any planning)."""
     from rfsw_plan.planning.options import check_well_posed
-    from rfsw_plan.process.plan_options import options_from_table
 
     opts = _overrides(args.set, problem.planning)
-    if args.force_uncertainty is not None:
-        opts = options_from_table({"force_uncertainty": args.force_uncertainty},
-                                  "--force-uncertainty", opts, prefix="", what="option")
+    if args.force_uncertainty is not None:  # a fraction, range-checked by its parser
+        opts = replace(opts, force_uncertainty=args.force_uncertainty)
     if args.spacing_mm is not None and not 0.01 <= args.spacing_mm <= 1e4:
         raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
                          "a number in [0.01, 10000]")
@@ -231,8 +235,8 @@ def _print_table(result: Any) -> None:
               else f"{req.min_lateral_stiffness * 1e-3:.1f}")
     print(f"{'requested':<10} {'':>10} {'':>8} {'':>9} {'':>16} {k_need:>11}  "
           f"{pct(u)} (k_lat: what the plan's errors need)")
-    print(f"(worst: largest |e| under +-{u * 100:g} % force; worst margin: distance of that worst "
-          "case to the window, negative = outside; held: the largest uniform +-u on the "
+    print(f"(worst: largest |e| under +-{u * 100:.3g} % force; worst margin: distance of that "
+          "worst case to the window, negative = outside; held: the largest uniform +-u on the "
           "seam-frame force components that keeps every in-material waypoint, and for the plan "
           "every written sample, in the window)")
 
