@@ -301,6 +301,12 @@ class Effect(abc.ABC):
             return "the data logs no wrench (no force sensor), so a sensor error has no effect"
         return None
 
+    def campaign_advice(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        """What a campaign should add (poses, approach directions, load signs) so that this
+        data would identify the effect, or None (nothing to say, or nothing missing). The
+        diagnosis prints it for the effects it could not identify."""
+        return None
+
     # -- what the model and identification ask of every effect (implemented by the bases) ----
     @abc.abstractmethod
     def join(self, groups: EffectGroups) -> None:
