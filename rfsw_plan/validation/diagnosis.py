@@ -448,8 +448,10 @@ def advice_for(model: ElastostaticModel, batch: PoseBatch, data: MeasurementSet,
     :meth:`~rfsw_plan.elastostatics.effects.base.Effect.campaign_advice`: poses, approach
     directions, load signs), one line per effect that has something to say.
 
-    With the residual at the noise floor only the effects on a joint of a named effect are
-    advised (the data cannot tell those from the named one); above it, every one."""
+    With the residual at the noise floor and a named effect of one joint, only the effects on
+    the named effects' joints are advised (the data cannot tell those from the named one);
+    otherwise (above the floor, or only whole-robot effects named, such as joint offsets that
+    may hide a play seen from one side) every one."""
     F = model.true_wrench(batch, data.wrench)
     joints = {make_effect(model.robot, x).joint for x in named} - {None}
     out: list[str] = []
@@ -457,7 +459,7 @@ def advice_for(model: ElastostaticModel, batch: PoseBatch, data: MeasurementSet,
         if s.kind != "not_identifiable":
             continue
         eff = make_effect(model.robot, s.label)
-        if at_noise and eff.joint not in joints:
+        if at_noise and joints and eff.joint not in joints:
             continue
         tip = eff.campaign_advice(batch, F)
         if tip:
