@@ -213,6 +213,8 @@ class ChainStep:
         share_explained: 1 - MSE_after / MSE_0 with MSE_0 the held-out MSE of the model the
             selection started from: the share of its residual the effects so far explain.
         tested: Candidates tested in this step.
+        ties: Significant candidates of this step the data cannot tell from the one added
+            (:func:`~rfsw_plan.validation.scoring.ties_of`).
     """
 
     label: str
@@ -222,13 +224,15 @@ class ChainStep:
     explained_fraction: float = float("nan")
     share_explained: float = float("nan")
     tested: int = 0
+    ties: tuple[str, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """JSON form (mm)."""
         return {"label": self.label, "heldout_rms_before_mm": self.rms_before * 1e3,
                 "heldout_rms_after_mm": self.rms_after * 1e3, "p_value": self.p_value,
                 "explained_fraction": _finite(self.explained_fraction),
-                "share_explained": _finite(self.share_explained), "tested": self.tested}
+                "share_explained": _finite(self.share_explained), "tested": self.tested,
+                "ties": list(self.ties)}
 
 
 def _finite(x: float) -> float | None:
@@ -421,7 +425,8 @@ def forward_select(
         else:
             scored, skipped = evaluate_candidates(current, data, fold, cv,
                                                   candidate_labels(current), batch, noise)
-        c = named([x for x, _ in scored])
+        ranked = [x for x, _ in scored]
+        c = named(ranked)
         if c is None:
             stop = (f"no remaining candidate is significant (held-out F test at "
                     f"{ALPHA:g}, Bonferroni over {len(scored)} candidates)")
@@ -431,7 +436,7 @@ def forward_select(
         steps.append(ChainStep(
             c.label, c.rms_before, c.rms_after, c.p_value, c.explained_fraction,
             float(1.0 - (cv.sse / max(cv.n_obs, 1)) / mse0) if mse0 > 0 else 0.0,
-            len(scored)))
+            len(scored), tuple(ties_of(ranked, c))))
         skipped = [s for s in skipped if s.label != c.label]
         at_noise, _ = _at_noise(cv, noise, feats)
         if at_noise:

@@ -526,11 +526,12 @@ def selection_html(result: ValidationResult) -> list[str]:
         f"{html.escape(dg.stop)}.</p>",
         table(
             ["step", "effect added", "held-out RMS before [mm]", "after [mm]",
-             "this step explains", "share explained", "after / floor", "p-value"],
+             "this step explains", "share explained", "after / floor", "p-value",
+             "the data cannot tell it from"],
             [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after),
               f"{100 * s.explained_fraction:.1f} %", f"{100 * s.share_explained:.2f} %",
               "-" if dg.noise.sigma is None else f"{s.rms_after / dg.noise.sigma:.3g}",
-              f"{s.p_value:.2g}"]
+              f"{s.p_value:.2g}", ", ".join(s.ties) or "-"]
              for i, s in enumerate(dg.chain)],
         ),
     ]

@@ -223,7 +223,8 @@ def _selection_lines(result: ValidationResult) -> list[str]:
         ratio = "" if sigma is None else f", {s.rms_after / sigma:.3g} x floor"
         out.append(f"  {i + 1}. + {s.label:<30} held-out RMS {s.rms_before * 1e3:.4g} -> "
                    f"{s.rms_after * 1e3:.4g} mm, share explained "
-                   f"{100 * s.share_explained:.2f} %{ratio}")
+                   f"{100 * s.share_explained:.2f} %{ratio}"
+                   + (f" (cannot tell it from {', '.join(s.ties)})" if s.ties else ""))
     return out
 
 
