@@ -39,6 +39,7 @@ class LostMotion(JointPlay):
     """
 
     name = "lost_motion"
+    uses_approach = True
     description = (
         "Play in the joint's gears: the output sits on the flank the load presses it to, or, "
         "under too little load, the flank its last motion left it on, so the TCP is off by "

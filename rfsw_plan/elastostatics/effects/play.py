@@ -52,6 +52,7 @@ class JointPlay(ComplianceEffect):
     """
 
     per_joint = True
+    offset_like = True
     #: The width's name.
     param: ClassVar[str] = "b"
     #: Width [rad] (or [m] for a prismatic joint): >= 0, at most 0.1 (5.7 deg).
