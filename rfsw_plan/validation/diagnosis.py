@@ -59,6 +59,7 @@ from rfsw_plan.validation.scoring import (
     ALPHA,
     TIE_LEVEL,
     Candidate,
+    improvement,
     named,
     rank,
     score,
@@ -443,7 +444,79 @@ def forward_select(
             stop = ("the held-out residual is at the noise floor" if noise.sigma is not None
                     else "no feature test of the held-out residual is significant")
             break
+    if len(steps) >= 2:
+        swapped = _simpler(model, data, fold, noise, feats, batch, steps, cv, at_noise)
+        if swapped is not None:
+            swaps = [f"{a.label} replaced by the simpler {b}, as good with the others in"
+                     for a, b in zip(steps, swapped, strict=True) if a.label != b]
+            steps, current, cv = _path(model, data, fold, base, batch, swapped, steps)
+            at_noise, _ = _at_noise(cv, noise, feats)
+            stop += "; " + "; ".join(swaps)
     return Selection(tuple(steps), at_noise, stop, tuple(skipped), current, cv)
+
+
+def _n_params(model: ElastostaticModel, label: str) -> int:
+    return int(make_effect(model.robot, label).params.size)
+
+
+def _simpler(
+    model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_], noise: NoiseFloor,
+    feats: dict[str, Any], batch: PoseBatch, steps: Sequence[ChainStep],
+    final: CrossValidation, at_noise: bool,
+) -> list[str] | None:
+    """The selection's check of each step once the others are in: with every other selected
+    effect in the model, all candidates are scored again; if the one named is simpler (fewer
+    parameters) than the step's and the model with it is as good (at the noise floor when the
+    selection reached it, else no larger held-out error), it replaces the step's. An effect
+    that a forward step took because it also soaked up a later effect (full link errors for
+    joint offsets plus a play) is so replaced by the simpler one. Returns the new labels in
+    step order, or None if none changes."""
+    labels = [s.label for s in steps]
+    changed = False
+    for i, own in enumerate(list(labels)):
+        m = model
+        for lab in labels[:i] + labels[i + 1:]:
+            m = m.with_effect(lab)
+        try:
+            cv_o = cross_validate(m, data, fold, batch)
+        except IdentificationError:
+            continue
+        start = cv_o.fit.model
+        scored, _ = evaluate_candidates(start, data, fold, cv_o, candidate_labels(start),
+                                        batch, noise)
+        c = named([x for x, _ in scored])
+        if c is None or c.label == own or c.n_params >= _n_params(model, own):
+            continue
+        cv_c = dict((x.label, v) for x, v in scored)[c.label]
+        good = (_at_noise(cv_c, noise, feats)[0] if at_noise
+                else cv_c.sse <= final.sse)
+        if good:
+            labels[i] = c.label
+            changed = True
+    return labels if changed else None
+
+
+def _path(
+    model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_],
+    base: CrossValidation, batch: PoseBatch, labels: Sequence[str],
+    old: Sequence[ChainStep],
+) -> tuple[list[ChainStep], ElastostaticModel, CrossValidation]:
+    """The steps of adding ``labels`` in order from ``model``, each scored against the one
+    before it (the held-out F test of :func:`~rfsw_plan.validation.scoring.improvement`)."""
+    mse0 = base.sse / max(base.n_obs, 1)
+    cv = base
+    steps: list[ChainStep] = []
+    for lab, prev in zip(labels, old, strict=True):
+        nxt = cross_validate(cv.fit.model.with_effect(lab), data, fold, batch)
+        _, p, _ = improvement(cv.sse, nxt.sse, _n_params(model, lab),
+                              max(nxt.n_obs - nxt.n_free, 1), max(prev.tested, 1))
+        steps.append(ChainStep(
+            lab, cv.heldout_rms, nxt.heldout_rms, p,
+            float(1.0 - nxt.sse / cv.sse) if cv.sse > 0 else 0.0,
+            float(1.0 - (nxt.sse / max(nxt.n_obs, 1)) / mse0) if mse0 > 0 else 0.0,
+            prev.tested, prev.ties if prev.label == lab else ()))
+        cv = nxt
+    return steps, cv.fit.model, cv
 
 
 def advice_for(model: ElastostaticModel, batch: PoseBatch, data: MeasurementSet,
