@@ -526,12 +526,16 @@ def advice_for(model: ElastostaticModel, batch: PoseBatch, data: MeasurementSet,
     :meth:`~rfsw_plan.elastostatics.effects.base.Effect.campaign_advice`: poses, approach
     directions, load signs), one line per effect that has something to say.
 
-    With the residual at the noise floor and a named effect of one joint, only the effects on
-    the named effects' joints are advised (the data cannot tell those from the named one);
-    otherwise (above the floor, or only whole-robot effects named, such as joint offsets that
-    may hide a play seen from one side) every one."""
+    Above the noise floor every such effect is advised. At the floor only those on the joints
+    of the named effects and of the model's own per-joint effects (the data cannot tell those
+    from the one in the model); with only whole-robot effects named (joint offsets, which may
+    hide a play seen from one side) every one; with nothing named, none."""
     F = model.true_wrench(batch, data.wrench)
-    joints = {make_effect(model.robot, x).joint for x in named} - {None}
+    own = [e.label for e in model.effects if not e.setup and e.joint is not None
+           and e is not model.joint_compliance]
+    joints = {make_effect(model.robot, x).joint for x in [*named, *own]} - {None}
+    if at_noise and not joints and not named:
+        return []
     out: list[str] = []
     for s in skipped:
         if s.kind != "not_identifiable":
