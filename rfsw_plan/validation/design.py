@@ -116,9 +116,9 @@ class CampaignDesign:
         return {"robot": self.request.robot.name, "poses": int(self.q.shape[0]),
                 "effects": list(self.labels), "n_params": self.n_params,
                 "criterion": "D-optimality of the column-scaled identification Jacobian",
-                "log_det": self.log_det, "condition_number": self.condition,
-                "random_log_det": self.random_log_det,
-                "random_condition_number": self.random_condition,
+                "log_det": _num(self.log_det), "condition_number": _num(self.condition),
+                "random_log_det": _num(self.random_log_det),
+                "random_condition_number": _num(self.random_condition),
                 "load_N": self.request.load_n, "seed": self.request.seed,
                 "approach_joints": [f"j{j + 1}" for j in self.play_joints],
                 "not_seen": list(self.unseen)}
@@ -157,6 +157,11 @@ class CampaignDesign:
                 f"{general(self.random_log_det, 5)}, condition number "
                 f"{general(self.random_condition, 4)})"
                 + (f"; no such campaign sees {', '.join(self.unseen)}" if self.unseen else ""))
+
+
+def _num(x: float) -> float | None:
+    """A finite number, or None (a singular design: log det -inf, condition inf)."""
+    return float(x) if np.isfinite(x) else None
 
 
 @dataclass(frozen=True)
