@@ -317,10 +317,12 @@ class Diagnosis:
 
     @property
     def missing(self) -> Candidate | None:
-        """The first effect the selection names (verdict ``missing``), else None."""
+        """The first effect the selection names (verdict ``missing``) as scored on the
+        diagnosed model, else None (also when the final check put in its place an effect the
+        first step could not fit)."""
         if self.verdict != "missing" or not self.chain:
             return None
-        return next(c for c in self.candidates if c.label == self.chain[0].label)
+        return next((c for c in self.candidates if c.label == self.chain[0].label), None)
 
     @property
     def named(self) -> tuple[str, ...]:
@@ -329,7 +331,6 @@ class Diagnosis:
 
     def to_json(self) -> dict[str, Any]:
         """JSON form (mm)."""
-        miss = self.missing
         return {
             "verdict": self.verdict,
             "message": self.message,
@@ -338,12 +339,13 @@ class Diagnosis:
             "noise": noise_json(self.noise),
             "p_above_noise": None if np.isnan(self.p_above_noise) else self.p_above_noise,
             "above_noise": self.above_noise,
-            "missing": None if miss is None else {
-                "effect": miss.effect,
-                "joint": miss.joint,
-                "label": miss.label,
-                "heldout_rms_before_mm": miss.rms_before * 1e3,
-                "heldout_rms_after_mm": miss.rms_after * 1e3,
+            "missing": None if not self.named else {
+                "effect": self.chain[0].label.partition(":j")[0],
+                "joint": (int(self.chain[0].label.partition(":j")[2])
+                          if ":j" in self.chain[0].label else None),
+                "label": self.chain[0].label,
+                "heldout_rms_before_mm": self.chain[0].rms_before * 1e3,
+                "heldout_rms_after_mm": self.chain[0].rms_after * 1e3,
             },
             "named": list(self.named),
             "candidates": [c.to_json() for c in self.candidates],
@@ -576,8 +578,8 @@ def _verdict(
     points = ", ".join(f"{c.feature} (R^2 {c.r2:.2f})" for c in top) or "no tested feature"
     if chain and (at_noise or chain[-1].share_explained >= MOST):
         first, last = chain[0], chain[-1]
-        chosen = next(c for c in candidates if c.label == first.label)
-        ties = ties_of(candidates, chosen)
+        chosen = next((c for c in candidates if c.label == first.label), None)
+        ties = [] if chosen is None else ties_of(candidates, chosen)
         names = " + ".join(s.label for s in chain)
         tail = (f"at the noise floor ({floor})" if at_noise else
                 f"{100 * last.share_explained:.1f} % explained; the rest is above the noise "
