@@ -7,7 +7,7 @@ import pytest
 from rfsw_plan.cli.main import build_parser, main
 
 COMMANDS = ("robots", "predict", "identify", "deviation", "plan", "simulate-campaign",
-            "validate", "compare")
+            "validate", "compare", "design-campaign")
 
 
 def test_the_listed_commands_are_the_discovered_ones() -> None:

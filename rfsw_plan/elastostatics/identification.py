@@ -324,10 +324,16 @@ def mark_collinear(
         worst = idx[int(np.argmax(weight))]
         order = [j for j in np.argsort(-np.abs(Vt[-1])) if idx[j] != worst][:2]
         partners = [f"{names[idx[j]][0]}.{names[idx[j]][1]}" for j in order]
+        # Multiple correlation of the dropped column with all the other free ones.
+        w_col = int(np.flatnonzero(idx == worst)[0])
+        rest = np.delete(An, w_col, axis=1)
+        res = An[:, w_col] - rest @ np.linalg.lstsq(rest, An[:, w_col], rcond=None)[0]
+        corr = float(np.sqrt(max(0.0, 1.0 - float(res @ res))))
         free[worst] = False
         why = ("a free device registration absorbs it" if any(setup[idx[j]] for j in order)
                else "cannot be told apart in this data")
-        notes[worst] = f"collinear with {', '.join(partners)} ({why}); not fitted"
+        notes[worst] = (f"collinear with {', '.join(partners)} ({why}; multiple correlation "
+                        f"|r| = {corr:.6f}, condition ratio {sv[-1] / sv[0]:.2g}); not fitted")
 
 
 @dataclass(frozen=True)

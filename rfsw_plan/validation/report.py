@@ -493,17 +493,52 @@ def _candidates_html(result: ValidationResult, plots: dict[str, Path]) -> list[s
     ]
     if "candidates" in plots:
         parts.append(figure(plots["candidates"], "candidates"))
-    if dg.chain:
-        parts.append(table(
-            ["step", "effect added", "held-out RMS before [mm]", "after [mm]"],
-            [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after)]
-             for i, s in enumerate(dg.chain)],
-        ))
+    parts += selection_html(result)
     if dg.skipped:
         parts += ["<h3>Not identifiable from this data (not fitted)</h3>",
+                  "<p>For a reason of identifiability only: the data do not move the TCP "
+                  "with it (rank), its parameters cannot be told apart (conditioning, "
+                  "correlation with a named effect, with the number), or too few samples on "
+                  "each side of a play.</p>",
                   table(["reason", "effects"], [[why, ", ".join(labels)] for why, labels
                                                 in skipped_by_reason(dg.skipped).items()])]
+    if dg.not_supported:
+        parts += ["<h3>Not supported by this data</h3>",
+                  "<p>Identifiable, but the fit puts them outside their physical range (a "
+                  "negative play or compliance): the data give no evidence for them.</p>",
+                  table(["reason", "effects"], [[why, ", ".join(labels)] for why, labels
+                                                in skipped_by_reason(dg.not_supported).items()])]
+    if dg.advice:
+        parts += ["<h3>What the next campaign should add</h3>",
+                  "<ul>" + "".join(f"<li>{html.escape(a)}</li>" for a in dg.advice) + "</ul>"]
     return parts
+
+
+def selection_html(result: ValidationResult) -> list[str]:
+    """The forward selection's steps: effect added, held-out RMS, share explained."""
+    dg = result.diagnosis
+    if not dg.chain:
+        return ["<h3 id='selection'>Forward selection</h3>",
+                f"<p>No effect added: {html.escape(dg.stop)}.</p>"]
+    floor = _f(dg.noise.sigma)
+    return [
+        "<h3 id='selection'>Forward selection</h3>",
+        "<p>Each step tests every effect the model still lacks (re-identifying all "
+        "parameters on the training folds), adds the one named by the held-out F test and "
+        "starts the next step from it. Share explained: of the held-out mean square of the "
+        f"model the selection started from. Noise floor {floor} mm. Stopped: "
+        f"{html.escape(dg.stop)}.</p>",
+        table(
+            ["step", "effect added", "held-out RMS before [mm]", "after [mm]",
+             "this step explains", "share explained", "after / floor", "p-value",
+             "the data cannot tell it from"],
+            [[str(i + 1), s.label, _f(s.rms_before), _f(s.rms_after),
+              f"{100 * s.explained_fraction:.1f} %", f"{100 * s.share_explained:.2f} %",
+              "-" if dg.noise.sigma is None else f"{s.rms_after / dg.noise.sigma:.3g}",
+              f"{s.p_value:.2g}", ", ".join(s.ties) or "-"]
+             for i, s in enumerate(dg.chain)],
+        ),
+    ]
 
 
 def skipped_by_reason(skipped: Sequence[Skipped]) -> dict[str, list[str]]:
@@ -594,9 +629,12 @@ def _next_step_html(result: ValidationResult, argv: list[str] | None) -> list[st
         return ["<h2>Next step</h2>", "<p>None needed: the model explains the data to its "
                 "noise floor. Plan with this robot description.</p>"]
     if dg.verdict == "unexplained":
-        return ["<h2>Next step</h2>", "<p>No effect in the library explains the residual; "
-                "see what it correlates with below (time, a pose region, a joint torque, an "
-                "extra column) for the physics the model lacks.</p>"]
+        part = ("" if not dg.chain else
+                f" ({html.escape(' + '.join(s.label for s in dg.chain))} explain "
+                f"{100 * dg.chain[-1].share_explained:.1f} % of it, see the forward selection)")
+        return ["<h2>Next step</h2>", "<p>No effect in the library brings the residual to "
+                f"the noise floor{part}; see what it correlates with below (time, a pose "
+                "region, a joint torque, an extra column) for the physics the model lacks.</p>"]
     return []
 
 

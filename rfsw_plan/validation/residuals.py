@@ -284,8 +284,10 @@ def repeat_groups(data: MeasurementSet, force_tol_n: float = REPEAT_FORCE_TOL_N
     order (``t_s``, else file order), a sample joins the previous one's group when it has the
     same ``pose_id`` (when the file has one), joint values within REPEAT_Q_TOL_RAD, and the same
     ``load_step`` (when the file has one) or a wrench within ``force_tol_n`` [N] /
-    REPEAT_MOMENT_TOL_NM of the previous one. Zero-load readings of one pose taken at different
-    points of a load cycle (different hysteresis states) are therefore never pooled.
+    REPEAT_MOMENT_TOL_NM of the previous one, and the same approach direction of every joint
+    (:meth:`MeasurementSet.approach_directions`). Zero-load readings of one pose taken at
+    different points of a load cycle (different hysteresis states), or reached from different
+    directions (different flanks of a gear's play), are therefore never pooled.
 
     Returns:
         Group index per sample, shape (m,).
@@ -296,6 +298,8 @@ def repeat_groups(data: MeasurementSet, force_tol_n: float = REPEAT_FORCE_TOL_N
         return np.empty(0, dtype=np.int_)
     cur, prev = order[1:], order[:-1]  # every sample against the one before it in time
     same = np.all(np.abs(data.q[cur] - data.q[prev]) <= REPEAT_Q_TOL_RAD, axis=1)
+    approach = data.approach_directions()
+    same &= np.all(approach[cur] == approach[prev], axis=1)
     if data.pose_id is not None:
         same &= np.asarray(data.pose_id)[cur] == np.asarray(data.pose_id)[prev]
     if data.load_step is not None:

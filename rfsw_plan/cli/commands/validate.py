@@ -212,6 +212,22 @@ def _candidate_lines(result: ValidationResult) -> list[str]:
     return out
 
 
+def _selection_lines(result: ValidationResult) -> list[str]:
+    """The forward selection's steps, one line each."""
+    dg = result.diagnosis
+    if not dg.chain:
+        return []
+    sigma = dg.noise.sigma
+    out = [f"forward selection ({dg.stop}):"]
+    for i, s in enumerate(dg.chain):
+        ratio = "" if sigma is None else f", {s.rms_after / sigma:.3g} x floor"
+        out.append(f"  {i + 1}. + {s.label:<30} held-out RMS {s.rms_before * 1e3:.4g} -> "
+                   f"{s.rms_after * 1e3:.4g} mm, share explained "
+                   f"{100 * s.share_explained:.2f} %{ratio}"
+                   + (f" (cannot tell it from {', '.join(s.ties)})" if s.ties else ""))
+    return out
+
+
 def _print_summary(
     result: ValidationResult, files: ReportFiles | None, saved: Path | None
 ) -> None:
@@ -221,8 +237,13 @@ def _print_summary(
              f"{', '.join(result.model.labels)}",
              *_floor_lines(result), *_frame_line(result), *_add_lines(result),
              f"verdict: {dg.message}", *_candidate_lines(result)]
+    lines += _selection_lines(result)
     if dg.skipped:
         lines.append("not identifiable from this data: " + ", ".join(s.label for s in dg.skipped))
+    if dg.not_supported:
+        lines.append("not supported by this data (fit outside the physical range): "
+                     + ", ".join(s.label for s in dg.not_supported))
+    lines += [f"next campaign: {a}" for a in dg.advice]
     if files is not None:
         lines.append(f"report: {files.html}  json: {files.json}")
     if saved is not None:

@@ -185,6 +185,12 @@ class Effect(abc.ABC):
     #: geometry of the loaded arm, not a parameter to be found): a simulated campaign keeps its
     #: :meth:`plausible_params` as they are instead of scaling them up until visible.
     fixed_size: ClassVar[bool] = False
+    #: The effect depends on the direction its joint last moved in (a sample's approach,
+    #: :attr:`PoseBatch.approach`): a campaign design then chooses each sample's approach.
+    uses_approach: ClassVar[bool] = False
+    #: Seen from one side only, the effect is a constant offset of its joint: a campaign
+    #: design must tell it from the joint's zero offset (a play, a hysteresis loop).
+    offset_like: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -299,6 +305,12 @@ class Effect(abc.ABC):
         """
         if self.sensor_only and not np.any(np.asarray(wrench, dtype=float)):
             return "the data logs no wrench (no force sensor), so a sensor error has no effect"
+        return None
+
+    def campaign_advice(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        """What a campaign should add (poses, approach directions, load signs) so that this
+        data would identify the effect, or None (nothing to say, or nothing missing). The
+        diagnosis prints it for the effects it could not identify."""
         return None
 
     # -- what the model and identification ask of every effect (implemented by the bases) ----

@@ -2,13 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import ClassVar
-
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
-from rfsw_plan.elastostatics.effects.lost_motion import load_torque
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.play import JointPlay
 
 #: Torque over which the lost motion is taken up [N m] (smooths the sign function).
 TAU_EPS_NM = 20.0
@@ -16,7 +13,7 @@ TAU_EPS_NM = 20.0
 MIN_SAMPLES_PER_SIGN = 3
 
 
-class JointBacklash(ComplianceEffect):
+class JointBacklash(JointPlay):
     """Joint N sits at +b/2 or -b/2 inside its gear play depending on the sign of its torque.
 
         dq_N = (b / 2) tanh(tau_N / TAU_EPS_NM),   tau_N = (J^T F + tau_g)_N,   dX = J_N dq_N
@@ -37,17 +34,6 @@ class JointBacklash(ComplianceEffect):
         "Play in the joint's gears: when its torque changes sign the joint crosses its "
         "backlash and the TCP jumps by the lost motion."
     )
-    per_joint = True
-
-    #: Lost motion [rad]: >= 0, at most 0.1 rad (5.7 deg).
-    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"b": (0.0, 0.1)}
-    param_units: ClassVar[Mapping[str, str]] = {"b": "rad"}
-
-    def param_names(self) -> tuple[str, ...]:
-        return ("b",)
-
-    def prior(self) -> FloatArray:
-        return np.zeros(1)
 
     def plausible_params(
         self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
@@ -55,31 +41,34 @@ class JointBacklash(ComplianceEffect):
         """Lost motion of 0.5-2 arcmin (a worn or loosely preloaded heavy-duty gear)."""
         return {"b": float(np.radians(rng.uniform(0.5, 2.0) / 60.0))}
 
-    def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
-        """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
-        assert self.joint is not None
-        return load_torque(batch, wrench, self.joint)
+    def side(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """tanh(tau_N / TAU_EPS_NM): the torque's smooth sign, shape (m,)."""
+        out: FloatArray = np.tanh(self.joint_torque(batch, wrench) / TAU_EPS_NM)
+        return out
 
-    def deflection_regressor(
-        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
-    ) -> FloatArray:
-        assert self.joint is not None
-        side = 0.5 * np.tanh(self.joint_torque(batch, wrench) / TAU_EPS_NM)
-        return (batch.J[:, :, self.joint] * side[:, None])[:, :, None]
+    def _signs(self, batch: PoseBatch, wrench: FloatArray) -> tuple[int, int, FloatArray]:
+        tau = self.joint_torque(batch, wrench)
+        return (int(np.sum(tau > 3 * TAU_EPS_NM)), int(np.sum(tau < -3 * TAU_EPS_NM)), tau)
 
-    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * float(theta[0])
+    def sides_seen(self, batch: PoseBatch, wrench: FloatArray) -> tuple[int, int]:
+        """Samples with the torque above +3 TAU_EPS_NM and below -3 TAU_EPS_NM."""
+        pos, neg, _ = self._signs(batch, wrench)
+        return pos, neg
 
     def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
-        tau = self.joint_torque(batch, wrench)
-        pos = int(np.sum(tau > 3 * TAU_EPS_NM))
-        neg = int(np.sum(tau < -3 * TAU_EPS_NM))
+        pos, neg, tau = self._signs(batch, wrench)
         if min(pos, neg) >= MIN_SAMPLES_PER_SIGN:
             return None
         lo, hi = (float(tau.min()), float(tau.max())) if tau.size else (0.0, 0.0)
-        assert self.joint is not None
         return (
-            f"joint {self.joint + 1}'s torque does not change sign in the data ({pos} samples "
+            f"{self._joint_name()}'s torque does not change sign in the data ({pos} samples "
             f"above +{3 * TAU_EPS_NM:g} N m, {neg} below -{3 * TAU_EPS_NM:g} N m, range "
             f"{lo:.4g}..{hi:.4g} N m); backlash needs at least {MIN_SAMPLES_PER_SIGN} of each"
         )
+
+    def what_to_add(self, batch: PoseBatch, wrench: FloatArray, plus: int, minus: int) -> str:
+        sign = "negative" if minus < plus else "positive"
+        return (f"add at least {MIN_SAMPLES_PER_SIGN} samples whose load turns "
+                f"{self._joint_name()} with a {sign} torque beyond {3 * TAU_EPS_NM:g} N m "
+                f"(the data has {plus} +, {minus} -): reverse the load at some poses, or use "
+                f"poses where the same load has the other lever on that joint")

@@ -7,14 +7,15 @@ from typing import ClassVar
 
 import numpy as np
 
-from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
 from rfsw_plan.elastostatics.effects.lost_motion import K_SIGMA, TAU_ROUND_NM
+from rfsw_plan.elastostatics.effects.play import JointPlay
 
 #: Samples needed on each branch (loading, unloading) to identify the hysteresis.
 MIN_SAMPLES_PER_BRANCH = 3
 
 
-class LoadHysteresis(ComplianceEffect):
+class LoadHysteresis(JointPlay):
     """Joint N deflects less while its load rises than while it falls (friction in the gear:
     a Masing-type loop of width h around the elastic line):
 
@@ -39,17 +40,10 @@ class LoadHysteresis(ComplianceEffect):
         "Friction in the joint's gear: under a load cycle the joint deflects less while the "
         "load rises than while it falls, so the TCP traces a loop."
     )
-    per_joint = True
-
+    param = "h"
     #: Hysteresis loop width [rad]: >= 0, at most 0.01 rad.
     param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"h": (0.0, 0.01)}
     param_units: ClassVar[Mapping[str, str]] = {"h": "rad"}
-
-    def param_names(self) -> tuple[str, ...]:
-        return ("h",)
-
-    def prior(self) -> FloatArray:
-        return np.zeros(1)
 
     def plausible_params(
         self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
@@ -70,15 +64,10 @@ class LoadHysteresis(ComplianceEffect):
         out: FloatArray = np.where(np.abs(dtau) > th, np.sign(dtau), 0.0)
         return out
 
-    def deflection_regressor(
-        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
-    ) -> FloatArray:
-        assert self.joint is not None
-        side = -0.5 * self.branch(batch)
-        return (batch.J[:, :, self.joint] * side[:, None])[:, :, None]
-
-    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * float(theta[0])
+    def side(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """-branch: the loading branch lags (-1), the unloading one leads (+1), shape (m,)."""
+        out: FloatArray = -self.branch(batch)
+        return out
 
     def identifiable(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
         b = self.branch(batch)
@@ -88,3 +77,9 @@ class LoadHysteresis(ComplianceEffect):
         assert self.joint is not None
         return (f"joint {self.joint + 1}'s load rises in {up} and falls in {down} samples at "
                 f"a pose (a load cycle needs at least {MIN_SAMPLES_PER_BRANCH} of each)")
+
+    def what_to_add(self, batch: PoseBatch, wrench: FloatArray, plus: int, minus: int) -> str:
+        # side +1 = unloading (falling) branch, -1 = loading (rising) branch
+        return (f"add load cycles at some poses: raise the load in steps, then lower it, "
+                f"reading the TCP at every step, with loads that turn {self._joint_name()} "
+                f"(the data has {minus} rising and {plus} falling samples; at least 3 of each)")

@@ -3,37 +3,17 @@ direction the joint last moved in when the torque is too small to know its sign.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import ClassVar
-
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.play import MIN_SAMPLES_PER_SIDE, JointPlay
 
 #: The torque's sign is known where |tau| exceeds this many standard deviations of its noise.
 K_SIGMA = 3.0
 #: Torques below this [N m] are rounding (a vertical axis under gravity), never a sign.
 TAU_ROUND_NM = 1e-6
-#: Samples needed on each side of the play to identify it.
-MIN_SAMPLES_PER_SIDE = 3
-
-
-def load_torque(batch: PoseBatch, wrench: FloatArray, joint: int) -> FloatArray:
-    """Load torque on a joint, tau = (J^T F + tau_g)[joint] [N m], shape (m,): the true wrench
-    at the TCP (base frame) through the joint's twist, plus the links' own weight when the
-    robot description gives link masses (cached in the batch)."""
-    F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-    tau = np.einsum("ma,ma->m", batch.J[:, :, joint], F)
-    if batch.robot.has_link_masses:
-        if "link_gravity" not in batch.cache:
-            batch.cache["link_gravity"] = batch.robot.gravity_torque(batch.q)
-        tau = tau + batch.cache["link_gravity"][:, joint]
-    out: FloatArray = tau
-    return out
-
-
-class LostMotion(ComplianceEffect):
+class LostMotion(JointPlay):
     """Joint N sits on one flank of its gear play, +b/2 or -b/2 from where its encoder says.
 
         dq_N = (b / 2) s,   dX = J_N dq_N   (base frame [m, rad]),
@@ -59,33 +39,17 @@ class LostMotion(ComplianceEffect):
     """
 
     name = "lost_motion"
+    uses_approach = True
     description = (
         "Play in the joint's gears: the output sits on the flank the load presses it to, or, "
         "under too little load, the flank its last motion left it on, so the TCP is off by "
         "half the play one way or the other."
     )
-    per_joint = True
-
-    #: Lost motion [rad] (or [m] for a prismatic joint): >= 0, at most 0.1 (5.7 deg).
-    param_ranges: ClassVar[Mapping[str, tuple[float, float]]] = {"b": (0.0, 0.1)}
-    param_units: ClassVar[Mapping[str, str]] = {"b": "rad"}
-
-    def param_names(self) -> tuple[str, ...]:
-        return ("b",)
-
-    def prior(self) -> FloatArray:
-        return np.zeros(1)
-
     def plausible_params(
         self, batch: PoseBatch, wrench: FloatArray, rng: np.random.Generator
     ) -> dict[str, float]:
         """Lost motion of 1-4 arcmin (a worn or loosely preloaded heavy-duty gear)."""
         return {"b": float(np.radians(rng.uniform(1.0, 4.0) / 60.0))}
-
-    def joint_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
-        """tau_N = (J^T F + tau_g)_N [N m], shape (m,) (tau_g: the links' weight, if any)."""
-        assert self.joint is not None
-        return load_torque(batch, wrench, self.joint)
 
     def threshold(self, batch: PoseBatch) -> FloatArray:
         """tau_th = K_SIGMA sigma_F l_N [N m], shape (m,) (inf without force readings)."""
@@ -106,15 +70,9 @@ class LostMotion(ComplianceEffect):
              else batch.approach[:, self.joint])
         return np.where(loaded, np.sign(tau), -a), loaded
 
-    def deflection_regressor(
-        self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
-    ) -> FloatArray:
-        assert self.joint is not None
-        s, _ = self.sides(batch, wrench)
-        return (batch.J[:, :, self.joint] * (0.5 * s)[:, None])[:, :, None]
-
-    def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        return self.deflection_regressor(batch, wrench, theta)[:, :, 0] * float(theta[0])
+    def side(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """s = sign(tau_N) where the torque is clear, else -a_N (class docstring)."""
+        return self.sides(batch, wrench)[0]
 
     def side_counts(self, batch: PoseBatch, wrench: FloatArray) -> dict[str, int]:
         """Samples on each side of each mechanism: ``torque+``, ``torque-``, ``approach+``,
@@ -145,3 +103,25 @@ class LostMotion(ComplianceEffect):
             f"{n['approach-']} by the approach direction, {n['unknown']} unknown; {where}); "
             f"lost motion needs at least {MIN_SAMPLES_PER_SIDE} samples on each side"
         )
+
+    def campaign_advice(self, batch: PoseBatch, wrench: FloatArray) -> str | None:
+        """Both sides, and some of them set by the approach direction (else this is
+        joint_backlash's model): what to add if not."""
+        n = self.side_counts(batch, wrench)
+        plus, minus = n["torque+"] + n["approach+"], n["torque-"] + n["approach-"]
+        if ((min(plus, minus) >= MIN_SAMPLES_PER_SIDE and n["approach+"] + n["approach-"] > 0)
+                or not self.visible(batch)):
+            return None
+        return self.what_to_add(batch, wrench, plus, minus)
+
+    def what_to_add(self, batch: PoseBatch, wrench: FloatArray, plus: int, minus: int) -> str:
+        n = self.side_counts(batch, wrench)
+        j = self._joint_name()
+        if n["approach+"] + n["approach-"] == 0:
+            how = (f"unloaded samples (or loads below the torque threshold on {j}) reached "
+                   f"with {j} moving up at some poses and down at others")
+        else:
+            side = "down (its last motion negative)" if plus < minus else "up"
+            how = f"samples reached with {j} moving {side}, unloaded"
+        return (f"add at least {MIN_SAMPLES_PER_SIDE} {how}, or loads that reverse {j}'s "
+                f"torque (the data has {plus} samples on the + side, {minus} on the -)")
