@@ -43,6 +43,10 @@ class PlanTask:
         reference: How the seam points relate to the robot (``taught`` or ``absolute``); the
             modelled process wrench deflects the TCP by
             :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection` with it.
+        axial_control: ``position`` or ``force`` (the process's, see
+            :class:`~rfsw_plan.process.forces.ProcessModel`): under force control the axial
+            force is the controller's set force, so its uncertainty does not deflect the
+            robot (:attr:`spread_weights`) and the depth is the controller's.
     """
 
     frames: SeamFrames
@@ -55,9 +59,22 @@ class PlanTask:
     n_start: int
     travel_speed: float
     reference: SeamReference = "taught"
+    axial_control: str = "position"
 
     def __len__(self) -> int:
         return int(self.target.shape[0])
+
+    @property
+    def spread_weights(self) -> FloatArray:
+        """Which seam-frame force components (f_t, f_l, f_n) are uncertain, (3,): all under
+        position control; under axial force control the controller holds f_n at its set
+        force, so only f_t and f_l (seed 000 §2: the force loop acts along the tool axis)."""
+        return np.array([1.0, 1.0, 0.0 if self.axial_control == "force" else 1.0])
+
+    @property
+    def position_depth(self) -> bool:
+        """The depth is the robot's position (the planner's depth rows apply)."""
+        return self.axial_control != "force"
 
     @property
     def s(self) -> FloatArray:
@@ -126,7 +143,7 @@ def task_constant_force(
 
 def task_from_schedule(
     frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12,
-    reference: SeamReference = "taught",
+    reference: SeamReference = "taught", axial_control: str = "position",
 ) -> PlanTask:
     """The task of a seam and its load schedule.
 
@@ -140,6 +157,7 @@ def task_from_schedule(
         schedule: The process over time (plunge and dwell at s = 0, then weld).
         max_start: Most stationary waypoints.
         reference: Seam reference (see :class:`PlanTask`).
+        axial_control: ``position`` or ``force`` (see :class:`PlanTask`).
     """
     weld = schedule.mask("weld")
     if not np.any(weld):
@@ -180,6 +198,7 @@ def task_from_schedule(
         n_start=m,
         travel_speed=v,
         reference=reference,
+        axial_control=axial_control,
     )
 
 
