@@ -689,8 +689,8 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "target": task.target, "t": fr.t, "l": fr.l, "n": fr.n, "wrench": task.wrench_base,
         "force_spread": opts.force_uncertainty * np.abs(task.force_seam) * task.spread_weights,
         "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
-        "depth_on": ((task.depth > 0) & task.position_depth).astype(float),
-        "surface_on": (task.depth <= 0).astype(float),
+        "depth_on": (~task.at_surface & task.position_depth).astype(float),
+        "surface_on": task.at_surface.astype(float),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6

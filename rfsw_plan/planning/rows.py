@@ -235,7 +235,8 @@ POINT_ROWS: tuple[PointRows, ...] = (
         lambda b: ((0.0, 0.0),), check="along_track"),
     # The weld envelope (issue 32). Depth: the normal pin error (along the tool axis; along
     # the plate normal it is cos(tilt) times this) inside the depth window with the margin,
-    # wherever the pin is in the plate under position control (gated by depth_on).
+    # wherever the pin is in the plate under position control (gated by depth_on: every
+    # waypoint but the plunge start).
     PointRows(
         "depth", ("depth",), lambda s: s.par["depth_on"] * s.normal_error,
         lambda b: ((b.depth_lower, b.depth_upper),), check="depth"),

@@ -316,18 +316,20 @@ def _check_offset_speed(c: CheckInput) -> Margins | None:
 
 def _check_depth(c: CheckInput) -> Margins:
     """The normal pin error inside the depth window wherever the pin is in the plate under
-    position control (depth > 0); along the plate normal it is cos(tilt) times this."""
+    position control (every waypoint but the plunge start); along the plate normal it is
+    cos(tilt) times this."""
     if not c.task.position_depth:
         return []
     e, w = c.prediction.e_norm, c.window
     m = np.minimum(e + w.depth_deep, w.depth_shallow - e)
-    return [("depth", np.where(c.task.depth > 0, m, np.inf), "m")]
+    return [("depth", np.where(c.task.at_surface, np.inf, m), "m")]
 
 
 def _check_surface(c: CheckInput) -> Margins:
-    """At the plunge start (depth 0, zero force) the pin is not below the plate surface."""
+    """At the plunge start (plunge waypoint at depth 0, zero force) the pin is not below the
+    plate surface."""
     e = c.prediction.e_norm
-    return [("surface", np.where(c.task.depth <= 0, e + SURFACE_TOL, np.inf), "m")]
+    return [("surface", np.where(c.task.at_surface, e + SURFACE_TOL, np.inf), "m")]
 
 
 def _check_tilt(c: CheckInput) -> Margins:
@@ -605,7 +607,7 @@ class SampleFailure:
         """One line: which sample, where, what, value and bound."""
         what = {"window": "lateral pin error outside the window with the margin",
                 "depth": "pin depth error along the plate normal (+ shallow, - deep) outside "
-                         "the depth window with the margin",
+                         "the depth window",
                 "surface": "pin tip below the plate surface before the plunge",
                 "work_angle": "work angle off the planned tilt",
                 "travel_angle": "travel angle off the planned tilt",
@@ -825,7 +827,9 @@ def verify_samples(
     full = np.isin(phase, FULL_DEPTH_PHASES)
     derr = np.where(full, height + depth_full, np.nan)
     if task.position_depth:
-        dlo, dhi = -window.depth_deep + margin, window.depth_shallow - margin
+        # The depth window itself (the planner's depth rows hold it with the margin at the
+        # waypoints; between them the pin may use the margin, as it may not the window).
+        dlo, dhi = -window.depth_deep, window.depth_shallow
         with np.errstate(invalid="ignore"):
             bad = full & ((derr < dlo - WINDOW_TOL) | (derr > dhi + WINDOW_TOL))
         first(bad, "depth", derr * 1e3, np.where(derr < dlo, dlo, dhi) * 1e3, "mm")
@@ -839,15 +843,15 @@ def verify_samples(
         first(contact & (np.abs(ang) > tol_t), name, np.rad2deg(ang),
               float(np.rad2deg(window.tilt_tol)), "deg")
     tilt_err = np.where(contact, np.maximum(np.abs(work), np.abs(trav)), np.nan)
-    ratio = np.full(N, np.nan)
+    speed_ratio = np.full(N, np.nan)
     welding = phase == "weld"
     if N >= 3 and welding.sum() >= 3 and task.travel_speed > 0:
         sigma = s + np.einsum("ki,ki->k", tt, pin - p)
-        ratio[welding] = np.gradient(sigma[welding], t[welding]) / task.travel_speed
-        dev = np.abs(ratio - 1.0)
+        speed_ratio[welding] = np.gradient(sigma[welding], t[welding]) / task.travel_speed
+        dev = np.abs(speed_ratio - 1.0)
         with np.errstate(invalid="ignore"):
             first(welding & (dev > window.speed_tol + SPEED_TOL), "pin_speed",
-                  (ratio - 1.0) * 100, window.speed_tol * 100, "%")
+                  (speed_ratio - 1.0) * 100, window.speed_tol * 100, "%")
     for j in range(Q.shape[1]):
         qj = Q[:, j]
         bad = (qj < d.lower[j] - 1e-9 - q_resolution) | (qj > d.upper[j] + 1e-9 + q_resolution)
@@ -906,7 +910,7 @@ def verify_samples(
                 first(bad, check, val, tol * scale, unit)
     fails.sort(key=lambda f: (f.index, f.check))
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
-                              tuple(fails), derr, tilt_err, ratio, height)
+                              tuple(fails), derr, tilt_err, speed_ratio, height)
 
 
 def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,

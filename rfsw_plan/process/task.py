@@ -72,6 +72,12 @@ class PlanTask:
         return np.array([1.0, 1.0, 0.0 if self.axial_control == "force" else 1.0])
 
     @property
+    def at_surface(self) -> NDArray[np.bool_]:
+        """Waypoints at the plunge start (plunge phase, depth 0: the pin touches the surface
+        at zero force), (K,)."""
+        return np.asarray((self.phase == "plunge") & (self.depth <= 0))
+
+    @property
     def position_depth(self) -> bool:
         """The depth is the robot's position (the planner's depth rows apply)."""
         return self.axial_control != "force"
