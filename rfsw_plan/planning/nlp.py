@@ -689,7 +689,7 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "target": task.target, "t": fr.t, "l": fr.l, "n": fr.n, "wrench": task.wrench_base,
         "force_spread": opts.force_uncertainty * np.abs(task.force_seam) * task.spread_weights,
         "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
-        "depth_on": (~task.at_surface & task.position_depth).astype(float),
+        "depth_on": (~task.at_surface).astype(float),
         "surface_on": task.at_surface.astype(float),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))

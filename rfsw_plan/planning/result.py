@@ -174,6 +174,10 @@ class PlanResult:
         w, sv = self.window, self.samples
         out: dict[str, Any] = {
             "axial_control": self.task.axial_control,
+            # The force the controller's axial loop holds (force control; for the force_on
+            # hook): the process model's steady axial force at the weld waypoints.
+            "set_force_N": float(np.max(self.task.force_seam[self.task.weld, 2]))
+            if self.task.axial_control == "force" else None,
             "depth_window_mm": [-w.depth_deep * 1e3, w.depth_shallow * 1e3],
             "depth_checked": self.task.position_depth,
             "tilt_tol_deg": float(np.rad2deg(w.tilt_tol)),
@@ -183,10 +187,10 @@ class PlanResult:
             return out
         before = self.trajectory.phase == "approach"
         h = sv.height
+        tilt = _nanrange(sv.tilt_error, float(np.rad2deg(1.0)))
         out.update({
             "depth_error_mm": _nanrange(sv.depth_error, 1e3),
-            "max_tilt_error_deg": (_nanrange(sv.tilt_error, float(np.rad2deg(1.0))) or
-                                   [None, None])[1],
+            "max_tilt_error_deg": tilt[1] if tilt else None,
             "pin_speed_deviation_pct": _nanrange(
                 None if sv.speed_ratio is None else sv.speed_ratio - 1.0, 100.0),
             "min_height_before_plunge_mm": float(np.min(h[before])) * 1e3

@@ -235,16 +235,18 @@ POINT_ROWS: tuple[PointRows, ...] = (
         lambda b: ((0.0, 0.0),), check="along_track"),
     # The weld envelope (issue 32). Depth: the normal pin error (along the tool axis; along
     # the plate normal it is cos(tilt) times this) inside the depth window with the margin,
-    # wherever the pin is in the plate under position control (gated by depth_on: every
-    # waypoint but the plunge start).
+    # wherever the pin is in the plate (gated by depth_on: every waypoint but the plunge
+    # start). Under axial force control it is the force loop's equilibrium (the pin at the
+    # planned depth under the set force) that the plan's poses model.
     PointRows(
         "depth", ("depth",), lambda s: s.par["depth_on"] * s.normal_error,
         lambda b: ((b.depth_lower, b.depth_upper),), check="depth"),
-    # At the plunge start (zero force): the pin not below the plate surface, so the normal
-    # offset enters with the force, not before.
+    # At the plunge start (zero force): the pin on the plate surface, not below it (so the
+    # normal offset enters with the force, not before) and not above it by more than the depth
+    # window's shallow side.
     PointRows(
         "surface", ("surface",), lambda s: s.par["surface_on"] * s.normal_error,
-        lambda b: ((0.0, INF),), check="surface"),
+        lambda b: ((0.0, b.depth_upper),), check="surface"),
     # Work angle (about t) and travel angle (about l) of the tool axis within the tolerance
     # of the planned tilt: the TCP z axis against n, its components along l and t.
     PointRows(

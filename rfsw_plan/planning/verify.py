@@ -40,9 +40,9 @@ from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
 from rfsw_plan.planning.rows import checks as declared_checks
 from rfsw_plan.process.plan_options import PlanOptions
-from rfsw_plan.process.task import PlanTask, offsets3
+from rfsw_plan.process.task import PlanTask, offsets3, plate_normals
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.timing.trajectory import TimedTrajectory, plate_normal
+from rfsw_plan.timing.trajectory import TimedTrajectory
 
 FloatArray = NDArray[np.float64]
 
@@ -315,21 +315,20 @@ def _check_offset_speed(c: CheckInput) -> Margins | None:
 
 
 def _check_depth(c: CheckInput) -> Margins:
-    """The normal pin error inside the depth window wherever the pin is in the plate under
-    position control (every waypoint but the plunge start); along the plate normal it is
-    cos(tilt) times this."""
-    if not c.task.position_depth:
-        return []
+    """The normal pin error inside the depth window wherever the pin is in the plate (every
+    waypoint but the plunge start; under axial force control the force loop's equilibrium
+    the plan's poses model); along the plate normal it is cos(tilt) times this."""
     e, w = c.prediction.e_norm, c.window
     m = np.minimum(e + w.depth_deep, w.depth_shallow - e)
     return [("depth", np.where(c.task.at_surface, np.inf, m), "m")]
 
 
 def _check_surface(c: CheckInput) -> Margins:
-    """At the plunge start (plunge waypoint at depth 0, zero force) the pin is not below the
-    plate surface."""
-    e = c.prediction.e_norm
-    return [("surface", np.where(c.task.at_surface, e + SURFACE_TOL, np.inf), "m")]
+    """At the plunge start (plunge waypoint at depth 0, zero force) the pin is on the plate
+    surface: not below it, nor above it by more than the depth window's shallow side."""
+    e, w = c.prediction.e_norm, c.window
+    m = np.minimum(e + SURFACE_TOL, w.depth_shallow - e)
+    return [("surface", np.where(c.task.at_surface, m, np.inf), "m")]
 
 
 def _check_tilt(c: CheckInput) -> Margins:
@@ -821,18 +820,19 @@ def verify_samples(
     # The rest of the weld envelope: depth along the plate normal, tilt, pin speed, and the
     # pin above the plate before the plunge.
     pin = x + dX[:, :3]
-    npl = plate_normal(tt, nn)
+    m0 = task.n_start
+    npl = plate_normals(task.frames.s[m0:], task.frames.p[m0:], nn, s)
     depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
     height = np.einsum("ki,ki->k", npl, pin - p) - depth_full
     full = np.isin(phase, FULL_DEPTH_PHASES)
     derr = np.where(full, height + depth_full, np.nan)
-    if task.position_depth:
-        # The depth window itself (the planner's depth rows hold it with the margin at the
-        # waypoints; between them the pin may use the margin, as it may not the window).
-        dlo, dhi = -window.depth_deep, window.depth_shallow
-        with np.errstate(invalid="ignore"):
-            bad = full & ((derr < dlo - WINDOW_TOL) | (derr > dhi + WINDOW_TOL))
-        first(bad, "depth", derr * 1e3, np.where(derr < dlo, dlo, dhi) * 1e3, "mm")
+    # The depth window itself (the planner's depth rows hold it with the margin at the
+    # waypoints; between them the pin may use the margin, as it may not the window). Under
+    # axial force control this is the force loop's equilibrium the poses model.
+    dlo, dhi = -window.depth_deep, window.depth_shallow
+    with np.errstate(invalid="ignore"):
+        bad = full & ((derr < dlo - WINDOW_TOL) | (derr > dhi + WINDOW_TOL))
+    first(bad, "depth", derr * 1e3, np.where(derr < dlo, dlo, dhi) * 1e3, "mm")
     before = phase == "approach"
     first(before & (height < -WINDOW_TOL), "surface", height * 1e3, 0.0, "mm")
     z = batch.T[:, :3, 2]

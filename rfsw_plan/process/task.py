@@ -72,6 +72,15 @@ class PlanTask:
         return np.array([1.0, 1.0, 0.0 if self.axial_control == "force" else 1.0])
 
     @property
+    def plate_normal(self) -> FloatArray:
+        """The plate (surface) normal at every waypoint, (K, 3): the tool axis n without its
+        part along the seam's own direction (the tilt turns t and n together about l, so the
+        untilted seam tangent comes from the seam points: d p / d s over the weld
+        waypoints; stationary waypoints take the first weld waypoint's)."""
+        return plate_normals(self.frames.s[self.n_start:], self.frames.p[self.n_start:],
+                             self.frames.n, self.frames.s)
+
+    @property
     def at_surface(self) -> NDArray[np.bool_]:
         """Waypoints at the plunge start (plunge phase, depth 0: the pin touches the surface
         at zero force), (K,)."""
@@ -110,6 +119,22 @@ class PlanTask:
         link the distance the time step stands for at the travel speed (floor 1 um)."""
         return np.maximum(np.maximum(self.link_travel(), self.link_times() * self.travel_speed),
                           1e-6)
+
+
+def plate_normals(sw: FloatArray, pw: FloatArray, n: FloatArray, s: FloatArray) -> FloatArray:
+    """Plate normals at arc lengths s (N,) with tool axes n (N, 3): n without its part along
+    the seam tangent d p / d s of the weld points (sw (k,) [m], pw (k, 3) [m]), interpolated
+    linearly in s; unit, (N, 3)."""
+    sw = np.asarray(sw, dtype=float)
+    pw = np.asarray(pw, dtype=float)
+    n = np.atleast_2d(np.asarray(n, dtype=float))
+    if len(sw) < 2:
+        return np.asarray(n / np.linalg.norm(n, axis=1, keepdims=True))
+    tw = np.gradient(pw, sw, axis=0)
+    ts = np.stack([np.interp(s, sw, tw[:, i]) for i in range(3)], axis=1)
+    ts /= np.linalg.norm(ts, axis=1, keepdims=True)
+    v = n - np.einsum("ki,ki->k", n, ts)[:, None] * ts
+    return np.asarray(v / np.linalg.norm(v, axis=1, keepdims=True))
 
 
 def offsets3(offsets: FloatArray) -> FloatArray:

@@ -244,15 +244,6 @@ def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatAr
     return CubicSpline(xs, Q, axis=0), CubicSpline(xs, O, axis=0)
 
 
-def plate_normal(t: FloatArray, n: FloatArray) -> FloatArray:
-    """The plate normal of seam frames: the tool axis n without its part along the travel
-    direction t (the trailing tilt turns the surface normal about l), unit, (k, 3)."""
-    t = np.atleast_2d(t)
-    n = np.atleast_2d(n)
-    v = n - np.einsum("ki,ki->k", n, t)[:, None] * t
-    return np.asarray(v / np.linalg.norm(v, axis=1, keepdims=True))
-
-
 def monotone_interp(xk: FloatArray, yk: FloatArray, x: FloatArray, rest_ends: bool = False
                     ) -> FloatArray:
     """Shape-preserving piecewise cubic (Fritsch-Carlson PCHIP) through (xk, yk), per column.
@@ -467,7 +458,8 @@ def time_parameterise(
     depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
     d0 = float(task.depth[0]) if m else depth_full
     # Distances along the tool axis that rise by a height along the plate normal.
-    cos0 = float(np.dot(n0, plate_normal(task.frames.t[:1], n0)[0]))
+    nplate = task.plate_normal
+    cos0 = float(np.dot(n0, nplate[0]))
     up = lim.clearance / cos0
     # Without stationary waypoints (no plunge) the approach ends on the first weld waypoint.
     air = min(lim.spindle_clearance, lim.clearance) / cos0 if m else 0.0
@@ -537,7 +529,7 @@ def time_parameterise(
     # offsets falling with the depth still in the plate (the offsets' commanded displacement
     # o_lat l + o_norm n + o_along t unwinds along the way); then up to the safe height.
     n_end = task.frames.n[-1]
-    cos1 = float(np.dot(n_end, plate_normal(task.frames.t[-1:], n_end)[0]))
+    cos1 = float(np.dot(n_end, nplate[-1]))
     fr = task.frames
     o_end = offsets[-1]
     o_vec = o_end[0] * fr.l[-1] + o_end[1] * fr.n[-1] + o_end[2] * fr.t[-1]

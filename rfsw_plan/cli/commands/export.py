@@ -123,9 +123,9 @@ def _stream_at_cycle(args: argparse.Namespace, result: PlanResult, cycle: float)
     import numpy as np
 
     from rfsw_plan.export.stream import samples_of
+    from rfsw_plan.planning.api import deflection_of
     from rfsw_plan.planning.verify import seam_frames_at
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.planning.api import deflection_of
     from rfsw_plan.timing.trajectory import time_parameterise, timing_limits
 
     opts = result.options

@@ -216,8 +216,8 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
         print(f"weld envelope at every written sample: {depth}; tilt within "
               f"{0.0 if tilt is None else tilt:.3f} deg (tolerance {env['tilt_tol_deg']:g}); "
               f"pin speed within {max(abs(x) for x in spd) if spd else 0.0:.2f} % of the weld "
-              f"speed (tolerance {env['speed_tol_pct']:g} %); pin {env['min_height_before_plunge_mm']:.2f} mm "
-              "above the plate before the plunge")
+              f"speed (tolerance {env['speed_tol_pct']:g} %); pin "
+              f"{env['min_height_before_plunge_mm']:.2f} mm above the plate before the plunge")
     print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); wrote "
           f"{len(written)} files in {out}:")
     for f in written:
