@@ -459,10 +459,18 @@ def time_parameterise(
     d0 = float(task.depth[0]) if m else depth_full
     # Distances along the tool axis that rise by a height along the plate normal.
     nplate = task.plate_normal
+
+    def height(qq: FloatArray, k: int) -> float:
+        """Height of the TCP at joint values qq above the plate (seam point k + plunge depth
+        along the plate normal) [m]: the pin's at zero force."""
+        surface = task.frames.p[k] + depth_full * nplate[k]
+        return float(np.dot(nplate[k], robot.fk(qq)[:3, 3] - surface))
+
     cos0 = float(np.dot(n0, nplate[0]))
-    up = lim.clearance / cos0
+    h_first = height(q_first, 0)
+    up = (lim.clearance - h_first) / cos0
     # Without stationary waypoints (no plunge) the approach ends on the first weld waypoint.
-    air = min(lim.spindle_clearance, lim.clearance) / cos0 if m else 0.0
+    air = (min(lim.spindle_clearance, lim.clearance) - h_first) / cos0 if m else 0.0
     # Approach: from the safe height above the plunge start down the tool axis to the spindle
     # clearance, at the offsets of the plunge start (zero force).
     amap = _grid_map(robot, q_first, n0, up)
@@ -544,7 +552,7 @@ def time_parameterise(
         q_out = rmap(np.array([dplate]))[0]
     else:
         q_out = q[-1]
-    rdist = lim.clearance / cos1
+    rdist = (lim.clearance - height(q_out, len(task) - 1)) / cos1
     cmap = _grid_map(robot, q_out, n_end, rdist)
     t, x, _, _ = profile_1dof(0.0, rdist, 0.0, 0.0, lim.approach_speed, lim.acceleration,
                               lim.jerk, dt)
