@@ -50,21 +50,22 @@ def _task(problem: Any, spacing: float) -> Any:
 
     opts = options_from_problem(problem)
     frames = problem.seam.frames(spacing)
+    axial = getattr(problem.process, "axial_control", None)
     return task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
                               opts.max_start_waypoints, problem.seam_reference,
-                              problem.process.axial_control)
+                              *((axial,) if axial else ()))
 
 
 def mirror_pipeline(problem: Any, spacing: float) -> None:
     """The mirror baseline, verified and timed like a plan."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.planning.api import deflection_of, options_from_problem
+    from rfsw_plan.planning import api
     from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
     from rfsw_plan.planning.verify import verify_plan
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.timing.trajectory import time_parameterise, timing_limits
+    from rfsw_plan.timing import trajectory
 
-    opts = options_from_problem(problem)
+    opts = api.options_from_problem(problem)
     model = ElastostaticModel(load_robot(problem.robot))
     task = _task(problem, spacing)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
@@ -72,8 +73,14 @@ def mirror_pipeline(problem: Any, spacing: float) -> None:
     mir = mirror_compensation(model, task, taught.q, opts.tool_rotation)
     verify_plan(model, task, problem.window, mir.q, mir.offsets, opts.force_uncertainty,
                 options=opts, reference_offsets=mir.offsets)
-    time_parameterise(model.robot, task, mir.q, mir.offsets,
-                      timing_limits(opts, problem.process), deflection_of(model, task))
+    if hasattr(trajectory, "timing_limits"):  # issue 32 on: the physical phases
+        trajectory.time_parameterise(model.robot, task, mir.q, mir.offsets,
+                                     trajectory.timing_limits(opts, problem.process),
+                                     api.deflection_of(model, task))
+    else:  # a checkout before issue 32 (the before/after figures of the same script)
+        trajectory.time_parameterise(model.robot, task, mir.q, mir.offsets,
+                                     trajectory.TimingLimits(
+                                         plunge_speed=problem.process.plunge_speed))
 
 
 def one_size(problem_name: str, n: int, solver: str, repeats: int) -> dict[str, Any]:

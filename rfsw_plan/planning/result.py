@@ -179,7 +179,6 @@ class PlanResult:
             "set_force_N": float(np.max(self.task.force_seam[self.task.weld, 2]))
             if self.task.axial_control == "force" else None,
             "depth_window_mm": [-w.depth_deep * 1e3, w.depth_shallow * 1e3],
-            "depth_checked": self.task.position_depth,
             "tilt_tol_deg": float(np.rad2deg(w.tilt_tol)),
             "speed_tol_pct": w.speed_tol * 100,
         }

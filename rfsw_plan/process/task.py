@@ -87,11 +87,6 @@ class PlanTask:
         return np.asarray((self.phase == "plunge") & (self.depth <= 0))
 
     @property
-    def position_depth(self) -> bool:
-        """The depth is the robot's position (the planner's depth rows apply)."""
-        return self.axial_control != "force"
-
-    @property
     def s(self) -> FloatArray:
         """Arc length [m], (K,)."""
         return self.frames.s

@@ -208,10 +208,10 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
         env = summary["envelope"]
         dep = env.get("depth_error_mm") or []
         spd = env.get("pin_speed_deviation_pct") or []
-        depth = (f"depth {dep[0]:+.3f} to {dep[1]:+.3f} mm of the planned depth (window "
+        loop = " (the force loop's equilibrium)" if env["axial_control"] == "force" else ""
+        depth = (f"depth {dep[0]:+.3f} to {dep[1]:+.3f} mm of the planned depth{loop} (window "
                  f"{env['depth_window_mm'][0]:+g} to {env['depth_window_mm'][1]:+g} mm)"
-                 if env["depth_checked"] and dep else
-                 f"depth: the controller's ({env['axial_control']} control)")
+                 if dep else "depth not sampled")
         tilt = env.get("max_tilt_error_deg")
         print(f"weld envelope at every written sample: {depth}; tilt within "
               f"{0.0 if tilt is None else tilt:.3f} deg (tolerance {env['tilt_tol_deg']:g}); "
