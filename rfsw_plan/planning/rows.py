@@ -40,6 +40,10 @@ from rfsw_plan.planning.layout import OFFSET_LABELS, FloatArray, Layout
 from rfsw_plan.process.plan_options import PlanOptions
 
 INF = float("inf")
+#: The NLP keeps the pin at the plunge start at least this far above the surface [mm], so that
+#: the outer correction's residual (``outer_tol``, 1e-6 m) cannot put it below (the check
+#: requires >= 0).
+SURFACE_LIFT = 0.005
 
 
 @dataclass(frozen=True)
@@ -245,8 +249,9 @@ POINT_ROWS: tuple[PointRows, ...] = (
     # normal offset enters with the force, not before) and not above it by more than the depth
     # window's shallow side.
     PointRows(
-        "surface", ("surface",), lambda s: s.par["surface_on"] * s.normal_error,
-        lambda b: ((0.0, b.depth_upper),), check="surface"),
+        "surface", ("surface",),
+        lambda s: s.par["surface_on"] * (s.normal_error - SURFACE_LIFT),
+        lambda b: ((0.0, b.depth_upper - SURFACE_LIFT),), check="surface"),
     # Work angle (about t) and travel angle (about l) of the tool axis within the tolerance
     # of the planned tilt: the TCP z axis against n, its components along l and t.
     PointRows(
