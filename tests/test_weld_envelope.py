@@ -194,3 +194,62 @@ def test_no_two_bundled_problems_give_identical_waypoints_without_a_reason(writt
     groups = [frozenset(v) for v in seen.values() if len(v) > 1]
     for grp in groups:
         assert any(grp <= e for e in explained), sorted(grp)
+
+
+def test_kr600_curved_seam_is_go_with_its_depth_held(written, planned_result):
+    """Issue 32: GO on kr600_curved_seam lost 2.82 mm of penetration over s = 379-468 mm; now
+    it is GO only with the depth in its window at every weld sample (from the CSV)."""
+    phase, cols, toml, problem = written("kr600_curved_seam")
+    res = planned_result("kr600_curved_seam")
+    assert res.verdict().word == "GO"
+    g = _geometry(cols, phase, toml)
+    depth = problem.process.plunge_depth * 1e3
+    w = phase == "weld"
+    err = _height(g, depth)[w] + depth
+    assert np.min(err) >= -0.2 and np.max(err) <= 0.5, (np.min(err), np.max(err))
+
+
+def test_a_failing_depth_is_named_first_with_where_how_much_and_its_levers(planned_result):
+    """The written zk500 plan checked against a depth window narrower than its samples: the
+    sample check's first envelope failure is the depth, with sample, time, phase, arc length,
+    value, bound, and the depth's levers; the planner's error (the NO verdict) starts with it."""
+    from dataclasses import replace as dc_replace
+
+    from rfsw_plan.exceptions import InfeasibleError
+    from rfsw_plan.planning.verify import verify_samples
+
+    res = planned_result("zk500_table6_seam")
+    narrow = dc_replace(res.window, depth_shallow=0.05e-3)
+    sv = verify_samples(res.model, res.task, narrow, res.trajectory, res.options.margin, res.q)
+    f = sv.envelope_failure
+    assert f is not None and f.check == "depth" and f.quantity == "depth"
+    assert f.value > 0.05 and f.bound == pytest.approx(0.05)
+    assert f"sample {f.index + 1} (t = {res.trajectory.t[f.index]:.3f} s" in f.message
+    with pytest.raises(InfeasibleError, match=r"^depth fails first: sample \d+ .*levers: axial "
+                                              r"force control"):
+        sv.raise_if_failed()
+    # The same plan against its own window holds every envelope check.
+    assert verify_samples(res.model, res.task, res.window, res.trajectory, res.options.margin,
+                          res.q).ok
+
+
+def test_force_control_holds_the_axial_force_so_only_traverse_and_lateral_spread(
+        planned_result):
+    """seed 000 welds in axial force control: the fanuc plan's task says so, its worst case has
+    no axial share, and plan.json names the set force for the force_on hook."""
+    from rfsw_plan.planning.verify import predict
+
+    res = planned_result("fanuc_butt_1700mm")
+    assert res.task.axial_control == "force"
+    env = res.summary()["envelope"]
+    assert env["axial_control"] == "force" and env["set_force_N"] == pytest.approx(3100.0)
+    pos = predict(res.model, dc_position(res.task), res.q, 0.2)
+    frc = predict(res.model, res.task, res.q, 0.2)
+    w = res.task.weld
+    assert np.all(frc.worst[w] < pos.worst[w])  # the axial spread is gone
+
+
+def dc_position(task):
+    from dataclasses import replace as dc_replace
+
+    return dc_replace(task, axial_control="position")
