@@ -526,6 +526,9 @@ JOINT_RANGE_TOL = 1e-9
 STATION_TOL = 1e-3
 #: Relative tolerance of the joint velocity, acceleration and jerk limits.
 LIMIT_TOL = 1e-9
+#: A plunge sample more than this above the plate surface is in the air, not in the material
+#: [m] (1 um: above the rounding of the written joint values, about 1e-5 mm of position).
+AIR_TOL = 1e-6
 #: Phases with the pin at full depth in the plate (where the depth window applies).
 FULL_DEPTH_PHASES = ("dwell", "accelerate", "weld", "decelerate")
 #: Tolerance of the tilt check on samples [rad] (the NLP's tool-axis tolerance).
@@ -647,7 +650,8 @@ class SampleVerification:
 
     Attributes:
         ok: Every sample passes every check.
-        contact: In-material samples (plunge, dwell, accelerate, weld, decelerate), (N,).
+        contact: In-material samples (plunge below the plate surface, dwell, accelerate, weld,
+            decelerate), (N,).
         e_lat: Predicted lateral pin error l . (FK_p + dX_p - p) [m], (N,).
         margin: Distance of e_lat to the nearest window bound [m], (N,) (>= 0 inside).
         worst_per_unit: Change of e_lat per unit relative force uncertainty,
@@ -742,8 +746,13 @@ def verify_samples(
     deflection (every physical effect, the task's seam reference) under the sample's wrench,
     the derivatives finite differences of the samples in time. Checks:
 
-    * in-material samples (plunge, dwell, accelerate, weld, decelerate): the lateral pin error
-      e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside [lower + margin, upper - margin];
+    * in-material samples (plunge below the plate surface, dwell, accelerate, weld,
+      decelerate): the lateral pin error e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside
+      [lower + margin, upper - margin];
+    * the rest of the weld envelope: the depth along the plate normal within the depth
+      window at full depth (dwell to decelerate), work and travel angle within the tilt
+      tolerance in the material, the pin's travel speed within the speed tolerance at
+      constant-speed weld samples, and no pin below the plate surface before the plunge;
     * every sample: joint limits, and joint velocity, acceleration and jerk limits;
     * stationarity (with ``q_waypoints``): the commanded TCP of every plunge sample inside the
       box spanned by the planned plunge waypoints (and the first dwell one), of every dwell
@@ -786,7 +795,15 @@ def verify_samples(
     p, tt, ll, nn = seam_frames_at(task, s)
     x = batch.T[:, :3, 3]
     e = np.einsum("ki,ki->k", ll, x + dX[:, :3] - p)
-    contact = np.isin(phase, CONTACT_PHASES)
+    # Height of the pin tip above the plate (seam point + plunge depth along the plate normal).
+    pin = x + dX[:, :3]
+    m0 = task.n_start
+    npl = plate_normals(task.frames.s[m0:], task.frames.p[m0:], nn, s)
+    depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
+    height = np.einsum("ki,ki->k", npl, pin - p) - depth_full
+    # In the material: the contact phases, less the plunge's start in the air (from the
+    # spindle clearance down to the surface).
+    contact = np.isin(phase, CONTACT_PHASES) & ~((phase == "plunge") & (height > AIR_TOL))
     dist = np.minimum(e - window.lower, window.upper - e)
     # Worst case per unit uncertainty, at the in-material samples only.
     R = np.zeros(N)
@@ -819,11 +836,6 @@ def verify_samples(
     first(bad, "window", e * 1e3, np.where(e < lo, lo, hi) * 1e3, "mm")
     # The rest of the weld envelope: depth along the plate normal, tilt, pin speed, and the
     # pin above the plate before the plunge.
-    pin = x + dX[:, :3]
-    m0 = task.n_start
-    npl = plate_normals(task.frames.s[m0:], task.frames.p[m0:], nn, s)
-    depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
-    height = np.einsum("ki,ki->k", npl, pin - p) - depth_full
     full = np.isin(phase, FULL_DEPTH_PHASES)
     derr = np.where(full, height + depth_full, np.nan)
     # The depth window itself (the planner's depth rows hold it with the margin at the
