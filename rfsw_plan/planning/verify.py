@@ -569,10 +569,11 @@ class SampleFailure:
         t: Its time [s].
         phase: Its phase.
         s: Its arc length [m].
-        check: ``window``, ``joint_limit_qj``, ``joint_velocity_qj``,
-            ``joint_acceleration_qj``, ``joint_jerk_qj``, ``plunge_stationarity`` or
-            ``dwell_stationarity``.
-        value: The offending value (file units: mm, deg, deg/s, deg/s^2, deg/s^3).
+        check: ``window``, ``depth``, ``surface`` (pin below the plate before the plunge),
+            ``work_angle``, ``travel_angle``, ``pin_speed``, ``joint_limit_qj``,
+            ``joint_velocity_qj``, ``joint_acceleration_qj``, ``joint_jerk_qj``,
+            ``plunge_stationarity`` or ``dwell_stationarity`` (and ``_joint_range``).
+        value: The offending value (file units: mm, deg, %, deg/s, deg/s^2, deg/s^3).
         bound: The bound it breaks (same unit).
         unit: The unit of value and bound.
     """

@@ -191,12 +191,11 @@ def _ik_line(robot: Robot, q_start: FloatArray, direction: FloatArray, dist: Flo
     return out
 
 
-def _grid_map(robot: Robot, q_end: FloatArray, n_axis: FloatArray, length: float,
-              start: float = 0.0, drift: FloatArray | None = None) -> CubicSpline:
-    """q(x) for x in [start, length], x the distance from FK(q_end) along n_axis (plus
-    ``drift`` * x / length, see :func:`_ik_line`)."""
-    xs = np.linspace(start, length, 11)
-    Q = _ik_line(robot, q_end, n_axis, xs, drift, length)
+def _grid_map(robot: Robot, q_end: FloatArray, n_axis: FloatArray, length: float
+              ) -> CubicSpline:
+    """q(x) for x in [0, length], x the distance from FK(q_end) along n_axis."""
+    xs = np.linspace(0.0, length, 11)
+    Q = _ik_line(robot, q_end, n_axis, xs)
     return CubicSpline(xs, Q, axis=0)
 
 
