@@ -12,8 +12,8 @@ For every bundled problem (each planned once per session, ``planned_result``):
   every full-depth sample (dwell, accelerate, weld, decelerate);
 * work and travel angle of the tool axis (from the written quaternion) within the tilt
   tolerance of the problem's ``tilt_deg`` at every in-material sample;
-* the pin's velocity along the seam tangent within the speed tolerance of the weld speed at
-  every constant-speed weld sample;
+* the pin's travel along the seam (arc length of its seam point plus its along-track offset)
+  within the speed tolerance of the weld speed at every constant-speed weld sample;
 * while the pin is in the plate during the retract, it rises at most at the process retract
   speed; the first and last samples are at the safe height, the approach a line along the
   tool axis.
@@ -71,12 +71,18 @@ def _geometry(cols: dict[str, np.ndarray], phase: np.ndarray, toml: dict
     seam = np.stack([cols[f"seam_{c}_mm"] for c in "xyz"], axis=1)
     pin = np.stack([cols[f"{c}_mm"] + cols[f"d{c}_mm"] for c in "xyz"], axis=1)
     s = cols["s_mm"]
-    # Seam tangent at each sample's s, from the written seam points of the weld samples.
+    # Seam tangent at each sample's s: the chord of the written seam points (of the weld
+    # samples) from s - 1 mm to s + 1 mm (the points are piecewise linear between the seam's
+    # waypoints; the chord does not jump at their corners).
     w = np.isin(phase, ("accelerate", "weld", "decelerate"))
     sw, order = np.unique(s[w], return_index=True)
     pw = seam[w][order]
-    tw = np.gradient(pw, sw, axis=0)
-    tan = np.stack([np.interp(s, sw, tw[:, i]) for i in range(3)], axis=1)
+
+    def at(x: np.ndarray) -> np.ndarray:
+        x = np.clip(x, sw[0], sw[-1])
+        return np.stack([np.interp(x, sw, pw[:, i]) for i in range(3)], axis=1)
+
+    tan = at(s + 1.0) - at(s - 1.0)
     tan /= np.linalg.norm(tan, axis=1, keepdims=True)
     nrm = np.asarray(toml["seam"].get("surface_normal", [0.0, 0.0, 1.0]), dtype=float)
     if nrm.ndim == 2:  # one normal per seam point: the nearest point's
@@ -142,9 +148,13 @@ def test_pin_speed_within_its_tolerance_of_the_weld_speed(written, name):
     phase, cols, toml, problem = written(name)
     g = _geometry(cols, phase, toml)
     w = phase == "weld"
-    # The pin's velocity along the seam tangent (its lateral and normal motion, while the
-    # forces ramp up at the weld start, is not travel).
-    v = np.einsum("ki,ki->k", np.gradient(g["pin"][w], cols["t_s"][w], axis=0), g["t"][w])
+    # The pin's travel along the seam: the arc length of its seam point plus its along-track
+    # offset from it, sigma = s + t . (pin - seam), in time (its lateral and normal motion
+    # while the forces ramp up at the weld start is not travel). On the 12 mm corners of
+    # kr600_forming_contour this measure (the untilted chord tangent) departs by up to 4.4 %,
+    # the planner's own (the tilted tangent interpolated between waypoints) by 1.8 %.
+    sigma = cols["s_mm"] + np.einsum("ki,ki->k", g["t"], g["pin"] - g["seam"])
+    v = np.gradient(sigma[w], cols["t_s"][w])
     v_weld = problem.process.travel_speed * 1e3
     tol = toml.get("window", {}).get("speed_tol_pct", 5.0) / 100
     assert np.max(np.abs(v / v_weld - 1)) <= tol, name
