@@ -19,6 +19,12 @@ runs in its own process, so the peak memory (``ru_maxrss``) is that size's. Prin
   projection failed a row and the full NLP was solved);
 * the growth exponent d log t / d log n between successive sizes.
 
+Then the two targets of issue 32 with their ratio to the mirror baseline in the same run:
+``plan()`` at 1000 weld waypoints (<= 0.5 s on an idle machine; the 1000 row above) and the
+CLI ``rfsw-plan -q plan PROBLEM`` of the problem at its own spacing, wall time of the whole
+process (<= 1.5 s), against the wall time of a process that runs the mirror baseline
+pipeline on the same problem (``--no-cli`` skips it).
+
 The machine is shared: figures are minima of repeats, and plan and baseline are measured side
 by side so their ratio is fair. Nothing is asserted.
 """
@@ -44,20 +50,22 @@ def _task(problem: Any, spacing: float) -> Any:
 
     opts = options_from_problem(problem)
     frames = problem.seam.frames(spacing)
+    axial = getattr(problem.process, "axial_control", None)
     return task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
-                              opts.max_start_waypoints, problem.seam_reference)
+                              opts.max_start_waypoints, problem.seam_reference,
+                              *((axial,) if axial else ()))
 
 
 def mirror_pipeline(problem: Any, spacing: float) -> None:
     """The mirror baseline, verified and timed like a plan."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.planning.api import options_from_problem
+    from rfsw_plan.planning import api
     from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
     from rfsw_plan.planning.verify import verify_plan
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+    from rfsw_plan.timing import trajectory
 
-    opts = options_from_problem(problem)
+    opts = api.options_from_problem(problem)
     model = ElastostaticModel(load_robot(problem.robot))
     task = _task(problem, spacing)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
@@ -65,8 +73,14 @@ def mirror_pipeline(problem: Any, spacing: float) -> None:
     mir = mirror_compensation(model, task, taught.q, opts.tool_rotation)
     verify_plan(model, task, problem.window, mir.q, mir.offsets, opts.force_uncertainty,
                 options=opts, reference_offsets=mir.offsets)
-    time_parameterise(model.robot, task, mir.q, mir.offsets,
-                      TimingLimits(plunge_speed=problem.process.plunge_speed))
+    if hasattr(trajectory, "timing_limits"):  # issue 32 on: the physical phases
+        trajectory.time_parameterise(model.robot, task, mir.q, mir.offsets,
+                                     trajectory.timing_limits(opts, problem.process),
+                                     api.deflection_of(model, task))
+    else:  # a checkout before issue 32 (the before/after figures of the same script)
+        trajectory.time_parameterise(model.robot, task, mir.q, mir.offsets,
+                                     trajectory.TimingLimits(
+                                         plunge_speed=problem.process.plunge_speed))
 
 
 def one_size(problem_name: str, n: int, solver: str, repeats: int) -> dict[str, Any]:
@@ -115,17 +129,50 @@ def _child(problem: str, n: int, solver: str, repeats: int) -> dict[str, Any]:
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 
 
+def cli_wall(problem: str, repeats: int) -> tuple[float, float]:
+    """Wall time [s] of ``rfsw-plan -q plan PROBLEM`` and of a process running the mirror
+    baseline pipeline on the same problem, each the minimum of ``repeats`` runs after one
+    warm-up, run alternately."""
+    import tempfile
+    from pathlib import Path
+
+    exe = Path(sys.executable).with_name("rfsw-plan")
+    cli_cmd = [str(exe), "-q", "plan", problem, "-o"]
+    mirror_cmd = [sys.executable, __file__, "--one-mirror", "--problem", problem]
+    t_cli, t_mirror = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(repeats + 1):
+            t0 = time.perf_counter()
+            subprocess.run([*cli_cmd, str(Path(tmp) / f"p{i}")], check=True,
+                           capture_output=True)
+            t1 = time.perf_counter()
+            subprocess.run(mirror_cmd, check=True, capture_output=True)
+            t2 = time.perf_counter()
+            if i:
+                t_cli.append(t1 - t0)
+                t_mirror.append(t2 - t1)
+    return min(t_cli), min(t_mirror)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[100, 1000, 4000, 16000])
     ap.add_argument("--problem", default="zk500_table6_seam")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-gap", action="store_true", help="skip the full NLP")
+    ap.add_argument("--no-cli", action="store_true", help="skip the CLI wall-time figure")
     ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--one-mirror", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--solver", default="coarse", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one is not None:
         print(json.dumps(one_size(args.problem, args.one, args.solver, args.repeats)))
+        return
+    if args.one_mirror:
+        from rfsw_plan.process.problem import load_problem
+
+        problem = load_problem(args.problem)
+        mirror_pipeline(problem, problem.spacing)
         return
     print(f"{args.problem}: minimum of {args.repeats} runs per size, plan and mirror baseline "
           f"side by side; one process per size")
@@ -151,6 +198,15 @@ def main() -> None:
         print(f"{n:>8} {r['K']:>6} {r['plan_s']:>8.3f} {r['mirror_s']:>9.3f} "
               f"{r['plan_s'] / r['mirror_s']:>6.2f} {r['peak_mb']:>8.0f} {gap:>8.3f} "
               f"{t_full:>7.1f} {r['method']:>11} {growth:>7.2f}", flush=True)
+    at_1000 = [r for r in rows if r["n"] == 1000]
+    if at_1000:
+        r = at_1000[0]
+        print(f"plan() at 1000 weld waypoints: {r['plan_s']:.3f} s (target <= 0.5 s idle), "
+              f"mirror {r['mirror_s']:.3f} s, ratio {r['plan_s'] / r['mirror_s']:.2f}")
+    if not args.no_cli:
+        cli, mirror = cli_wall(args.problem, args.repeats)
+        print(f"CLI plan {args.problem}: {cli:.2f} s wall (target <= 1.5 s idle), mirror "
+              f"pipeline process {mirror:.2f} s wall, ratio {cli / mirror:.2f}")
     if len(rows) >= 2:
         a, b = rows[0], rows[-1]
         print(f"t({b['n']}) / t({a['n']}) = {b['plan_s'] / a['plan_s']:.1f}; overall growth "

@@ -99,6 +99,8 @@ def test_point_derivatives_match_finite_differences(robot_name):
         "correction": rng.normal(0, 0.1, 3), "det_sign": 1.0, "det_floor": 0.01,
         "det_value": 0.3, "q_lin": q + 0.01, "det_grad": rng.normal(0, 0.1, n),
         "weld": 1.0,  # weld waypoint: the stiffness-cap row is on
+        "depth_on": 1.0,  # in the plate: the depth row is on
+        "surface_on": 0.0,
     })[0]
     assert par.size == n_par(n)
     glob = GLOBALS.pack(1, {

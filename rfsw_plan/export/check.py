@@ -184,7 +184,7 @@ def _plan_model(plan: Any, robot: Robot) -> tuple[Any, Any, Any]:
     sched = pb.process.schedule(frames, 0.05, approach=False)
     n_start = plan.record.get("n_start_waypoints")
     task = task_from_schedule(frames, sched, int(n_start) if isinstance(n_start, int) else 12,
-                              pb.seam_reference)
+                              pb.seam_reference, pb.process.axial_control)
     return ElastostaticModel(robot), task, pb.window
 
 

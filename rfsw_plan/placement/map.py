@@ -112,7 +112,8 @@ def map_input(problem: Any, max_weld: int = 50, options: PlanOptions | None = No
     model = model or ElastostaticModel(load_robot(problem.robot))
     frames = problem.seam.frames(problem.spacing)
     sched = problem.process.schedule(frames, 0.05, approach=False)
-    full = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference)
+    full = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference,
+                              problem.process.axial_control)
     task, idx = subsample_task(full, max_weld)
     spread = max(float(np.max(np.diff(idx[task.n_start:]))) if len(idx) > task.n_start + 1
                  else 1.0, 1.0)

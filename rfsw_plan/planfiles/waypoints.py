@@ -99,7 +99,10 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     lat = at_s(fr.l)
     lat /= np.linalg.norm(lat, axis=1, keepdims=True)
     e_lat = np.einsum("ki,ki->k", lat, T[:, :3, 3] + dX[:, :3] - seam_p)
-    contact = np.isin(tr.phase, CONTACT_PHASES)
+    # In the material: the sample check's (the plunge's start in the air is not), else by phase.
+    sv = result.samples
+    contact = (sv.contact if sv is not None and len(sv.contact) == len(tr)
+               else np.isin(tr.phase, CONTACT_PHASES))
     w = result.window
     margin = np.minimum(e_lat - w.lower, w.upper - e_lat)
     # w, x, y, z with a sign no machine's rounding flips, back in SciPy's x, y, z, w order

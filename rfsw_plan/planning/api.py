@@ -66,7 +66,12 @@ from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot, check_stiffness_scale, load_robot
-from rfsw_plan.timing.trajectory import TimedTrajectory, TimingLimits, time_parameterise
+from rfsw_plan.timing.trajectory import (
+    TimedTrajectory,
+    TimingLimits,
+    time_parameterise,
+    timing_limits,
+)
 from rfsw_plan.tomlreader import unknown_name_error
 
 log = logging.getLogger(__name__)
@@ -315,12 +320,11 @@ def plan(
     frames = problem.seam.frames(spacing or problem.spacing)
     process = problem.process
     sched = process.schedule(frames, 0.05, approach=False)
-    task = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference)
+    task = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference,
+                              process.axial_control)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
     return plan_task(model, task, window, q_seed, opts, problem.name, compile_c,
-                     TimingLimits(clearance=opts.clearance, approach_speed=opts.approach_speed,
-                                  plunge_speed=process.plunge_speed, dt=opts.sample_dt),
-                     t_all)
+                     timing_limits(opts, process), t_all)
 
 
 def plan_task(
@@ -405,6 +409,17 @@ class Written:
     timing_time: float
 
 
+def deflection_of(model: ElastostaticModel, task: PlanTask) -> Any:
+    """The TCP deflection [m] (N, 3) of joint values (N, n) [rad] under wrenches (N, 6), by
+    the numeric model with the task's seam reference (what the timing needs for the
+    retract)."""
+    def deflect(q: FloatArray, wrench: FloatArray) -> FloatArray:
+        dX = model.process_deflection_batch(model.batch(np.atleast_2d(q)), wrench,
+                                            task.reference)
+        return np.asarray(dX[:, :3])
+    return deflect
+
+
 def written_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                  opts: PlanOptions, q: FloatArray, offsets: FloatArray,
                  timing: TimingLimits | None, source: str = "nlp", note: str = "",
@@ -428,7 +443,8 @@ def written_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
         raise InfeasibleError(ver.messages[0] + note, ver.worst_waypoint, ver.binding,
                               ver.binding_margin)
     t0 = time.perf_counter()
-    traj = time_parameterise(model.robot, task, q, offsets, timing)
+    traj = time_parameterise(model.robot, task, q, offsets, timing,
+                             deflection_of(model, task))
     traj = replace(traj, s_pin=pin_track(model, task, traj))
     timing_time = time.perf_counter() - t0
     if stages is not None:

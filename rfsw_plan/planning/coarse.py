@@ -53,6 +53,7 @@ log = logging.getLogger(__name__)
 ROW_TOL = 1e-7
 #: The along-track column of a (K, 3) offset array (lateral, normal, along-track).
 ALONG = OFFSETS["along"]
+NORMAL = OFFSETS["normal"]
 
 
 def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, IntArray]:
@@ -67,7 +68,7 @@ def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, IntArr
     frames = type(fr)(*(getattr(fr, a)[idx] for a in ("s", "p", "t", "l", "n")))
     sub = PlanTask(frames, task.target[idx], task.force_seam[idx], task.moment_base[idx],
                    task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed,
-                   task.reference)
+                   task.reference, task.axial_control)
     return sub, idx
 
 
@@ -235,6 +236,13 @@ def project_fine(
         if float(np.max(np.abs(along))) > ROW_TOL * 1e-2:
             off[:, ALONG] -= along * 1e-3
             continue
+        # The depth row binds in the dwell (the pin held at its shallow bound); the fine
+        # correction differs from the coarse one within outer_tol, so the normal offset takes
+        # up what the interpolated plan leaves beyond the bound (1:1 to first order).
+        excess = _depth_excess(fine, rows["depth"][:, 0])
+        if float(np.max(np.abs(excess))) > ROW_TOL * 1e-2:
+            off[:, NORMAL] -= excess[:, None] * 1e-3
+            continue
         pred = predict(model, task, q, 0.0)
         full = np.column_stack([pred.e_lat, pred.e_norm, pred.e_along])
         new_corr = full - terms_prediction(fine, terms)
@@ -253,6 +261,21 @@ def project_fine(
     f, _ = fine.evaluate(x)
     log.info("fine projection: %d iterations, %d rows violated", it, len(viol))
     return FineProjection(x, q, off, corr, fine, viol, f, it)
+
+
+def _depth_excess(nlp: PlanNLP, depth: FloatArray) -> FloatArray:
+    """How far each waypoint's depth row is beyond its bounds, pushed 1e-6 mm inside [mm],
+    (K,) (positive above the upper bound, negative below the lower, 0 inside)."""
+    from rfsw_plan.planning.rows import point_labels
+
+    K = len(nlp.task)
+    labels = point_labels()
+    col = labels.index("depth")
+    lo = nlp.lbg[:K * len(labels)].reshape(K, len(labels))[:, col]
+    hi = nlp.ubg[:K * len(labels)].reshape(K, len(labels))[:, col]
+    inside = 1e-6
+    return np.asarray(np.where(depth > hi, depth - hi + inside,
+                               np.where(depth < lo, depth - lo - inside, 0.0)))
 
 
 def _tool_rotation_sub(task: PlanTask, idx: IntArray, T: FloatArray) -> FloatArray:

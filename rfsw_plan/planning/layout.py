@@ -116,10 +116,13 @@ def point_layout(n: int) -> Layout:
     """Per-waypoint parameters: nominal target [m], seam frame t, l, n, wrench (base frame)
     [N, Nm], force spread u |f| per seam component [N], outer correction (lateral, normal,
     along-track) [mm], singularity row (sign, floor, det at q_lin, q_lin [rad], d det / dq),
-    weld flag."""
+    weld flag, depth flag (1 where the depth window applies: in the plate under position
+    control), surface flag (1 at the plunge start, where the pin must not be below the
+    surface)."""
     return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
                    ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
-                   ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1)))
+                   ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1),
+                   ("depth_on", 1), ("surface_on", 1)))
 
 
 #: Global scalars passed to every waypoint: the objective weights, the lateral compliance

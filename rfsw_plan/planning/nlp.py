@@ -49,7 +49,7 @@ step allows).
 Every row family above is declared once, by name, in :mod:`rfsw_plan.planning.rows` (its
 expression, bounds, independent check); the variables and parameters are named by the layouts
 of :mod:`rfsw_plan.planning.layout`. Per waypoint there are
-:func:`~rfsw_plan.planning.rows.point_row_count` rows (14) and n + 5 variables; per link n + 4
+:func:`~rfsw_plan.planning.rows.point_row_count` rows (19) and n + 5 variables; per link n + 4
 rows; x has K (n + 5) + 1 entries.
 
 Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
@@ -153,16 +153,16 @@ def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
 class PointFunctions:
     """Per-waypoint CasADi functions (SX, optionally compiled to C).
 
-    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (14, named
+    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (19, named
     by :data:`POINT_CONSTRAINTS`), n_w = n + 5 variables per waypoint
     (:func:`~rfsw_plan.planning.layout.variable_layout`) and the terms of
     :data:`~rfsw_plan.planning.layout.TERMS` (6):
 
     Attributes:
-        info: ``(w, par) -> (g (14,), terms (6,), dX (6,))``.
+        info: ``(w, par) -> (g (19,), terms (6,), dX (6,))``.
         fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
         grad: ``(w, par, glob) -> grad phi (n + 5,)``.
-        jac: ``(w, par) -> dg/dw`` dense (14, n + 5).
+        jac: ``(w, par) -> dg/dw`` dense (19, n + 5).
         hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
             dense upper triangle (n + 5, n + 5).
         skipped: Effects the symbolic model lacks.
@@ -299,7 +299,7 @@ class PlanNLP:
         x0: Initial guess, shape (K (n + 5) + 1,) (:func:`x_layout`: the last entry is c_max,
             the largest lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (14 K + (n + 4)(K - 1),): the rows of
+        lbg, ubg: Constraint bounds, shape (19 K + (n + 4)(K - 1),): the rows of
             :data:`~rfsw_plan.planning.rows.POINT_ROWS` at every waypoint, then the link
             rows of :data:`~rfsw_plan.planning.rows.LINK_ROWS` on every link.
         p: Parameter vector.
@@ -394,7 +394,7 @@ class PlanNLP:
         return np.append(W.reshape(-1), c_max)
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-waypoint (g (K, 14), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
+        """Per-waypoint (g (K, 19), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
         columns of g are :data:`POINT_CONSTRAINTS` (by family: the rows' layout), of
         terms :data:`~rfsw_plan.planning.layout.TERMS`."""
         K = self.n_waypoints
@@ -670,7 +670,7 @@ def build_plan_nlp(
     q_init = np.asarray(q_init, dtype=float)
     p = _parameters(model, task, window, q_init, opts, correction)
     lbx, ubx = _variable_bounds(robot, K, opts)
-    lbg, ubg = _point_bounds(window, opts, K)
+    lbg, ubg = _point_bounds(window, opts, K, task)
     links = _link_bounds(task, opts, n, load_steps, offset_reference)
     nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros(x_layout(n, K).size),
                   lbx, ubx, np.concatenate([lbg, links.lower]),
@@ -688,8 +688,10 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
     det = _det_parameters(model.robot, q_init, opts)
     PAR = point_layout(n).pack(K, {
         "target": task.target, "t": fr.t, "l": fr.l, "n": fr.n, "wrench": task.wrench_base,
-        "force_spread": opts.force_uncertainty * np.abs(task.force_seam),
+        "force_spread": opts.force_uncertainty * np.abs(task.force_seam) * task.spread_weights,
         "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
+        "depth_on": (~task.at_surface).astype(float),
+        "surface_on": task.at_surface.astype(float),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6
@@ -720,11 +722,17 @@ def _variable_bounds(robot: Robot, K: int, opts: PlanOptions) -> tuple[FloatArra
             xl.pack(1, {"points": np.tile(ubw, K), "c_max": np.inf})[0])
 
 
-def _point_bounds(window: WeldWindow, opts: PlanOptions, K: int
+def _point_bounds(window: WeldWindow, opts: PlanOptions, K: int, task: PlanTask | None = None
                   ) -> tuple[FloatArray, FloatArray]:
     """Bounds of the per-waypoint rows of K waypoints, from each family's declaration (NLP
-    units), shape (14 K,) each."""
-    ctx = PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3)
+    units), shape (rows per waypoint x K,) each."""
+    travel = task.link_travel()[task.n_start:] if task is not None else np.zeros(0)
+    travel = travel[travel > 1e-12]
+    h_min = float(np.min(travel)) if len(travel) else 0.0
+    ctx = PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3,
+                      (-window.depth_deep + opts.margin) * 1e3,
+                      (window.depth_shallow - opts.margin) * 1e3,
+                      float(np.sin(window.tilt_tol)), 0.5 * window.speed_tol * h_min * 1e3)
     pairs = []
     for f in rows.POINT_ROWS:
         got = f.bounds(ctx)

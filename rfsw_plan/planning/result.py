@@ -190,6 +190,38 @@ class PlanResult:
         """Waypoint with the smallest window margin."""
         return int(np.argmin(self.verification.margin))
 
+    def envelope(self) -> dict[str, Any]:
+        """The weld envelope as written (file units): the window of each quantity and its
+        range over the written samples (:func:`~rfsw_plan.planning.verify.verify_samples`):
+        depth error along the plate normal at full depth (+ shallow) [mm], largest tilt
+        error [deg], pin speed / weld speed - 1 at constant-speed weld samples [%], and the
+        pin's lowest height above the plate before the plunge [mm]."""
+        w, sv = self.window, self.samples
+        out: dict[str, Any] = {
+            "axial_control": self.task.axial_control,
+            # The force the controller's axial loop holds (force control; for the force_on
+            # hook): the process model's steady axial force at the weld waypoints.
+            "set_force_N": float(np.max(self.task.force_seam[self.task.weld, 2]))
+            if self.task.axial_control == "force" else None,
+            "depth_window_mm": [-w.depth_deep * 1e3, w.depth_shallow * 1e3],
+            "tilt_tol_deg": float(np.rad2deg(w.tilt_tol)),
+            "speed_tol_pct": w.speed_tol * 100,
+        }
+        if sv is None:
+            return out
+        before = self.trajectory.phase == "approach"
+        h = sv.height
+        tilt = _nanrange(sv.tilt_error, float(np.rad2deg(1.0)))
+        out.update({
+            "depth_error_mm": _nanrange(sv.depth_error, 1e3),
+            "max_tilt_error_deg": tilt[1] if tilt else None,
+            "pin_speed_deviation_pct": _nanrange(
+                None if sv.speed_ratio is None else sv.speed_ratio - 1.0, 100.0),
+            "min_height_before_plunge_mm": float(np.min(h[before])) * 1e3
+            if h is not None and before.any() else None,
+        })
+        return out
+
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary in file units (mm, deg, N/mm, s)."""
         v = self.verification
@@ -219,6 +251,7 @@ class PlanResult:
                 "limit_ratios": self.samples.limit_ratios,
                 "stationarity_excess_mm": self.samples.station_excess * 1e3,
             },
+            "envelope": self.envelope(),
             "robot": self.robot_name,
             "solver_status": self.solver_status,
             "ipopt_iterations": self.iterations,
@@ -276,6 +309,15 @@ class PlanResult:
                 "kappa_f": v.prediction.kappa.tolist(),
             },
         }
+
+
+def _nanrange(x: FloatArray | None, scale: float) -> list[float]:
+    """[min, max] of the finite values of x times scale, or [] if none."""
+    if x is None:
+        return []
+    x = np.asarray(x, dtype=float)
+    x = x[np.isfinite(x)]
+    return [float(np.min(x)) * scale, float(np.max(x)) * scale] if len(x) else []
 
 
 def _range(x: FloatArray) -> list[float]:

@@ -40,6 +40,10 @@ from rfsw_plan.planning.layout import OFFSET_LABELS, FloatArray, Layout
 from rfsw_plan.process.plan_options import PlanOptions
 
 INF = float("inf")
+#: The NLP keeps the pin at the plunge start at least this far above the surface [mm], so that
+#: the outer correction's residual (``outer_tol``, 1e-6 m) cannot put it below (the check
+#: requires >= 0).
+SURFACE_LIFT = 0.005
 
 
 @dataclass(frozen=True)
@@ -83,11 +87,21 @@ class PointBounds:
     Attributes:
         lower, upper: Weld window bounds [mm].
         margin: Margin of the nominal error to the window bounds [mm].
+        depth_lower, depth_upper: Bounds of the normal pin error (positive: shallower than
+            planned) with the margin [mm] (the weld window's depth_deep and depth_shallow).
+        tilt: sin of the tilt tolerance [1].
+        along: Bound of the along-track error that keeps the pin's speed between
+            neighbouring weld waypoints within the speed tolerance [mm]:
+            speed_tol x shortest weld link / 2.
     """
 
     lower: float
     upper: float
     margin: float
+    depth_lower: float = -INF
+    depth_upper: float = INF
+    tilt: float = 1.0
+    along: float = INF
 
 
 @dataclass(frozen=True)
@@ -223,6 +237,32 @@ POINT_ROWS: tuple[PointRows, ...] = (
     PointRows(
         "along_track", ("along_track",), lambda s: s.along_error,
         lambda b: ((0.0, 0.0),), check="along_track"),
+    # The weld envelope (issue 32). Depth: the normal pin error (along the tool axis; along
+    # the plate normal it is cos(tilt) times this) inside the depth window with the margin,
+    # wherever the pin is in the plate (gated by depth_on: every waypoint but the plunge
+    # start). Under axial force control it is the force loop's equilibrium (the pin at the
+    # planned depth under the set force) that the plan's poses model.
+    PointRows(
+        "depth", ("depth",), lambda s: s.par["depth_on"] * s.normal_error,
+        lambda b: ((b.depth_lower, b.depth_upper),), check="depth"),
+    # At the plunge start (zero force): the pin on the plate surface, not below it (so the
+    # normal offset enters with the force, not before) and not above it by more than the depth
+    # window's shallow side.
+    PointRows(
+        "surface", ("surface",),
+        lambda s: s.par["surface_on"] * (s.normal_error - SURFACE_LIFT),
+        lambda b: ((0.0, b.depth_upper - SURFACE_LIFT),), check="surface"),
+    # Work angle (about t) and travel angle (about l) of the tool axis within the tolerance
+    # of the planned tilt: the TCP z axis against n, its components along l and t.
+    PointRows(
+        "tilt", ("work_angle", "travel_angle"),
+        lambda s: _sym(ca.dot(s.axis, s.par["l"]), ca.dot(s.axis, s.par["t"])),
+        lambda b: ((-b.tilt, b.tilt), (-b.tilt, b.tilt)), check="tilt"),
+    # The pin's travel between neighbouring weld waypoints within the speed tolerance of the
+    # weld speed: each pin within speed_tol x h_min / 2 of its seam point along the track.
+    PointRows(
+        "travel_speed", ("travel_speed",), lambda s: s.along_error,
+        lambda b: ((-b.along, b.along),), check="travel_speed"),
     # sign det J_n linearised at q_lin above its floor: the smooth stand-in for kappa_f.
     PointRows(
         "singularity", ("singularity",),

@@ -140,7 +140,7 @@ class Verdict:
     def line(self) -> str:
         """The first line of ``rfsw-plan plan``."""
         if self.word == NO:
-            return f"NO: no plan holds the weld window: {self.reason}"
+            return f"NO: no plan holds the weld envelope: {self.reason}"
         every = "holds the weld window at every written sample"
         if self.word == GO:
             upto = ("under any force uncertainty" if self.tolerated == np.inf

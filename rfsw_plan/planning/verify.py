@@ -40,7 +40,7 @@ from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
 from rfsw_plan.planning.rows import checks as declared_checks
 from rfsw_plan.process.plan_options import PlanOptions
-from rfsw_plan.process.task import PlanTask, offsets3
+from rfsw_plan.process.task import PlanTask, offsets3, plate_normals
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
 
@@ -51,6 +51,9 @@ POSE_TOL = 1e-5
 AXIS_TOL = 1e-4
 #: Tolerance of the predicted pin's along-track error [m].
 ALONG_TOL = 1e-5
+#: Tolerance of the pin's height above the surface at the plunge start [m] (IPOPT's
+#: constraint tolerance, 1e-7 mm, rounded up).
+SURFACE_TOL = 1e-9
 #: Tolerance of the offsets' change between neighbours [m]: the NLP rows' own slack (1e-6 mm)
 #: plus IPOPT's constraint tolerance (1e-7 mm), rounded up.
 OFFSET_TOL = 2e-9
@@ -114,7 +117,8 @@ def predict(
     Ctt = model.physical().cartesian_compliance(batch)[:, :3, :3]
     lC = np.einsum("ki,kij->kj", fr.l, Ctt)
     proj = np.stack([np.einsum("kj,kj->k", lC, b) for b in (fr.t, fr.l, fr.n)], axis=1)
-    worst = uncertainty * np.sum(np.abs(task.force_seam) * np.abs(proj), axis=1)
+    worst = uncertainty * np.sum(np.abs(task.force_seam) * task.spread_weights * np.abs(proj),
+                                 axis=1)
     kappa = dexterity_batch(batch.J, length_scale)
     return Prediction(T, dX, e_lat, e_norm, e_along, worst, proj[:, 1], kappa)
 
@@ -310,6 +314,45 @@ def _check_offset_speed(c: CheckInput) -> Margins | None:
     return _offset_margins("offset_speed", c, bound)
 
 
+def _check_depth(c: CheckInput) -> Margins:
+    """The normal pin error inside the depth window wherever the pin is in the plate (every
+    waypoint but the plunge start; under axial force control the force loop's equilibrium
+    the plan's poses model); along the plate normal it is cos(tilt) times this."""
+    e, w = c.prediction.e_norm, c.window
+    m = np.minimum(e + w.depth_deep, w.depth_shallow - e)
+    return [("depth", np.where(c.task.at_surface, np.inf, m), "m")]
+
+
+def _check_surface(c: CheckInput) -> Margins:
+    """At the plunge start (plunge waypoint at depth 0, zero force) the pin is on the plate
+    surface: not below it, nor above it by more than the depth window's shallow side."""
+    e, w = c.prediction.e_norm, c.window
+    m = np.minimum(e + SURFACE_TOL, w.depth_shallow - e)
+    return [("surface", np.where(c.task.at_surface, m, np.inf), "m")]
+
+
+def _check_tilt(c: CheckInput) -> Margins:
+    """Work angle (about t) and travel angle (about l) of the TCP z axis from the planned
+    tool axis -n within the tilt tolerance."""
+    z, fr = c.prediction.T[:, :3, 2], c.task.frames
+    work = np.arcsin(np.clip(np.einsum("ki,ki->k", z, fr.l), -1.0, 1.0))
+    travel = np.arcsin(np.clip(np.einsum("ki,ki->k", z, fr.t), -1.0, 1.0))
+    tol = c.window.tilt_tol
+    return [("work_angle", tol - np.abs(work), "rad"), ("travel_angle", tol - np.abs(travel),
+                                                         "rad")]
+
+
+def _check_travel_speed(c: CheckInput) -> Margins:
+    """Every weld waypoint's pin within speed_tol x h_min / 2 of its seam point along the
+    track, so the pin's travel between neighbours is within speed_tol of the seam's."""
+    travel = c.task.link_travel()[c.task.n_start:]
+    travel = travel[travel > 1e-12]
+    if not len(travel):
+        return []
+    bound = 0.5 * c.window.speed_tol * float(np.min(travel))
+    return [("travel_speed", bound - np.abs(c.prediction.e_along), "m")]
+
+
 #: The independent checks, by the name the row declarations use, in the order a plan's
 #: first failure is reported. ``joint_limit`` checks the variable bounds (no row family).
 ROW_CHECKS: dict[str, RowCheck] = {
@@ -317,6 +360,10 @@ ROW_CHECKS: dict[str, RowCheck] = {
     "window": _check_window,
     "pose": _check_pose,
     "along_track": _check_along,
+    "depth": _check_depth,
+    "surface": _check_surface,
+    "tilt": _check_tilt,
+    "travel_speed": _check_travel_speed,
     "tool_axis": _check_axis,
     "singularity": _check_singularity,
     "joint_limit": _check_joint_limits,
@@ -479,6 +526,15 @@ JOINT_RANGE_TOL = 1e-9
 STATION_TOL = 1e-3
 #: Relative tolerance of the joint velocity, acceleration and jerk limits.
 LIMIT_TOL = 1e-9
+#: A plunge sample more than this above the plate surface is in the air, not in the material
+#: [m] (1 um: above the rounding of the written joint values, about 1e-5 mm of position).
+AIR_TOL = 1e-6
+#: Phases with the pin at full depth in the plate (where the depth window applies).
+FULL_DEPTH_PHASES = ("dwell", "accelerate", "weld", "decelerate")
+#: Tolerance of the tilt check on samples [rad] (the NLP's tool-axis tolerance).
+TILT_TOL = 1e-4
+#: Tolerance of the pin-speed check [1] (finite differences of 10 ms samples).
+SPEED_TOL = 1e-6
 
 
 class SampleLike(Protocol):
@@ -513,10 +569,11 @@ class SampleFailure:
         t: Its time [s].
         phase: Its phase.
         s: Its arc length [m].
-        check: ``window``, ``joint_limit_qj``, ``joint_velocity_qj``,
-            ``joint_acceleration_qj``, ``joint_jerk_qj``, ``plunge_stationarity`` or
-            ``dwell_stationarity``.
-        value: The offending value (file units: mm, deg, deg/s, deg/s^2, deg/s^3).
+        check: ``window``, ``depth``, ``surface`` (pin below the plate before the plunge),
+            ``work_angle``, ``travel_angle``, ``pin_speed``, ``joint_limit_qj``,
+            ``joint_velocity_qj``, ``joint_acceleration_qj``, ``joint_jerk_qj``,
+            ``plunge_stationarity`` or ``dwell_stationarity`` (and ``_joint_range``).
+        value: The offending value (file units: mm, deg, %, deg/s, deg/s^2, deg/s^3).
         bound: The bound it breaks (same unit).
         unit: The unit of value and bound.
     """
@@ -536,9 +593,28 @@ class SampleFailure:
         return self.index + 1
 
     @property
+    def quantity(self) -> str:
+        """The weld-envelope quantity the check guards (``lateral``, ``depth``, ``tilt``,
+        ``speed``, ``clearance``), or the check's name for the others."""
+        return {"window": "lateral", "depth": "depth", "surface": "clearance",
+                "work_angle": "tilt", "travel_angle": "tilt",
+                "pin_speed": "speed"}.get(self.check, self.check)
+
+    @property
+    def levers(self) -> str:
+        """What can make this quantity hold (empty for joint-limit and stationarity checks)."""
+        return ENVELOPE_LEVERS.get(self.quantity, "")
+
+    @property
     def message(self) -> str:
         """One line: which sample, where, what, value and bound."""
         what = {"window": "lateral pin error outside the window with the margin",
+                "depth": "pin depth error along the plate normal (+ shallow, - deep) outside "
+                         "the depth window",
+                "surface": "pin tip below the plate surface before the plunge",
+                "work_angle": "work angle off the planned tilt",
+                "travel_angle": "travel angle off the planned tilt",
+                "pin_speed": "pin travel speed off the weld speed by",
                 "dwell_stationarity": "commanded TCP leaves the box of the planned dwell "
                                       "waypoints by",
                 "plunge_stationarity": "commanded TCP leaves the box of the planned plunge "
@@ -552,13 +628,31 @@ class SampleFailure:
                 f"{self.bound:.4g} {self.unit}")
 
 
+#: The levers of each weld-envelope quantity, for the verdict when it fails.
+ENVELOPE_LEVERS = {
+    "lateral": "levers: a stiffer placement (rfsw-plan place), a calibrated force model (plan "
+               "--forces), real-time compensation (rfsw-plan compare), or a smaller margin_mm",
+    "depth": "levers: axial force control ([process] axial_control = \"force\": the controller "
+             "holds the depth), a placement stiffer along the plate normal (rfsw-plan place), "
+             "a larger offset_rate_mm_per_mm, or the tool's depth window ([window] "
+             "depth_shallow_mm / depth_deep_mm)",
+    "tilt": "levers: a larger joint_step_deg or another tool_rotation_deg (the path between "
+            "waypoints turns the tool), a finer spacing_mm, or [window] tilt_tol_deg",
+    "speed": "levers: a finer spacing_mm, a smaller offset_rate_mm_per_mm (the along-track "
+             "offset changes the pin's speed), or [window] speed_tol_pct",
+    "clearance": "levers: a larger offset_speed_stationary_mm_s (the normal offset must "
+                 "follow the plunge force) or a slower plunge_speed_mm_s",
+}
+
+
 @dataclass(frozen=True)
 class SampleVerification:
     """Result of :func:`verify_samples` (base frame, SI unless stated).
 
     Attributes:
         ok: Every sample passes every check.
-        contact: In-material samples (plunge, dwell, accelerate, weld, decelerate), (N,).
+        contact: In-material samples (plunge below the plate surface, dwell, accelerate, weld,
+            decelerate), (N,).
         e_lat: Predicted lateral pin error l . (FK_p + dX_p - p) [m], (N,).
         margin: Distance of e_lat to the nearest window bound [m], (N,) (>= 0 inside).
         worst_per_unit: Change of e_lat per unit relative force uncertainty,
@@ -571,6 +665,15 @@ class SampleVerification:
         station_excess: Largest distance of a plunge or dwell sample's commanded TCP outside
             the box of its planned stationary waypoints [m] (-inf if not checked).
         failures: The first failing sample of every failing check, in time order.
+        depth_error: Predicted pin tip along the plate normal relative to the planned depth
+            (positive: shallower) [m], (N,); NaN where not at full depth in the plate
+            (approach, plunge, retract).
+        tilt_error: Largest of |work angle| and |travel angle| off the planned tool axis
+            [rad], (N,) (NaN outside the plate).
+        speed_ratio: Pin travel speed / weld speed at constant-speed weld samples, (N,) (NaN
+            elsewhere).
+        height: Predicted pin tip height above the plate surface along the plate normal [m],
+            (N,) (negative in the plate).
     """
 
     ok: bool
@@ -582,11 +685,22 @@ class SampleVerification:
     limit_ratios: dict[str, float]
     station_excess: float
     failures: tuple[SampleFailure, ...]
+    depth_error: FloatArray | None = None
+    tilt_error: FloatArray | None = None
+    speed_ratio: FloatArray | None = None
+    height: FloatArray | None = None
 
     @property
     def first_failure(self) -> SampleFailure | None:
         """The earliest failing sample, or None."""
         return self.failures[0] if self.failures else None
+
+    @property
+    def envelope_failure(self) -> SampleFailure | None:
+        """The failure to report first: the earliest failing weld-envelope quantity (lateral,
+        depth, tilt, speed, clearance), else the earliest failure of any check."""
+        env = [f for f in self.failures if f.levers]
+        return env[0] if env else self.first_failure
 
     @property
     def min_margin(self) -> float:
@@ -595,12 +709,14 @@ class SampleVerification:
 
     def raise_if_failed(self) -> None:
         """Raise :class:`InfeasibleError` naming the first failing sample."""
-        f = self.first_failure
+        f = self.envelope_failure
         if f is not None:
             more = f" (and {len(self.failures) - 1} more checks fail)" if len(
                 self.failures) > 1 else ""
-            raise InfeasibleError(f"written trajectory fails the sample check at {f.message}"
-                                  + more, None, f.check, None)
+            head = (f"{f.quantity} fails first: " if f.levers
+                    else "written trajectory fails the sample check at ")
+            lev = f"; {f.levers}" if f.levers else ""
+            raise InfeasibleError(head + f.message + more + lev, None, f.check, None)
 
 
 def seam_frames_at(task: PlanTask, s: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
@@ -631,8 +747,13 @@ def verify_samples(
     deflection (every physical effect, the task's seam reference) under the sample's wrench,
     the derivatives finite differences of the samples in time. Checks:
 
-    * in-material samples (plunge, dwell, accelerate, weld, decelerate): the lateral pin error
-      e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside [lower + margin, upper - margin];
+    * in-material samples (plunge below the plate surface, dwell, accelerate, weld,
+      decelerate): the lateral pin error e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside
+      [lower + margin, upper - margin];
+    * the rest of the weld envelope: the depth along the plate normal within the depth
+      window at full depth (dwell to decelerate), work and travel angle within the tilt
+      tolerance in the material, the pin's travel speed within the speed tolerance at
+      constant-speed weld samples, and no pin below the plate surface before the plunge;
     * every sample: joint limits, and joint velocity, acceleration and jerk limits;
     * stationarity (with ``q_waypoints``): the commanded TCP of every plunge sample inside the
       box spanned by the planned plunge waypoints (and the first dwell one), of every dwell
@@ -675,7 +796,15 @@ def verify_samples(
     p, tt, ll, nn = seam_frames_at(task, s)
     x = batch.T[:, :3, 3]
     e = np.einsum("ki,ki->k", ll, x + dX[:, :3] - p)
-    contact = np.isin(phase, CONTACT_PHASES)
+    # Height of the pin tip above the plate (seam point + plunge depth along the plate normal).
+    pin = x + dX[:, :3]
+    m0 = task.n_start
+    npl = plate_normals(task.frames.s[m0:], task.frames.p[m0:], nn, s)
+    depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
+    height = np.einsum("ki,ki->k", npl, pin - p) - depth_full
+    # In the material: the contact phases, less the plunge's start in the air (from the
+    # spindle clearance down to the surface).
+    contact = np.isin(phase, CONTACT_PHASES) & ~((phase == "plunge") & (height > AIR_TOL))
     dist = np.minimum(e - window.lower, window.upper - e)
     # Worst case per unit uncertainty, at the in-material samples only.
     R = np.zeros(N)
@@ -684,8 +813,9 @@ def verify_samples(
         Ctt = model.physical().cartesian_compliance(sub)[:, :3, :3]
         lC = np.einsum("ki,kij->kj", ll[contact], Ctt)
         f = W[contact, :3]
-        for b in (tt[contact], ll[contact], nn[contact]):
-            R[contact] += np.abs(np.einsum("ki,ki->k", f, b)) * np.abs(
+        for b, wgt in zip((tt[contact], ll[contact], nn[contact]), task.spread_weights,
+                          strict=True):
+            R[contact] += wgt * np.abs(np.einsum("ki,ki->k", f, b)) * np.abs(
                 np.einsum("kj,kj->k", lC, b))
     with np.errstate(divide="ignore", invalid="ignore"):
         u_k = np.where(R > 0, np.maximum(dist, 0.0) / R, np.where(dist >= 0, np.inf, 0.0))
@@ -705,6 +835,36 @@ def verify_samples(
     lo, hi = window.lower + margin, window.upper - margin
     bad = contact & ((e < lo - WINDOW_TOL) | (e > hi + WINDOW_TOL))
     first(bad, "window", e * 1e3, np.where(e < lo, lo, hi) * 1e3, "mm")
+    # The rest of the weld envelope: depth along the plate normal, tilt, pin speed, and the
+    # pin above the plate before the plunge.
+    full = np.isin(phase, FULL_DEPTH_PHASES)
+    derr = np.where(full, height + depth_full, np.nan)
+    # The depth window itself (the planner's depth rows hold it with the margin at the
+    # waypoints; between them the pin may use the margin, as it may not the window). Under
+    # axial force control this is the force loop's equilibrium the poses model.
+    dlo, dhi = -window.depth_deep, window.depth_shallow
+    with np.errstate(invalid="ignore"):
+        bad = full & ((derr < dlo - WINDOW_TOL) | (derr > dhi + WINDOW_TOL))
+    first(bad, "depth", derr * 1e3, np.where(derr < dlo, dlo, dhi) * 1e3, "mm")
+    before = phase == "approach"
+    first(before & (height < -WINDOW_TOL), "surface", height * 1e3, 0.0, "mm")
+    z = batch.T[:, :3, 2]
+    work = np.arcsin(np.clip(np.einsum("ki,ki->k", z, ll), -1.0, 1.0))
+    trav = np.arcsin(np.clip(np.einsum("ki,ki->k", z, tt), -1.0, 1.0))
+    tol_t = window.tilt_tol + TILT_TOL
+    for name, ang in (("work_angle", work), ("travel_angle", trav)):
+        first(contact & (np.abs(ang) > tol_t), name, np.rad2deg(ang),
+              float(np.rad2deg(window.tilt_tol)), "deg")
+    tilt_err = np.where(contact, np.maximum(np.abs(work), np.abs(trav)), np.nan)
+    speed_ratio = np.full(N, np.nan)
+    welding = phase == "weld"
+    if N >= 3 and welding.sum() >= 3 and task.travel_speed > 0:
+        sigma = s + np.einsum("ki,ki->k", tt, pin - p)
+        speed_ratio[welding] = np.gradient(sigma[welding], t[welding]) / task.travel_speed
+        dev = np.abs(speed_ratio - 1.0)
+        with np.errstate(invalid="ignore"):
+            first(welding & (dev > window.speed_tol + SPEED_TOL), "pin_speed",
+                  (speed_ratio - 1.0) * 100, window.speed_tol * 100, "%")
     for j in range(Q.shape[1]):
         qj = Q[:, j]
         bad = (qj < d.lower[j] - 1e-9 - q_resolution) | (qj > d.upper[j] + 1e-9 + q_resolution)
@@ -740,6 +900,17 @@ def verify_samples(
                           axis=1)
             out = np.max(np.maximum(xw[wk].min(axis=0) - x[rows], x[rows] - xw[wk].max(axis=0)),
                          axis=1)
+            if name == "plunge":
+                # Above the plunge start (in the air, from the spindle clearance down): on
+                # the tool axis through the first plunge waypoint's commanded TCP, the joints
+                # free (the IK of that line, not the range of the waypoints in the plate).
+                n0 = task.frames.n[0]
+                rel = x[rows] - xw[wk[0]]
+                up = rel @ n0
+                air = up > 1e-9
+                off_axis = np.linalg.norm(rel - up[:, None] * n0[None], axis=1)
+                out = np.where(air, off_axis, out)
+                jout = np.where(air, -np.inf, jout)
             excess = max(excess, float(np.max(out)))
             for check, o, tol, scale, unit in (
                     (f"{name}_joint_range", jout, JOINT_RANGE_TOL + q_resolution,
@@ -752,7 +923,7 @@ def verify_samples(
                 first(bad, check, val, tol * scale, unit)
     fails.sort(key=lambda f: (f.index, f.check))
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
-                              tuple(fails))
+                              tuple(fails), derr, tilt_err, speed_ratio, height)
 
 
 def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,

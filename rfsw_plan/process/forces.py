@@ -162,6 +162,10 @@ class PhaseTimes:
         return self.approach + self.plunge + self.dwell + self.weld + self.retract
 
 
+#: Axial control modes of the weld (``[process] axial_control``).
+AXIAL_CONTROLS = ("position", "force")
+
+
 @dataclass(frozen=True)
 class ProcessModel:
     """FSW process: phase kinematics plus the parametric force model.
@@ -177,6 +181,10 @@ class ProcessModel:
         approach_height: Height above the surface where the approach starts [m]; 0 = none.
         approach_speed: Approach speed [m/s].
         rotation_speed_rpm: Spindle speed [rpm] (informational).
+        axial_control: ``position`` (seed 001: the robot holds the commanded depth; the
+            planner's depth rows apply) or ``force`` (seed 000: the controller's axial force
+            loop holds the set force ``forces.axial`` and with it the depth; the program
+            switches it on and off through the ``force_on``/``force_off`` hooks).
         name: Process name.
         material: Workpiece material (informational).
         thickness: Sheet thickness [m] (informational).
@@ -192,6 +200,7 @@ class ProcessModel:
     approach_height: float = 0.0
     approach_speed: float = 10.0e-3
     rotation_speed_rpm: float = 0.0
+    axial_control: str = "position"
     name: str = ""
     material: str = ""
     thickness: float = 0.0
@@ -210,6 +219,9 @@ class ProcessModel:
                 raise InputError("process", key, f"got {v * scale:g}", "> 0")
         if not (np.isfinite(self.dwell_time) and self.dwell_time >= 0):
             raise InputError("process", "dwell_s", f"got {self.dwell_time:g}", ">= 0")
+        if self.axial_control not in AXIAL_CONTROLS:
+            raise InputError("process", "axial_control", f"got {self.axial_control!r}",
+                             " or ".join(f'"{a}"' for a in AXIAL_CONTROLS))
         if not (np.isfinite(self.approach_height) and self.approach_height >= 0):
             raise InputError("process", "approach_height_mm",
                              f"got {self.approach_height * 1e3:g}", ">= 0")

@@ -104,8 +104,15 @@ class PlanOptions:
         w_stiffness, w_worst, w_robust, w_centre, w_depth, w_smooth_q, w_smooth_o, w_proximity:
             Objective
             weights (see the module docstring).
-        clearance: Approach and retract distance along the tool axis [m].
-        approach_speed: Speed of the approach and retract [m/s].
+        clearance: Safe height of the pin tip above the plate surface [m]: the approach
+            starts and the retract ends there, by a linear move along the tool axis (default
+            50 mm, ASSUMED: above the clamps of a butt-weld fixture; no seed states one). The
+            problem's ``[process] approach_height_mm``, when > 0, replaces it.
+        spindle_clearance: Height of the pin tip above the plate surface where the approach
+            ends, the spindle-start hook runs and the plunge begins [m] (default 2 mm,
+            ASSUMED): the spindle is at speed before the pin touches the plate.
+        approach_speed: Speed of the approach and of the retract once the pin has left the
+            plate [m/s] (in the plate the retract runs at the process retract speed).
         sample_dt: Sample time of the timed trajectory [s].
     """
 
@@ -140,7 +147,8 @@ class PlanOptions:
     w_smooth_q: float = 1e-3
     w_smooth_o: float = 1.0
     w_proximity: float = 0.1
-    clearance: float = 20e-3
+    clearance: float = 50e-3
+    spindle_clearance: float = 2e-3
     approach_speed: float = 20e-3
     sample_dt: float = 0.01
 
@@ -155,7 +163,8 @@ class PlanOptions:
             if getattr(self, name) < 0:
                 raise InputError("planning", name, f"got {getattr(self, name)}", ">= 0")
         for name in ("offset_rate", "offset_speed_stationary", "offset_speed", "joint_step",
-                     "length_scale", "clearance", "approach_speed", "sample_dt", "tol"):
+                     "length_scale", "clearance", "spindle_clearance", "approach_speed",
+                     "sample_dt", "tol"):
             if getattr(self, name) <= 0:
                 raise InputError("planning", name, f"got {getattr(self, name)}", "> 0")
         if not 0.0 <= self.min_stiffness_share <= 1.0:
@@ -241,6 +250,7 @@ OPTION_KEYS: dict[str, OptionKey] = {
         "w_stiffness", "w_worst", "w_robust", "w_centre", "w_depth", "w_smooth_q", "w_smooth_o",
         "w_proximity")},
     "clearance_mm": OptionKey("clearance", 1e-3, ge=0.01, le=1e4),
+    "spindle_clearance_mm": OptionKey("spindle_clearance", 1e-3, ge=0.01, le=1e3),
     "approach_speed_mm_s": OptionKey("approach_speed", 1e-3, ge=0.01, le=1e4),
     "sample_dt_s": OptionKey("sample_dt", ge=1e-4, le=1.0),
 }

@@ -35,9 +35,11 @@ _SEED000 = ProcessModel(
     ),
     travel_speed=6e-3, plunge_speed=0.5e-3, plunge_depth=2.9e-3, dwell_time=5.0,
     retract_speed=2e-3, approach_height=0.0, approach_speed=10e-3, rotation_speed_rpm=1200.0,
+    axial_control="force",
     name="seed000_aa5754_3mm", material="AA5754-H22", thickness=3e-3,
-    source="seed 000 §2: 1200 rpm, 6 mm/s, tilt 0, pin 2.8 mm + 0.1 mm shoulder depth; plunge "
-    "speed 0.5 mm/s, dwell 5 s and retract speed ASSUMED",
+    source="seed 000 §2: 1200 rpm, 6 mm/s, tilt 0, pin 2.8 mm + 0.1 mm shoulder depth, axial "
+    "force control at the 3.1 kN forge force; plunge speed 0.5 mm/s, dwell 5 s and retract "
+    "speed ASSUMED",
 )
 
 #: Bundled processes by name.

@@ -66,7 +66,7 @@ import numpy as np
 from rfsw_plan.elastostatics.model import SeamReference
 from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.process.cosim import PenetrationLaw, PenetrationObservation
-from rfsw_plan.process.forces import ProcessForces, ProcessModel
+from rfsw_plan.process.forces import AXIAL_CONTROLS, ProcessForces, ProcessModel
 from rfsw_plan.process.frames import FloatArray, SeamFrames
 from rfsw_plan.process.plan_options import PlanOptions, options_from_table
 from rfsw_plan.process.presets import (
@@ -93,7 +93,7 @@ SEAM_KEYS = ("points_mm", "csv", "interpolation", "spacing_mm", "tilt_deg", "rot
 PROCESS_KEYS = ("preset", "travel_speed_mm_s", "plunge_speed_mm_s", "plunge_depth_mm",
                 "dwell_s", "retract_speed_mm_s", "approach_height_mm", "approach_speed_mm_s",
                 "rotation_speed_rpm", "thickness_mm", "material", "name", "source", "forces",
-                "coupling")
+                "coupling", "axial_control")
 FORCE_KEYS = ("axial_N", "lateral_N", "traverse_N", "lateral_sign", "plunge_peak_axial_N",
               "dwell_lateral_fraction", "dwell_tau_s", "ramp_length_mm", "spindle_torque_Nm",
               "source")
@@ -101,7 +101,8 @@ COUPLING_KEYS = ("penetration_stiffness_N_per_mm", "reference_penetration_mm",
                  "reference_force_N", "commanded_depth_mm", "calibration", "source")
 #: Keys of an explicit penetration law (not allowed together with ``calibration``).
 LAW_KEYS = ("penetration_stiffness_N_per_mm", "reference_penetration_mm", "reference_force_N")
-WINDOW_KEYS = ("lower_mm", "upper_mm", "target_mm", "source")
+WINDOW_KEYS = ("lower_mm", "upper_mm", "target_mm", "depth_shallow_mm", "depth_deep_mm",
+               "tilt_tol_deg", "speed_tol_pct", "source")
 
 #: Largest |coordinate| of a seam point [mm] (100 m: beyond any robot cell).
 MAX_COORD_MM = 1e5
@@ -422,6 +423,11 @@ def _phases(path: Path, tab: Table, forces: ProcessForces,
     """The phase kinematics of ``[process]`` over the preset's."""
     texts: dict[str, Any] = {k: tab.str_(k, _prior(base, ProcessModel, k))
                              for k in ("name", "material")}
+    axial = tab.str_("axial_control", _prior(base, ProcessModel, "axial_control"))
+    if axial not in AXIAL_CONTROLS:
+        raise tab.error("axial_control", f"unknown axial control '{axial}'",
+                        " or ".join(f'"{a}"' for a in AXIAL_CONTROLS))
+    texts["axial_control"] = axial
     return ProcessModel(
         forces=forces,
         **_numbers(tab, PHASE_NUMBERS, base, ProcessModel),
@@ -481,6 +487,10 @@ def _window(wtab: Table | None) -> WeldWindow:
         lower=wtab.num("lower_mm", -1.25, ge=-100.0, le=100.0) * 1e-3,
         upper=wtab.num("upper_mm", 0.7, ge=-100.0, le=100.0) * 1e-3,
         target=wtab.num("target_mm", 1.0, ge=1e-3, le=100.0) * 1e-3,
+        depth_shallow=wtab.num("depth_shallow_mm", 0.5, gt=0.0, le=100.0) * 1e-3,
+        depth_deep=wtab.num("depth_deep_mm", 0.2, gt=0.0, le=100.0) * 1e-3,
+        tilt_tol=float(np.deg2rad(wtab.num("tilt_tol_deg", 0.5, gt=0.0, le=45.0))),
+        speed_tol=wtab.num("speed_tol_pct", 5.0, gt=0.0, le=100.0) * 1e-2,
     )
 
 

@@ -43,6 +43,10 @@ class PlanTask:
         reference: How the seam points relate to the robot (``taught`` or ``absolute``); the
             modelled process wrench deflects the TCP by
             :meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection` with it.
+        axial_control: ``position`` or ``force`` (the process's, see
+            :class:`~rfsw_plan.process.forces.ProcessModel`): under force control the axial
+            force is the controller's set force, so its uncertainty does not deflect the
+            robot (:attr:`spread_weights`) and the depth is the controller's.
     """
 
     frames: SeamFrames
@@ -55,9 +59,32 @@ class PlanTask:
     n_start: int
     travel_speed: float
     reference: SeamReference = "taught"
+    axial_control: str = "position"
 
     def __len__(self) -> int:
         return int(self.target.shape[0])
+
+    @property
+    def spread_weights(self) -> FloatArray:
+        """Which seam-frame force components (f_t, f_l, f_n) are uncertain, (3,): all under
+        position control; under axial force control the controller holds f_n at its set
+        force, so only f_t and f_l (seed 000 §2: the force loop acts along the tool axis)."""
+        return np.array([1.0, 1.0, 0.0 if self.axial_control == "force" else 1.0])
+
+    @property
+    def plate_normal(self) -> FloatArray:
+        """The plate (surface) normal at every waypoint, (K, 3): the tool axis n without its
+        part along the seam's own direction (the tilt turns t and n together about l, so the
+        untilted seam tangent comes from the seam points: d p / d s over the weld
+        waypoints; stationary waypoints take the first weld waypoint's)."""
+        return plate_normals(self.frames.s[self.n_start:], self.frames.p[self.n_start:],
+                             self.frames.n, self.frames.s)
+
+    @property
+    def at_surface(self) -> NDArray[np.bool_]:
+        """Waypoints at the plunge start (plunge phase, depth 0: the pin touches the surface
+        at zero force), (K,)."""
+        return np.asarray((self.phase == "plunge") & (self.depth <= 0))
 
     @property
     def s(self) -> FloatArray:
@@ -87,6 +114,22 @@ class PlanTask:
         link the distance the time step stands for at the travel speed (floor 1 um)."""
         return np.maximum(np.maximum(self.link_travel(), self.link_times() * self.travel_speed),
                           1e-6)
+
+
+def plate_normals(sw: FloatArray, pw: FloatArray, n: FloatArray, s: FloatArray) -> FloatArray:
+    """Plate normals at arc lengths s (N,) with tool axes n (N, 3): n without its part along
+    the seam tangent d p / d s of the weld points (sw (k,) [m], pw (k, 3) [m]), interpolated
+    linearly in s; unit, (N, 3)."""
+    sw = np.asarray(sw, dtype=float)
+    pw = np.asarray(pw, dtype=float)
+    n = np.atleast_2d(np.asarray(n, dtype=float))
+    if len(sw) < 2:
+        return np.asarray(n / np.linalg.norm(n, axis=1, keepdims=True))
+    tw = np.gradient(pw, sw, axis=0)
+    ts = np.stack([np.interp(s, sw, tw[:, i]) for i in range(3)], axis=1)
+    ts /= np.linalg.norm(ts, axis=1, keepdims=True)
+    v = n - np.einsum("ki,ki->k", n, ts)[:, None] * ts
+    return np.asarray(v / np.linalg.norm(v, axis=1, keepdims=True))
 
 
 def offsets3(offsets: FloatArray) -> FloatArray:
@@ -126,7 +169,7 @@ def task_constant_force(
 
 def task_from_schedule(
     frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12,
-    reference: SeamReference = "taught",
+    reference: SeamReference = "taught", axial_control: str = "position",
 ) -> PlanTask:
     """The task of a seam and its load schedule.
 
@@ -140,6 +183,7 @@ def task_from_schedule(
         schedule: The process over time (plunge and dwell at s = 0, then weld).
         max_start: Most stationary waypoints.
         reference: Seam reference (see :class:`PlanTask`).
+        axial_control: ``position`` or ``force`` (see :class:`PlanTask`).
     """
     weld = schedule.mask("weld")
     if not np.any(weld):
@@ -180,6 +224,7 @@ def task_from_schedule(
         n_start=m,
         travel_speed=v,
         reference=reference,
+        axial_control=axial_control,
     )
 
 

@@ -22,10 +22,20 @@
   on the offset curve seam + offsets, whose speed differs from v by the curvature times the
   lateral offset and by the pose-dependent change of the deflection (kr600_curved_seam: up to
   about 4 % on its 200 mm arc with an 8 mm lateral offset); there only the pin's speed is v.
-* Approach and retract: Ruckig on the distance along the tool axis, mapped to joints by IK on
-  a grid (cubic spline in the distance).
-* Plunge: Ruckig on the depth, mapped through the planned stationary waypoints by a
-  shape-preserving (monotone, Fritsch-Carlson PCHIP) interpolation in depth.
+* Approach: from the safe height (``clearance`` above the plate surface, along the plate
+  normal) down the tool axis to ``spindle_clearance`` above the surface, at the approach
+  speed: Ruckig on the distance along the tool axis, mapped to joints by IK on a grid (cubic
+  spline in the distance). The first sample is at the safe height, at zero force and with
+  the offsets of the plunge start (the first stationary waypoint, at zero force).
+* Plunge: from ``spindle_clearance`` above the surface (where the spindle-start hook runs)
+  to full depth, Ruckig on the depth, mapped through the planned stationary waypoints by a
+  shape-preserving (monotone, Fritsch-Carlson PCHIP) interpolation in depth (the stretch in
+  the air, before the first waypoint at the surface, by IK along the tool axis).
+* Retract: in the plate, up the tool axis at the process retract speed, the wrench and the
+  fake-target offsets falling linearly with the depth still in the plate (the process
+  model's retract force, :meth:`~rfsw_plan.process.forces.ProcessModel.profile`), so the
+  offsets keep following the force and the pin leaves along the tool axis; once the pin is
+  at the surface, up to the safe height at the approach speed at zero force.
 * Dwell: the planned stationary waypoints in time, in Cartesian space: the commanded TCP on
   the straight line between neighbouring waypoints and the tool turned by their slerp, at rest
   at every waypoint, the offsets and wrench with the same progress, so the offsets follow the
@@ -45,6 +55,7 @@ Every sample is then checked against the joint velocity, acceleration and jerk l
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +63,8 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline, CubicSpline, PchipInterpolator
 
 from rfsw_plan.exceptions import InfeasibleError
+from rfsw_plan.process.forces import ProcessModel
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot
@@ -69,18 +82,37 @@ class TimingLimits:
     Attributes:
         acceleration: Along the tool axis or the seam [m/s^2].
         jerk: Along the tool axis or the seam [m/s^3].
-        clearance: Approach and retract distance above the surface [m].
-        approach_speed: Approach and retract speed [m/s].
+        clearance: Safe height of the pin tip above the plate surface, along the plate
+            normal, where the approach starts and the retract ends [m].
+        approach_speed: Approach speed, and retract speed once the pin is out [m/s].
         plunge_speed: Plunge speed [m/s].
         dt: Sample time [s].
+        spindle_clearance: Height of the pin tip above the surface where the approach ends
+            and the plunge (spindle started) begins [m].
+        retract_speed: Retract speed while the pin is in the plate [m/s].
     """
 
     acceleration: float = 0.1
     jerk: float = 1.0
-    clearance: float = 20e-3
+    clearance: float = 50e-3
     approach_speed: float = 20e-3
     plunge_speed: float = 2e-3
     dt: float = 0.01
+    spindle_clearance: float = 2e-3
+    retract_speed: float = 2e-3
+
+
+def timing_limits(options: PlanOptions, process: ProcessModel, dt: float | None = None
+                  ) -> TimingLimits:
+    """The timing limits of a problem: the planner options' safe height (the process's
+    ``approach_height`` when > 0), spindle clearance and approach speed, the process's plunge
+    and retract speeds, and the sample time (``dt`` or the options')."""
+    return TimingLimits(
+        clearance=process.approach_height if process.approach_height > 0
+        else options.clearance,
+        approach_speed=options.approach_speed, plunge_speed=process.plunge_speed,
+        dt=options.sample_dt if dt is None else dt,
+        spindle_clearance=options.spindle_clearance, retract_speed=process.retract_speed)
 
 
 @dataclass(frozen=True)
@@ -138,16 +170,18 @@ class TimedTrajectory:
                 "jerk": float(np.max(np.abs(self.qddd) / d.jerk))}
 
 
-def _ik_line(robot: Robot, q_start: FloatArray, direction: FloatArray, dist: FloatArray
-             ) -> FloatArray:
+def _ik_line(robot: Robot, q_start: FloatArray, direction: FloatArray, dist: FloatArray,
+             drift: FloatArray | None = None, length: float = 1.0) -> FloatArray:
     """Joint values moving the TCP from FK(q_start) by dist_i * direction (orientation kept),
-    by IK continuation, (len(dist), n)."""
+    plus ``drift`` * dist_i / length [m] (3,) if given, by IK continuation, (len(dist), n)."""
     T0 = robot.fk(q_start)
     out = np.zeros((len(dist), robot.nq))
     q = q_start.copy()
     for i, x in enumerate(dist):
         T = T0.copy()
         T[:3, 3] = T0[:3, 3] + x * direction
+        if drift is not None:
+            T[:3, 3] += drift * (x / length)
         res = solve_ik(robot, T, q, tol_pos=1e-8, tol_rot=1e-8)
         if not res.converged:
             raise InfeasibleError(f"approach/retract: IK fails {x * 1e3:.1f} mm along the tool "
@@ -163,6 +197,50 @@ def _grid_map(robot: Robot, q_end: FloatArray, n_axis: FloatArray, length: float
     xs = np.linspace(0.0, length, 11)
     Q = _ik_line(robot, q_end, n_axis, xs)
     return CubicSpline(xs, Q, axis=0)
+
+
+#: A deflection model for the retract: (q (N, n) [rad], wrench (N, 6) [N, N m]) -> the TCP
+#: deflection (N, 3) [m] (the planner passes its elastostatic model's process deflection).
+Deflection = Callable[[FloatArray, FloatArray], FloatArray]
+
+
+def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatArray,
+                 length: float, wrench_end: FloatArray, deflection: Deflection | None,
+                 rounds: int = 4) -> tuple[CubicSpline, CubicSpline]:
+    """Joint values q(x) and offsets o(x) (lateral, normal, along-track) [m] of the retract in
+    the plate, x in [0, length] the pin's rise along the tool axis n: the wrench falls as
+    F_end (1 - x / length) and the commanded TCP is where the *predicted* pin is the weld's
+    last predicted pin moved by x n (``deflection`` given: a fixed point over IK and the
+    deflection model), else the last commanded TCP moved by x n minus the offsets' share
+    o (x / length) (linear in the force)."""
+    fr = task.frames
+    n_end, l_end, t_end = fr.n[-1], fr.l[-1], fr.t[-1]
+    xs = np.linspace(0.0, length, 11)
+    x0 = robot.fk(q_end)[:3, 3]
+    cmd = x0 + xs[:, None] * n_end[None] - (xs / length)[:, None] * o_vec[None]
+    Q = _ik_line(robot, q_end, n_end, xs, -o_vec, length)
+    if deflection is not None:
+        W = (1.0 - xs / length)[:, None] * wrench_end[None]
+        pin_end = x0 + deflection(q_end[None], wrench_end[None])[0]
+        goal = pin_end + xs[:, None] * n_end[None]
+        T0 = robot.fk(q_end)
+        for _ in range(rounds):
+            cmd = goal - deflection(Q, W)
+            cmd[0] = x0
+            q = q_end.copy()
+            for i in range(1, len(xs)):
+                T = T0.copy()
+                T[:3, 3] = cmd[i]
+                res = solve_ik(robot, T, q, tol_pos=1e-8, tol_rot=1e-8)
+                if not res.converged:
+                    raise InfeasibleError(f"retract: IK fails {xs[i] * 1e3:.1f} mm along the "
+                                          "tool axis", constraint="reach")
+                q = res.q
+                Q[i] = q
+    target = fr.p[-1] + xs[:, None] * n_end[None]
+    rel = cmd - target
+    O = np.stack([rel @ l_end, rel @ n_end, rel @ t_end], axis=1)
+    return CubicSpline(xs, Q, axis=0), CubicSpline(xs, O, axis=0)
 
 
 def monotone_interp(xk: FloatArray, yk: FloatArray, x: FloatArray, rest_ends: bool = False
@@ -328,7 +406,7 @@ def _dwell_piece(robot: Robot, tk: FloatArray, qk: FloatArray, ok: FloatArray, F
 
 def time_parameterise(
     robot: Robot, task: PlanTask, q: FloatArray, offsets: FloatArray,
-    limits: TimingLimits | None = None,
+    limits: TimingLimits | None = None, deflection: Deflection | None = None,
 ) -> TimedTrajectory:
     """Time a planned path and check every limit at every sample.
 
@@ -338,6 +416,9 @@ def time_parameterise(
         q: Planned joint values [rad], (K, n).
         offsets: Planned offsets (lateral, normal[, along-track]) [m], (K, 3) or (K, 2).
         limits: Cartesian limits of the Ruckig pieces and the sample time.
+        deflection: The TCP deflection model (see :data:`Deflection`) that keeps the pin
+            leaving the plate along the tool axis at the retract speed; None: the offsets
+            fall linearly with the force.
 
     Raises:
         InfeasibleError: The weld speed exceeds what the joint limits allow (names the arc
@@ -375,13 +456,30 @@ def time_parameterise(
     q_first = q[0]
     depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
     d0 = float(task.depth[0]) if m else depth_full
-    # Approach: from clearance above the first waypoint down to it.
-    up = lim.clearance
+    # Distances along the tool axis that rise by a height along the plate normal.
+    nplate = task.plate_normal
+
+    def height(qq: FloatArray, k: int) -> float:
+        """Height of the TCP at joint values qq above the plate (seam point k + plunge depth
+        along the plate normal) [m]: the pin's at zero force."""
+        surface = task.frames.p[k] + depth_full * nplate[k]
+        return float(np.dot(nplate[k], robot.fk(qq)[:3, 3] - surface))
+
+    cos0 = float(np.dot(n0, nplate[0]))
+    h_first = height(q_first, 0)
+    up = (lim.clearance - h_first) / cos0
+    # Without stationary waypoints (no plunge) the approach ends on the first weld waypoint.
+    air = (min(lim.spindle_clearance, lim.clearance) - h_first) / cos0 if m else 0.0
+    # Approach: from the safe height above the plunge start down the tool axis to the spindle
+    # clearance, at the offsets of the plunge start (zero force).
     amap = _grid_map(robot, q_first, n0, up)
-    t, x, _, _ = profile_1dof(up, 0.0, 0.0, 0.0, lim.approach_speed, lim.acceleration,
+    t, x, _, _ = profile_1dof(up, air, 0.0, 0.0, lim.approach_speed, lim.acceleration,
                               lim.jerk, dt)
     pieces.append(("approach", t, np.zeros_like(t), amap(x), np.repeat(offsets[:1], len(t), 0),
                    np.tile(zero6, (len(t), 1))))
+    # Depth 0 is the first stationary waypoint (or the first weld waypoint); above it the
+    # plunge starts in the air at the spindle clearance.
+    q_air = amap(np.array([air]))[0]
     if m:
         plunge = np.flatnonzero(task.phase[:m] == "plunge")
         dwell = np.flatnonzero(task.phase[:m] == "dwell")
@@ -395,14 +493,19 @@ def time_parameterise(
         keep = np.append(np.diff(dep) > 1e-9, True)  # of equal depths keep the last
         idx, dep = idx[keep], dep[keep]
         end = int(idx[-1])
-        if len(idx) >= 2:
+        if len(idx) >= 1:
             # Shape-preserving in depth: every plunge sample between its neighbouring
-            # waypoints (Ruckig starts and ends the depth at rest).
-            t, x, _, _ = profile_1dof(d0, dep[-1], 0.0, 0.0, lim.plunge_speed,
+            # waypoints (Ruckig starts and ends the depth at rest), from the spindle clearance
+            # (depth -air, in the air, at zero force).
+            t, x, _, _ = profile_1dof(d0 - air, dep[-1], 0.0, 0.0, lim.plunge_speed,
                                       lim.acceleration, lim.jerk, dt)
-            pieces.append(("plunge", t, np.zeros_like(t), monotone_interp(dep, q[idx], x),
-                           monotone_interp(dep, offsets[idx], x),
-                           monotone_interp(dep, F[idx], x)))
+            pieces.append(("plunge", t, np.zeros_like(t),
+                           monotone_interp(np.append(d0 - air, dep),
+                                           np.vstack([q_air, q[idx]]), x),
+                           monotone_interp(np.append(d0 - air, dep),
+                                           np.vstack([offsets[idx[:1]], offsets[idx]]), x),
+                           monotone_interp(np.append(d0 - air, dep),
+                                           np.vstack([zero6, F[idx]]), x)))
         # Dwell: the planned stationary waypoints in time, up to the first weld waypoint.
         idx = np.concatenate([[end], dwell[dwell > end], [m]]).astype(int)
         idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
@@ -429,14 +532,32 @@ def time_parameterise(
     pieces.append(("weld", t, s, spline(s), o_spline(s), f_spline(s)))
     s_d = s_end + (x_a[-1] - x_a[::-1])  # mirror of the ramp up
     pieces.append(("decelerate", t_a, s_d, spline(s_d), o_spline(s_d), f_spline(s_d)))
-    # Retract: up along the tool axis by the depth plus the clearance.
+    # Retract: out of the plate up the tool axis at the retract speed, the wrench and the
+    # offsets falling with the depth still in the plate (the offsets' commanded displacement
+    # o_lat l + o_norm n + o_along t unwinds along the way); then up to the safe height.
     n_end = task.frames.n[-1]
-    rdist = depth_full + lim.clearance
-    rmap = _grid_map(robot, q[-1], n_end, rdist)
+    cos1 = float(np.dot(n_end, nplate[-1]))
+    fr = task.frames
+    o_end = offsets[-1]
+    o_vec = o_end[0] * fr.l[-1] + o_end[1] * fr.n[-1] + o_end[2] * fr.t[-1]
+    dplate = max(depth_full / cos1, 1e-6)
+    if depth_full > 0:
+        rmap, omap = _retract_map(robot, q[-1], task, o_vec, dplate, F[-1], deflection)
+        t, x, _, _ = profile_1dof(0.0, dplate, 0.0, 0.0, lim.retract_speed, lim.acceleration,
+                                  lim.jerk, dt)
+        rest = (1.0 - x / dplate)[:, None]
+        pieces.append(("retract", t, np.full_like(t, sw[-1]), rmap(x), omap(x),
+                       rest * F[-1]))
+        q_out = rmap(np.array([dplate]))[0]
+    else:
+        q_out = q[-1]
+    rdist = (lim.clearance - height(q_out, len(task) - 1)) / cos1
+    cmap = _grid_map(robot, q_out, n_end, rdist)
     t, x, _, _ = profile_1dof(0.0, rdist, 0.0, 0.0, lim.approach_speed, lim.acceleration,
                               lim.jerk, dt)
-    pieces.append(("retract", t, np.full_like(t, sw[-1]), rmap(x),
-                   np.repeat(offsets[-1:], len(t), 0), np.tile(zero6, (len(t), 1))))
+    zero3 = np.zeros(3) if depth_full > 0 else o_end
+    pieces.append(("retract", t, np.full_like(t, sw[-1]), cmap(x),
+                   np.repeat(zero3[None], len(t), 0), np.tile(zero6, (len(t), 1))))
 
     # Concatenate; drop the first sample of each piece after the first (it repeats the end).
     ts, ph, ss, qs, os_, fs = [], [], [], [], [], []

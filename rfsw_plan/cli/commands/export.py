@@ -123,16 +123,16 @@ def _stream_at_cycle(args: argparse.Namespace, result: PlanResult, cycle: float)
     import numpy as np
 
     from rfsw_plan.export.stream import samples_of
+    from rfsw_plan.planning.api import deflection_of
     from rfsw_plan.planning.verify import seam_frames_at
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.timing.trajectory import TimingLimits, time_parameterise
+    from rfsw_plan.timing.trajectory import time_parameterise, timing_limits
 
     opts = result.options
     process = load_problem(args.problem).process
     traj = time_parameterise(result.model.robot, result.task, result.q, result.offsets,
-                             TimingLimits(clearance=opts.clearance,
-                                          approach_speed=opts.approach_speed,
-                                          plunge_speed=process.plunge_speed, dt=cycle))
+                             timing_limits(opts, process, cycle),
+                             deflection_of(result.model, result.task))
     seam = seam_frames_at(result.task, np.asarray(traj.s))[0]
     return samples_of(traj, seam)
 

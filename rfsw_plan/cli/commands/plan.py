@@ -209,6 +209,19 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
         sv = result.samples
         print(f"written samples: {len(sv.e_lat)} ({int(sv.contact.sum())} in the material), "
               f"all in the window; smallest window margin {sv.min_margin * 1e3:.3f} mm")
+        env = summary["envelope"]
+        dep = env.get("depth_error_mm") or []
+        spd = env.get("pin_speed_deviation_pct") or []
+        loop = " (the force loop's equilibrium)" if env["axial_control"] == "force" else ""
+        depth = (f"depth {dep[0]:+.3f} to {dep[1]:+.3f} mm of the planned depth{loop} (window "
+                 f"{env['depth_window_mm'][0]:+g} to {env['depth_window_mm'][1]:+g} mm)"
+                 if dep else "depth not sampled")
+        tilt = env.get("max_tilt_error_deg")
+        print(f"weld envelope at every written sample: {depth}; tilt within "
+              f"{0.0 if tilt is None else tilt:.3f} deg (tolerance {env['tilt_tol_deg']:g}); "
+              f"pin speed within {max(abs(x) for x in spd) if spd else 0.0:.2f} % of the weld "
+              f"speed (tolerance {env['speed_tol_pct']:g} %); pin "
+              f"{env['min_height_before_plunge_mm']:.2f} mm above the plate before the plunge")
     print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); wrote "
           f"{len(written)} files in {out}:")
     for f in written:
