@@ -11,16 +11,28 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
   cannot take another posture. The others are Cartesian with ``CONFIG : 'N U T, 0, 0, 0'``
   (:func:`rfsw_plan.export.config.fanuc_config`: F if J5 > 0, N if J5 < 0, checked against
   RoboDK's post-processor and a ROBOGUIDE table in ``tests/data/vendor``).
-* Frames are set in the program, exactly: the plate frame and the TCP are written element by
-  element into position registers (``PR[i]=LPOS`` makes the register Cartesian, then
-  ``PR[i,1..6]``), then ``UFRAME[uf]=PR[i]``, ``UTOOL[ut]=PR[j]``, ``UFRAME_NUM``,
-  ``UTOOL_NUM``; ``PAYLOAD[ut]`` selects the payload schedule whose values the header lists
-  (FANUC units: kg, cm, kgf cm s^2), to be entered on the payload screen.
-* Termination ``FINE`` everywhere: FANUC's ``CNT`` rounds a corner by an amount that depends
-  on speed and acceleration, with no published bound, so the 0.01 mm path tolerance cannot be
-  shown for it; the corner-region option (``CR``) takes whole millimetres, more than the
-  bounded blend here. Each ``FINE`` costs the controller's in-position settle time (tens of
-  ms; the header says so).
+* Frames: the program selects the user frame and tool frame by number (``UFRAME_NUM``,
+  ``UTOOL_NUM``) and writes none of the cell's numbered data: the header lists the values to
+  enter there (two remark lines each, ``! UFRAME[n] X .. Y .. Z ..`` and ``! UFRAME[n] W ..
+  P .. R ..``, which :func:`read_tp` reads) and the payload for the payload screen (FANUC
+  units: kg, cm, kgf cm s^2). With ``cell_data`` (``--cell-data``) it writes them as before:
+  the plate frame and the TCP element by element into position registers (``PR[i]=LPOS``
+  makes the register Cartesian, then ``PR[i,1..6]``), then ``UFRAME[uf]=PR[i]``,
+  ``UTOOL[ut]=PR[j]`` and ``PAYLOAD[ut]``; the header says so.
+* Termination: ``CRn`` (corner region, n whole millimetres) at a point inside the plunge,
+  the dwell or the weld where the rounding keeps every verified sample within the path
+  tolerance, ``FINE`` elsewhere (the phase ends: approach, end of plunge, end of dwell, end
+  of weld, retract, and a corner the bound does not allow). ``CNT`` is not used: it rounds a
+  corner by an amount that depends on speed, acceleration and override, with no published
+  bound. ``CR`` states the rounding as a distance in mm, independent of the speed (public
+  description: industrialmonitordirect.com knowledge base, "FANUC CR100 corner radius
+  smoothing", which names its option "Advanced Motion Package"; FANUC's option name and
+  number are not public: check the controller's option list, and without the option
+  replace every ``CRn`` by ``FINE``). The bound used holds whether n is read as the
+  distance from the point where the rounding starts and ends, or as the radius of a
+  rounding arc (its tangent points lie n tan(theta/2) <= n from the point for a direction
+  change theta <= 90 deg): :func:`rfsw_plan.export.program.region_deviation`, checked at
+  export (:meth:`FanucTpFormat.path_deviation`).
 * ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
   milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
   ``WAIT t(sec)``; remarks ``! text``.
@@ -50,7 +62,14 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import fanuc_config
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import unwrap_angles
-from rfsw_plan.export.program import Program, controller_name, number
+from rfsw_plan.export.program import (
+    Program,
+    chord_deviation,
+    controller_name,
+    number,
+    payload_assumed,
+    region_deviation,
+)
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
 
@@ -136,48 +155,128 @@ class FanucTpFormat(ControllerFormat):
     def read(self, path: Path) -> ReadProgram:
         return read_tp(path)
 
+    def path_deviation(self, program: Program) -> FloatArray:
+        return corner_regions(program)[1]
+
+
+#: Largest direction change at a rounded point [deg] (the bound's arc reading needs <= 90).
+CR_MAX_TURN = 90.0
+
+
+def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
+    """The ``CR`` value [mm] of every rounded point (point index -> n; others ``FINE``) and
+    the resulting bound of every verified sample's distance to the path [m], (N,).
+
+    Every point the vendor-neutral program blends (inside the plunge, the dwell or the weld)
+    starts with n = its blend distance in whole millimetres (at least 1); while a merged
+    window of rounded corners leaves a sample beyond the path tolerance
+    (:func:`rfsw_plan.export.program.region_deviation`), its point farthest from the chord of
+    its neighbours loses 1 mm (0: ``FINE``).
+    """
+    tol = program.header.path_tol * (1 + 1e-9)
+    pts = program.poses[:, :3, 3]
+    cr: dict[int, int] = {}
+    for m in program.motions:
+        if m.kind == "lin" and m.blend > 0 and 0 < m.point < len(pts) - 1:
+            a, b = pts[m.point] - pts[m.point - 1], pts[m.point + 1] - pts[m.point]
+            cos_t = float(a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-18))
+            if cos_t >= math.cos(math.radians(CR_MAX_TURN)):
+                cr[m.point] = max(1, int(m.blend * 1e3 + 1e-9))
+
+    def bend(c: int) -> float:
+        a, b = pts[c - 1], pts[c + 1]
+        d = b - a
+        n = float(np.linalg.norm(d))
+        return float(np.linalg.norm(np.cross(pts[c] - a, d)) / n) if n > 0 else 0.0
+
+    chord = chord_deviation(program)
+    while True:
+        bound, windows = region_deviation(program, {c: n * 1e-3 for c, n in cr.items()},
+                                          chord)
+        bad = [w for w in windows if float(np.max(bound[w.i:w.j + 1])) > tol]
+        if not bad:
+            return cr, bound
+        for w in bad:
+            inside = [c for c in cr if w.first <= c <= w.last]
+            c = max(inside, key=lambda c: (cr[c], bend(c)))
+            cr[c] -= 1
+            if cr[c] <= 0:
+                del cr[c]
+
+
+def _frame_remarks(program: Program) -> list[str]:
+    """The frame values to enter on the controller, two remark lines per frame (read back by
+    :func:`read_tp` when the program does not write the frames)."""
+    o = program.options
+    out = []
+    for what, n, T in (("UFRAME", o.base_number, program.work),
+                       ("UTOOL", o.tool_number, program.tool)):
+        v = frame_to_xyzwpr(T)
+        out += [f"! {what}[{n}] X {number(v[0], 4)} Y {number(v[1], 4)} Z {number(v[2], 4)}",
+                f"! {what}[{n}] W {number(v[3], 4)} P {number(v[4], 4)} R {number(v[5], 4)}"]
+    return out
+
 
 def _frames(program: Program) -> list[str]:
     o = program.options
     out = []
-    for pr, what, T in ((PR_UFRAME, "plate frame in world", program.work),
-                        (PR_UTOOL, "TCP in faceplate", program.tool)):
-        v = frame_to_xyzwpr(T)
-        out += [f"! PR[{pr}] = {what}", f"PR[{pr}]=LPOS"]
-        out += [f"PR[{pr},{j + 1}]={number(x, 4)}" for j, x in enumerate(v)]
-    out += [f"UFRAME[{o.base_number}]=PR[{PR_UFRAME}]", f"UTOOL[{o.tool_number}]=PR[{PR_UTOOL}]",
-            f"UFRAME_NUM={o.base_number}", f"UTOOL_NUM={o.tool_number}"]
-    if program.payload is not None:
+    if o.cell_data:
+        for pr, what, T in ((PR_UFRAME, "plate frame in world", program.work),
+                            (PR_UTOOL, "TCP in faceplate", program.tool)):
+            v = frame_to_xyzwpr(T)
+            out += [f"! PR[{pr}] = {what}", f"PR[{pr}]=LPOS"]
+            out += [f"PR[{pr},{j + 1}]={number(x, 4)}" for j, x in enumerate(v)]
+        out += [f"UFRAME[{o.base_number}]=PR[{PR_UFRAME}]",
+                f"UTOOL[{o.tool_number}]=PR[{PR_UTOOL}]"]
+    else:
+        out += _frame_remarks(program)
+    out += [f"UFRAME_NUM={o.base_number}", f"UTOOL_NUM={o.tool_number}"]
+    if program.payload is not None and o.cell_data:
         out.append(f"PAYLOAD[{o.tool_number}]")
     return out
 
 
-def _header_extra(program: Program) -> list[str]:
+def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
     o = program.options
-    out = [*program.maker_note("FANUC"),
-           f"SET ON THE CONTROLLER: UFRAME {o.base_number} and UTOOL {o.tool_number} are "
-           f"written below (PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten); the spindle "
-           "I/O in the hook remarks"]
+    if o.cell_data:
+        data = (f"WRITES THE CELL'S DATA (--cell-data): UFRAME[{o.base_number}], "
+                f"UTOOL[{o.tool_number}], PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten "
+                f"and PAYLOAD[{o.tool_number}] selects that schedule")
+        teach = f"replace the PR[{PR_UFRAME}] values with it"
+    else:
+        data = (f"CELL DATA LEFT ALONE: this program selects UFRAME {o.base_number} and "
+                f"UTOOL {o.tool_number} and writes no frame, register or payload: enter "
+                "the values of the UFRAME/UTOOL remarks below there and select the payload "
+                "schedule before running")
+        teach = "enter it in the UFRAME remarks"
+    out = [*program.maker_note("FANUC"), data, "SET ON THE CONTROLLER: the spindle I/O in "
+           "the hook remarks"]
     pl = program.payload
     if pl is not None:
         com = (np.linalg.inv(program.robot.description.convention.flange)
                @ np.append(pl.com, 1.0))[:3] * 100.0
-        inertia = "not known (0; identify it)" if pl.inertia is None else \
+        inertia = "UNKNOWN (0; identify it)" if pl.inertia is None else \
             " ".join(f"{number(x / KGFCMS2, 3)}" for x in pl.inertia) + " kgf cm s^2"
-        out.append(f"PAYLOAD[{o.tool_number}] (payload screen): {number(pl.mass, 1)} kg, "
+        out.append(f"PAYLOAD{'[' + str(o.tool_number) + ']' if o.cell_data else ''} "
+                   f"(payload screen): {number(pl.mass, 1)} kg"
+                   f"{' ASSUMED' if payload_assumed(pl) else ''}, "
                    f"centre X {number(com[0], 2)} Y {number(com[1], 2)} Z {number(com[2], 2)} "
                    f"cm (faceplate), inertia {inertia}")
+    n_cr = len(cr)
     out += ["UFRAME = the plate: origin on the first weld point, +X along the seam, +Y on "
-            "the plate. To use a frame taught on the plate (3-point), replace the PR["
-            f"{PR_UFRAME}] values with it and run rfsw-plan check on this file",
-            "Termination FINE at every point: FANUC CNT has no published path bound; each "
-            "FINE adds the in-position settle time"]
+            f"the plate. To use a frame taught on the plate (3-point), {teach} and run "
+            "rfsw-plan check on this file",
+            f"Termination: CR (corner region, mm) at {n_cr} points inside the plunge, dwell "
+            "and weld, FINE at the phase ends; CR needs the controller's corner-region "
+            "option (without it replace CRn by FINE); the path bound holds for CR as a "
+            "distance or as a radius"]
     return out
 
 
 def _mn(program: Program) -> tuple[list[str], list[str]]:
     """The ``/MN`` lines: (header, frames and payload; the motions with their hooks)."""
-    head = program.header.comments("! ", max_len=60, extra=_header_extra(program))
+    cr, _ = corner_regions(program)
+    head = program.header.comments("! ", max_len=60, extra=_header_extra(program, cr))
     head += _frames(program)
     body: list[str] = []
     marks = program.phase_changes()
@@ -193,14 +292,15 @@ def _mn(program: Program) -> tuple[list[str], list[str]]:
         elif m.kind == "wait":
             body.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
         else:
-            body.append(f"L {p} {_speed(m.speed, m.duration)} FINE")
+            term = f"CR{cr[m.point]}" if m.point in cr else "FINE"
+            body.append(f"L {p} {_speed(m.speed, m.duration)} {term}")
     return head, body
 
 
 def sub_name(name: str, k: int) -> str:
     """Name of the k-th called program (1-based) of the TP program ``name``."""
-    suffix = f"_S{k}"
-    return name[:FanucTpFormat.limits.name_length - len(suffix)] + suffix
+    return controller_name(f"{name}_S{k}", max_len=FanucTpFormat.limits.name_length,
+                           prefix="P", upper=True)
 
 
 _POINT = re.compile(r"^[JL] P\[(\d+)\]")
@@ -293,7 +393,7 @@ _POS = re.compile(rf"P\[(\d+)\]\{{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*
 _JPOS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
                    + r",\s*".join(rf"J{j}\s*=\s*({_NUM})\s*deg" for j in range(1, 7))
                    + r"\s*\};", re.S)
-_MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)\s*;\s*$")
+_MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+|CR\d+)\s*;\s*$")
 _WAIT = re.compile(rf"^\s*\d+:\s*WAIT\s+({_NUM})\(sec\)\s*;\s*$")
 _PR = re.compile(rf"^\s*\d+:\s*PR\[(\d+),(\d)\]=({_NUM})\s*;\s*$")
 _CALL = re.compile(r"^\s*\d+:\s*CALL\s+(\w+)\s*;\s*$")
@@ -343,10 +443,16 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
     return text, mn
 
 
+_REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XW])\s+({_NUM})\s+([YP])\s+"
+                     rf"({_NUM})\s+([ZR])\s+({_NUM})\s*;\s*$")
+
+
 def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
-    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines."""
+    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines (``--cell-data``)
+    or from the ``! UFRAME[n] X .. Y .. Z ..`` / ``W .. P .. R ..`` remarks."""
     regs: dict[int, FloatArray] = {}
     frames: dict[str, FloatArray] = {}
+    remarks: dict[str, FloatArray] = {}
     for line in mn:
         if (r := _PR.match(line)) is not None:
             regs.setdefault(int(r.group(1)), np.zeros(6))[int(r.group(2)) - 1] = \
@@ -356,8 +462,17 @@ def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
                 raise InputError(p, s.group(0).strip()[:40], "register not set",
                                  "PR[i,1..6] lines before it")
             frames[s.group(1)] = xyzwpr_to_frame(regs[int(s.group(3))])
+        elif (m := _REMARK.match(line)) is not None:
+            v = remarks.setdefault(m.group(1), np.full(6, np.nan))
+            off = 0 if m.group(3) == "X" else 3
+            v[off:off + 3] = [float(m.group(4)), float(m.group(6)), float(m.group(8))]
+    for what, v in remarks.items():
+        if what not in frames and np.all(np.isfinite(v)):
+            frames[what] = xyzwpr_to_frame(v)
     if set(frames) != {"UFRAME", "UTOOL"}:
-        raise InputError(p, "UFRAME/UTOOL", "not both set", "the frames set in the program")
+        raise InputError(p, "UFRAME/UTOOL", "not both stated",
+                         "the '! UFRAME[n] X .. Y .. Z ..' and 'W .. P .. R ..' remarks (or "
+                         "the frames set through PR[] with --cell-data)")
     return frames
 
 
