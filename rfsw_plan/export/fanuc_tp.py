@@ -64,11 +64,10 @@ from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, R
 from rfsw_plan.export.krl import unwrap_angles
 from rfsw_plan.export.program import (
     Program,
-    chord_deviation,
     controller_name,
     number,
+    path_deviation,
     payload_assumed,
-    region_deviation,
 )
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
@@ -159,49 +158,67 @@ class FanucTpFormat(ControllerFormat):
         return corner_regions(program)[1]
 
 
-#: Largest direction change at a rounded point [deg] (the bound's arc reading needs <= 90).
-CR_MAX_TURN = 90.0
+#: Largest corner region [mm] (the manual's range: 0 to 1000 mm).
+CR_MAX = 1000
 
 
 def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
-    """The ``CR`` value [mm] of every rounded point (point index -> n; others ``FINE``) and
-    the resulting bound of every verified sample's distance to the path [m], (N,).
+    """The ``CR`` value [mm] of every rounded point (point index -> y; the others ``FINE``)
+    and the resulting bound of every verified sample's distance to the path [m], (N,).
 
-    Every point the vendor-neutral program blends (inside the plunge, the dwell or the weld)
-    starts with n = its blend distance in whole millimetres (at least 1); while a merged
-    window of rounded corners leaves a sample beyond the path tolerance
-    (:func:`rfsw_plan.export.program.region_deviation`), its point farthest from the chord of
-    its neighbours loses 1 mm (0: ``FINE``).
+    FANUC's corner region y (R-30iB operator's manual, "Corner Region Termination Type
+    (CRy)", quoted in tests/data/vendor/SOURCE.md): the corner path starts and ends at most y
+    from the taught point, and a y larger than half the segment distance is limited to half
+    the segment. The bound is then the blend model of
+    :func:`rfsw_plan.export.program.path_deviation` with ``d = min(y, max(L0, L1) / 2)``
+    (L0, L1 the two segments). Every point the vendor-neutral program blends (inside the
+    plunge, the dwell or the weld) gets the largest whole y (1 mm at least, 1000 at most)
+    whose ``d`` keeps the samples within the path tolerance:
+    ``d <= 2 (tol - dev) / sin(theta)``, dev the two chords' own largest sample distance; a
+    point where even ``min(1 mm, max(L0, L1) / 2)`` does not is ``FINE``, and so is, one
+    by one, the larger of two regions whose bounds add up beyond the tolerance on the segment
+    between them.
     """
-    tol = program.header.path_tol * (1 + 1e-9)
+    tol = program.header.path_tol
     pts = program.poses[:, :3, 3]
+    idx = program.sample_index
+    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
+        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
     cr: dict[int, int] = {}
+    blends: dict[int, float] = {}
     for m in program.motions:
-        if m.kind == "lin" and m.blend > 0 and 0 < m.point < len(pts) - 1:
-            a, b = pts[m.point] - pts[m.point - 1], pts[m.point + 1] - pts[m.point]
-            cos_t = float(a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-18))
-            if cos_t >= math.cos(math.radians(CR_MAX_TURN)):
-                cr[m.point] = max(1, int(m.blend * 1e3 + 1e-9))
-
-    def bend(c: int) -> float:
-        a, b = pts[c - 1], pts[c + 1]
-        d = b - a
-        n = float(np.linalg.norm(d))
-        return float(np.linalg.norm(np.cross(pts[c] - a, d)) / n) if n > 0 else 0.0
-
-    chord = chord_deviation(program)
-    while True:
-        bound, windows = region_deviation(program, {c: n * 1e-3 for c, n in cr.items()},
-                                          chord)
-        bad = [w for w in windows if float(np.max(bound[w.i:w.j + 1])) > tol]
-        if not bad:
+        c = m.point
+        if m.kind != "lin" or m.blend <= 0 or not 0 < c < len(pts) - 1:
+            continue
+        a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
+        la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+        dev = max(float(np.max(_chord(P, int(idx[k]), int(idx[k + 1])))) for k in (c - 1, c))
+        sin_t = float(np.linalg.norm(np.cross(a, b))) / max(la * lb, 1e-30)
+        d_max = math.inf if sin_t < 1e-12 else 2.0 * (tol - dev) / sin_t
+        half = 0.5 * max(la, lb)
+        if dev >= tol or min(1e-3, half) > d_max:
+            continue
+        y = int(min(CR_MAX, max(1.0, math.floor(min(d_max, 1.0) * 1e3 + 1e-9))))
+        cr[c] = y
+        blends[c] = min(y * 1e-3, half)
+    while True:  # two regions that meet on one segment add their bounds there
+        bound = path_deviation(program, blends)
+        over = np.flatnonzero(bound > tol * (1 + 1e-9))
+        if over.size == 0 or not blends:
             return cr, bound
-        for w in bad:
-            inside = [c for c in cr if w.first <= c <= w.last]
-            c = max(inside, key=lambda c: (cr[c], bend(c)))
-            cr[c] -= 1
-            if cr[c] <= 0:
-                del cr[c]
+        k = np.clip(np.searchsorted(idx, over), 1, len(idx) - 1)
+        near = {int(c) for c in np.concatenate([k - 1, k]) if int(c) in blends}
+        c = max(near or blends, key=lambda c: blends[c])
+        del cr[c], blends[c]
+
+
+def _chord(P: FloatArray, i: int, j: int) -> FloatArray:
+    """Position distance of samples i..j (poses (N, 4, 4) [m]) from the chord i -> j [m]."""
+    p = P[i:j + 1, :3, 3]
+    d = p[-1] - p[0]
+    L2 = float(d @ d)
+    f = np.clip(((p - p[0]) @ d) / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(p))
+    return np.asarray(np.linalg.norm(p - (p[0] + f[:, None] * d), axis=1))
 
 
 def _frame_remarks(program: Program) -> list[str]:

@@ -603,19 +603,25 @@ def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
 # Checks of a program
 
 
-def path_deviation(program: Program) -> FloatArray:
+def path_deviation(program: Program, blends: dict[int, float] | None = None) -> FloatArray:
     """Bound of every verified sample's distance to the path the controller runs [m], (N,).
 
     Sample by sample: the distance to the chord of its segment, plus, for a sample on either
     half of a blended corner (within the blend distance d of the point), the blend model's
     ``d sin(theta) / 2`` (module docstring). Samples before the first point or on waits: 0.
+
+    Args:
+        program: The program.
+        blends: Point index -> blend distance [m] a format rounds with (default: the
+            program's own, :attr:`Motion.blend`).
     """
     P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
         program.robot.batch_fk_jacobian(program.all_samples.q)[0]
     idx = program.sample_index
     pts = P[idx, :3, 3]
     out = np.zeros(len(program.all_samples))
-    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"}
+    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"} if blends is None \
+        else blends
 
     def corner_bound(c: int) -> tuple[float, float]:
         d = blend.get(c, 0.0)
@@ -635,118 +641,6 @@ def path_deviation(program: Program) -> FloatArray:
                 pos = pos + (np.linalg.norm(p - pts[c], axis=1) <= d + 1e-12) * extra
         out[i:j + 1] = np.maximum(out[i:j + 1], pos)
     return out
-
-
-@dataclass(frozen=True)
-class RegionWindow:
-    """Merged corner regions of :func:`region_deviation`.
-
-    Attributes:
-        first, last: First and last rounded point (program point indices).
-        extra: ``2 w``, what the rounding adds to a sample's chord distance [m].
-        i, j: First and last sample (indices into the verified samples) it covers.
-    """
-
-    first: int
-    last: int
-    extra: float
-    i: int
-    j: int
-
-
-def _samples_in_work(program: Program) -> FloatArray:
-    """TCP of every verified sample in the program's work object frame [m], (N, 4, 4)."""
-    return np.asarray(np.linalg.inv(program.base_pose(np.eye(4)))[None]
-                      @ program.robot.batch_fk_jacobian(program.all_samples.q)[0])
-
-
-def chord_deviation(program: Program) -> FloatArray:
-    """Every verified sample's distance to the chord of its program segment [m], (N,)
-    (no rounding at the points; samples before the first point: 0)."""
-    P = _samples_in_work(program)
-    idx = program.sample_index
-    out = np.zeros(len(program.all_samples))
-    for k in range(len(idx) - 1):
-        i, j = int(idx[k]), int(idx[k + 1])
-        out[i:j + 1] = np.maximum(out[i:j + 1], _deviation(P, i, j)[0])
-    return out
-
-
-def region_deviation(program: Program, regions: dict[int, float],
-                     chord: FloatArray | None = None) -> tuple[FloatArray,
-                                                               list[RegionWindow]]:
-    """Bound of every verified sample's distance to the path a controller runs when it rounds
-    the corner at point c anywhere within ``regions[c]`` [m] of it along the programmed
-    polyline (FANUC ``CR``: a whole number of millimetres, possibly longer than a segment).
-
-    The model: the rounded contour leaves the polyline at most ``r`` before the point and
-    rejoins it at most ``r`` after it, staying inside the convex hull of the polyline it cuts
-    off (the blend of a contour between two of its own points). Overlapping regions are merged
-    into one window from entry E to exit X. The contour crosses every plane normal to E -> X
-    between them, inside the hull, so every polyline point of the window (its projection on
-    E -> X monotone along the window) is within ``2 w`` of the contour, ``w`` the largest
-    distance of the window's vertices from the line E X. A sample's bound is its chord
-    distance plus ``2 w`` of the window its segment lies in.
-
-    Args:
-        program: The program.
-        regions: Point index -> corner region [m] (> 0; only points inside a blend group).
-        chord: :func:`chord_deviation` of the program (computed when None).
-
-    Returns:
-        ``(bound, windows)``: per sample [m], (N,); and the merged windows (a window whose
-        polyline turns back gets ``inf``).
-    """
-    dev = chord_deviation(program) if chord is None else chord
-    out = np.array(dev, dtype=float)
-    pts = program.poses[:, :3, 3]
-    L = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    groups = [BLEND_GROUPS.get(str(p)) for p in program.samples.phase]
-
-    def at(x: float) -> FloatArray:
-        k = int(np.clip(np.searchsorted(L, x, side="right") - 1, 0, len(L) - 2))
-        f = 0.0 if L[k + 1] <= L[k] else (x - L[k]) / (L[k + 1] - L[k])
-        return np.asarray(pts[k] + np.clip(f, 0.0, 1.0) * (pts[k + 1] - pts[k]))
-
-    spans = []
-    for c in sorted(regions):
-        r = regions[c]
-        if r <= 0 or not 0 < c < len(pts) - 1 or groups[c] is None:
-            continue
-        a, b = c, c  # the region stays inside the corner's blend group
-        while a > 0 and groups[a - 1] == groups[c]:
-            a -= 1
-        while b < len(pts) - 1 and groups[b + 1] == groups[c]:
-            b += 1
-        spans.append([max(L[c] - r, L[max(a - 1, 0)]), min(L[c] + r, L[b]), c, c])
-    merged: list[list[float]] = []
-    for sp in sorted(spans):
-        if merged and sp[0] < merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], sp[1])
-            merged[-1][3] = sp[3]
-        else:
-            merged.append(list(sp))
-    windows: list[RegionWindow] = []
-    for lo, hi, c0, c1 in merged:
-        E, X = at(lo), at(hi)
-        inner = range(int(np.searchsorted(L, lo, side="right")),
-                      int(np.searchsorted(L, hi, side="left")))
-        V = np.array([E, *pts[list(inner)], X])
-        d = X - E
-        n = float(np.linalg.norm(d))
-        if n < 1e-12:
-            w2 = float(2.0 * np.max(np.linalg.norm(V - E, axis=1)))
-        else:
-            u = d / n
-            proj = (V - E) @ u
-            w = np.linalg.norm((V - E) - proj[:, None] * u, axis=1)
-            w2 = 2.0 * float(np.max(w)) if np.all(np.diff(proj) >= -1e-12) else math.inf
-        k0 = int(np.clip(np.searchsorted(L, lo, side="right") - 1, 0, len(L) - 2))
-        k1 = int(np.clip(np.searchsorted(L, hi, side="left"), 1, len(L) - 1))
-        i, j = int(program.sample_index[k0]), int(program.sample_index[k1])
-        out[i:j + 1] = np.maximum(out[i:j + 1], dev[i:j + 1] + w2)
-        windows.append(RegionWindow(int(c0), int(c1), w2, i, j))
-    return out, windows
 
 
 def tolerated_from_record(rec: dict[str, Any]) -> float:
