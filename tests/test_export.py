@@ -572,3 +572,41 @@ def test_an_unwritable_temporary_directory_is_one_line(tmp_path: Path, monkeypat
     assert main(["-q", "export", str(plan), "--format", "krl", "-o", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "TMPDIR" in err and "Traceback" not in err, err
+
+
+def test_bundled_problems_never_share_a_program_name() -> None:
+    """Every bundled problem gets its own name in every format, within the vendor's limit
+    (KRL cut fanuc_laser_1400mm_yminus and _yplus to one name before issue 32), and no RAPID
+    module is named like its procedure."""
+    from rfsw_plan.export.fanuc_tp import FanucTpFormat, tp_name
+    from rfsw_plan.export.krl import KrlFormat, krl_name
+    from rfsw_plan.export.rapid import RapidFormat, proc_name, rapid_name
+
+    problems = sorted(p.stem for p in (Path(__file__).parents[1] / "problems").glob("*.toml"))
+    assert {"fanuc_laser_1400mm_yminus", "fanuc_laser_1400mm_yplus"} <= set(problems)
+    for fn, limit in ((krl_name, KrlFormat.limits.name_length),
+                      (tp_name, FanucTpFormat.limits.name_length),
+                      (rapid_name, RapidFormat.limits.name_length),
+                      (proc_name, RapidFormat.limits.name_length)):
+        names = [fn(f"rfsw_{p}") for p in problems]
+        assert len(set(n.upper() for n in names)) == len(names), (fn.__name__, names)
+        assert all(len(n) <= limit and re.fullmatch(r"[A-Za-z]\w*", n) for n in names)
+    assert all(rapid_name(f"rfsw_{p}") != proc_name(f"rfsw_{p}") for p in problems)
+
+
+def test_a_program_of_another_problem_is_never_overwritten(tmp_path: Path) -> None:
+    """A file of the same name holding another problem's program is refused, one line."""
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.export.api import export_programs
+
+    robot, samples, _ = synthetic()
+    rec = {"problem": "golden", "window_mm": [-1.25, 0.7]}
+    res = export_programs(robot, samples, rec, ["krl"], tmp_path, plan_sha256="0" * 64,
+                          spacing=5e-3)
+    src = res.files[0]
+    src.write_text(src.read_text().replace("problem: golden", "problem: other_seam"))
+    with pytest.raises(InputError, match="holds the program of problem 'other_seam'"):
+        export_programs(robot, samples, rec, ["krl"], tmp_path, plan_sha256="0" * 64,
+                        spacing=5e-3)
+    src.write_text(src.read_text().replace("problem: other_seam", "problem: golden"))
+    export_programs(robot, samples, rec, ["krl"], tmp_path, plan_sha256="1" * 64, spacing=5e-3)
