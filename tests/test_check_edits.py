@@ -185,3 +185,22 @@ def test_every_failure_verify_samples_returns_is_reported(zk500: Path, monkeypat
     assert not res.holds and res.failure == "depth"
     assert "depth 0.900 mm beyond 0.500 mm" in res.line() and "line " in res.line()
     assert not any("joint_jerk" in f for f in res.failures)
+
+
+def test_an_added_motion_fails_with_its_point_and_line(zk500: Path, capsys) -> None:
+    """A motion added on the pendant (a new point 3 mm beside the seam between XP30 and XP31)
+    is run as the controller runs it: the chords to and from it leave the window."""
+    src = _file(zk500, ".src")
+    dat = src.with_suffix(".dat")
+    text = dat.read_text()
+    m = re.search(r"DECL E6POS XP30=\{X ([-0-9.]+),Y ([-0-9.]+)(,[^}]*)\}", text)
+    assert m is not None
+    new = f"DECL E6POS XP900={{X {m.group(1)},Y {float(m.group(2)) + 3.0:.4f}{m.group(3)}}}"
+    dat.write_text(text.replace("ENDDAT", new + "\nENDDAT"))
+    s = src.read_text()
+    s = re.sub(r"(\n\s*LIN XP30\b[^\n]*)", r"\1\n  LIN XP900", s, count=1)
+    src.write_text(s)
+    code, out = _check(capsys, src)
+    assert code == 3, out
+    n = _line_of(src, r"^\s*LIN XP900\b")
+    assert out.startswith(f"{src.name}: XP900 (weld") and f"line {n}" in out, out

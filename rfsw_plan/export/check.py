@@ -40,7 +40,7 @@ quantity (exit 3 in the CLI); every failure is in :meth:`CheckResult.to_dict`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -213,8 +213,8 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
     for f in run.findings:
         texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None))
     for f in _reported(ver):
-        k = _named_point(f.index, run.idx, ver.e_lat, window) if f.check == "window" else \
-            _nearest_point(f.index, run.idx)
+        k = _named_point(f.index, run.idx, ver.e_lat, window, run.edits) \
+            if f.check == "window" else _nearest_point(f.index, run.idx)
         texts.append((k, f.check, f"{f.check} {f.value:.3f} {f.unit} beyond {f.bound:.3f} "
                       f"{f.unit}", f.index, f))
     if not texts:
@@ -299,11 +299,19 @@ def _nearest_point(sample: int, idx: NDArray[np.int_]) -> int:
     return int(np.argmin(np.abs(idx - sample)))
 
 
-def _named_point(sample: int, idx: NDArray[np.int_], e: FloatArray, window: Any) -> int:
-    """The program point to name for a failing sample: of the two points around it, the one
-    farther outside the window (the edited one)."""
+def _named_point(sample: int, idx: NDArray[np.int_], e: FloatArray, window: Any,
+                 edits: FloatArray | None = None) -> int:
+    """The program point to name for a failing sample: of the points around it (all points
+    on the same samples included: an added point), the most edited one if it was moved by
+    more than 0.1 mm, else the one farther outside the window."""
     k = int(np.clip(np.searchsorted(idx, sample), 0, len(idx) - 1))
-    cands = [c for c in (k - 1, k) if 0 <= c < len(idx)]
+    lo = int(idx[max(k - 1, 0)])
+    hi = int(idx[k])
+    cands = [c for c in range(len(idx)) if lo <= idx[c] <= hi] or [k]
+    if edits is not None:
+        c = max(cands, key=lambda c: float(edits[c]))
+        if edits[c] > 1e-4:
+            return c
 
     def outside(c: int) -> float:
         x = float(e[idx[c]])
@@ -340,6 +348,7 @@ class ControllerRun:
         idx: The plan sample index of each point.
         max_edit: Largest position edit of a point [m].
         findings: Posture and timing failures, by point.
+        edits: Position edit of every point [m].
     """
 
     samples: Samples
@@ -347,6 +356,7 @@ class ControllerRun:
     idx: NDArray[np.int_]
     max_edit: float
     findings: tuple[_Finding, ...]
+    edits: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
@@ -390,8 +400,8 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
         target[:first, :3, 3] += dp[0]
     q = _batch_ik(robot, target, plan.q)
     out = Samples(t, plan.phase, plan.s, q, plan.wrench, plan.seam)
-    return ControllerRun(out, names, idx, float(np.max(np.linalg.norm(dp, axis=1))),
-                         tuple(findings))
+    edits = np.linalg.norm(dp, axis=1)
+    return ControllerRun(out, names, idx, float(np.max(edits)), tuple(findings), edits)
 
 
 def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: list[ReadPoint],
