@@ -171,13 +171,18 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         InputError: An unreadable program or plan folder, or a plan whose model cannot be
             rebuilt (one line).
     """
-    from rfsw_plan.planfiles.folder import touched_programs
+    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot, touched_programs
 
     path = Path(program)
     if not path.is_file():
         raise InputError(path, "", "not a file", "a program written by rfsw-plan export")
     folder = Path(plan_dir) if plan_dir is not None else path.parent
-    read = format_for_file(path).read(path)
+    fmt = format_for_file(path)
+    try:
+        read = fmt.read(path)
+    except InputError:
+        read_plan_folder_and_robot(folder)  # an infeasible or damaged plan is named first
+        raise
     own = _own_files(folder, read.files)
     with touched_programs(own):
         return _check(path, folder, read, own)
