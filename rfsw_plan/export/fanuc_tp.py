@@ -63,7 +63,9 @@ from rfsw_plan.export.config import fanuc_config
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import unwrap_angles
 from rfsw_plan.export.program import (
+    WELD_PHASES,
     Program,
+    Samples,
     controller_name,
     number,
     path_deviation,
@@ -149,13 +151,54 @@ class FanucTpFormat(ControllerFormat):
         return fanuc_config(robot, q)
 
     def write(self, program: Program, folder: Path) -> list[Path]:
-        return write_tp(program, folder)
+        return write_tp(tp_program(program), folder)
 
     def read(self, path: Path) -> ReadProgram:
         return read_tp(path)
 
     def path_deviation(self, program: Program) -> FloatArray:
-        return corner_regions(program)[1]
+        return corner_regions(tp_program(program))[1]
+
+    def expected(self, program: Program) -> Samples:
+        tp = tp_program(program)
+        return tp.samples.subset(tp.moved_points())
+
+
+#: Rounds of :func:`tp_program` (each halves the segments around a weld point still FINE).
+TP_SPLITS = 6
+_TP_CACHE: list[tuple[Program, Program]] = []
+
+
+def tp_program(program: Program) -> Program:
+    """The program the TP writes: the vendor-neutral one with, around every point of the
+    welding phases that the path bound would make ``FINE`` (:func:`corner_regions`), the plan
+    samples halfway to its neighbours as points too, for up to :data:`TP_SPLITS` rounds.
+    Shorter segments shorten the corner region FANUC allows (half the segment) and the
+    direction change, so the pin does not stop in the weld where 1 mm of rounding cannot
+    follow the path (the lateral ramp at the start of the weld, a curved seam). Every added
+    point is a verified sample."""
+    for src, out in _TP_CACHE:
+        if src is program:
+            return out
+    prog = program
+    extra: set[int] = set()
+    for _ in range(TP_SPLITS if program.build_args else 0):
+        cr, _ = corner_regions(prog)
+        idx = prog.sample_index
+        new: set[int] = set()
+        for m in prog.motions:
+            c = m.point
+            if (m.kind == "lin" and m.blend > 0 and m.phase in WELD_PHASES and c not in cr
+                    and 0 < c < len(idx) - 1):
+                for a, b in ((idx[c - 1], idx[c]), (idx[c], idx[c + 1])):
+                    if b - a >= 2:
+                        new.add(int((a + b) // 2))
+        if not new - extra:
+            break
+        extra |= new
+        prog = program.rebuilt(frozenset(extra))
+    _TP_CACHE[:] = [*_TP_CACHE[-3:], (program, prog)]
+    return prog
 
 
 #: Largest corner region [mm] (the manual's range: 0 to 1000 mm).

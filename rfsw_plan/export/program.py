@@ -310,6 +310,8 @@ class Program:
         options: Tool/base numbers and hooks.
         stream: The samples of a stream file at the controller cycle (None: the plan's).
         cycle: The stream's controller cycle [s].
+        build_args: The arguments of :func:`build_program` that made it (for
+            :meth:`rebuilt`).
     """
 
     header: ProgramHeader
@@ -325,6 +327,14 @@ class Program:
     options: ProgramOptions = field(default_factory=ProgramOptions)
     stream: Samples | None = field(default=None, repr=False)
     cycle: float = 0.0
+    build_args: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def rebuilt(self, extra: frozenset[int]) -> Program:
+        """The same program with the samples ``extra`` as points too (the same frames and
+        options; :func:`build_program` with the arguments this one was built with)."""
+        if not self.build_args:
+            raise ValueError("a program not made by build_program cannot be rebuilt")
+        return build_program(**self.build_args, extra=extra)
 
     def phase_changes(self) -> dict[int, str]:
         """Motion index -> phase, where a new phase starts (for the phase marks)."""
@@ -366,7 +376,7 @@ def build_program(
     robot: Robot, samples: Samples, header: ProgramHeader, path_tol: float = 1e-5,
     angle_tol: float = math.radians(0.01), normal: FloatArray | None = None,
     payload: Payload | None = None, options: ProgramOptions | None = None,
-    stream: Samples | None = None, cycle: float = 0.0,
+    stream: Samples | None = None, cycle: float = 0.0, extra: frozenset[int] = frozenset(),
 ) -> Program:
     """Select points, motions, blending and hooks from verified samples (module docstring).
 
@@ -383,7 +393,12 @@ def build_program(
         options: Tool/base numbers and hooks.
         stream: Samples of the stream file (default: ``samples``).
         cycle: Stream cycle [s] (default: the samples' step).
+        extra: Sample indices that are points too (a format that needs shorter segments:
+            :func:`rfsw_plan.export.fanuc_tp.tp_program`).
     """
+    args = dict(robot=robot, samples=samples, header=header, path_tol=path_tol,
+                angle_tol=angle_tol, normal=normal, payload=payload, options=options,
+                stream=stream, cycle=cycle)
     if header.spacing <= 0:
         raise InputError("--export-spacing-mm", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = robot.batch_fk_jacobian(samples.q)[0]
@@ -393,7 +408,7 @@ def build_program(
     to_work = np.linalg.inv(conv.base @ work)
     P = to_work[None] @ T  # TCP in the work frame, (N, 4, 4)
 
-    keep = _anchor_points(samples, header.spacing)
+    keep = _anchor_points(samples, header.spacing) | {int(i) for i in extra}
     keep = _refine(P, keep, 0.5 * path_tol, angle_tol)
     idx = np.array(sorted(keep), dtype=int)
     motions = _motions(samples, P, idx, path_tol)
@@ -414,7 +429,7 @@ def build_program(
         cycle = cycle or float(np.median(np.diff(samples.t)))
     return Program(header, robot, idx, samples.subset(idx), tool, work, P[idx],
                    tuple(motions), samples, payload, options or ProgramOptions(), stream,
-                   cycle)
+                   cycle, args)
 
 
 def payload_assumed(payload: Payload) -> bool:
