@@ -22,17 +22,18 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
 * Termination: ``CRn`` (corner region, n whole millimetres) at a point inside the plunge,
   the dwell or the weld where the rounding keeps every verified sample within the path
   tolerance, ``FINE`` elsewhere (the phase ends: approach, end of plunge, end of dwell, end
-  of weld, retract, and a corner the bound does not allow). ``CNT`` is not used: it rounds a
-  corner by an amount that depends on speed, acceleration and override, with no published
-  bound. ``CR`` states the rounding as a distance in mm, independent of the speed (public
-  description: industrialmonitordirect.com knowledge base, "FANUC CR100 corner radius
-  smoothing", which names its option "Advanced Motion Package"; FANUC's option name and
-  number are not public: check the controller's option list, and without the option
-  replace every ``CRn`` by ``FINE``). The bound used holds whether n is read as the
-  distance from the point where the rounding starts and ends, or as the radius of a
-  rounding arc (its tangent points lie n tan(theta/2) <= n from the point for a direction
-  change theta <= 90 deg): :func:`rfsw_plan.export.program.region_deviation`, checked at
-  export (:meth:`FanucTpFormat.path_deviation`).
+  of weld, retract, and a plunge or dwell corner the bound does not allow). In the welding
+  phases a corner that even 1 mm would round too much gets shorter segments instead
+  (:func:`tp_program` adds the verified samples halfway to its neighbours as points).
+  ``CNT`` is not used: it rounds a corner by an amount that depends on speed, acceleration
+  and override, with no published bound. ``CRy`` (FANUC R-30iB teach pendant help /
+  operator's manual, "Corner Region Termination Type", quoted in
+  ``tests/data/vendor/syntax_facts.csv``): the corner path starts and ends at most y mm from
+  the taught point, y from 0 to 1000, limited to half the segment; it belongs to the
+  Advanced Constant Path option (which needs Constant Path, and ``$CZCDCFG.$CD_ENABLE =
+  FALSE``: Corner Distance and Corner Region exclude each other). Without the option,
+  replace every ``CRn`` by ``FINE``. The bound (:func:`corner_regions`, checked at export by
+  :meth:`FanucTpFormat.path_deviation`) is the vendor-neutral blend model with that distance.
 * ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
   milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
   ``WAIT t(sec)``; remarks ``! text``.
@@ -327,9 +328,9 @@ def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
             f"the plate. To use a frame taught on the plate (3-point), {teach} and run "
             "rfsw-plan check on this file",
             f"Termination: CR (corner region, mm) at {n_cr} points inside the plunge, dwell "
-            "and weld, FINE at the phase ends; CR needs the controller's corner-region "
-            "option (without it replace CRn by FINE); the path bound holds for CR as a "
-            "distance or as a radius"]
+            "and weld, FINE at the phase ends; CRy keeps the corner path within y mm of "
+            "the point (half the segment at most): it needs the Advanced Constant Path "
+            "option (without it replace CRn by FINE)"]
     return out
 
 

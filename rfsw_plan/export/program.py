@@ -30,8 +30,9 @@ polyline (theta the direction change), so ``d = 2 (tol - dev) / sin(theta)`` (ca
 the shorter segment) keeps every verified sample within ``tol`` of the path the controller
 runs, where ``dev`` is the samples' largest distance from the two chords
 (:func:`path_deviation` checks it sample by sample). FANUC's ``CNT`` rounds a corner by an
-amount that depends on speed and acceleration, with no published bound, so FANUC programs
-use ``FINE`` (:mod:`rfsw_plan.export.fanuc_tp`). Blending is allowed between two segments
+amount that depends on speed and acceleration, with no published bound; FANUC programs use
+the corner region ``CRy`` instead, whose documented distance fits this model
+(:mod:`rfsw_plan.export.fanuc_tp`). Blending is allowed between two segments
 inside the plunge, the dwell or the welding phases, so the plunge and the dwell are not a
 chain of exact stops; the robot stops exactly where the pin touches down, at the end of the
 dwell and at the end of the weld (the retract starts from the planned spot).
