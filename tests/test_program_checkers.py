@@ -99,7 +99,8 @@ def test_the_antlr_grammar_rejects_broken_krl(plan_with_programs, krl_parser,
     out, _ = plan_with_programs(PROBLEMS[0])
     src = _file(out, "krl").read_text()
     bad = tmp_path / "bad.src"
-    bad.write_text(src.replace("  BAS(#TOOL, 1)", "  BAS(#TOOL, 1", 1))
+    assert "  $TOOL = {" in src
+    bad.write_text(src.replace("  $TOOL = {", "  $TOOL = {{", 1))
     assert _krl_errors(krl_parser, bad)
 
 
@@ -165,7 +166,7 @@ _CART_P = re.compile(r"P\[\d+(?::[^\]]*)?\]\{\s*GP1:\s*UF : \d+, UT : \d+,\s*CON
                                     (("X", "mm"), ("Y", "mm"), ("Z", "mm"), ("W", "deg"),
                                      ("P", "deg"), ("R", "deg"))) + r"\s*\};")
 _MN_LINE = re.compile(r"^\s*(\d+):(?:[JL] P\[\d+\] (?:\d+%|\d+mm/sec|\d+msec|\d*\.\d+sec) "
-                      r"(?:FINE|CNT\d+)|  .*) ;$")
+                      r"(?:FINE|CNT\d+|CR\d+)|  .*) ;$")
 
 
 def tp_structure_errors(text: str) -> list[str]:
@@ -217,3 +218,51 @@ def test_the_tp_structure_check_rejects_a_broken_file(plan_with_programs) -> Non
     assert tp_structure_errors(text.replace(" FINE ;", " FINE", 1))
     assert tp_structure_errors(re.sub(r"CONFIG : '[NF]", "CONFIG : 'Q", text, count=1))
     assert tp_structure_errors(text.replace("   5:", "   6:", 1))
+
+
+# --------------------------------------------------------------------------------------------
+# Sourced syntax facts (tests/data/vendor/syntax_facts.csv) and the cell's data
+
+
+def _facts() -> dict[tuple[str, str], str]:
+    import csv
+
+    with (DATA / "vendor" / "syntax_facts.csv").open(newline="", encoding="utf-8") as fh:
+        return {(r["vendor"], r["fact"]): r["value"] for r in csv.DictReader(fh)}
+
+
+@pytest.mark.parametrize("problem", PROBLEMS)
+def test_programs_follow_the_sourced_syntax_facts(plan_with_programs, problem) -> None:
+    """Every TP termination is FINE or CRy in the manual's form and range, on L moves only;
+    KRL sets $TOOL, $BASE and $LOAD by aggregates of the sourced form and writes no
+    TOOL_DATA[, BASE_DATA[ or LOAD_DATA[ (issue 32); TP writes no frame, register or payload
+    schedule by default."""
+    facts = _facts()
+    out, _ = plan_with_programs(problem)
+    tp = _file(out, "fanuc_tp").read_text()
+    lo, hi = (int(x) for x in facts[("FANUC", "cr_range_mm")].split())
+    cr_line = facts[("FANUC", "cr_listing")]
+    listing = re.compile(r"^([JL]) P\[\d+\] (\S+?)(mm/sec|msec|%) (FINE|CR(\d+)|CNT\d+) ;$")
+    assert listing.match(re.sub(r"PR\[1:foo\]", "P[1]", cr_line))  # the public listing form
+    terms = []
+    for line in tp.splitlines():
+        body = re.sub(r"^\s*\d+:", "", line)
+        if (m := listing.match(body)) is not None:
+            terms.append(m.group(4))
+            if m.group(5) is not None:
+                assert m.group(1) in facts[("FANUC", "cr_motion_types")], line
+                assert lo <= int(m.group(5)) <= hi, line
+    assert terms and set(terms) <= {"FINE"} | {t for t in terms if t.startswith("CR")}
+    assert not re.search(r"^\s*\d+:\s*(?:PR\[|UFRAME\[|UTOOL\[|PAYLOAD\[)", tp, re.M)
+    krl = _file(out, "krl").read_text()
+    for name in ("TOOL_DATA[", "BASE_DATA[", "LOAD_DATA["):
+        assert name not in krl
+    agg = re.compile(r"^\s*\$(TOOL|BASE)\s*=\s*\{X [-\d.]+,Y [-\d.]+,Z [-\d.]+,A [-\d.]+,"
+                     r"B [-\d.]+,C [-\d.]+\}", re.M)
+    assert agg.search(facts[("KUKA", "tool_aggregate")].replace("$TOOL=", "$TOOL = "))
+    assert {m.group(1) for m in agg.finditer(krl)} == {"TOOL", "BASE"}
+    load = re.compile(r"^\s*\$LOAD\s*=\s*\{M [-\d.]+,\s*CM \{X [-\d.]+,\s*Y [-\d.]+,\s*Z [-\d.]+"
+                      r"(?:,A [-\d.]+,B [-\d.]+,C [-\d.]+)?\},\s*J \{X [-\d.]+,\s*Y [-\d.]+,"
+                      r"\s*Z [-\d.]+\}\}", re.M)
+    assert load.search(facts[("KUKA", "load_aggregate")])
+    assert load.search(krl)

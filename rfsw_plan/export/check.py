@@ -3,32 +3,44 @@
 :func:`check_program` reads a KRL, TP or RAPID file with its own format's reader, recovers the
 joint values of every point on the posture the file states, and runs the planner's
 sample-by-sample verification (:func:`rfsw_plan.planning.verify.verify_samples`: the weld
-window under the plan's elastostatic model and process forces, the joint limits) on the path
-the controller will run:
+window and every other envelope row it holds under the plan's elastostatic model and process
+forces, the joint limits) on the path the controller will run:
 
-* **Path.** At export every verified sample was shown to lie within the path tolerance of the
-  programmed path (:func:`rfsw_plan.export.program.path_deviation`). A program whose point k
-  now differs from the plan sample it was written from by ``D_k`` (position, and rotation
-  vector) is therefore modelled as the verified samples displaced by the edit, interpolated
-  linearly in time between neighbouring points: sample m between points k and k + 1 gets
-  ``(1 - f) D_k + f D_{k+1}``, ``f`` its time fraction. An unedited program gives back the
-  verified samples (to the file's rounding); a point moved 2 mm gives a 2 mm tent around it.
+* **Plan.** The program's header names its plan (``plan id: <problem>-<12 hex of the SHA-256
+  of waypoints.csv>``); a program of another plan is refused as such (exit 3), even when its
+  points are the same. A program edited inside its plan folder (the touch-up workflow) is
+  not refused for differing from the bytes ``plan.json`` vouches for: the result says it was
+  edited and re-verifies it.
+* **Points to samples.** Each program point is matched, in order, to the plan sample at its
+  position (samples within 0.2 um of the nearest, the pin at rest, are told apart by the
+  program's own clock). Deleted or added motions need no special case: the remaining points
+  are matched where they are.
+* **Path.** Between two program points the controller runs the straight line (LIN, L,
+  MoveL): every plan sample between them is moved onto that chord, at its own fraction along
+  the plan's chord between the two matched samples, plus the edit of the two points
+  interpolated (rotation as a rotation vector). An unedited program gives back the verified
+  samples within the path tolerance it was exported with; a point moved 2 mm gives a 2 mm
+  tent; 30 deleted arc points give the chord that cuts inside the arc.
+* **Posture.** A point whose stated posture (KUKA S/T, FANUC CONFIG with turn numbers, ABB
+  confdata) has no joint solution, or whose joint values differ from the plan sample's by a
+  turn or a branch (more than :data:`POSTURE_TOL` on an axis), fails with the point, the line
+  and the axis.
 * **Timing.** Each segment is re-timed as the program runs it: its programmed speed (or
-  motion time, or wait) over its programmed length, so a touched-up speed shows.
-* **Points to samples.** Each program point is matched, in order, to the plan sample nearest
-  in position and in the program's own cumulative time.
-* **Checks.** The weld window at every in-material sample and the joint limits at every
-  sample. The derivative limits are the controller's own business (its motion planner enforces
-  them) and are not reported here.
+  motion time, or wait) over its programmed length; a segment whose time differs from the
+  plan's by more than :data:`TIMING_TOL` fails with the point, the line, the programmed and
+  planned times, and the re-timed samples are verified (the envelope's speed rows see it).
+* **Checks.** Every failure :func:`~rfsw_plan.planning.verify.verify_samples` returns, except
+  the joint velocity, acceleration and jerk (the controller's own motion planner enforces
+  them on the path it runs).
 
-Result: ``holds``, or the first point that leaves the window with its lateral error and the
-window (exit 3 in the CLI).
+Result: ``holds``, or the first failure with the point, its line in the file and the
+quantity (exit 3 in the CLI); every failure is in :meth:`CheckResult.to_dict`.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,10 +55,15 @@ from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
-#: Checks reported by :func:`check_program` (prefixes of :class:`SampleFailure` checks).
-REPORTED = ("window", "joint_limit")
-#: Program points are matched to plan samples within this much programmed time [s].
-MATCH_WINDOW = 1.0
+#: Failures of verify_samples not reported (the controller's motion planner enforces them).
+NOT_REPORTED = ("joint_velocity", "joint_acceleration", "joint_jerk")
+#: Largest relative difference of a segment's programmed time from the plan's.
+TIMING_TOL = 0.02
+#: Largest difference of a point's joint value from its plan sample's [rad] (a turn or branch
+#: change is 2 pi or a large angle; an edit of millimetres moves the joints by far less).
+POSTURE_TOL = math.radians(5.0)
+#: Program points are told apart from plan samples at the same place below this [m].
+TIE = 2e-7
 #: Newton steps of the batched inverse kinematics from the planned joints.
 NEWTON_STEPS = 4
 
@@ -58,7 +75,7 @@ class CheckResult:
     Attributes:
         program: The program file.
         plan: The plan folder.
-        holds: Every sample stays in the weld window and the joint limits.
+        holds: Every check holds at every sample, the timing and the postures too.
         n_points: Program points read.
         n_samples: Samples checked.
         max_edit: Largest displacement of a program point from its plan sample [m].
@@ -67,9 +84,15 @@ class CheckResult:
         s: Its arc length along the seam [m].
         lateral_error: Predicted lateral pin error there [m].
         window: The weld window (lower, upper) [m].
-        failure: The failing check (``window``, ``joint_limit_q2``...), or "".
+        failure: The failing check (``window``, ``joint_limit_q2``, ``timing``,
+            ``posture``, ``plan_id``...), or "".
         value: Its value and bound (file units, e.g. mm or deg), and the unit.
         min_margin: Smallest window margin over the in-material samples [m].
+        line_no: The failing point's motion line in the program file (1-based; 0: none).
+        file: The file of that line.
+        failures: Every failure, one line each.
+        edited: The program's files that differ from the bytes ``plan.json`` vouches for.
+        detail: The failure's text when it is not a window or a bound.
     """
 
     program: Path
@@ -86,21 +109,35 @@ class CheckResult:
     failure: str = ""
     value: tuple[float, float, str] = (0.0, 0.0, "")
     min_margin: float = math.inf
+    line_no: int = 0
+    file: str = ""
+    failures: tuple[str, ...] = ()
+    edited: tuple[str, ...] = ()
+    detail: str = ""
 
     def line(self) -> str:
         """One line for the terminal."""
+        edited = (f"; edited against the export: {', '.join(self.edited)}"
+                  if self.edited else "")
         if self.holds:
             return (f"{self.program.name}: holds ({self.n_points} points, {self.n_samples} "
                     f"samples; smallest window margin {self.min_margin * 1e3:.3f} mm; largest "
-                    f"edit {self.max_edit * 1e3:.3f} mm)")
+                    f"edit {self.max_edit * 1e3:.3f} mm{edited})")
+        more = (f" (+{len(self.failures) - 1} more failure"
+                f"{'s' if len(self.failures) > 2 else ''})" if len(self.failures) > 1 else "")
+        where = f"line {self.line_no}" + (f" of {self.file}" if self.file and
+                                           self.file != self.program.name else "")
+        at = (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} mm, "
+              f"{where})") if self.point else f"{self.program.name}:"
         lo, hi = (w * 1e3 for w in self.window)
         if self.failure == "window":
-            return (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} "
-                    f"mm) leaves the weld window: lateral error {self.lateral_error * 1e3:+.3f} "
-                    f"mm, window {lo:+.3f} .. {hi:+.3f} mm")
+            return (f"{at} leaves the weld window: lateral error "
+                    f"{self.lateral_error * 1e3:+.3f} mm, window {lo:+.3f} .. {hi:+.3f} mm"
+                    f"{more}")
+        if self.detail:
+            return f"{at} {self.detail}{more}"
         v, b, unit = self.value
-        return (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} mm): "
-                f"{self.failure} {v:.3f} {unit} beyond {b:.3f} {unit}")
+        return f"{at}: {self.failure} {v:.3f} {unit} beyond {b:.3f} {unit}{more}"
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready (file units)."""
@@ -109,7 +146,18 @@ class CheckResult:
                 "max_edit_mm": self.max_edit * 1e3, "point": self.point, "phase": self.phase,
                 "s_mm": self.s * 1e3, "lateral_error_mm": self.lateral_error * 1e3,
                 "window_mm": [w * 1e3 for w in self.window], "failure": self.failure,
-                "min_margin_mm": self.min_margin * 1e3, "line": self.line()}
+                "min_margin_mm": self.min_margin * 1e3, "line_no": self.line_no,
+                "file": self.file, "failures": list(self.failures),
+                "edited": list(self.edited), "line": self.line()}
+
+
+@dataclass(frozen=True)
+class _Finding:
+    """A failure found before or beside verify_samples: a point, what, and the text."""
+
+    point: int
+    check: str
+    detail: str
 
 
 def check_program(program: str | Path, plan_dir: str | Path | None = None) -> CheckResult:
@@ -120,48 +168,155 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         plan_dir: The plan folder (default: the program's folder).
 
     Raises:
-        InputError: An unreadable program or plan folder, a point without a joint solution in
-            its posture, or a plan whose model cannot be rebuilt (one line).
+        InputError: An unreadable program or plan folder, or a plan whose model cannot be
+            rebuilt (one line).
     """
-    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
-    from rfsw_plan.planning.verify import verify_samples
+    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot, touched_programs
 
     path = Path(program)
     if not path.is_file():
         raise InputError(path, "", "not a file", "a program written by rfsw-plan export")
-    fmt = format_for_file(path)
     folder = Path(plan_dir) if plan_dir is not None else path.parent
-    plan, robot = read_plan_folder_and_robot(folder)
-    read = fmt.read(path)
+    fmt = format_for_file(path)
+    try:
+        read = fmt.read(path)
+    except InputError:
+        read_plan_folder_and_robot(folder)  # an infeasible or damaged plan is named first
+        raise
+    own = _own_files(folder, read.files)
+    with touched_programs(own):
+        return _check(path, folder, read, own)
+
+
+def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) -> CheckResult:
+    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
+    from rfsw_plan.planning.verify import verify_samples
+
+    fmt = format_for_file(path)
+    plan, robot = read_plan_folder_and_robot(folder, touched=tuple(own))
+    edited = tuple(sorted(n for n, changed in own.items() if changed))
+    plan_id = f"{plan.record.get('problem', '')}-{plan.waypoints_sha256[:12]}"
+    stated = _stated_plan_id(path)
+    if stated is not None and stated != plan_id:
+        return CheckResult(path, folder, False, len(read.points), 0, 0.0, failure="plan_id",
+                           detail=f"is a program of plan {stated}, not of this plan "
+                                  f"{plan_id} ({folder}): check it against its own plan",
+                           failures=(f"plan id {stated} != {plan_id}",), edited=edited)
     model, task, window = _plan_model(plan, robot)
     base = verify_samples(model, task, window, plan.samples)
-    if _reported(base) is not None:
+    if _reported(base):
         raise InputError(folder, "", "the plan's own samples do not verify with the model "
                          "rebuilt from its files (robot or problem file changed?)",
                          "the robot and problem files the plan was made with")
-    samples, names, idx, edit = run_as_controller(robot, fmt, read, plan.samples)
-    ver = verify_samples(model, task, window, samples)
-    res = CheckResult(path, folder, True, len(names), len(samples), edit,
-                      window=(window.lower, window.upper), min_margin=ver.min_margin)
-    f = _reported(ver)
-    if f is None:
+    run = run_as_controller(robot, fmt, read, plan.samples)
+    ver = verify_samples(model, task, window, run.samples)
+    lines = _motion_lines(read.files, run.names)
+    res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
+                      window=(window.lower, window.upper), min_margin=ver.min_margin,
+                      edited=edited)
+    texts: list[tuple[int, str, str, int, Any]] = []  # (point, check, text, sample, failure)
+    for f in run.findings:
+        texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None))
+    for f in _reported(ver):
+        k = _named_point(f.index, run.idx, ver.e_lat, window, run.edits) \
+            if f.check == "window" else _nearest_point(f.index, run.idx)
+        texts.append((k, f.check, f"{f.check} {f.value:.3f} {f.unit} beyond {f.bound:.3f} "
+                      f"{f.unit}", f.index, f))
+    if not texts:
         return res
-    k = _named_point(f.index, idx, ver.e_lat, window)
-    e = float(ver.e_lat[idx[k]]) if f.check == "window" else float(ver.e_lat[f.index])
-    return replace(res, holds=False, point=names[k], phase=str(samples.phase[idx[k]]),
-                   s=float(samples.s[idx[k]]), lateral_error=e, failure=f.check,
-                   value=(f.value, f.bound, f.unit))
+    texts.sort(key=lambda x: (x[3], x[0]))
+    k, check, text, sample, f = texts[0]
+    file, line_no = lines.get(run.names[k], ("", 0))
+    every = tuple(f"{run.names[p]} ({lines.get(run.names[p], ('', 0))[0]}:"
+                  f"{lines.get(run.names[p], ('', 0))[1]}): {t}" for p, _, t, _, _ in texts)
+    if check == "window":  # the worst sample beside the named point (a tent, a chord)
+        lo_i, hi_i = int(run.idx[max(k - 1, 0)]), int(run.idx[min(k + 1, len(run.idx) - 1)])
+        span = ver.e_lat[lo_i:hi_i + 1]
+        out_of = np.maximum(window.lower - span, span - window.upper)
+        e = float(span[int(np.nanargmax(out_of))]) if span.size else float(ver.e_lat[sample])
+    else:
+        e = float(ver.e_lat[sample])
+    return replace(res, holds=False, point=run.names[k], phase=str(run.samples.phase[run.idx[k]]),
+                   s=float(run.samples.s[run.idx[k]]), lateral_error=e, failure=check,
+                   value=(f.value, f.bound, f.unit) if f is not None else (0.0, 0.0, ""),
+                   line_no=line_no, file=file, failures=every,
+                   detail="" if f is not None else text)
 
 
-def _reported(ver: Any) -> Any:
-    return next((f for f in ver.failures if f.check.startswith(REPORTED)), None)
+def _own_files(folder: Path, files: tuple[Path, ...]) -> dict[str, bool]:
+    """The program's files that lie in the plan folder and are vouched for by its plan.json,
+    each with whether its bytes changed since (the touch-up workflow edits them there)."""
+    from rfsw_plan.files import sha256_file
+    from rfsw_plan.planfiles.folder import read_plan_record
+
+    try:
+        digests = read_plan_record(folder / "plan.json").get("sha256") or {}
+    except InputError:
+        return {}
+    out = {}
+    for f in files:
+        if f.resolve().parent == folder.resolve() and f.name in digests:
+            out[f.name] = sha256_file(f) != digests[f.name]
+    return out
 
 
-def _named_point(sample: int, idx: NDArray[np.int_], e: FloatArray, window: Any) -> int:
-    """The program point to name for a failing sample: of the two points around it, the one
-    farther outside the window (the edited one)."""
+def _stated_plan_id(path: Path) -> str | None:
+    """The ``plan id:`` of the program's header (None: not stated)."""
+    import re
+
+    with path.open(encoding="utf-8", errors="replace") as fh:
+        for _, line in zip(range(80), fh, strict=False):
+            m = re.search(r"plan id:\s*([\w.-]+)", line)
+            if m is not None:
+                return m.group(1)
+    return None
+
+
+def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[str, int]]:
+    """Point name -> (file name, 1-based line) of the motion that moves to it."""
+    import re
+
+    want = set(names)
+    out: dict[str, tuple[str, int]] = {}
+    move = re.compile(r"^\s*(?:\d+:)?\s*(?:LIN|PTP|CIRC|[JLC]\s|Move\w*)\s*(\w+(?:\[\d+\])?)")
+    for f in files:
+        if f.suffix.lower() == ".dat":
+            continue
+        for n, line in enumerate(f.read_text(encoding="utf-8", errors="replace").splitlines(),
+                                 start=1):
+            m = move.match(line)
+            if m is None:
+                continue
+            name = m.group(1)
+            if name.upper() in {x.upper() for x in want} and name not in out:
+                key = next(x for x in want if x.upper() == name.upper())
+                out.setdefault(key, (f.name, n))
+            elif line.strip().startswith("MoveAbsJ"):
+                out.setdefault("jStart", (f.name, n))
+    return out
+
+
+def _reported(ver: Any) -> list[Any]:
+    return [f for f in ver.failures if not f.check.startswith(NOT_REPORTED)]
+
+
+def _nearest_point(sample: int, idx: NDArray[np.int_]) -> int:
+    return int(np.argmin(np.abs(idx - sample)))
+
+
+def _named_point(sample: int, idx: NDArray[np.int_], e: FloatArray, window: Any,
+                 edits: FloatArray | None = None) -> int:
+    """The program point to name for a failing sample: of the points around it (all points
+    on the same samples included: an added point), the most edited one if it was moved by
+    more than 0.1 mm, else the one farther outside the window."""
     k = int(np.clip(np.searchsorted(idx, sample), 0, len(idx) - 1))
-    cands = [c for c in (k - 1, k) if 0 <= c < len(idx)]
+    lo = int(idx[max(k - 1, 0)])
+    hi = int(idx[k])
+    cands = [c for c in range(len(idx)) if lo <= idx[c] <= hi] or [k]
+    if edits is not None:
+        c = max(cands, key=lambda c: float(edits[c]))
+        if edits[c] > 1e-4:
+            return c
 
     def outside(c: int) -> float:
         x = float(e[idx[c]])
@@ -188,117 +343,186 @@ def _plan_model(plan: Any, robot: Robot) -> tuple[Any, Any, Any]:
     return ElastostaticModel(robot), task, pb.window
 
 
-def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
-                      plan: Samples) -> tuple[Samples, list[str], NDArray[np.int_], float]:
-    """The samples the controller runs for a (possibly edited) program (module docstring).
+@dataclass(frozen=True)
+class ControllerRun:
+    """What :func:`run_as_controller` finds.
 
-    Returns:
-        ``(samples, names, idx, max_edit)``: the re-timed, displaced samples with their joint
-        values; the program points' names, the plan sample index of each, and the largest
-        position edit [m].
+    Attributes:
+        samples: The re-timed samples on the path the controller runs, with joint values.
+        names: The program points' names, in order.
+        idx: The plan sample index of each point.
+        max_edit: Largest position edit of a point [m].
+        findings: Posture and timing failures, by point.
+        edits: Position edit of every point [m].
     """
+
+    samples: Samples
+    names: list[str]
+    idx: NDArray[np.int_]
+    max_edit: float
+    findings: tuple[_Finding, ...]
+    edits: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+
+def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
+                      plan: Samples) -> ControllerRun:
+    """The samples the controller runs for a (possibly edited) program (module docstring)."""
     conv = robot.description.convention
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
     T_plan = robot.batch_fk_jacobian(plan.q)[0]
     pts = read.points
-    poses, names = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
-    idx = _match(poses, T_plan, plan.t, _program_times(read, poses))
+    poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
+    seg_t = _segment_times(read, poses)
+    idx = _match(poses, T_plan, plan.t, seg_t)
+    findings += _posture_changes(q_pts, plan.q[idx], names, robot)
+    findings += _timing_changes(seg_t, plan.t[idx], names)
     dp = poses[:, :3, 3] - T_plan[idx, :3, 3]
     dr = (Rotation.from_matrix(poses[:, :3, :3])
           * Rotation.from_matrix(T_plan[idx, :3, :3]).inv()).as_rotvec()
-    t = _retime(read, poses, idx, plan.t)
-    f_t = np.interp(np.arange(len(plan)), idx, np.arange(len(idx), dtype=float))
-    k0 = np.clip(np.floor(f_t).astype(int), 0, len(idx) - 1)
-    k1 = np.minimum(k0 + 1, len(idx) - 1)
-    w = np.clip(f_t - k0, 0.0, 1.0)
-    frac = np.where(k1 > k0, (plan.t - plan.t[idx[k0]])
-                    / np.maximum(plan.t[idx[k1]] - plan.t[idx[k0]], 1e-12), w)
-    frac = np.clip(frac, 0.0, 1.0)[:, None]
+    t = _retime(seg_t, idx, plan.t)
     target = T_plan.copy()
-    target[:, :3, 3] += (1 - frac) * dp[k0] + frac * dp[k1]
-    rot = (1 - frac) * dr[k0] + frac * dr[k1]
-    target[:, :3, :3] = Rotation.from_rotvec(rot).as_matrix() @ T_plan[:, :3, :3]
+    n = len(plan)
+    for k in range(len(idx) - 1):
+        i, j = int(idx[k]), int(idx[k + 1])
+        if j <= i:
+            continue
+        a, b = T_plan[i, :3, 3], T_plan[j, :3, 3]
+        d = b - a
+        L2 = float(d @ d)
+        m = np.arange(i, j + 1)
+        f = np.clip(((T_plan[m, :3, 3] - a) @ d) / L2, 0.0, 1.0) if L2 > 1e-18 else \
+            (plan.t[m] - plan.t[i]) / max(plan.t[j] - plan.t[i], 1e-12)
+        # the chord between the two (edited) points, at the sample's fraction along it
+        target[m, :3, 3] = (poses[k, :3, 3][None] + f[:, None]
+                            * (poses[k + 1, :3, 3] - poses[k, :3, 3])[None])
+        rot = (1 - f)[:, None] * dr[k] + f[:, None] * dr[k + 1]
+        target[m, :3, :3] = Rotation.from_rotvec(rot).as_matrix() @ T_plan[m, :3, :3]
+    last = int(idx[-1])
+    if last < n - 1:
+        target[last + 1:, :3, 3] += dp[-1]
+    first = int(idx[0])
+    if first > 0:
+        target[:first, :3, 3] += dp[0]
     q = _batch_ik(robot, target, plan.q)
     out = Samples(t, plan.phase, plan.s, q, plan.wrench, plan.seam)
-    return out, names, idx, float(np.max(np.linalg.norm(dp, axis=1)))
+    edits = np.linalg.norm(dp, axis=1)
+    return ControllerRun(out, names, idx, float(np.max(edits)), tuple(findings), edits)
 
 
 def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: list[ReadPoint],
-                 to_model: FloatArray, T_plan: FloatArray,
-                 plan: Samples) -> tuple[FloatArray, list[str]]:
-    """Model TCP poses (base frame) of the program's points: joint targets by FK, Cartesian
-    points on their stated posture (IK seeded by the nearest plan sample)."""
+                 to_model: FloatArray, T_plan: FloatArray, plan: Samples,
+                 ) -> tuple[FloatArray, list[str], FloatArray, list[_Finding]]:
+    """Model TCP poses (base frame) and joint values of the program's points: joint targets
+    by FK, Cartesian points on their stated posture (IK seeded by the nearest plan sample); a
+    stated posture without a joint solution is a finding (its point keeps the nearest
+    sample's joints)."""
     from rfsw_plan.export.config import ik_on_branch
 
     conv = robot.description.convention
     poses = np.empty((len(pts), 4, 4))
+    qs = np.empty((len(pts), robot.nq))
+    findings: list[_Finding] = []
     for k, p in enumerate(pts):
         if p.q is not None:
+            qs[k] = p.q
             poses[k] = robot.fk(p.q)
             continue
         assert p.pose is not None
         T = conv.base @ read.work @ p.pose @ to_model
         near = int(np.argmin(np.linalg.norm(T_plan[:, :3, 3] - T[:3, 3], axis=1)))
-        q = ik_on_branch(robot, T, lambda x, p=p: fmt.matches(robot, p, x), plan.q[near])
-        poses[k] = robot.fk(q)
-    return poses, [p.name for p in pts]
+        try:
+            qs[k] = ik_on_branch(robot, T, lambda x, p=p: fmt.matches(robot, p, x),
+                                 plan.q[near])
+        except InputError:
+            findings.append(_Finding(k, "posture", f"states the posture {p.config}, which "
+                                     "has no joint solution at this pose (the plan's is "
+                                     f"{fmt.posture(robot, plan.q[near])})"))
+            qs[k] = plan.q[near]
+        poses[k] = robot.fk(qs[k])
+    return poses, [p.name for p in pts], qs, findings
 
 
-def _program_times(read: ReadProgram, poses: FloatArray) -> FloatArray:
-    """Cumulative programmed time at each point [s] (speed over length, motion times, waits)."""
-    times = np.zeros(len(poses))
-    clock, k = 0.0, -1
+def _posture_changes(q: FloatArray, q_plan: FloatArray, names: list[str],
+                     robot: Robot) -> list[_Finding]:
+    """Points whose joint values leave their plan sample's by a turn or a branch."""
+    axes = robot.description.convention.axes
+    out = []
+    for k in range(len(q)):
+        d = q[k] - q_plan[k]
+        j = int(np.argmax(np.abs(d)))
+        if abs(d[j]) > POSTURE_TOL:
+            out.append(_Finding(k, "posture", f"posture changed: {axes[j]} "
+                                f"{math.degrees(q[k, j]):+.1f} deg where the plan has "
+                                f"{math.degrees(q_plan[k, j]):+.1f} deg "
+                                f"({math.degrees(d[j]):+.1f} deg: a turn or a branch)"))
+    return out
+
+
+def _timing_changes(seg_t: FloatArray, t_plan: FloatArray, names: list[str]) -> list[_Finding]:
+    """Segments whose programmed time differs from the plan's by more than TIMING_TOL."""
+    out = []
+    plan_dt = np.diff(t_plan)
+    for k in range(1, len(seg_t)):
+        want = float(plan_dt[k - 1])
+        if want <= 0 or seg_t[k] <= 0:
+            continue
+        rel = seg_t[k] / want - 1.0
+        if abs(rel) > TIMING_TOL:
+            out.append(_Finding(k, "timing", f"timing: the move to it takes {seg_t[k]:.3f} s, "
+                                f"the plan {want:.3f} s ({100 * rel:+.1f} %, tolerance "
+                                f"{100 * TIMING_TOL:g} %): the speed is {1 / (1 + rel):.2f} x "
+                                "the plan's"))
+    return out
+
+
+def _segment_times(read: ReadProgram, poses: FloatArray) -> FloatArray:
+    """Programmed time from each point to the next one's arrival [s], (len(poses),): waits
+    after the previous point plus the move (motion time, or length over speed, the length
+    between the points' TCP ``poses`` [m]); 0 for the first point and for a move without a
+    stated speed or time."""
+    out = np.zeros(len(poses))
+    pending, k = 0.0, -1
     for m in read.motions:
         if m.kind == "wait":
-            clock += m.duration
+            pending += m.duration
             continue
         k += 1
         if k > 0:
             length = float(np.linalg.norm(poses[k, :3, 3] - poses[k - 1, :3, 3]))
-            clock += m.duration if m.duration > 0 else (length / m.speed if m.speed > 0 else 0.0)
-        times[k] = clock
-    return times
+            move = m.duration if m.duration > 0 else (length / m.speed if m.speed > 0 else 0.0)
+            out[k] = pending + move if move > 0 else 0.0
+        pending = 0.0
+    return out
 
 
 def _match(poses: FloatArray, T_plan: FloatArray, t_plan: FloatArray,
-           t_prog: FloatArray) -> NDArray[np.int_]:
+           seg_t: FloatArray) -> NDArray[np.int_]:
     """Plan sample index of each program point, in order, never before the previous point's:
-    the nearest in position among the samples within :data:`MATCH_WINDOW` of the program's
-    own cumulative time (all later samples if none), ties (stationary phases) broken by time."""
+    the sample at its position; samples within :data:`TIE` of the nearest (at rest) are told
+    apart by the previous point's time plus the programmed segment time."""
     idx = np.zeros(len(poses), dtype=int)
     start = 0
     for k in range(len(poses)):
-        dt = np.abs(t_plan[start:] - t_plan[0] - t_prog[k])
-        dist = np.linalg.norm(T_plan[start:, :3, 3] - poses[k, :3, 3], axis=1) * 1e3
-        cost = np.where(dt <= MATCH_WINDOW, dist, np.inf) + 1e-2 * dt
-        if not np.isfinite(cost).any():
-            cost = dist + 1e-2 * dt
-        idx[k] = start + int(np.argmin(cost))
+        d = np.linalg.norm(T_plan[start:, :3, 3] - poses[k, :3, 3], axis=1)
+        near = np.flatnonzero(d <= d.min() + TIE)
+        if k == 0 or seg_t[k] <= 0:
+            j = int(near[0])
+        else:
+            expect = t_plan[idx[k - 1]] + seg_t[k]
+            j = int(near[np.argmin(np.abs(t_plan[start + near] - expect))])
+        idx[k] = start + j
         start = idx[k]
     return idx
 
 
-def _retime(read: ReadProgram, poses: FloatArray, idx: NDArray[np.int_],
-            t_plan: FloatArray) -> FloatArray:
+def _retime(seg_t: FloatArray, idx: NDArray[np.int_], t_plan: FloatArray) -> FloatArray:
     """Sample times as the program runs: each segment's plan time scaled to its programmed
-    duration (the waits after its first point plus the move: speed over length, or the
-    motion time). Samples after the last point keep their plan spacing."""
-    moves: list[ReadPoint] = []
-    waits = np.zeros(len(poses))
-    for m in read.motions:
-        if m.kind == "wait":
-            waits[max(len(moves) - 1, 0)] += m.duration
-        else:
-            moves.append(m)
+    time. Samples after the last point keep their plan spacing."""
     out = np.array(t_plan, dtype=float)
     for k in range(len(idx) - 1):
         i, j = int(idx[k]), int(idx[k + 1])
         dt_plan = t_plan[j] - t_plan[i]
-        m = moves[k + 1]
-        length = float(np.linalg.norm(poses[k + 1, :3, 3] - poses[k, :3, 3]))
-        dt_move = m.duration if m.duration > 0 else (length / m.speed if m.speed > 0 else 0.0)
-        dt_prog = waits[k] + dt_move
-        scale = dt_prog / dt_plan if dt_plan > 0 and dt_move > 0 else 1.0
+        scale = seg_t[k + 1] / dt_plan if dt_plan > 0 and seg_t[k + 1] > 0 else 1.0
         out[i + 1:j + 1] = out[i] + (t_plan[i + 1:j + 1] - t_plan[i]) * scale
     last = int(idx[-1])
     out[last + 1:] = t_plan[last + 1:] + (out[last] - t_plan[last])

@@ -11,16 +11,29 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
   cannot take another posture. The others are Cartesian with ``CONFIG : 'N U T, 0, 0, 0'``
   (:func:`rfsw_plan.export.config.fanuc_config`: F if J5 > 0, N if J5 < 0, checked against
   RoboDK's post-processor and a ROBOGUIDE table in ``tests/data/vendor``).
-* Frames are set in the program, exactly: the plate frame and the TCP are written element by
-  element into position registers (``PR[i]=LPOS`` makes the register Cartesian, then
-  ``PR[i,1..6]``), then ``UFRAME[uf]=PR[i]``, ``UTOOL[ut]=PR[j]``, ``UFRAME_NUM``,
-  ``UTOOL_NUM``; ``PAYLOAD[ut]`` selects the payload schedule whose values the header lists
-  (FANUC units: kg, cm, kgf cm s^2), to be entered on the payload screen.
-* Termination ``FINE`` everywhere: FANUC's ``CNT`` rounds a corner by an amount that depends
-  on speed and acceleration, with no published bound, so the 0.01 mm path tolerance cannot be
-  shown for it; the corner-region option (``CR``) takes whole millimetres, more than the
-  bounded blend here. Each ``FINE`` costs the controller's in-position settle time (tens of
-  ms; the header says so).
+* Frames: the program selects the user frame and tool frame by number (``UFRAME_NUM``,
+  ``UTOOL_NUM``) and writes none of the cell's numbered data: the header lists the values to
+  enter there (two remark lines each, ``! UFRAME[n] X .. Y .. Z ..`` and ``! UFRAME[n] W ..
+  P .. R ..``, which :func:`read_tp` reads) and the payload for the payload screen (FANUC
+  units: kg, cm, kgf cm s^2). With ``cell_data`` (``--cell-data``) it writes them as before:
+  the plate frame and the TCP element by element into position registers (``PR[i]=LPOS``
+  makes the register Cartesian, then ``PR[i,1..6]``), then ``UFRAME[uf]=PR[i]``,
+  ``UTOOL[ut]=PR[j]`` and ``PAYLOAD[ut]``; the header says so.
+* Termination: ``CRn`` (corner region, n whole millimetres) at a point inside the plunge,
+  the dwell or the weld where the rounding keeps every verified sample within the path
+  tolerance, ``FINE`` elsewhere (the phase ends: approach, end of plunge, end of dwell, end
+  of weld, retract, and a plunge or dwell corner the bound does not allow). In the welding
+  phases a corner that even 1 mm would round too much gets shorter segments instead
+  (:func:`tp_program` adds the verified samples halfway to its neighbours as points).
+  ``CNT`` is not used: it rounds a corner by an amount that depends on speed, acceleration
+  and override, with no published bound. ``CRy`` (FANUC R-30iB teach pendant help /
+  operator's manual, "Corner Region Termination Type", quoted in
+  ``tests/data/vendor/syntax_facts.csv``): the corner path starts and ends at most y mm from
+  the taught point, y from 0 to 1000, limited to half the segment; it belongs to the
+  Advanced Constant Path option (which needs Constant Path, and ``$CZCDCFG.$CD_ENABLE =
+  FALSE``: Corner Distance and Corner Region exclude each other). Without the option,
+  replace every ``CRn`` by ``FINE``. The bound (:func:`corner_regions`, checked at export by
+  :meth:`FanucTpFormat.path_deviation`) is the vendor-neutral blend model with that distance.
 * ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
   milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
   ``WAIT t(sec)``; remarks ``! text``.
@@ -50,7 +63,15 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import fanuc_config
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import unwrap_angles
-from rfsw_plan.export.program import Program, controller_name, number
+from rfsw_plan.export.program import (
+    WELD_PHASES,
+    Program,
+    Samples,
+    controller_name,
+    number,
+    path_deviation,
+    payload_assumed,
+)
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
 
@@ -131,53 +152,192 @@ class FanucTpFormat(ControllerFormat):
         return fanuc_config(robot, q)
 
     def write(self, program: Program, folder: Path) -> list[Path]:
-        return write_tp(program, folder)
+        return write_tp(tp_program(program), folder)
 
     def read(self, path: Path) -> ReadProgram:
         return read_tp(path)
+
+    def path_deviation(self, program: Program) -> FloatArray:
+        return corner_regions(tp_program(program))[1]
+
+    def expected(self, program: Program) -> Samples:
+        tp = tp_program(program)
+        return tp.samples.subset(tp.moved_points())
+
+
+#: Rounds of :func:`tp_program` (each halves the segments around a weld point still FINE).
+TP_SPLITS = 6
+_TP_CACHE: list[tuple[Program, Program]] = []
+
+
+def tp_program(program: Program) -> Program:
+    """The program the TP writes: the vendor-neutral one with, around every point of the
+    welding phases that the path bound would make ``FINE`` (:func:`corner_regions`), the plan
+    samples halfway to its neighbours as points too, for up to :data:`TP_SPLITS` rounds.
+    Shorter segments shorten the corner region FANUC allows (half the segment) and the
+    direction change, so the pin does not stop in the weld where 1 mm of rounding cannot
+    follow the path (the lateral ramp at the start of the weld, a curved seam). Every added
+    point is a verified sample."""
+    for src, out in _TP_CACHE:
+        if src is program:
+            return out
+    prog = program
+    extra: set[int] = set()
+    for _ in range(TP_SPLITS if program.build_args else 0):
+        cr, _ = corner_regions(prog)
+        idx = prog.sample_index
+        new: set[int] = set()
+        for m in prog.motions:
+            c = m.point
+            if (m.kind == "lin" and m.blend > 0 and m.phase in WELD_PHASES and c not in cr
+                    and 0 < c < len(idx) - 1):
+                for a, b in ((idx[c - 1], idx[c]), (idx[c], idx[c + 1])):
+                    if b - a >= 2:
+                        new.add(int((a + b) // 2))
+        if not new - extra:
+            break
+        extra |= new
+        prog = program.rebuilt(frozenset(extra))
+    _TP_CACHE[:] = [*_TP_CACHE[-3:], (program, prog)]
+    return prog
+
+
+#: Largest corner region [mm] (the manual's range: 0 to 1000 mm).
+CR_MAX = 1000
+
+
+def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
+    """The ``CR`` value [mm] of every rounded point (point index -> y; the others ``FINE``)
+    and the resulting bound of every verified sample's distance to the path [m], (N,).
+
+    FANUC's corner region y (R-30iB operator's manual, "Corner Region Termination Type
+    (CRy)", quoted in tests/data/vendor/SOURCE.md): the corner path starts and ends at most y
+    from the taught point, and a y larger than half the segment distance is limited to half
+    the segment. The bound is then the blend model of
+    :func:`rfsw_plan.export.program.path_deviation` with ``d = min(y, max(L0, L1) / 2)``
+    (L0, L1 the two segments). Every point the vendor-neutral program blends (inside the
+    plunge, the dwell or the weld) gets the largest whole y (1 mm at least, 1000 at most)
+    whose ``d`` keeps the samples within the path tolerance:
+    ``d <= 2 (tol - dev) / sin(theta)``, dev the two chords' own largest sample distance; a
+    point where even ``min(1 mm, max(L0, L1) / 2)`` does not is ``FINE``, and so is, one
+    by one, the larger of two regions whose bounds add up beyond the tolerance on the segment
+    between them.
+    """
+    tol = program.header.path_tol
+    pts = program.poses[:, :3, 3]
+    idx = program.sample_index
+    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
+        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+    cr: dict[int, int] = {}
+    blends: dict[int, float] = {}
+    for m in program.motions:
+        c = m.point
+        if m.kind != "lin" or m.blend <= 0 or not 0 < c < len(pts) - 1:
+            continue
+        a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
+        la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
+        dev = max(float(np.max(_chord(P, int(idx[k]), int(idx[k + 1])))) for k in (c - 1, c))
+        sin_t = float(np.linalg.norm(np.cross(a, b))) / max(la * lb, 1e-30)
+        d_max = math.inf if sin_t < 1e-12 else 2.0 * (tol - dev) / sin_t
+        half = 0.5 * max(la, lb)
+        if dev >= tol or min(1e-3, half) > d_max:
+            continue
+        y = int(min(CR_MAX, max(1.0, math.floor(min(d_max, 1.0) * 1e3 + 1e-9))))
+        cr[c] = y
+        blends[c] = min(y * 1e-3, half)
+    while True:  # two regions that meet on one segment add their bounds there
+        bound = path_deviation(program, blends)
+        over = np.flatnonzero(bound > tol * (1 + 1e-9))
+        if over.size == 0 or not blends:
+            return cr, bound
+        k = np.clip(np.searchsorted(idx, over), 1, len(idx) - 1)
+        near = {int(c) for c in np.concatenate([k - 1, k]) if int(c) in blends}
+        c = max(near or blends, key=lambda c: blends[c])
+        del cr[c], blends[c]
+
+
+def _chord(P: FloatArray, i: int, j: int) -> FloatArray:
+    """Position distance of samples i..j (poses (N, 4, 4) [m]) from the chord i -> j [m]."""
+    p = P[i:j + 1, :3, 3]
+    d = p[-1] - p[0]
+    L2 = float(d @ d)
+    f = np.clip(((p - p[0]) @ d) / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(p))
+    return np.asarray(np.linalg.norm(p - (p[0] + f[:, None] * d), axis=1))
+
+
+def _frame_remarks(program: Program) -> list[str]:
+    """The frame values to enter on the controller, two remark lines per frame (read back by
+    :func:`read_tp` when the program does not write the frames)."""
+    o = program.options
+    out = []
+    for what, n, T in (("UFRAME", o.base_number, program.work),
+                       ("UTOOL", o.tool_number, program.tool)):
+        v = frame_to_xyzwpr(T)
+        out += [f"! {what}[{n}] X {number(v[0], 4)} Y {number(v[1], 4)} Z {number(v[2], 4)}",
+                f"! {what}[{n}] W {number(v[3], 4)} P {number(v[4], 4)} R {number(v[5], 4)}"]
+    return out
 
 
 def _frames(program: Program) -> list[str]:
     o = program.options
     out = []
-    for pr, what, T in ((PR_UFRAME, "plate frame in world", program.work),
-                        (PR_UTOOL, "TCP in faceplate", program.tool)):
-        v = frame_to_xyzwpr(T)
-        out += [f"! PR[{pr}] = {what}", f"PR[{pr}]=LPOS"]
-        out += [f"PR[{pr},{j + 1}]={number(x, 4)}" for j, x in enumerate(v)]
-    out += [f"UFRAME[{o.base_number}]=PR[{PR_UFRAME}]", f"UTOOL[{o.tool_number}]=PR[{PR_UTOOL}]",
-            f"UFRAME_NUM={o.base_number}", f"UTOOL_NUM={o.tool_number}"]
-    if program.payload is not None:
+    if o.cell_data:
+        for pr, what, T in ((PR_UFRAME, "plate frame in world", program.work),
+                            (PR_UTOOL, "TCP in faceplate", program.tool)):
+            v = frame_to_xyzwpr(T)
+            out += [f"! PR[{pr}] = {what}", f"PR[{pr}]=LPOS"]
+            out += [f"PR[{pr},{j + 1}]={number(x, 4)}" for j, x in enumerate(v)]
+        out += [f"UFRAME[{o.base_number}]=PR[{PR_UFRAME}]",
+                f"UTOOL[{o.tool_number}]=PR[{PR_UTOOL}]"]
+    else:
+        out += _frame_remarks(program)
+    out += [f"UFRAME_NUM={o.base_number}", f"UTOOL_NUM={o.tool_number}"]
+    if program.payload is not None and o.cell_data:
         out.append(f"PAYLOAD[{o.tool_number}]")
     return out
 
 
-def _header_extra(program: Program) -> list[str]:
+def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
     o = program.options
-    out = [*program.maker_note("FANUC"),
-           f"SET ON THE CONTROLLER: UFRAME {o.base_number} and UTOOL {o.tool_number} are "
-           f"written below (PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten); the spindle "
-           "I/O in the hook remarks"]
+    if o.cell_data:
+        data = (f"WRITES THE CELL'S DATA (--cell-data): UFRAME[{o.base_number}], "
+                f"UTOOL[{o.tool_number}], PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten "
+                f"and PAYLOAD[{o.tool_number}] selects that schedule")
+        teach = f"replace the PR[{PR_UFRAME}] values with it"
+    else:
+        data = (f"CELL DATA LEFT ALONE: this program selects UFRAME {o.base_number} and "
+                f"UTOOL {o.tool_number} and writes no frame, register or payload: enter "
+                "the values of the UFRAME/UTOOL remarks below there and select the payload "
+                "schedule before running")
+        teach = "enter it in the UFRAME remarks"
+    out = [*program.maker_note("FANUC"), data, "SET ON THE CONTROLLER: the spindle I/O in "
+           "the hook remarks"]
     pl = program.payload
     if pl is not None:
         com = (np.linalg.inv(program.robot.description.convention.flange)
                @ np.append(pl.com, 1.0))[:3] * 100.0
-        inertia = "not known (0; identify it)" if pl.inertia is None else \
+        inertia = "UNKNOWN (0; identify it)" if pl.inertia is None else \
             " ".join(f"{number(x / KGFCMS2, 3)}" for x in pl.inertia) + " kgf cm s^2"
-        out.append(f"PAYLOAD[{o.tool_number}] (payload screen): {number(pl.mass, 1)} kg, "
+        out.append(f"PAYLOAD{'[' + str(o.tool_number) + ']' if o.cell_data else ''} "
+                   f"(payload screen): {number(pl.mass, 1)} kg"
+                   f"{' ASSUMED' if payload_assumed(pl) else ''}, "
                    f"centre X {number(com[0], 2)} Y {number(com[1], 2)} Z {number(com[2], 2)} "
                    f"cm (faceplate), inertia {inertia}")
+    n_cr = len(cr)
     out += ["UFRAME = the plate: origin on the first weld point, +X along the seam, +Y on "
-            "the plate. To use a frame taught on the plate (3-point), replace the PR["
-            f"{PR_UFRAME}] values with it and run rfsw-plan check on this file",
-            "Termination FINE at every point: FANUC CNT has no published path bound; each "
-            "FINE adds the in-position settle time"]
+            f"the plate. To use a frame taught on the plate (3-point), {teach} and run "
+            "rfsw-plan check on this file",
+            f"Termination: CR (corner region, mm) at {n_cr} points inside the plunge, dwell "
+            "and weld, FINE at the phase ends; CRy keeps the corner path within y mm of "
+            "the point (half the segment at most): it needs the Advanced Constant Path "
+            "option (without it replace CRn by FINE)"]
     return out
 
 
 def _mn(program: Program) -> tuple[list[str], list[str]]:
     """The ``/MN`` lines: (header, frames and payload; the motions with their hooks)."""
-    head = program.header.comments("! ", max_len=60, extra=_header_extra(program))
+    cr, _ = corner_regions(program)
+    head = program.header.comments("! ", max_len=60, extra=_header_extra(program, cr))
     head += _frames(program)
     body: list[str] = []
     marks = program.phase_changes()
@@ -193,14 +353,15 @@ def _mn(program: Program) -> tuple[list[str], list[str]]:
         elif m.kind == "wait":
             body.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
         else:
-            body.append(f"L {p} {_speed(m.speed, m.duration)} FINE")
+            term = f"CR{cr[m.point]}" if m.point in cr else "FINE"
+            body.append(f"L {p} {_speed(m.speed, m.duration)} {term}")
     return head, body
 
 
 def sub_name(name: str, k: int) -> str:
     """Name of the k-th called program (1-based) of the TP program ``name``."""
-    suffix = f"_S{k}"
-    return name[:FanucTpFormat.limits.name_length - len(suffix)] + suffix
+    return controller_name(f"{name}_S{k}", max_len=FanucTpFormat.limits.name_length,
+                           prefix="P", upper=True)
 
 
 _POINT = re.compile(r"^[JL] P\[(\d+)\]")
@@ -293,7 +454,7 @@ _POS = re.compile(rf"P\[(\d+)\]\{{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*
 _JPOS = re.compile(r"P\[(\d+)\]\{\s*GP1:\s*UF\s*:\s*(\d+),\s*UT\s*:\s*(\d+),\s*"
                    + r",\s*".join(rf"J{j}\s*=\s*({_NUM})\s*deg" for j in range(1, 7))
                    + r"\s*\};", re.S)
-_MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+)\s*;\s*$")
+_MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+|CR\d+)\s*;\s*$")
 _WAIT = re.compile(rf"^\s*\d+:\s*WAIT\s+({_NUM})\(sec\)\s*;\s*$")
 _PR = re.compile(rf"^\s*\d+:\s*PR\[(\d+),(\d)\]=({_NUM})\s*;\s*$")
 _CALL = re.compile(r"^\s*\d+:\s*CALL\s+(\w+)\s*;\s*$")
@@ -343,10 +504,16 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
     return text, mn
 
 
+_REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XW])\s+({_NUM})\s+([YP])\s+"
+                     rf"({_NUM})\s+([ZR])\s+({_NUM})\s*;\s*$")
+
+
 def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
-    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines."""
+    """UFRAME and UTOOL from the ``PR[i,j]=v`` and ``UFRAME[n]=PR[i]`` lines (``--cell-data``)
+    or from the ``! UFRAME[n] X .. Y .. Z ..`` / ``W .. P .. R ..`` remarks."""
     regs: dict[int, FloatArray] = {}
     frames: dict[str, FloatArray] = {}
+    remarks: dict[str, FloatArray] = {}
     for line in mn:
         if (r := _PR.match(line)) is not None:
             regs.setdefault(int(r.group(1)), np.zeros(6))[int(r.group(2)) - 1] = \
@@ -356,8 +523,17 @@ def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
                 raise InputError(p, s.group(0).strip()[:40], "register not set",
                                  "PR[i,1..6] lines before it")
             frames[s.group(1)] = xyzwpr_to_frame(regs[int(s.group(3))])
+        elif (m := _REMARK.match(line)) is not None:
+            v = remarks.setdefault(m.group(1), np.full(6, np.nan))
+            off = 0 if m.group(3) == "X" else 3
+            v[off:off + 3] = [float(m.group(4)), float(m.group(6)), float(m.group(8))]
+    for what, v in remarks.items():
+        if what not in frames and np.all(np.isfinite(v)):
+            frames[what] = xyzwpr_to_frame(v)
     if set(frames) != {"UFRAME", "UTOOL"}:
-        raise InputError(p, "UFRAME/UTOOL", "not both set", "the frames set in the program")
+        raise InputError(p, "UFRAME/UTOOL", "not both stated",
+                         "the '! UFRAME[n] X .. Y .. Z ..' and 'W .. P .. R ..' remarks (or "
+                         "the frames set through PR[] with --cell-data)")
     return frames
 
 

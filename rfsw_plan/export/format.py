@@ -10,7 +10,9 @@ A format is one class in one module (``export/krl.py``, ``export/fanuc_tp.py``,
   touched-up file all go through the same reader;
 * how it **encodes the posture** of a joint vector (:meth:`ControllerFormat.posture`: KUKA S/T,
   FANUC CONFIG, ABB confdata), which the round trip uses to pick the inverse kinematics branch;
-* its **limits** (:class:`FormatLimits`): name length, lines per program before it is split.
+* its **limits** (:class:`FormatLimits`): name length, lines per program before it is split;
+* the **path bound** of its rounding at the points (:meth:`ControllerFormat.path_deviation`,
+  default the vendor-neutral blend model; FANUC ``CR`` has its own), checked at export.
 
 Defining a subclass with a ``name`` registers it in :data:`FORMATS` (``__init_subclass__``); the
 CLI's ``--format`` choices, ``export``'s dispatch and the tests' format matrix all read that
@@ -156,6 +158,15 @@ class ControllerFormat(abc.ABC):
         from rfsw_plan.export.config import configs_near
 
         return point.config in configs_near(self.posture, robot, q)
+
+    def path_deviation(self, program: Program) -> FloatArray:
+        """Bound of every verified sample's distance to the path the controller runs with
+        this format's rounding at the points [m], (N,) (default: the vendor-neutral blend
+        model, :func:`rfsw_plan.export.program.path_deviation`); export refuses a program
+        whose bound exceeds the path tolerance."""
+        from rfsw_plan.export.program import path_deviation
+
+        return path_deviation(program)
 
     def expected(self, program: Program) -> Samples:
         """The plan samples the re-read points must reproduce, in order (default: the

@@ -35,7 +35,13 @@ from numpy.typing import NDArray
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import kuka_status_turn
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
-from rfsw_plan.export.program import Motion, Program, controller_name, number
+from rfsw_plan.export.program import (
+    Motion,
+    Program,
+    controller_name,
+    number,
+    payload_assumed,
+)
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
 
@@ -130,15 +136,22 @@ class KrlFormat(ControllerFormat):
 
 def _header_extra(program: Program) -> list[str]:
     o = program.options
+    if o.cell_data:
+        data = (f"WRITES THE CELL'S DATA (--cell-data): TOOL_DATA[{o.tool_number}], "
+                f"LOAD_DATA[{o.tool_number}] and BASE_DATA[{o.base_number}] are overwritten "
+                "below with the plan's values and stay so after the run")
+        teach = "delete the BASE_DATA line, enter the taught values there instead"
+    else:
+        data = ("CELL DATA LEFT ALONE: $TOOL, $LOAD and $BASE are set below from this "
+                "program's own values; no TOOL_DATA, LOAD_DATA or BASE_DATA is changed")
+        teach = "enter the taught values in the $BASE line"
     return [
         *program.maker_note("KUKA"),
-        f"SET ON THE CONTROLLER: tool {o.tool_number} (TOOL_DATA[{o.tool_number}], "
-        f"LOAD_DATA[{o.tool_number}]) and base {o.base_number} (BASE_DATA[{o.base_number}]) "
-        "are assigned below from the plan; the spindle I/O in the hook comments",
+        data,
+        "SET ON THE CONTROLLER: the spindle I/O in the hook comments",
         "BASE = the plate: origin on the first weld point, +X along the seam, +Y on the "
-        "plate, Z out of it. To use a base taught on the plate (3-point method), delete the "
-        "BASE_DATA line, enter the taught values there instead and run rfsw-plan check on "
-        "this file: the pin depth then follows the taught plate",
+        f"plate, Z out of it. To use a base taught on the plate (3-point method), {teach} "
+        "and run rfsw-plan check on this file: the pin depth then follows the taught plate",
     ]
 
 
@@ -159,17 +172,25 @@ def _init(program: Program) -> list[str]:
     t, b = o.tool_number, o.base_number
     pl = program.payload
     load = _load(program)
-    out = [";FOLD INI", "  BAS(#INITMOV, 0)", ";ENDFOLD (INI)",
-           f"  TOOL_DATA[{t}] = {_frame(frame_to_xyzabc(program.tool))}  ; TCP in FLANGE"]
-    if pl is not None:
-        src = "inertia not known: 0, set it by load identification" if pl.inertia is None \
-            else "inertia known"
-        out.append(f"  LOAD_DATA[{t}] = {load}  ; spindle {number(pl.mass, 1)} kg, {src}")
+    tool = _frame(frame_to_xyzabc(program.tool))
+    base = _frame(frame_to_xyzabc(program.work))
+    what = "" if pl is None else (
+        f"spindle {number(pl.mass, 1)} kg{' ASSUMED' if payload_assumed(pl) else ''}, "
+        + ("inertia UNKNOWN (0: set it by load identification)" if pl.inertia is None
+           else "inertia known"))
+    out = [";FOLD INI", "  BAS(#INITMOV, 0)", ";ENDFOLD (INI)"]
+    if o.cell_data:
+        out.append(f"  TOOL_DATA[{t}] = {tool}  ; TCP in FLANGE")
+        out.append(f"  LOAD_DATA[{t}] = {load}  ; {what}" if pl is not None else
+                   "  ; LOAD_DATA: PAYLOAD UNKNOWN, enter the spindle's load data")
+        out += [f"  BASE_DATA[{b}] = {base}  ; plate in ROBROOT",
+                f"  BAS(#TOOL, {t})", f"  BAS(#BASE, {b})"]
     else:
-        out.append("  ; LOAD_DATA: PAYLOAD UNKNOWN, enter the spindle's load data")
-    out += [f"  BASE_DATA[{b}] = {_frame(frame_to_xyzabc(program.work))}  ; plate in ROBROOT",
-            f"  BAS(#TOOL, {t})", f"  BAS(#BASE, {b})",
-            "  FOR I = 1 TO 6", f"    $VEL_AXIS[I] = {PTP_PERCENT}",
+        out.append(f"  $TOOL = {tool}  ; TCP in FLANGE (this program's own)")
+        out.append(f"  $LOAD = {load}  ; {what}" if pl is not None else
+                   "  ; $LOAD: PAYLOAD UNKNOWN, enter the spindle's load data")
+        out.append(f"  $BASE = {base}  ; plate in ROBROOT (this program's own)")
+    out += ["  FOR I = 1 TO 6", f"    $VEL_AXIS[I] = {PTP_PERCENT}",
             f"    $ACC_AXIS[I] = {PTP_PERCENT}", "  ENDFOR",
             f"  $VEL.ORI1 = {VEL_ORI[0]}", f"  $VEL.ORI2 = {VEL_ORI[1]}",
             f"  $ACC.CP = {ACC_CP}", f"  $ACC.ORI1 = {ACC_ORI[0]}", f"  $ACC.ORI2 = {ACC_ORI[1]}",
@@ -275,7 +296,8 @@ def write_krl(program: Program, folder: str | Path, max_lines: int = MAX_LINES) 
 
 
 _DECL = re.compile(r"DECL\s+(E6POS|E6AXIS)\s+(\w+)\s*=\s*\{([^}]*)\}", re.I)
-_FRAME_SET = re.compile(r"^\s*(TOOL_DATA|BASE_DATA)\[\d+\]\s*=\s*\{([^}]*)\}", re.I | re.M)
+_FRAME_SET = re.compile(r"^\s*(TOOL_DATA|BASE_DATA|\$TOOL|\$BASE)(?:\[\d+\])?\s*=\s*\{([^}]*)\}",
+                        re.I | re.M)
 _MOVE = re.compile(r"^\s*(PTP|LIN)\s+(\w+)(\s+C_DIS)?\s*(;.*)?$", re.I)
 _VEL = re.compile(r"^\s*\$VEL\.CP\s*=\s*([-+0-9.Ee]+)", re.I)
 _WAIT = re.compile(r"^\s*WAIT\s+SEC\s+([-+0-9.Ee]+)", re.I)
@@ -325,13 +347,14 @@ def read_krl(src: str | Path) -> ReadProgram:
     if not dat.is_file():
         raise InputError(dat, "", "missing beside the .src", "the program's .dat")
     text = src.read_text(encoding="utf-8")
-    frames = {m.group(1).upper(): _agg(m.group(2), str(src))
+    frames = {m.group(1).upper().lstrip("$").replace("_DATA", ""): _agg(m.group(2), str(src))
               for m in _FRAME_SET.finditer(text)}
-    if set(frames) != {"TOOL_DATA", "BASE_DATA"}:
-        raise InputError(src, "TOOL_DATA/BASE_DATA", "not both assigned",
-                         "the tool and base values in the program")
+    if set(frames) != {"TOOL", "BASE"}:
+        raise InputError(src, "$TOOL/$BASE", "not both assigned",
+                         "the tool and base values in the program ($TOOL = {...}, $BASE = "
+                         "{...}, or TOOL_DATA[n]/BASE_DATA[n] with --cell-data)")
     tool, base = (xyzabc_to_frame([frames[f].get(k, 0.0) for k in "XYZABC"])
-                  for f in ("TOOL_DATA", "BASE_DATA"))
+                  for f in ("TOOL", "BASE"))
     decl = {m.group(2).upper(): (m.group(1).upper(), _agg(m.group(3), str(dat)))
             for m in _DECL.finditer(dat.read_text(encoding="utf-8"))}
     routines = _routines(text)

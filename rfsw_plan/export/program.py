@@ -30,8 +30,9 @@ polyline (theta the direction change), so ``d = 2 (tol - dev) / sin(theta)`` (ca
 the shorter segment) keeps every verified sample within ``tol`` of the path the controller
 runs, where ``dev`` is the samples' largest distance from the two chords
 (:func:`path_deviation` checks it sample by sample). FANUC's ``CNT`` rounds a corner by an
-amount that depends on speed and acceleration, with no published bound, so FANUC programs
-use ``FINE`` (:mod:`rfsw_plan.export.fanuc_tp`). Blending is allowed between two segments
+amount that depends on speed and acceleration, with no published bound; FANUC programs use
+the corner region ``CRy`` instead, whose documented distance fits this model
+(:mod:`rfsw_plan.export.fanuc_tp`). Blending is allowed between two segments
 inside the plunge, the dwell or the welding phases, so the plunge and the dwell are not a
 chain of exact stops; the robot stops exactly where the pin touches down, at the end of the
 dwell and at the end of the weld (the retract starts from the planned spot).
@@ -53,6 +54,7 @@ default they are comments that say what belongs there.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 import tomllib
@@ -151,15 +153,25 @@ def read_hooks(path: str | Path) -> Hooks:
 class ProgramOptions:
     """What the programmer chooses for the controller.
 
+    By default a program leaves the cell's numbered data alone: KRL sets ``$TOOL``, ``$BASE``
+    and ``$LOAD`` from its own values (they act for this run only), FANUC selects the user
+    frame and tool frame by number (``UFRAME_NUM``, ``UTOOL_NUM``) and lists the values to
+    enter, RAPID uses its module-local data. ``cell_data`` writes them into the controller's
+    numbered data instead (KUKA ``TOOL_DATA[n]``, ``BASE_DATA[n]``, ``LOAD_DATA[n]``; FANUC
+    ``UFRAME[n]``, ``UTOOL[n]`` through ``PR[91]``/``PR[92]`` and ``PAYLOAD[n]``), which
+    persist and replace what the cell had taught there; the header says so.
+
     Attributes:
         tool_number: Tool number (KUKA TOOL_DATA[n], FANUC UTOOL n; RAPID uses a named tool).
         base_number: Base number (KUKA BASE_DATA[n], FANUC UFRAME n; RAPID a named wobjdata).
         hooks: The process hooks.
+        cell_data: Write the tool, base and load into the cell's numbered data (above).
     """
 
     tool_number: int = 1
     base_number: int = 1
     hooks: Hooks = field(default_factory=Hooks)
+    cell_data: bool = False
 
 
 @dataclass(frozen=True)
@@ -240,16 +252,21 @@ class ProgramHeader:
 
 
 def controller_name(name: str, *, max_len: int, prefix: str, upper: bool = False) -> str:
-    """A program or module name a controller accepts.
+    """A program or module name a controller accepts, unique for every ``name``.
 
     Every character other than a letter, digit or underscore becomes ``_``; a name that does
-    not start with a letter gets ``prefix``; the result is cut to ``max_len`` characters.
+    not start with a letter gets ``prefix``. A longer name than ``max_len`` is cut and ends
+    with ``_`` and four hex digits of the SHA-256 of ``name`` (KRL's 24 characters would
+    otherwise give ``fanuc_laser_1400mm_yminus`` and ``_yplus`` one name).
     """
     n = re.sub(r"[^A-Z0-9_]" if upper else r"[^A-Za-z0-9_]", "_",
                name.upper() if upper else name)
     if not n[:1].isalpha():
         n = prefix + n
-    return n[:max_len]
+    if len(n) > max_len:
+        h = hashlib.sha256(name.encode("utf-8")).hexdigest()[:4]
+        n = f"{n[:max_len - 5].rstrip('_')}_{h.upper() if upper else h}"
+    return n
 
 
 @dataclass(frozen=True)
@@ -294,6 +311,8 @@ class Program:
         options: Tool/base numbers and hooks.
         stream: The samples of a stream file at the controller cycle (None: the plan's).
         cycle: The stream's controller cycle [s].
+        build_args: The arguments of :func:`build_program` that made it (for
+            :meth:`rebuilt`).
     """
 
     header: ProgramHeader
@@ -309,6 +328,14 @@ class Program:
     options: ProgramOptions = field(default_factory=ProgramOptions)
     stream: Samples | None = field(default=None, repr=False)
     cycle: float = 0.0
+    build_args: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def rebuilt(self, extra: frozenset[int]) -> Program:
+        """The same program with the samples ``extra`` as points too (the same frames and
+        options; :func:`build_program` with the arguments this one was built with)."""
+        if not self.build_args:
+            raise ValueError("a program not made by build_program cannot be rebuilt")
+        return build_program(**self.build_args, extra=extra)
 
     def phase_changes(self) -> dict[int, str]:
         """Motion index -> phase, where a new phase starts (for the phase marks)."""
@@ -350,7 +377,7 @@ def build_program(
     robot: Robot, samples: Samples, header: ProgramHeader, path_tol: float = 1e-5,
     angle_tol: float = math.radians(0.01), normal: FloatArray | None = None,
     payload: Payload | None = None, options: ProgramOptions | None = None,
-    stream: Samples | None = None, cycle: float = 0.0,
+    stream: Samples | None = None, cycle: float = 0.0, extra: frozenset[int] = frozenset(),
 ) -> Program:
     """Select points, motions, blending and hooks from verified samples (module docstring).
 
@@ -367,7 +394,12 @@ def build_program(
         options: Tool/base numbers and hooks.
         stream: Samples of the stream file (default: ``samples``).
         cycle: Stream cycle [s] (default: the samples' step).
+        extra: Sample indices that are points too (a format that needs shorter segments:
+            :func:`rfsw_plan.export.fanuc_tp.tp_program`).
     """
+    args = dict(robot=robot, samples=samples, header=header, path_tol=path_tol,
+                angle_tol=angle_tol, normal=normal, payload=payload, options=options,
+                stream=stream, cycle=cycle)
     if header.spacing <= 0:
         raise InputError("--export-spacing-mm", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = robot.batch_fk_jacobian(samples.q)[0]
@@ -377,7 +409,7 @@ def build_program(
     to_work = np.linalg.inv(conv.base @ work)
     P = to_work[None] @ T  # TCP in the work frame, (N, 4, 4)
 
-    keep = _anchor_points(samples, header.spacing)
+    keep = _anchor_points(samples, header.spacing) | {int(i) for i in extra}
     keep = _refine(P, keep, 0.5 * path_tol, angle_tol)
     idx = np.array(sorted(keep), dtype=int)
     motions = _motions(samples, P, idx, path_tol)
@@ -385,13 +417,25 @@ def build_program(
     if payload is None:
         notes.append("PAYLOAD UNKNOWN: the robot file has no [payload] table and no "
                      "payload_gravity effect; enter the spindle's load on the controller")
+    else:
+        if payload_assumed(payload):
+            notes.append(f"PAYLOAD ASSUMED (robot file: {payload.source}): check the "
+                         "spindle's mass and centre of mass before running")
+        if payload.inertia is None:
+            notes.append("PAYLOAD INERTIA UNKNOWN: written as 0; identify it on the "
+                         "controller (load identification)")
     header = ProgramHeader(**{**header.__dict__, "notes": (*header.notes, *notes)})
     if stream is None:
         stream = samples
         cycle = cycle or float(np.median(np.diff(samples.t)))
     return Program(header, robot, idx, samples.subset(idx), tool, work, P[idx],
                    tuple(motions), samples, payload, options or ProgramOptions(), stream,
-                   cycle)
+                   cycle, args)
+
+
+def payload_assumed(payload: Payload) -> bool:
+    """Are any of the payload's values an assumption (its source says ``ASSUMED``)?"""
+    return "ASSUMED" in payload.source.upper()
 
 
 def plate_frame(origin: FloatArray, toward: FloatArray, normal: FloatArray) -> FloatArray:
@@ -575,19 +619,25 @@ def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
 # Checks of a program
 
 
-def path_deviation(program: Program) -> FloatArray:
+def path_deviation(program: Program, blends: dict[int, float] | None = None) -> FloatArray:
     """Bound of every verified sample's distance to the path the controller runs [m], (N,).
 
     Sample by sample: the distance to the chord of its segment, plus, for a sample on either
     half of a blended corner (within the blend distance d of the point), the blend model's
     ``d sin(theta) / 2`` (module docstring). Samples before the first point or on waits: 0.
+
+    Args:
+        program: The program.
+        blends: Point index -> blend distance [m] a format rounds with (default: the
+            program's own, :attr:`Motion.blend`).
     """
     P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
         program.robot.batch_fk_jacobian(program.all_samples.q)[0]
     idx = program.sample_index
     pts = P[idx, :3, 3]
     out = np.zeros(len(program.all_samples))
-    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"}
+    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"} if blends is None \
+        else blends
 
     def corner_bound(c: int) -> tuple[float, float]:
         d = blend.get(c, 0.0)

@@ -4,8 +4,8 @@ Format (ABB RAPID instructions, functions and data types reference; IRC5): a ``M
 ENDMODULE`` without the ``%%%`` header of S4 files (RobotWare 5/6 load a module that starts
 with ``MODULE``; ``rapidchecker`` parses the file exactly as written). Its data are
 module-local (``LOCAL``), so loading it never clashes with the controller's other modules, and
-its procedure is named after the program (not ``main``, which the controller's main module
-owns):
+its procedure is named after the program with ``_run`` (not ``main``, which the controller's
+main module owns, and not the module's own name):
 
 * ``LOCAL PERS tooldata`` ([robhold, [[x, y, z], [q1, q2, q3, q4]], [mass, [cog], [aom], ix,
   iy, iz]]): the TCP in tool0 and the spindle's load (mass [kg], centre of gravity in tool0
@@ -82,6 +82,12 @@ def _pose(T: FloatArray) -> str:
 def rapid_name(name: str) -> str:
     """A valid RAPID identifier (letters, digits, underscore; max 32; starts with a letter)."""
     return controller_name(name, max_len=32, prefix="m")
+
+
+def proc_name(name: str) -> str:
+    """The procedure of the module ``rapid_name(name)``: ``<name>_run`` (a module and its
+    routine never share a name)."""
+    return rapid_name(f"{name}_run")
 
 
 #: Zone sizes per decade (a blend is rounded down to one of them, so few zonedata are needed).
@@ -195,11 +201,12 @@ def write_rapid(program: Program, folder: str | Path, max_lines: int = MAX_LINES
                    f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
                    "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
     body = _motion_lines(program, range(len(program.motions)), zones)
-    head = ["", f"  PROC {name}()", "    ConfJ\\On;", "    ConfL\\Off;"]
+    proc = proc_name(program.header.name)
+    head = ["", f"  PROC {proc}()", "    ConfJ\\On;", "    ConfL\\Off;"]
     if len(out) + len(body) > max_lines:
         subs: list[str] = []
         for c, span in enumerate(chunks(program.motions, max(max_lines // 2, 10))):
-            sub = f"{name[:26]}_s{c + 1}"
+            sub = f"{proc[:26]}_s{c + 1}"
             head.append(f"    {sub};")
             subs += ["", f"  LOCAL PROC {sub}()", *_motion_lines(program, span, zones),
                      "  ENDPROC"]

@@ -116,6 +116,10 @@ class StreamFormat(ControllerFormat):
                for k in range(len(q))]
         return ReadProgram(np.eye(4), np.eye(4), pts, (Path(path),))
 
+    def path_deviation(self, program: Program) -> FloatArray:
+        """The rows are the samples themselves: no path between them to bound."""
+        return np.zeros(len(program.all_samples))
+
     def expected(self, program: Program) -> Samples:
         assert program.stream is not None
         return program.stream

@@ -28,6 +28,9 @@ import csv
 import io
 import json
 import math
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -110,8 +113,26 @@ class PlanFolder:
         return str(self.record.get("problem", "plan"))
 
 
+#: File names whose bytes may differ from plan.json's digests while ``touched_programs`` is
+#: active (every reader of the folder in that scope, e.g. the problem reader of ``check``).
+_TOUCHED: ContextVar[frozenset[str]] = ContextVar("rfsw_plan_touched", default=frozenset())
+
+
+@contextmanager
+def touched_programs(names: Iterable[str]) -> Iterator[None]:
+    """Within the block, every read of a plan folder accepts that the program files ``names``
+    differ from the bytes ``plan.json`` vouches for (a program touched up inside its plan
+    folder; ``rfsw-plan check`` re-verifies it). ``waypoints.csv`` is always checked."""
+    token = _TOUCHED.set(_TOUCHED.get() | frozenset(names))
+    try:
+        yield
+    finally:
+        _TOUCHED.reset(token)
+
+
 def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
-                     limits: tuple[FloatArray, FloatArray] | None = None) -> PlanFolder:
+                     limits: tuple[FloatArray, FloatArray] | None = None,
+                     touched: tuple[str, ...] = ()) -> PlanFolder:
     """Read and check a plan folder (see the module docstring).
 
     Args:
@@ -119,6 +140,9 @@ def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
         joint_columns: The joint columns of ``waypoints.csv`` in joint order (the robot's
             controller axes, ``A1_deg``...); default: every ``<letters><digit>_deg`` column.
         limits: Joint limits (lower, upper) [rad], (n,) each: every sample must be inside.
+        touched: Program files whose bytes may differ from what ``plan.json`` vouches for
+            (a program touched up inside its plan folder: ``rfsw-plan check`` re-verifies it
+            and says it was edited); never ``waypoints.csv``.
 
     Raises:
         InputError: A damaged folder (exit 2): one line naming the file and what is wrong.
@@ -135,6 +159,8 @@ def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
         raise InputError(path, "sha256", "does not vouch for waypoints.csv",
                          "the sha256 table rfsw-plan plan writes")
     for name, digest in digests.items():
+        if str(name) in (*touched, *_TOUCHED.get()) and str(name) != "waypoints.csv":
+            continue
         _check_vouched(folder, str(name), digest)
     samples = read_plan_samples(folder / "waypoints.csv", joint_columns, limits)
     robot = record.get("robot_file") or record.get("robot") or ""
@@ -143,7 +169,8 @@ def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
                       str(robot), str(problem))
 
 
-def read_plan_folder_and_robot(folder: str | Path) -> tuple[PlanFolder, Robot]:
+def read_plan_folder_and_robot(folder: str | Path,
+                               touched: tuple[str, ...] = ()) -> tuple[PlanFolder, Robot]:
     """A plan folder read against the robot it was planned with: ``plan.json`` first (its
     status before anything else), then the robot it names, then every sample of
     ``waypoints.csv`` in that robot's joint columns and inside its joint limits.
@@ -163,7 +190,8 @@ def read_plan_folder_and_robot(folder: str | Path) -> tuple[PlanFolder, Robot]:
                          "the robot file or bundled name the plan was made with")
     robot = load_robot(name)
     d = robot.description
-    return read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper)), robot
+    return read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper),
+                            touched), robot
 
 
 def read_plan_record(path: str | Path) -> dict[str, Any]:

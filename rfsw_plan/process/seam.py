@@ -188,6 +188,12 @@ class Seam:
         nrm, uk = self._nrm, self._u
         return _unit(np.stack([np.interp(u, uk, nrm[:, i]) for i in range(3)], axis=-1))
 
+    def surface_normal_at(self, s: FloatArray) -> FloatArray:
+        """The declared surface normal (``surface_normal``, unit, interpolated between the
+        points) at arc lengths s [m], base frame, shape (k, 3); unlike the frames' normal it
+        is not made normal to the seam tangent."""
+        return self._normal(self._u_of_s(np.clip(np.asarray(s, dtype=float), 0, self.length)))
+
     def frames_at(self, s: FloatArray) -> SeamFrames:
         """Seam frames at given arc lengths.
 

@@ -3,8 +3,10 @@
 Reads a KRL (``.src``), FANUC TP (``.ls``) or RAPID (``.mod``) file, including one a programmer
 touched up on the pendant, re-times it as the controller runs it and runs the planner's
 sample-by-sample verification with the plan's model and forces
-(:func:`rfsw_plan.export.check.check_program`). Prints "holds", or the first point that leaves
-the weld window with its lateral error and the window (exit 3).
+(:func:`rfsw_plan.export.check.check_program`). Prints "holds" (and which files were edited
+against the export), or the first failure with the point, its line in the file and the
+quantity: the weld window or any other row of the sample check, a segment's timing, a posture
+or turn change, or a program of another plan (exit 3).
 """
 
 from __future__ import annotations

@@ -42,10 +42,17 @@ def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
                         help="largest distance of a verified sample from the path the "
                              "controller runs, blending included [mm] (default 0.01)")
     parser.add_argument("--tool-number", type=int, default=1,
-                        help="tool number: KUKA TOOL_DATA/LOAD_DATA[n], FANUC UTOOL n and "
-                             "PAYLOAD[n] (default 1)")
+                        help="tool number: FANUC UTOOL n (and with --cell-data KUKA "
+                             "TOOL_DATA/LOAD_DATA[n], FANUC PAYLOAD[n]) (default 1)")
     parser.add_argument("--base-number", type=int, default=1,
-                        help="base number: KUKA BASE_DATA[n], FANUC UFRAME n (default 1)")
+                        help="base number: FANUC UFRAME n (and with --cell-data KUKA "
+                             "BASE_DATA[n]) (default 1)")
+    parser.add_argument("--cell-data", action="store_true",
+                        help="write the tool, base and payload into the controller's numbered "
+                             "data (KUKA TOOL_DATA/BASE_DATA/LOAD_DATA, FANUC UFRAME/UTOOL "
+                             "through PR[91]/PR[92] and PAYLOAD), replacing what the cell had "
+                             "there; default: leave them alone (KRL sets $TOOL/$BASE/$LOAD, "
+                             "FANUC lists the values to enter)")
     parser.add_argument("--hooks", metavar="FILE.toml", default=None,
                         help="process hook lines per format (home_start, spindle_start, "
                              "force_on, force_off, spindle_stop, home_end); default: comments "
@@ -73,7 +80,8 @@ def _options(args: argparse.Namespace) -> Any:
     from rfsw_plan.export.program import Hooks, ProgramOptions, read_hooks
 
     hooks = read_hooks(args.hooks) if args.hooks else Hooks()
-    return ProgramOptions(args.tool_number, args.base_number, hooks)
+    return ProgramOptions(args.tool_number, args.base_number, hooks,
+                          cell_data=bool(getattr(args, "cell_data", False)))
 
 
 def check_export_arguments(args: argparse.Namespace) -> None:

@@ -12,6 +12,8 @@ MODULE rfsw_golden
   ! points: plan samples every 5 mm of seam
   ! path within 0.01 mm of every verified sample
   ! lengths mm, angles deg, joints = controller axes
+  ! PAYLOAD ASSUMED (robot file: seed 001 §2.1 (electric spindle, 150 kg); centre of mass ASSUMED 250 mm behind the pin tip on the spindle axis): check the spindle's mass and centre of mass before running
+  ! PAYLOAD INERTIA UNKNOWN: written as 0; identify it on the controller (load identification)
   ! WARNING: robot zk500 is not a ABB robot (maker not stated): check axis directions, frames and limits on the real controller before running
   ! SET ON THE CONTROLLER: the spindle I/O in the hook comments; tFSW and wPlate are this module's own (LOCAL) data
   ! wPlate = the plate: origin on the first weld point, +X along the seam, +Y on the plate. To use a work object taught on the plate, enter its user frame in wPlate and run rfsw-plan check on this file
@@ -57,7 +59,7 @@ MODULE rfsw_golden
   LOCAL CONST robtarget p35 := [[16.4978,-1.3211,3.4917],[0.351924334,-0.460720765,0.782844457,0.225920773],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
   LOCAL CONST robtarget p36 := [[14.9779,-3.9847,8.2867],[0.350232912,-0.461135912,0.783655736,0.224887228],[-2,-1,0,0],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];
 
-  PROC rfsw_golden()
+  PROC rfsw_golden_run()
     ConfJ\On;
     ConfL\Off;
     ! HOME: move to the cell's home position first (not known to rfsw-plan),

@@ -1,0 +1,206 @@
+"""``rfsw-plan check`` against every edit a programmer makes on the pendant (issue 32): each
+edit class fails with the point, its line in the program and the quantity, and the documented
+touch-up workflow (editing the program inside its plan folder) is re-verified, not refused."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rfsw_plan.cli.main import main
+from rfsw_plan.export.check import check_program
+
+
+@pytest.fixture
+def zk500(plan_with_programs, tmp_path: Path) -> Path:
+    """A copy of the zk500_table6_seam plan folder with its programs."""
+    out, _ = plan_with_programs("zk500_table6_seam")
+    dst = tmp_path / "plan"
+    shutil.copytree(out, dst)
+    return dst
+
+
+def _file(folder: Path, suffix: str) -> Path:
+    return next(p for p in folder.iterdir() if p.name.endswith(suffix))
+
+
+def _line_of(path: Path, pattern: str) -> int:
+    for n, line in enumerate(path.read_text().splitlines(), start=1):
+        if re.search(pattern, line):
+            return n
+    raise AssertionError(pattern)
+
+
+def _check(capsys: pytest.CaptureFixture[str], program: Path, *plan: str) -> tuple[int, str]:
+    capsys.readouterr()  # what the plan fixture printed
+    code = main(["check", str(program), *plan])
+    return code, capsys.readouterr().out.strip()
+
+
+def test_unedited_programs_hold_with_no_edit(zk500: Path, capsys) -> None:
+    for suffix in (".src", ".ls", ".mod"):
+        code, out = _check(capsys, _file(zk500, suffix))
+        assert code == 0 and "holds" in out and "largest edit 0.000 mm" in out, out
+
+
+def test_a_weld_segment_ten_times_faster_fails_with_its_timing(zk500: Path, capsys) -> None:
+    """Was "holds" with a false "largest edit 30.7 mm"."""
+    src = _file(zk500, ".src")
+    text = src.read_text()
+    weld = text.index("phase: weld")
+    m = re.compile(r"\$VEL\.CP = ([0-9.]+)").search(text, weld)
+    assert m is not None
+    fast = f"{10 * float(m.group(1)):.7f}"
+    src.write_text(text[:m.start(1)] + fast + text[m.end(1):])
+    mv = re.compile(r"LIN (XP\d+)").search(text, m.end())
+    assert mv is not None
+    code, out = _check(capsys, src)
+    assert code == 3, out
+    assert out.startswith(f"{src.name}: {mv.group(1)} (weld")
+    n = _line_of(src, rf"^\s*LIN {mv.group(1)}\b")
+    assert f"line {n}" in out
+    assert "timing:" in out and "-90.0 %" in out and "10.00 x the plan's" in out
+    res = check_program(src)
+    assert res.max_edit < 1e-5  # no false edit from a mismatched point
+
+
+def test_deleted_arc_motions_fail_with_the_chord_inside(plan_with_programs, tmp_path: Path,
+                                                        capsys) -> None:
+    """30 deleted weld motions of the curved seam: the controller runs the chord between the
+    remaining points, which leaves the window (was "holds, edit 0.000")."""
+    out, _ = plan_with_programs("kr600_curved_seam")
+    dst = tmp_path / "plan"
+    shutil.copytree(out, dst)
+    src = _file(dst, ".src")
+    lines = src.read_text().splitlines()
+    weld = next(k for k, x in enumerate(lines) if "phase: weld" in x)
+    lin = [k for k in range(weld, len(lines)) if re.match(r"^\s*LIN XP\d+", lines[k])]
+    gone = set(lin[40:70])
+    kept = [x for k, x in enumerate(lines) if k not in gone]
+    src.write_text("\n".join(kept) + "\n")
+    code, text = _check(capsys, src)
+    assert code == 3, text
+    m = re.match(rf"{src.name}: (XP\d+) \(weld, s = [0-9.]+ mm, line (\d+)\) leaves the weld "
+                 r"window: lateral error ([-+0-9.]+) mm", text)
+    assert m is not None, text
+    assert re.match(rf"^\s*LIN {m.group(1)}\b", kept[int(m.group(2)) - 1])
+    assert not -1.25 <= float(m.group(3)) <= 0.7  # kr600_curved_seam's window
+
+
+@pytest.mark.parametrize("edit", ["turn", "posture"])
+def test_a_posture_or_turn_change_names_the_point_and_line(zk500: Path, capsys,
+                                                          edit: str) -> None:
+    """KUKA T bit of A6 (a turn: A6 on the other side, a whole wrist turn) or the S bit of the
+    elbow: the point, its LIN line and the axis."""
+    src = _file(zk500, ".src")
+    dat = src.with_suffix(".dat")
+    text = dat.read_text()
+    m = re.search(r"DECL E6POS XP30=\{[^}]*,S (\d+),T (\d+),", text)
+    assert m is not None
+    if edit == "turn":
+        new = text[:m.start(2)] + str(int(m.group(2)) ^ 32) + text[m.end(2):]
+    else:
+        new = text[:m.start(1)] + str(int(m.group(1)) ^ 2) + text[m.end(1):]
+    dat.write_text(new)
+    code, out = _check(capsys, src)
+    assert code == 3, out
+    assert out.startswith(f"{src.name}: XP30 (weld")
+    n = _line_of(src, r"^\s*LIN XP30\b")
+    assert f"line {n}" in out
+    assert re.search(r"posture changed: [AJ]6 " if edit == "turn" else "posture", out), out
+
+
+def test_a_tp_turn_number_change_is_caught(zk500: Path, capsys) -> None:
+    ls = _file(zk500, ".ls")
+    text = ls.read_text()
+    m = re.search(r"P\[30\]\{\s*GP1:[^}]*CONFIG : '([NF] [UD] [TB]), (-?\d+), (-?\d+), (-?\d+)'",
+                  text)
+    assert m is not None
+    turn = int(m.group(4))
+    ls.write_text(text[:m.start(4)] + str(turn + (1 if turn <= 0 else -1)) + text[m.end(4):])
+    code, out = _check(capsys, ls)
+    assert code == 3, out
+    assert out.startswith(f"{ls.name}: P[30] (weld") and "posture" in out, out
+    n = _line_of(ls, r":L P\[30\] ")
+    assert f"line {n}" in out
+
+
+def test_a_program_of_another_plan_is_refused_by_its_plan_id(zk500: Path, capsys) -> None:
+    mod = _file(zk500, ".mod")
+    text = mod.read_text()
+    m = re.search(r"plan id: ([\w.]+)-([0-9a-f]{12})", text)
+    assert m is not None
+    other = "0" * 12 if m.group(2) != "0" * 12 else "1" * 12
+    mod.write_text(text.replace(m.group(0), f"plan id: {m.group(1)}-{other}"))
+    code, out = _check(capsys, mod)
+    assert code == 3
+    assert f"is a program of plan {m.group(1)}-{other}, not of this plan {m.group(0)[9:]}" in out
+
+
+def test_a_touch_up_inside_the_plan_folder_is_reverified(zk500: Path, capsys) -> None:
+    """The documented workflow: edit the exported program where it is; check re-verifies it
+    and says what changed (it used to refuse: "changed since plan.json was written")."""
+    src = _file(zk500, ".src")
+    dat = src.with_suffix(".dat")
+    text = dat.read_text()
+    m = re.search(r"(DECL E6POS XP30=\{X [-0-9.]+,Y )([-0-9.]+)", text)
+    assert m is not None
+    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + 0.05:.4f}" + text[m.end(2):])
+    code, out = _check(capsys, src)
+    assert code == 0, out
+    assert "largest edit 0.050 mm" in out and f"edited against the export: {dat.name}" in out
+    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + 2.0:.4f}" + text[m.end(2):])
+    code, out = _check(capsys, src)
+    assert code == 3 and out.startswith(f"{src.name}: XP30 (weld") and "lateral error" in out
+
+
+def test_every_failure_verify_samples_returns_is_reported(zk500: Path, monkeypatch) -> None:
+    """A check added to verify_samples (the envelope's depth, tilt, speed rows) is reported
+    by name, not filtered by a fixed list; the derivative limits stay the controller's."""
+    from rfsw_plan.planning import verify
+
+    real = verify.verify_samples
+    calls = {"n": 0}
+
+    def fake(model, task, window, samples, *a, **k):  # type: ignore[no-untyped-def]
+        res = real(model, task, window, samples, *a, **k)
+        calls["n"] += 1
+        if calls["n"] == 1:  # the plan's own samples verify
+            return res
+        i = int(len(samples.t) * 0.6)
+        extra = [verify.SampleFailure(i, float(samples.t[i]), str(samples.phase[i]),
+                                      float(samples.s[i]), "depth", 0.9, 0.5, "mm"),
+                 verify.SampleFailure(i, float(samples.t[i]), str(samples.phase[i]),
+                                      float(samples.s[i]), "joint_jerk_q1", 9e3, 1e3,
+                                      "deg/s^3")]
+        from dataclasses import replace
+
+        return replace(res, failures=(*res.failures, *extra))
+
+    monkeypatch.setattr(verify, "verify_samples", fake)
+    res = check_program(_file(zk500, ".src"))
+    assert not res.holds and res.failure == "depth"
+    assert "depth 0.900 mm beyond 0.500 mm" in res.line() and "line " in res.line()
+    assert not any("joint_jerk" in f for f in res.failures)
+
+
+def test_an_added_motion_fails_with_its_point_and_line(zk500: Path, capsys) -> None:
+    """A motion added on the pendant (a new point 3 mm beside the seam between XP30 and XP31)
+    is run as the controller runs it: the chords to and from it leave the window."""
+    src = _file(zk500, ".src")
+    dat = src.with_suffix(".dat")
+    text = dat.read_text()
+    m = re.search(r"DECL E6POS XP30=\{X ([-0-9.]+),Y ([-0-9.]+)(,[^}]*)\}", text)
+    assert m is not None
+    new = f"DECL E6POS XP900={{X {m.group(1)},Y {float(m.group(2)) + 3.0:.4f}{m.group(3)}}}"
+    dat.write_text(text.replace("ENDDAT", new + "\nENDDAT"))
+    s = src.read_text()
+    s = re.sub(r"(\n\s*LIN XP30\b[^\n]*)", r"\1\n  LIN XP900", s, count=1)
+    src.write_text(s)
+    code, out = _check(capsys, src)
+    assert code == 3, out
+    n = _line_of(src, r"^\s*LIN XP900\b")
+    assert out.startswith(f"{src.name}: XP900 (weld") and f"line {n}" in out, out
