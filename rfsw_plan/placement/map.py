@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects import PoseBatch
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import InputError, UnreachableError
+from rfsw_plan.exceptions import UnreachableError
 from rfsw_plan.placement.geometry import (
     PlacedArrays,
     Placement,
@@ -643,9 +643,3 @@ def compliance_shares(model: ElastostaticModel, task: PlanTask, q: FloatArray,
     out = {f"q{j + 1}": float(joint[j] / s) for j in range(len(c))}
     out["other_effects"] = other / s
     return out
-
-
-def check_not_empty(m: PlacementMap, option: str) -> None:
-    """Raise if no placement of the map is reachable (the caller adds the reachable extent)."""
-    if not np.any(m.status != "unreachable"):
-        raise InputError(option, "", "the robot reaches the seam at no placement of this region")

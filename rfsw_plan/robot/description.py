@@ -177,10 +177,6 @@ class DeviceFrame:
     marker: FloatArray
     std: dict[str, float] = field(default_factory=dict)
 
-    def to_device(self, p_base: FloatArray) -> FloatArray:
-        """Base-frame points (m, 3) [m] in the device frame."""
-        return np.asarray(p_base, dtype=float) @ self.rotation.T + self.translation
-
     def to_base(self, p_device: FloatArray) -> FloatArray:
         """Device-frame points (m, 3) [m] in the base frame."""
         return (np.asarray(p_device, dtype=float) - self.translation) @ self.rotation
