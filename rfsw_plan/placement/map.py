@@ -105,14 +105,12 @@ def map_input(problem: Any, max_weld: int = 50, options: PlanOptions | None = No
               model: ElastostaticModel | None = None) -> MapInput:
     """The map's view of a problem: its task subsampled to ``max_weld`` weld waypoints."""
     from rfsw_plan.planning.api import options_from_problem
-    from rfsw_plan.process.task import task_from_schedule
+    from rfsw_plan.process.task import task_for
     from rfsw_plan.robot.kinematics import load_robot
 
     opts = options or options_from_problem(problem)
     model = model or ElastostaticModel(load_robot(problem.robot))
-    frames = problem.seam.frames(problem.spacing)
-    sched = problem.process.schedule(frames, 0.05, approach=False)
-    full = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference)
+    full = task_for(problem, max_start=opts.max_start_waypoints)
     task, idx = subsample_task(full, max_weld)
     spread = max(float(np.max(np.diff(idx[task.n_start:]))) if len(idx) > task.n_start + 1
                  else 1.0, 1.0)
