@@ -62,7 +62,7 @@ class Kill:
 def folder_verdict(out: Path) -> tuple[bool, str]:
     """(acceptable, description) of a folder after a kill."""
     from rfsw_plan.exceptions import InputError
-    from rfsw_plan.planfiles.waypoints import check_plan_folder
+    from rfsw_plan.planfiles.folder import PlanFolder
 
     hidden = sorted(p.name for p in out.iterdir() if p.name.startswith("."))
     try:
@@ -73,7 +73,7 @@ def folder_verdict(out: Path) -> tuple[bool, str]:
     success = status not in ("incomplete", "infeasible", "failed", "unreadable")
     if success:
         try:
-            check_plan_folder(out)
+            PlanFolder.open(out)
         except InputError as exc:
             return False, f"success record, check fails: {exc}"
         return True, "complete plan" + (f" (hidden: {', '.join(hidden)})" if hidden else "")

@@ -123,7 +123,7 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         InputError: An unreadable program or plan folder, a point without a joint solution in
             its posture, or a plan whose model cannot be rebuilt (one line).
     """
-    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
+    from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.planning.verify import verify_samples
 
     path = Path(program)
@@ -131,7 +131,7 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         raise InputError(path, "", "not a file", "a program written by rfsw-plan export")
     fmt = format_for_file(path)
     folder = Path(plan_dir) if plan_dir is not None else path.parent
-    plan, robot = read_plan_folder_and_robot(folder)
+    plan, robot = PlanFolder.open_with_robot(folder)
     read = fmt.read(path)
     model, task, window = _plan_model(plan, robot)
     base = verify_samples(model, task, window, plan.samples)
@@ -174,18 +174,9 @@ def _plan_model(plan: Any, robot: Robot) -> tuple[Any, Any, Any]:
     """The plan's elastostatic model, task and window, rebuilt from its robot and problem
     files (with the fitted forces of ``plan --forces``)."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.export.api import plan_spacing
-    from rfsw_plan.process.task import task_from_schedule
-    from rfsw_plan.validation.weld import read_plan_dir
 
-    pr = read_plan_dir(plan.folder)
-    pb = pr.problem
-    frames = pb.seam.frames(plan_spacing(plan.record))
-    sched = pb.process.schedule(frames, 0.05, approach=False)
-    n_start = plan.record.get("n_start_waypoints")
-    task = task_from_schedule(frames, sched, int(n_start) if isinstance(n_start, int) else 12,
-                              pb.seam_reference)
-    return ElastostaticModel(robot), task, pb.window
+    rebuilt = plan.rebuild()
+    return ElastostaticModel(robot), rebuilt.task(), rebuilt.problem.window
 
 
 def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,

@@ -32,6 +32,7 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, UnknownNameError
 from rfsw_plan.files import write_figure
+from rfsw_plan.planfiles.rebuild import PlannedWaypoints
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
 from rfsw_plan.process.taught import taught_path
@@ -59,25 +60,6 @@ STRATEGIES = ("none", "realtime_seed000", "realtime_seed002", "offline", "hybrid
 PLANNED = ("offline", "hybrid")
 
 EffectSpecs = tuple[tuple[str, Mapping[str, float] | None], ...]
-
-
-@dataclass(frozen=True)
-class PlannedWaypoints:
-    """The offline plan as the simulator needs it.
-
-    Attributes:
-        time: Time each waypoint is reached in the load schedule [s], shape (K,).
-        phase: Phase of each waypoint (plunge/dwell stationary ones, then weld), shape (K,).
-        s: Arc length from the seam start [m], shape (K,).
-        q: Planned joint values [rad], shape (K, n).
-        solve_time_s: Planner wall time [s].
-    """
-
-    time: FloatArray
-    phase: np.ndarray
-    s: FloatArray
-    q: FloatArray
-    solve_time_s: float = 0.0
 
 
 Planner = Callable[[Problem], PlannedWaypoints]
