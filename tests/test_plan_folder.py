@@ -174,3 +174,54 @@ def test_joint_values_outside_the_limits_are_refused(tmp_path: Path) -> None:
     lo, hi = np.radians([-10.0] * 6), np.radians([10.0] * 6)
     with pytest.raises(InputError, match="outside the joint limits"):
         read_plan_folder(folder, limits=(lo, hi))
+
+
+# ---- the one owner of the folder: PlanRecord and PlanFolder.rebuild (issue 33) ---------------
+
+
+def test_plan_record_round_trips_the_bytes_of_a_written_record(tmp_path: Path,
+                                                               plan_with_programs) -> None:
+    """A record read and written again has the bytes the planner wrote (key order included)."""
+    from rfsw_plan.planfiles.record import PlanRecord
+
+    folder, _ = plan_with_programs("zk500_table6_seam")
+    rec = PlanRecord.read(folder / "plan.json")
+    assert PlanRecord.from_json(rec.to_json()) == rec
+    rec.write(tmp_path / "plan.json")
+    assert (tmp_path / "plan.json").read_bytes() == (folder / "plan.json").read_bytes()
+    assert rec.verified and rec.problem == "zk500_table6_seam"
+    assert set(rec.sha256) >= {"waypoints.csv", "lateral_error.png"}
+
+
+@pytest.mark.parametrize(("key", "value", "want"), [
+    ("status", 5, "status: a JSON integer (expected string)"),
+    ("sha256", ["waypoints.csv"], "sha256: a JSON array (expected object)"),
+    ("n_start_waypoints", True, "n_start_waypoints: a JSON boolean (expected integer)"),
+])
+def test_a_typed_record_key_of_the_wrong_type_is_one_line(tmp_path: Path, key: str, value: object,
+                                                        want: str) -> None:
+    folder = _folder(tmp_path / "p")
+    rec = json.loads((folder / "plan.json").read_text())
+    rec[key] = value
+    (folder / "plan.json").write_text(json.dumps(rec))
+    with pytest.raises(InputError) as err:
+        read_plan_folder(folder)
+    assert want in str(err.value) and "\n" not in str(err.value)
+
+
+def test_rebuild_gives_the_task_and_waypoints_the_plan_was_made_on(plan_with_programs,
+                                                                   planned_result) -> None:
+    """PlanFolder.rebuild() (what check and validate-weld use) reproduces the planner's task:
+    the same waypoints (arc length, phase, loads) and the same joints, from the files alone."""
+    from rfsw_plan.planfiles.folder import PlanFolder
+
+    folder, _ = plan_with_programs("zk500_table6_seam")
+    res = planned_result("zk500_table6_seam")
+    rebuilt = PlanFolder.open(folder).rebuild()
+    task = rebuilt.task()
+    assert len(task) == len(res.task) and task.n_start == res.task.n_start
+    assert np.array_equal(task.phase, res.task.phase)
+    np.testing.assert_allclose(task.s, res.task.s, atol=1e-9)
+    np.testing.assert_allclose(task.force_seam, res.task.force_seam, atol=1e-6)
+    np.testing.assert_allclose(rebuilt.waypoints.q, res.q, atol=1e-9)
+    assert rebuilt.problem.name == "zk500_table6_seam"

@@ -206,6 +206,17 @@ def read_plan_folder_and_robot(folder: str | Path) -> tuple[PlanFolder, Robot]:
     return PlanFolder.open_with_robot(folder)
 
 
+def sample_time(folder: str | Path) -> float | None:
+    """The sample time of a plan folder's ``waypoints.csv`` [s] (its first two rows), read
+    before the strict reader; None if it cannot tell (the strict reader names the damage)."""
+    try:
+        with (Path(folder) / "waypoints.csv").open(newline="", encoding="utf-8") as fh:
+            rows = [r for _, r in zip(range(3), csv.DictReader(fh), strict=False)]
+        return float(rows[1]["t_s"]) - float(rows[0]["t_s"])
+    except (OSError, UnicodeDecodeError, IndexError, KeyError, TypeError, ValueError):
+        return None
+
+
 def _check_vouched(folder: Path, name: str, digest: Any) -> None:
     f = folder / name
     if Path(name).name != name or not isinstance(digest, str) or len(digest) != 64:
@@ -310,4 +321,4 @@ def _check_limits(p: Path, q: FloatArray, joints: list[str],
 
 
 __all__ = ["PHASES", "VERIFIED_STATUSES", "PlanFolder", "PlanSamples", "read_plan_folder",
-           "read_plan_folder_and_robot", "read_plan_samples"]
+           "read_plan_folder_and_robot", "read_plan_samples", "sample_time"]

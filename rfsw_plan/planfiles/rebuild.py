@@ -20,7 +20,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.planfiles.record import PlanRecord
 from rfsw_plan.process.forces import FIT_PARAMS
 from rfsw_plan.process.problem import Problem, load_problem, with_process
-from rfsw_plan.process.task import MAX_START_WAYPOINTS, PlanTask, schedule_for, task_for
+from rfsw_plan.process.task import PlanTask, schedule_for, task_for
 
 FloatArray = NDArray[np.float64]
 
@@ -64,11 +64,28 @@ class RebuiltPlan:
     waypoints: PlannedWaypoints
 
     def task(self) -> PlanTask:
-        """The task the plan was made on: the problem at the plan's waypoint spacing with its
-        number of stationary waypoints (:func:`rfsw_plan.process.task.task_for`)."""
+        """The task the plan was made on (:func:`rfsw_plan.process.task.task_for`): the
+        problem at the plan's waypoint spacing, with the problem's ``max_start_waypoints``.
+
+        The record holds the number of stationary waypoints the task got
+        (``n_start_waypoints``, which may exceed the option: the first and last dwell sample
+        are always kept); a plan made with another ``max_start_waypoints`` (``--set``) is
+        rebuilt with the largest option up to that number that gives it.
+
+        Raises:
+            InputError: No option gives the recorded number of stationary waypoints.
+        """
         n = self.record.n_start_waypoints
-        return task_for(self.problem, self.record.spacing,
-                        MAX_START_WAYPOINTS if n is None else n)
+        first = self.problem.planning.max_start_waypoints
+        task = task_for(self.problem, self.record.spacing, first)
+        if n is None or task.n_start == n:
+            return task
+        for max_start in range(n, -1, -1):
+            task = task_for(self.problem, self.record.spacing, max_start)
+            if task.n_start == n:
+                return task
+        raise InputError(self.folder / "plan.json", "n_start_waypoints", f"{n}",
+                         "the number of stationary waypoints of the problem's schedule")
 
 
 def rebuild_plan(folder: Path, record: PlanRecord, problem: str | None = None) -> RebuiltPlan:

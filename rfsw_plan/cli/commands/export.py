@@ -209,13 +209,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_cycle(folder: Path, cycle: float) -> None:
     """A stream from a written plan is its samples: the cycle must be their sample time."""
-    import csv
+    from rfsw_plan.planfiles.folder import sample_time
 
-    with (folder / "waypoints.csv").open(newline="", encoding="utf-8") as fh:
-        rows = [r for _, r in zip(range(3), csv.DictReader(fh), strict=False)]
-    try:
-        dt = float(rows[1]["t_s"]) - float(rows[0]["t_s"])
-    except (IndexError, KeyError, ValueError):
+    dt = sample_time(folder)
+    if dt is None:
         return  # the strict reader names the damage
     if abs(dt - cycle) > 1e-6:
         raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's "
