@@ -666,7 +666,7 @@ def parse_effect_arg(text: str) -> tuple[str, dict[str, float] | None]:
     name, _, rest = text.partition("=")
     name = name.strip()
     if not name:
-        raise InputError("--truth-effect", text, "no effect name", "NAME[=key=value,...]")
+        raise InputError("truth_effect", text, "no effect name", "NAME[=key=value,...]")
     if not rest.strip():
         return name, None
     params: dict[str, float] = {}
@@ -677,7 +677,7 @@ def parse_effect_arg(text: str) -> tuple[str, dict[str, float] | None]:
                 raise ValueError
             params[item[:cut].strip()] = float(item[cut + 1:])
         except ValueError:
-            raise InputError("--truth-effect", text, f"bad parameter '{item}'",
+            raise InputError("truth_effect", text, f"bad parameter '{item}'",
                              "NAME[=key=value,...] with numeric values (SI)") from None
     return name, params
 
