@@ -37,14 +37,15 @@ def planned_result():
 @pytest.fixture(scope="session")
 def plan_with_programs(tmp_path_factory: pytest.TempPathFactory):
     """``plan_with_programs(problem)`` -> (folder, plan.json) of ``rfsw-plan plan PROBLEM
-    --export krl,fanuc_tp,rapid,stream``, planned once per session."""
+    --export`` with every registered format, planned once per session."""
     from rfsw_plan.cli.main import main
+    from rfsw_plan.export.format import format_names
 
     def get(problem: str) -> tuple[Path, dict[str, Any]]:
         if problem not in _PLANS:
             out = tmp_path_factory.mktemp(problem)
             code = main(["-q", "plan", problem, "-o", str(out), "--export",
-                         "krl,fanuc_tp,rapid,stream"])
+                         ",".join(format_names())])
             assert code == 0
             _PLANS[problem] = (out, json.loads((out / "plan.json").read_text()))
         return _PLANS[problem]
