@@ -31,7 +31,7 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, UnknownNameError
-from rfsw_plan.files import write_figure
+from rfsw_plan.files import write_figure, write_json, write_text
 from rfsw_plan.planfiles.rebuild import PlannedWaypoints
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
@@ -39,10 +39,10 @@ from rfsw_plan.process.taught import taught_path
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Bar
 from rfsw_plan.realtime.base import FloatArray, NoCompensation, Strategy
+from rfsw_plan.realtime.capped_pid import FilteredCappedPID
+from rfsw_plan.realtime.force_feedback import ForceFeedbackFilteredCorrection
 from rfsw_plan.realtime.hybrid import HybridResidual
 from rfsw_plan.realtime.metrics import WeldMetrics, weld_metrics
-from rfsw_plan.realtime.seed000 import RealtimeSeed000
-from rfsw_plan.realtime.seed002 import RealtimeSeed002
 from rfsw_plan.realtime.simulator import (
     NominalPath,
     ProcessVariation,
@@ -146,9 +146,10 @@ class CompareOptions:
         if name in ("none", "offline"):
             return NoCompensation()
         if name == "realtime_seed000":
-            return RealtimeSeed000(self.seed000_average_percent, self.seed000_update_s)
+            return ForceFeedbackFilteredCorrection(self.seed000_average_percent,
+                                                   self.seed000_update_s)
         if name == "realtime_seed002":
-            return RealtimeSeed002(self.seed002_step_s, self.seed002_maf_samples)
+            return FilteredCappedPID(self.seed002_step_s, self.seed002_maf_samples)
         if name == "hybrid":
             return HybridResidual(self.hybrid_average_percent)
         raise UnknownNameError("strategy", name, STRATEGIES)
@@ -273,6 +274,23 @@ class CompareResult:
     weld_duration_s: float
     n_cycles: int
     notes: tuple[str, ...] = ()
+
+    def write(self, folder: str | Path, plot: bool = True) -> list[Path]:
+        """Write the compare folder (each file atomically): ``compare.json``, ``compare.md``
+        and, with ``plot``, ``compare_lateral.png``. The folder must exist (the CLI prepares
+        and locks it).
+
+        Returns:
+            The written paths.
+        """
+        out = Path(folder)
+        write_json(out / "compare.json", self.to_dict())
+        write_text(out / "compare.md", format_markdown(self))
+        files = [out / "compare.json", out / "compare.md"]
+        if plot:
+            plot_lateral(self, out / "compare_lateral.png")
+            files.append(out / "compare_lateral.png")
+        return files
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (mm, s)."""
