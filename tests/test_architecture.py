@@ -19,7 +19,7 @@ PACKAGE = Path(rfsw_plan.__file__).parent
 #: measurement and process files, right above the data types they produce (MeasurementSet,
 #: ForceSeries, WeldTrack); ``planfiles/`` the plan folder, right above the planner.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "tomlreader", "files", "numfmt", "table"),
+    ("exceptions", "progress", "tomlreader", "tomlwriter", "files", "numfmt", "table"),
     ("robot",),
     ("elastostatics",),
     ("process",),

@@ -31,6 +31,9 @@ PARAMETER_FLAGS: dict[str, str] = {
     "force_uncertainty": "--force-uncertainty",
     # compare (rfsw_plan.realtime.compare.parse_effect_arg)
     "truth_effect": "--truth-effect",
+    # export (rfsw_plan.export.format: get_format, parse_formats)
+    "format": "--format",
+    "formats": "--format",
     # a saved robot file (rfsw_plan.robot.description.derived_description)
     "name": "--name",
 }

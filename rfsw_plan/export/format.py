@@ -190,7 +190,7 @@ def format_names() -> tuple[str, ...]:
     return tuple(formats())
 
 
-def get_format(name: str, option: str = "--format") -> ControllerFormat:
+def get_format(name: str, option: str = "format") -> ControllerFormat:
     """An instance of the format called ``name``.
 
     Raises:
@@ -202,7 +202,7 @@ def get_format(name: str, option: str = "--format") -> ControllerFormat:
     return reg[name]()
 
 
-def parse_formats(text: str, option: str = "--export") -> list[str]:
+def parse_formats(text: str, option: str = "formats") -> list[str]:
     """Comma-separated format list -> names (one-line error naming the bad one)."""
     names = [f.strip() for f in text.split(",") if f.strip()]
     reg = formats()

@@ -1,7 +1,9 @@
-"""The ``place`` job: screen a map of placements, plan the best candidates, choose the most
-robust one, and write its folder.
+"""The ``map`` and ``place`` jobs: screen a map of placements (:class:`PlacementMapRequest`);
+plan the best candidates, choose the most robust one (:class:`PlaceRequest`); write the folder.
 
-One library call per command (``rfsw-plan place`` is a thin layer over it)::
+One library call per command (``rfsw-plan map`` and ``rfsw-plan place`` are thin layers)::
+
+    PlacementMapRequest(load_problem("zk500_table6_seam")).run().write("out/map/zk500")
 
     run = PlaceRequest(load_problem("kr600_curved_seam"), MapRequest(shape=(15, 15, 8, 3)),
                        candidates=4).run()
@@ -40,8 +42,93 @@ CANDIDATE_COLUMNS = (
     "robot_base_height_mm", "status", "tolerated_uncertainty", "max_abs_lateral_mm",
     "min_lateral_stiffness_N_per_mm", "sample_window_margin_mm", "plan_time_s",
     "dominant_compliance", "screen_tolerated_uncertainty_centred", "message")
+#: The files of a map folder.
+MAP_FILES = ("map.csv", "map.json", "map.png", "map_yaw.png")
 #: The files of a place folder besides the placed problem file.
 PLACE_FILES = ("map.csv", "map.json", "map.png", "map_yaw.png", "candidates.csv", "place.json")
+
+
+def _options(problem: Problem, force_uncertainty: float | None) -> PlanOptions:
+    from rfsw_plan.planning.api import options_from_problem
+
+    over = {} if force_uncertainty is None else {"force_uncertainty": force_uncertainty}
+    return options_from_problem(problem, over)
+
+
+def _problem(problem: Problem | str) -> Problem:
+    return problem if isinstance(problem, Problem) else load_problem(problem)
+
+
+@dataclass(frozen=True)
+class PlacementMapRequest:
+    """Where to screen placements.
+
+    Attributes:
+        problem: The problem at its given placement (or a problem file / bundled name).
+        region: The region, yaw, height and grid of the map.
+        force_uncertainty: The requested relative force uncertainty (None: the problem's).
+    """
+
+    problem: Problem | str
+    region: MapRequest = field(default_factory=MapRequest)
+    force_uncertainty: float | None = None
+
+    def run(self) -> PlacementMapRun:
+        """Compute the map (prints nothing, writes nothing).
+
+        Raises:
+            InputError: A region with no usable placement (one line).
+        """
+        problem = _problem(self.problem)
+        opts = _options(problem, self.force_uncertainty)
+        return PlacementMapRun(problem, opts, map_problem(problem, self.region, opts))
+
+
+@dataclass(frozen=True)
+class PlacementMapRun:
+    """A computed placement map.
+
+    Attributes:
+        problem: The problem at its given placement.
+        options: The planner options (the requested uncertainty).
+        session: The map, its input and the reach of the default region.
+    """
+
+    problem: Problem
+    options: PlanOptions
+    session: MapSession
+
+    def to_dict(self, folder: str | Path | None = None) -> dict[str, Any]:
+        """The summary (``map.json`` without the columns), with the reach of the default
+        region and (with ``folder``) the files."""
+        out = map_summary(self.session.map, self.options.force_uncertainty)
+        out.update(self._extra(folder))
+        return out
+
+    def _extra(self, folder: str | Path | None) -> dict[str, Any]:
+        ext = self.session.extent
+        extra: dict[str, Any] = {"reach": None if ext is None else ext.text()}
+        if folder is not None:
+            extra["files"] = [str(Path(folder) / n) for n in MAP_FILES]
+        return extra
+
+    def write(self, folder: str | Path) -> list[Path]:
+        """Write the map folder (each file atomically): ``map.csv``, ``map.png``,
+        ``map_yaw.png``, ``map.json``. The folder must exist.
+
+        Returns:
+            The written paths.
+        """
+        from rfsw_plan.placement.plots import plot_map, plot_yaw
+
+        out = Path(folder)
+        m = self.session.map
+        u = self.options.force_uncertainty
+        write_map_csv(out / "map.csv", m)
+        plot_map(out / "map.png", m, requested=u)
+        plot_yaw(out / "map_yaw.png", m)
+        write_map_json(out / "map.json", m, u, self._extra(out))
+        return [out / n for n in MAP_FILES]
 
 
 @dataclass(frozen=True)
@@ -82,14 +169,9 @@ class PlaceRequest:
         Raises:
             InputError: ``candidates`` < 1, a bad region (one line).
         """
-        from rfsw_plan.planning.api import options_from_problem
-
         self.check()
-        problem = (self.problem if isinstance(self.problem, Problem)
-                   else load_problem(self.problem))
-        over = ({} if self.force_uncertainty is None
-                else {"force_uncertainty": self.force_uncertainty})
-        opts = options_from_problem(problem, over)
+        problem = _problem(self.problem)
+        opts = _options(problem, self.force_uncertainty)
         session = map_problem(problem, self.region, opts)
         res = place(problem, session.map, opts, self.candidates, self.executor)
         rows = results_table(res, session.map.anchor)
@@ -235,5 +317,5 @@ def _summary(problem: Any, res: Any, rows: list[dict[str, Any]], m: Any, request
     }
 
 
-__all__ = ["CANDIDATE_COLUMNS", "PLACE_FILES", "PlaceRequest", "PlaceRun",
-           "write_candidates_csv"]
+__all__ = ["CANDIDATE_COLUMNS", "MAP_FILES", "PLACE_FILES", "PlaceRequest", "PlaceRun",
+           "PlacementMapRequest", "PlacementMapRun", "write_candidates_csv"]
