@@ -255,6 +255,39 @@ class PlanRecord(Mapping[str, Any]):
                          f"a verified plan ({', '.join(VERIFIED_STATUSES)})")
 
 
+def provenance_keys(problem: Any, log: Any = None, check: Any = None) -> dict[str, Any]:
+    """Entries of ``plan.json`` that say where the problem and robot came from (read back by
+    :meth:`~rfsw_plan.planfiles.folder.PlanFolder.rebuild`), and, for a plan made from a force
+    log (:mod:`rfsw_plan.planning.force_log`), the ``force_log`` block and the measured force
+    uncertainty beside the tolerated one.
+
+    Args:
+        problem: The planned problem (its ``path`` and its robot's ``path``).
+        log: The fitted force log, or None.
+        check: The plan's check under the measured force box, or None.
+    """
+    from rfsw_plan.planning.force_log import force_log_json
+
+    robot_path = getattr(problem.robot, "path", None)
+    out: dict[str, Any] = {
+        "problem_file": str(Path(problem.path).resolve()) if problem.path else None,
+        "robot_file": str(Path(robot_path).resolve()) if robot_path else None,
+    }
+    if log is not None:
+        out["force_log"] = force_log_json(log, check)
+        if log.usable and check is not None:
+            unc = log.uncertainty
+            # Beside tolerated_force_uncertainty: what the trial weld says the force does.
+            out["measured_force_uncertainty"] = {
+                "coverage_sigma": unc.coverage, "frame": "seam (t, l, n)",
+                "weld_bound_N": [float(x) for x in unc.bound.get("weld", [])],
+                "weld_relative": [float(x) for x in unc.weld_relative],
+                "equivalent_relative": check.u_equivalent,
+                "plan_holds": check.holds,
+            }
+    return out
+
+
 def margin_entry(exc: InfeasibleError) -> dict[str, float | None]:
     """The ``plan.json`` entry of an infeasible plan's margin, with its unit in the key:
     ``margin_mm`` (window, pose), ``margin_deg`` (joint checks), ``margin_mm_s`` (weld speed:
@@ -289,4 +322,4 @@ def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     return out
 
 
-__all__ = ["MARGIN_UNITS", "VERIFIED_STATUSES", "PlanRecord", "margin_entry"]
+__all__ = ["MARGIN_UNITS", "VERIFIED_STATUSES", "PlanRecord", "margin_entry", "provenance_keys"]
