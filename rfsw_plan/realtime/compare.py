@@ -32,6 +32,7 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, UnknownNameError
 from rfsw_plan.files import write_figure, write_json, write_text
+from rfsw_plan.numfmt import fixed, general
 from rfsw_plan.planfiles.rebuild import PlannedWaypoints
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
@@ -606,14 +607,15 @@ def format_table(result: CompareResult) -> str:
 
 
 def format_markdown(result: CompareResult) -> str:
-    """Markdown report (compare.md)."""
+    """Markdown report (compare.md); numbers through :mod:`rfsw_plan.numfmt`."""
     out = [f"# Compensation comparison: {result.problem}", ""]
+    w, o = result.window, result.options
     out.append(
-        f"Weld window [{result.window.lower * 1e3:g}, {result.window.upper * 1e3:g}] mm; weld "
-        f"{result.weld_duration_s:.1f} s; controller cycle {result.options.cycle_s * 1e3:g} ms;"
-        f" sensor {result.options.sensor.rate_hz:g} Hz, delay "
-        f"{result.options.sensor.delay_s * 1e3:g} ms, noise {result.options.sensor.noise_force_N:g}"
-        f" N; force drift +-{result.options.variation.amplitude * 100:g} %."
+        f"Weld window [{general(w.lower * 1e3)}, {general(w.upper * 1e3)}] mm; weld "
+        f"{fixed(result.weld_duration_s, 1)} s; controller cycle {general(o.cycle_s * 1e3)} ms;"
+        f" sensor {general(o.sensor.rate_hz)} Hz, delay "
+        f"{general(o.sensor.delay_s * 1e3)} ms, noise {general(o.sensor.noise_force_N)}"
+        f" N; force drift +-{general(o.variation.amplitude * 100)} %."
     )
     for sc in (result.main, *result.sensitivity):
         out += ["", f"## {sc.name}: {sc.description}", "",
@@ -622,18 +624,18 @@ def format_markdown(result: CompareResult) -> str:
                 "|---|---:|---:|---:|---:|---:|"]
         for name, m in sc.metrics.items():
             out.append(
-                f"| {name} | {m.inside_window_fraction * 100:.1f} | "
-                f"{m.max_abs_lateral * 1e3:.2f} | {m.rms_lateral * 1e3:.2f} | "
+                f"| {name} | {fixed(m.inside_window_fraction * 100, 1)} | "
+                f"{fixed(m.max_abs_lateral * 1e3, 2)} | {fixed(m.rms_lateral * 1e3, 2)} | "
                 f"{m.settling_text()} | {_mae_text(sc, name)} |"
             )
     if result.consistency is not None:
         c = result.consistency
         out += ["", f"Simulator (`none`, no noise or drift) vs `deviation`: max abs lateral "
-                f"{c.simulator_max_abs_lateral * 1e3:.3f} mm vs "
-                f"{c.deviation_max_abs_lateral * 1e3:.3f} mm "
-                f"({c.relative_difference * 100:.2f} % apart)."]
-    out += ["", f"Plan time {result.plan_time_s:.2f} s; simulation time "
-            f"{result.sim_time_s:.3f} s for all scenarios."]
+                f"{fixed(c.simulator_max_abs_lateral * 1e3, 3)} mm vs "
+                f"{fixed(c.deviation_max_abs_lateral * 1e3, 3)} mm "
+                f"({fixed(c.relative_difference * 100, 2)} % apart)."]
+    out += ["", f"Plan time {fixed(result.plan_time_s, 2)} s; simulation time "
+            f"{fixed(result.sim_time_s, 3)} s for all scenarios."]
     out += [f"- {n}" for n in result.notes]
     return "\n".join(out) + "\n"
 
