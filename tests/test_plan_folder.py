@@ -179,12 +179,23 @@ def test_joint_values_outside_the_limits_are_refused(tmp_path: Path) -> None:
 # ---- the one owner of the folder: PlanRecord and PlanFolder.rebuild (issue 33) ---------------
 
 
+@pytest.fixture(scope="module")
+def written(planned_result, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The bundled zk500 plan written by the library (as ``rfsw-plan plan -o`` writes it)."""
+    from rfsw_plan.planfiles import write_plan
+
+    res = planned_result("zk500_table6_seam")
+    folder = tmp_path_factory.mktemp("zk500_plan")
+    write_plan(folder, res, robot_file=res.model.robot.description.path)
+    return folder
+
+
 def test_plan_record_round_trips_the_bytes_of_a_written_record(tmp_path: Path,
-                                                               plan_with_programs) -> None:
+                                                               written: Path) -> None:
     """A record read and written again has the bytes the planner wrote (key order included)."""
     from rfsw_plan.planfiles.record import PlanRecord
 
-    folder, _ = plan_with_programs("zk500_table6_seam")
+    folder = written
     rec = PlanRecord.read(folder / "plan.json")
     assert PlanRecord.from_json(rec.to_json()) == rec
     rec.write(tmp_path / "plan.json")
@@ -209,15 +220,14 @@ def test_a_typed_record_key_of_the_wrong_type_is_one_line(tmp_path: Path, key: s
     assert want in str(err.value) and "\n" not in str(err.value)
 
 
-def test_rebuild_gives_the_task_and_waypoints_the_plan_was_made_on(plan_with_programs,
+def test_rebuild_gives_the_task_and_waypoints_the_plan_was_made_on(written: Path,
                                                                    planned_result) -> None:
     """PlanFolder.rebuild() (what check and validate-weld use) reproduces the planner's task:
     the same waypoints (arc length, phase, loads) and the same joints, from the files alone."""
     from rfsw_plan.planfiles.folder import PlanFolder
 
-    folder, _ = plan_with_programs("zk500_table6_seam")
     res = planned_result("zk500_table6_seam")
-    rebuilt = PlanFolder.open(folder).rebuild()
+    rebuilt = PlanFolder.open(written).rebuild()
     task = rebuilt.task()
     assert len(task) == len(res.task) and task.n_start == res.task.n_start
     assert np.array_equal(task.phase, res.task.phase)
