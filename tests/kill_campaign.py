@@ -1,7 +1,7 @@
 """Kill campaign of issue 25: SIGKILL and SIGTERM at random moments of ``plan --export`` and of
 ``export``, into a folder that holds an earlier complete plan.
 
-After every kill the folder must pass the plan-folder check (:func:`check_plan_folder`: a
+After every kill the folder must pass the plan-folder check (:meth:`PlanFolder.open`: a
 success record whose every vouched file is there, byte for byte), or hold no success record and
 no stray temporary file (no hidden entry: no ``.*.tmp``, no ``.export-*`` staging folder, no
 ``.rfsw-plan.lock``). A SIGTERM must end with exit 130 (or 0 if the run had finished), never a
