@@ -8,7 +8,7 @@ naming the file, key or row and what was expected:
 1. ``plan.json`` is decoded as UTF-8 (a UTF-16 or binary file is refused, not guessed) and
    parsed as strict JSON (``NaN``, ``Infinity`` and duplicate keys are refused); it must be an
    object.
-2. Its ``status`` must be a verified plan (``optimal``, ``optimal_nominal``, ``verified``): an
+2. Its ``status`` must be a verified plan (``optimal``, ``verified``, either ``_nominal``): an
    ``infeasible`` plan is refused with exit 3 naming its reason, any other status (``failed``,
    ``incomplete``, missing) with exit 2.
 3. Every file its ``sha256`` table vouches for must be there with those bytes, and

@@ -25,8 +25,10 @@ from rfsw_plan.files import sha256_file, write_json
 if TYPE_CHECKING:
     from rfsw_plan.planning.result import PlanResult
 
-#: Statuses of a verified plan (``plan.json`` ``status``).
-VERIFIED_STATUSES = ("optimal", "optimal_nominal", "verified")
+#: Statuses of a verified plan (``plan.json`` ``status``): the NLP's (``optimal``) or the
+#: verified fallback's (``verified``), ``_nominal`` when the requested force uncertainty is not
+#: held (:func:`rfsw_plan.planning.api.plan_task`).
+VERIFIED_STATUSES = ("optimal", "optimal_nominal", "verified", "verified_nominal")
 #: Largest plan record read [bytes] (a plan of 100k samples writes about 20 MB).
 MAX_RECORD_BYTES = 200_000_000
 #: The keys of ``plan.json`` readers rely on, with the JSON types they must have when present.
@@ -68,8 +70,8 @@ class PlanRecord(Mapping[str, Any]):
     # ---- typed keys ----------------------------------------------------------------------
     @property
     def status(self) -> str:
-        """``optimal``, ``optimal_nominal``, ``verified`` (a verified plan), ``infeasible``,
-        ``failed`` or ``incomplete``; ``""`` if missing."""
+        """``optimal``, ``optimal_nominal``, ``verified``, ``verified_nominal`` (a verified
+        plan), ``infeasible``, ``failed`` or ``incomplete``; ``""`` if missing."""
         return str(self.body.get("status") or "")
 
     @property
