@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 import rfsw_plan
-from rfsw_plan.planfiles.waypoints import check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.folder import PlanFolder
 
 
 def main(out: Path) -> None:
@@ -48,12 +48,13 @@ def main(out: Path) -> None:
         print(f"  {b.name:<7} max |e| {b.to_dict()['max_abs_lateral_mm']:.3f} mm")
 
     # 4. Write the plan folder exactly as `rfsw-plan plan -o DIR` does (atomic files, plan.json
-    #    last with the SHA-256 of every file), then check and read it back.
+    #    last with the SHA-256 of every file), then read it back
+    #    through the one strict reader (PlanFolder: the record, the samples, rebuild()).
     plan_json = rfsw_plan.write_plan(out, result, robot_file=problem.robot.path)
-    record = check_plan_folder(plan_json.parent)      # raises if a file is missing or changed
-    samples = read_waypoints_csv(out / "waypoints.csv")
-    print(f"wrote {plan_json.parent}: status {record['status']}, files "
-          f"{sorted(record['sha256'])}, {len(samples.t)} samples")
+    folder = PlanFolder.open(plan_json.parent)  # raises if a file is missing or changed
+    record, samples = folder.record, folder.samples
+    print(f"wrote {plan_json.parent}: status {record.status}, files "
+          f"{sorted(record.sha256)}, {len(samples.t)} samples")
 
 
 if __name__ == "__main__":

@@ -31,10 +31,10 @@ import numpy as np
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import RfswError
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir
 
 PROBLEM = "zk500_table6_seam"
 #: Truth differences: (name, joint made 20 % softer or None, hidden effect label or None).
@@ -109,7 +109,8 @@ def run_loop(folder: Path, name: str, joint: int | None, hidden: str | None,
         label = hidden
     plan1, plan2 = folder / "plan1", folder / "plan2"
     _cli(["plan", problem, "-o", str(plan1)])
-    weld1 = simulate_trial_weld(pb, read_plan_dir(plan1).waypoints, model, truth, seed=1)
+    weld1 = simulate_trial_weld(pb, PlanFolder.open(plan1).rebuild().waypoints, model, truth,
+                                seed=1)
     forces, track = weld1.write(folder / "weld1")
     _cli(["validate-weld", str(plan1), "--track", str(track), "--forces", str(forces),
           "-o", str(folder / "validate1")])
@@ -122,7 +123,8 @@ def run_loop(folder: Path, name: str, joint: int | None, hidden: str | None,
     v1a = json.loads((folder / "validate1_add" / "validate_weld.json").read_text())
     _cli(["plan", problem, "--forces", str(forces), "--robot", str(robot), "-o", str(plan2)])
     p2 = json.loads((plan2 / "plan.json").read_text())
-    weld2 = simulate_trial_weld(pb, read_plan_dir(plan2).waypoints, model, truth, seed=2)
+    weld2 = simulate_trial_weld(pb, PlanFolder.open(plan2).rebuild().waypoints, model, truth,
+                                seed=2)
     return LoopResult(
         difference=name, truth_label=label,
         inside_first=weld1.metrics.inside_window_fraction,

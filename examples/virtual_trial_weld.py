@@ -27,9 +27,9 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import RfswError
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=1, help="seed of the noise and gaps")
     args = ap.parse_args(argv)
     try:
-        record = read_plan_dir(args.plan_dir)
+        record = PlanFolder.open(args.plan_dir).rebuild()
         model = ElastostaticModel(load_robot(record.robot))
         n = len(model.joint_compliance.params)
         if not 1 <= args.softer_joint <= n:

@@ -9,7 +9,8 @@ Public API (a tour: docs/guide/planning.md; every name: docs/reference/api.md):
   :func:`load_problem`
 * planning: :func:`plan` (problem -> verified, timed :class:`PlanResult`)
 * plan files: :func:`write_plan` (a :class:`PlanResult` -> ``waypoints.csv``, plots,
-  ``plan.json``, exactly as ``rfsw-plan plan -o`` writes them)
+  ``plan.json``, exactly as ``rfsw-plan plan -o`` writes them), :class:`PlanFolder` (the
+  one reader: ``PlanFolder.open(dir)`` -> its :class:`PlanRecord`, samples, ``rebuild()``)
 
 Every name is imported on first use, so ``import rfsw_plan`` loads none of the heavy
 libraries (CasADi, Pinocchio, SciPy, matplotlib) until they are needed.
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
     from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
     from rfsw_plan.exceptions import RfswError
     from rfsw_plan.io.measurements import MeasurementSet, read_measurements, write_measurements
-    from rfsw_plan.planfiles import write_plan
+    from rfsw_plan.planfiles import PlanFolder, PlanRecord, write_plan
     from rfsw_plan.planning.api import plan
     from rfsw_plan.planning.result import PlanResult
     from rfsw_plan.process.frames import LoadSchedule, SeamFrames
@@ -50,6 +51,8 @@ _EXPORTS = {
     "plan": "rfsw_plan.planning.api",
     "PlanResult": "rfsw_plan.planning.result",
     "write_plan": "rfsw_plan.planfiles",
+    "PlanFolder": "rfsw_plan.planfiles.folder",
+    "PlanRecord": "rfsw_plan.planfiles.record",
     "LoadSchedule": "rfsw_plan.process.frames",
     "SeamFrames": "rfsw_plan.process.frames",
     "load_problem": "rfsw_plan.process.problem",
@@ -76,6 +79,8 @@ __all__ = [
     "IdentificationResult",
     "LoadSchedule",
     "MeasurementSet",
+    "PlanFolder",
+    "PlanRecord",
     "PlanResult",
     "RfswError",
     "Robot",

@@ -51,19 +51,6 @@ class UnknownNameError(RfswError):
         super().__init__(f"unknown {kind} '{name}'; known: {', '.join(self.known)}")
 
 
-class NotWithinLimitsError(RfswError):
-    """A joint value outside its limits."""
-
-    def __init__(self, joint: int, value: float, lower: float, upper: float) -> None:
-        self.joint = joint
-        self.value = value
-        self.lower = lower
-        self.upper = upper
-        super().__init__(
-            f"joint {joint + 1} at {value:.6g} is outside its limits [{lower:.6g}, {upper:.6g}]"
-        )
-
-
 class OutputPathError(RfswError):
     """An output path that cannot take the files (a file, under a file, read-only, locked).
 

@@ -5,7 +5,8 @@ on one machine and ``-1e-17`` on another (another BLAS, another summation order,
 fused multiply-add). Printed with a fixed number of decimals both are zero, but Python prints
 the second as ``-0.0000``: a written plan, a controller program or a golden file would then
 differ between machines although the numbers are the same. Every writer therefore formats
-through :func:`fixed` (or :func:`cell` for table cells, :func:`general` for ``%g``-style text):
+through :func:`fixed` (or :func:`cell` for table cells, :func:`general` for ``%g``-style text,
+:func:`shortest` for a number kept exactly):
 
 * the text is Python's own correctly rounded conversion (the same on every platform, unlike
   C ``printf`` or NumPy's ``str``), and
@@ -22,7 +23,7 @@ import math
 import re
 from typing import Any, SupportsFloat
 
-__all__ = ["angle", "canonical_quaternion", "cell", "fixed", "fixed_many", "general"]
+__all__ = ["angle", "canonical_quaternion", "cell", "fixed", "fixed_many", "general", "shortest"]
 
 _NONZERO = frozenset("123456789")
 _MINUS_180 = re.compile(r"-180(\.0*)?")
@@ -55,6 +56,13 @@ def fixed(x: SupportsFloat, digits: int) -> str:
         ValueError: ``x`` is NaN or infinite.
     """
     return _unsigned_zero(f"{_finite(x):.{digits}f}")
+
+
+def shortest(x: SupportsFloat) -> str:
+    """``x`` as the shortest text that reads back as the same float (``repr``: ``0.1``,
+    ``2e-07``, ``1.0``), never ``-0.0``: for files that keep a number exactly (robot and
+    problem TOML)."""
+    return _unsigned_zero(repr(_finite(x)))
 
 
 def general(x: SupportsFloat, significant: int = 6) -> str:

@@ -195,13 +195,6 @@ class Table:
         unit = hits[0][len(q.key) + 1:] if hits[0] != q.key else ""
         return hits[0], q.units[unit]
 
-    def require(self, q: Quantity) -> tuple[str, float]:
-        """:meth:`find` that raises the missing-column error (with a rename hint)."""
-        hit = self.find(q)
-        if hit is None:
-            raise self.missing(q)
-        return hit
-
     def missing(self, q: Quantity) -> InputError:
         """Error for a missing quantity, with a hint at a column of the *same* quantity.
 

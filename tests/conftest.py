@@ -1,13 +1,17 @@
 """Shared fixtures: the bundled problems planned once per session, as typed results
 (``planned_result``) and with every export format (``plan_with_programs``: the plans
 ``tests/test_export.py`` and ``tests/test_program_checkers.py`` check). Planning is
-deterministic, so one plan per problem stands for every test that only reads it."""
+deterministic, so one plan per problem stands for every test that only reads it.
+
+``model`` (the ZK-500 elastostatic model) and ``zk500_case`` (a constant-force task on the
+seed 001 seam with its taught and mirror baselines) are the set-ups of the planner, row,
+verification, baseline and workbench tests; helpers they share live in ``tests/_helpers.py``."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import pytest
 
@@ -37,16 +41,59 @@ def planned_result():
 @pytest.fixture(scope="session")
 def plan_with_programs(tmp_path_factory: pytest.TempPathFactory):
     """``plan_with_programs(problem)`` -> (folder, plan.json) of ``rfsw-plan plan PROBLEM
-    --export krl,fanuc_tp,rapid,stream``, planned once per session."""
+    --export`` with every registered format, planned once per session."""
     from rfsw_plan.cli.main import main
+    from rfsw_plan.export.format import format_names
 
     def get(problem: str) -> tuple[Path, dict[str, Any]]:
         if problem not in _PLANS:
             out = tmp_path_factory.mktemp(problem)
             code = main(["-q", "plan", problem, "-o", str(out), "--export",
-                         "krl,fanuc_tp,rapid,stream"])
+                         ",".join(format_names())])
             assert code == 0
             _PLANS[problem] = (out, json.loads((out / "plan.json").read_text()))
         return _PLANS[problem]
+
+    return get
+
+
+@pytest.fixture(scope="module")
+def model() -> Any:
+    """The ZK-500 elastostatic model (seed 001 stiffness), one per test module (a module may
+    change it)."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.robot.kinematics import load_robot
+
+    return ElastostaticModel(load_robot("zk500"))
+
+
+class Zk500Case(NamedTuple):
+    """A constant-force task on the seed 001 seam and its baselines."""
+
+    model: Any
+    task: Any
+    taught: Any
+    mirror: Any
+
+
+@pytest.fixture(scope="module")
+def zk500_case(model: Any):
+    """``zk500_case(k)`` -> :class:`Zk500Case` on ``k`` waypoints of the seed 001 seam under
+    its steady force at 3 mm/s: the model, the task, the taught path (no compensation) and the
+    mirror fake targets, built once per module and ``k``."""
+    from _helpers import F_SEAM, Q_SEED, zk500_frames
+
+    from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
+    from rfsw_plan.process.task import task_constant_force
+
+    cases: dict[int, Zk500Case] = {}
+
+    def get(k: int) -> Zk500Case:
+        if k not in cases:
+            task = task_constant_force(zk500_frames(k), F_SEAM, 3e-3)
+            taught = no_compensation(model.robot, task, Q_SEED)
+            cases[k] = Zk500Case(model, task, taught,
+                                 mirror_compensation(model, task, taught.q))
+        return cases[k]
 
     return get

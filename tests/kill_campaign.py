@@ -1,7 +1,7 @@
 """Kill campaign of issue 25: SIGKILL and SIGTERM at random moments of ``plan --export`` and of
 ``export``, into a folder that holds an earlier complete plan.
 
-After every kill the folder must pass the plan-folder check (:func:`check_plan_folder`: a
+After every kill the folder must pass the plan-folder check (:meth:`PlanFolder.open`: a
 success record whose every vouched file is there, byte for byte), or hold no success record and
 no stray temporary file (no hidden entry: no ``.*.tmp``, no ``.export-*`` staging folder, no
 ``.rfsw-plan.lock``). A SIGTERM must end with exit 130 (or 0 if the run had finished), never a
@@ -62,7 +62,7 @@ class Kill:
 def folder_verdict(out: Path) -> tuple[bool, str]:
     """(acceptable, description) of a folder after a kill."""
     from rfsw_plan.exceptions import InputError
-    from rfsw_plan.planfiles.waypoints import check_plan_folder
+    from rfsw_plan.planfiles.folder import PlanFolder
 
     hidden = sorted(p.name for p in out.iterdir() if p.name.startswith("."))
     try:
@@ -73,7 +73,7 @@ def folder_verdict(out: Path) -> tuple[bool, str]:
     success = status not in ("incomplete", "infeasible", "failed", "unreadable")
     if success:
         try:
-            check_plan_folder(out)
+            PlanFolder.open(out)
         except InputError as exc:
             return False, f"success record, check fails: {exc}"
         return True, "complete plan" + (f" (hidden: {', '.join(hidden)})" if hidden else "")

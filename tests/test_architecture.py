@@ -1,10 +1,13 @@
 """The architecture holds: imports flow one way between subpackages, the library never
-configures logging, and effects are dispatched by their own class (see ARCHITECTURE.md)."""
+configures logging, effects are dispatched by their own class, one package owns the plan
+folder, commands write through library jobs, and library errors name parameters, not flags
+(see ARCHITECTURE.md)."""
 
 from __future__ import annotations
 
 import ast
 import logging
+import re
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +22,7 @@ PACKAGE = Path(rfsw_plan.__file__).parent
 #: measurement and process files, right above the data types they produce (MeasurementSet,
 #: ForceSeries, WeldTrack); ``planfiles/`` the plan folder, right above the planner.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "tomlreader", "files", "numfmt", "table"),
+    ("exceptions", "progress", "tomlreader", "tomlwriter", "files", "numfmt", "table"),
     ("robot",),
     ("elastostatics",),
     ("process",),
@@ -324,3 +327,193 @@ def test_the_effect_name_check_sees_a_dispatch_in_a_fixture(tmp_path):
     names = {"joint_compliance", "tilting_compliance", "payload_gravity"}
     assert effect_name_dispatches(root, names) == [
         "validation/bounds.py:3", "validation/bounds.py:5", "validation/bounds.py:7"]
+
+
+# ---- one owner per file and per job (issue 33) ------------------------------------------------
+
+#: Names of the plan folder's own files: only ``planfiles/`` opens, reads or writes them.
+PLAN_FILES = frozenset({"plan.json", "waypoints.csv"})
+#: Calls that open, read, write, move or remove a file.
+FILE_OPERATIONS = frozenset({
+    "open", "read_text", "read_bytes", "write_text", "write_bytes", "write_json", "atomic_path",
+    "read_table", "load", "loads", "reader", "DictReader", "unlink", "replace", "rename"})
+
+
+def _string_constants(node: ast.AST) -> set[str]:
+    return {c.value for c in ast.walk(node) if isinstance(c, ast.Constant)
+            and isinstance(c.value, str)}
+
+
+def _call_name(node: ast.Call) -> str:
+    f = node.func
+    return f.id if isinstance(f, ast.Name) else f.attr if isinstance(f, ast.Attribute) else ""
+
+
+def plan_file_accesses(root: Path = PACKAGE) -> list[str]:
+    """Places outside ``planfiles/`` that open, read or write ``plan.json`` or
+    ``waypoints.csv`` themselves (a file operation whose arguments or receiver name one)."""
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        if "planfiles" in path.relative_to(root).parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Call) or _call_name(node) not in FILE_OPERATIONS:
+                continue
+            named: set[str] = set()
+            for arg in (*node.args, *(k.value for k in node.keywords)):
+                named |= _string_constants(arg)
+            if isinstance(node.func, ast.Attribute):
+                named |= _string_constants(node.func.value)
+            if named & PLAN_FILES:
+                found.append(f"{path.relative_to(root)}:{node.lineno}")
+    return sorted(set(found))
+
+
+def test_one_owner_of_the_plan_folder():
+    """ARCHITECTURE.md: ``planfiles/`` is the one reader and writer of a plan folder
+    (``PlanRecord``, ``PlanFolder``); export, check, validate-weld and the CLI go through it."""
+    found = plan_file_accesses()
+    assert not found, "plan.json/waypoints.csv opened outside planfiles/: " + ", ".join(found)
+
+
+def test_the_plan_folder_check_sees_a_loose_reader(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    for folder in ("export", "planfiles"):
+        (root / folder).mkdir(parents=True)
+    (root / "export" / "loose.py").write_text(
+        "import json\n"
+        "def rec(folder):\n"
+        "    return json.loads((folder / 'plan.json').read_text())\n"
+        "def rows(folder):\n"
+        "    with (folder / 'waypoints.csv').open() as fh:\n"
+        "        return fh.read()\n"
+        "def fine(folder):\n"
+        "    raise ValueError('plan.json: missing')\n")
+    (root / "planfiles" / "own.py").write_text(
+        "def rec(folder):\n    return (folder / 'plan.json').read_text()\n")
+    assert plan_file_accesses(root) == ["export/loose.py:3", "export/loose.py:5"]
+
+
+#: Low-level writers a command module must not call: every file a command writes comes from a
+#: library job (``...Run.write(folder)``, ``export_plan_folder``, ``commit_plan``...).
+LOW_LEVEL_WRITERS = frozenset({
+    "write_json", "write_text", "write_bytes", "atomic_path", "write_figure", "savefig",
+    "writer", "DictWriter"})
+
+
+def cli_file_writes(root: Path = PACKAGE) -> list[str]:
+    """Places in ``cli/`` that write a file themselves: a low-level writer, a plot function
+    (``plot_*``) or ``open(..., "w"/"a"/"x")``."""
+    found = []
+    for path in sorted((root / "cli").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.Call):
+                continue
+            name = _call_name(node)
+            mode = next((a.value for a in node.args[1:2] if isinstance(a, ast.Constant)), "")
+            mode = next((k.value.value for k in node.keywords if k.arg == "mode"
+                         and isinstance(k.value, ast.Constant)), mode)
+            writes_open = name == "open" and isinstance(mode, str) and set(mode) & set("wax")
+            if name in LOW_LEVEL_WRITERS or name.startswith("plot_") or writes_open:
+                found.append(f"{path.relative_to(root)}:{node.lineno} {name}")
+    return found
+
+
+def test_cli_commands_call_jobs_and_write_no_file_themselves():
+    """ARCHITECTURE.md: a command parses, calls one library job, prints; the job writes its
+    folder (``deviation``, ``place``, ``map``, ``compare``: ``Request.run()`` then
+    ``write(folder)``), so Python users get the same files."""
+    found = cli_file_writes()
+    assert not found, "files written by the CLI itself: " + ", ".join(found)
+
+
+def test_the_cli_write_check_sees_a_writer_in_a_fixture(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    (root / "cli" / "commands").mkdir(parents=True)
+    (root / "cli" / "commands" / "bad.py").write_text(
+        "import csv\n"
+        "from rfsw_plan.files import write_json\n"
+        "def run(args, res, out):\n"
+        "    write_json(out / 'x.json', {})\n"
+        "    plot_deviation(res, out / 'x.png')\n"
+        "    with open(out / 'x.csv', 'w') as fh:\n"
+        "        csv.writer(fh)\n"
+        "    with open(args.problem) as fh:\n"
+        "        fh.read()\n"
+        "    res.write(out)\n")
+    assert cli_file_writes(root) == [
+        "cli/commands/bad.py:4 write_json", "cli/commands/bad.py:5 plot_deviation",
+        "cli/commands/bad.py:6 open", "cli/commands/bad.py:7 writer"]
+
+
+#: A command-line flag in a string (``--noise-mm``), not a negative number or ``--``.
+_FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
+
+#: Library modules whose strings still name command-line flags, scheduled to go (their errors
+#: are to name parameters, mapped to flags by ``cli/params.py``). This list only shrinks: a
+#: module that names a flag and is not here fails the test, and so does an entry that no longer
+#: names one. Kept for the merge: ``validation/`` and ``io/measurements.py`` are being edited
+#: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
+#: ``plan --forces`` as a lever; ``table.py`` hints ``--columns`` in a reader error.
+KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
+    "export/api.py", "export/fanuc_tp.py", "export/program.py", "io/measurements.py",
+    "planning/verdict.py", "table.py", "validation/campaign.py", "validation/candidates.py",
+    "validation/commands.py", "validation/crossval.py", "validation/diagnosis.py",
+    "validation/report.py", "validation/residuals.py", "validation/sanity.py",
+    "validation/weld.py", "validation/weld_add.py", "validation/weld_diagnosis.py",
+    "validation/weld_report.py", "validation/workbench.py"})
+
+
+def _docstring_nodes(tree: ast.AST) -> set[int]:
+    out = set()
+    for n in ast.walk(tree):
+        if (isinstance(n, (ast.Module, ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef))
+                and n.body and isinstance(n.body[0], ast.Expr)
+                and isinstance(n.body[0].value, ast.Constant)):
+            out.add(id(n.body[0].value))
+    return out
+
+
+def flag_names_in_library(root: Path = PACKAGE) -> dict[str, list[str]]:
+    """Library module (path relative to the package) -> the flags its strings name (outside
+    docstrings and comments, and outside a printed ``rfsw-plan ...`` command line)."""
+    found: dict[str, list[str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root)
+        if rel.parts[0] == "cli":
+            continue
+        tree = ast.parse(path.read_text())
+        docs = _docstring_nodes(tree)
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Constant) and isinstance(node.value, str)
+                    and id(node) not in docs and "rfsw-plan " not in node.value):
+                m = _FLAG.search(node.value)
+                if m:
+                    found.setdefault(rel.as_posix(), []).append(f"{node.lineno} {m.group(0)}")
+    return found
+
+
+def test_library_errors_name_parameters_not_flags():
+    """ARCHITECTURE.md: a library error names the parameter (``dt``, ``candidates``), never the
+    flag; ``cli/params.py`` is the one table from parameters to flags."""
+    found = flag_names_in_library()
+    new = {k: v for k, v in found.items() if k not in KNOWN_FLAG_MODULES}
+    assert not new, "flag names in library modules: " + "; ".join(
+        f"{k}: {', '.join(v)}" for k, v in new.items())
+    gone = sorted(KNOWN_FLAG_MODULES - set(found))
+    assert not gone, "no flag left, delete from KNOWN_FLAG_MODULES: " + ", ".join(gone)
+
+
+def test_the_flag_check_sees_a_flag_in_a_fixture(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    (root / "process").mkdir(parents=True)
+    (root / "cli").mkdir()
+    (root / "process" / "job.py").write_text(
+        '"""Docs may say --dt."""\n'
+        "def run(dt):\n"
+        "    if dt < 0:\n"
+        "        raise ValueError('--dt must be positive')\n"
+        "    hint = 'rfsw-plan deviation P --dt 0.1'\n"
+        "    return dt - -1, 'dt', '--'\n")
+    (root / "cli" / "main.py").write_text("FLAG = '--dt'\n")
+    assert flag_names_in_library(root) == {"process/job.py": ["4 --dt"]}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_nlp import F_SEAM, Q_SEED, zk500_frames
+from _helpers import F_SEAM, Q_SEED, zk500_frames
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
@@ -25,10 +25,8 @@ from rfsw_plan.robot.kinematics import load_robot
 
 
 @pytest.fixture(scope="module")
-def setup():
-    model = ElastostaticModel(load_robot("zk500"))
-    task = task_constant_force(zk500_frames(6), F_SEAM, 3e-3)
-    return model, task
+def setup(zk500_case):
+    return zk500_case(6)[:2]
 
 
 def test_taught_path_reaches_the_seam(setup):

@@ -14,7 +14,6 @@ from rfsw_plan.elastostatics.effects import EFFECTS, ComplianceEffect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import PARAM_LIMIT, FloatArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.candidates import (
     PLAUSIBLE_FACTOR,
     addable_effects,
@@ -24,11 +23,6 @@ from rfsw_plan.validation.candidates import (
     parts_of,
     stiffness_labels,
 )
-
-
-@pytest.fixture(scope="module")
-def model() -> ElastostaticModel:
-    return ElastostaticModel(load_robot("zk500"))
 
 
 def test_one_candidate_list_serves_both_commands(model: ElastostaticModel) -> None:

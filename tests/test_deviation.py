@@ -120,3 +120,23 @@ def test_cli_cosim_fits_the_penetration_law(tmp_path: Path,
     assert data["cosim"]["max_penetration_mm"] == pytest.approx(4.2, abs=0.3)
     assert "co-simulated: largest penetration" in out
     assert data["cosim"]["all_converged"]
+
+
+def test_the_deviation_folder_is_written_from_python_as_the_cli_writes_it(tmp_path) -> None:
+    """``deviation`` is one library job: DeviationRequest(...).run().write(folder) gives the
+    CLI's files byte for byte, and its errors name the parameter (the CLI shows the flag)."""
+    from rfsw_plan.cli.main import main
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.process.deviation_job import DeviationRequest
+
+    job = DeviationRequest("zk500_table6_seam", dt=0.1).run()
+    (tmp_path / "py").mkdir()
+    files = job.write(tmp_path / "py", plot=False)
+    assert [f.name for f in files] == ["deviation.csv", "deviation_time.csv", "deviation.json"]
+    assert main(["-q", "deviation", "zk500_table6_seam", "--no-plot", "-o",
+                 str(tmp_path / "cli")]) == 0
+    for f in files:
+        assert f.read_bytes() == (tmp_path / "cli" / f.name).read_bytes(), f.name
+    with pytest.raises(InputError) as err:
+        DeviationRequest("zk500_table6_seam", dt=1e4).run()
+    assert str(err.value).startswith("dt: ")

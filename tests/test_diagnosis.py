@@ -9,7 +9,6 @@ from rfsw_plan.elastostatics.identification import identify
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
 from rfsw_plan.io.measurements import MeasurementSet
-from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign import run_campaign
 from rfsw_plan.validation.diagnosis import (
     FIT_TOL,
@@ -19,11 +18,6 @@ from rfsw_plan.validation.diagnosis import (
     make_folds,
 )
 from rfsw_plan.validation.residuals import NoiseFloor
-
-
-@pytest.fixture(scope="module")
-def model() -> ElastostaticModel:
-    return ElastostaticModel(load_robot("zk500"))
 
 
 def _data(hidden: list[str], poses: int = 30, loads: int = 4, noise_mm: float = 0.01,

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.folder import PlanFolder
+from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS
 from rfsw_plan.robot.description import load_robot_description
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,11 +27,11 @@ def _run(script: str, *args: str) -> str:
 def test_plan_my_seam_writes_a_verified_plan_folder(tmp_path: Path) -> None:
     out = _run("plan_my_seam.py", str(tmp_path))
     assert "max |lateral error|" in out
-    rec = check_plan_folder(tmp_path / "plan")  # every vouched file present and unchanged
+    rec = PlanFolder.open(tmp_path / "plan").record  # every vouched file present and unchanged
     assert rec["problem"] == "my_weld"
     assert rec["robot_file"].endswith("zk500.toml")
     assert set(rec["sha256"]) | {"plan.json"} == set(PLAN_OUTPUTS)
-    samples = read_waypoints_csv(tmp_path / "plan" / "waypoints.csv")
+    samples = PlanFolder.open(tmp_path / "plan").samples
     assert len(samples.t) > 100
 
 
@@ -59,10 +60,10 @@ def test_python_api_writes_the_same_files_as_the_cli(tmp_path: Path) -> None:
     from rfsw_plan.cli.main import main
 
     _run("python_api.py", str(tmp_path / "api"))
-    api = check_plan_folder(tmp_path / "api")
+    api = PlanFolder.open(tmp_path / "api").record
     assert main(["-q", "plan", "zk500_table6_seam", "-o", str(tmp_path / "cli"),
                  "--force-uncertainty", "0.1"]) == 0
-    cli = check_plan_folder(tmp_path / "cli")
+    cli = PlanFolder.open(tmp_path / "cli").record
     assert set(api["sha256"]) == set(cli["sha256"])
     # Same planner, same options: the same waypoints file, byte for byte.
     assert api["sha256"]["waypoints.csv"] == cli["sha256"]["waypoints.csv"]

@@ -131,3 +131,29 @@ def test_export_dispatch_has_no_format_names() -> None:
         if isinstance(node, ast.Compare):
             consts = [c.value for c in ast.walk(node) if isinstance(c, ast.Constant)]
             assert not names & set(consts), ast.unparse(node)
+
+
+def test_a_new_format_module_is_discovered_without_any_list(tmp_path: Path,
+                                                            monkeypatch: pytest.MonkeyPatch
+                                                            ) -> None:
+    """A format is one module of rfsw_plan/export: formats() finds a module it has never heard
+    of (here in a folder added to the package's path) and registers its class, in its order."""
+    import sys
+
+    import rfsw_plan.export as package
+
+    (tmp_path / "toy_discovered.py").write_text(
+        "from rfsw_plan.export.stream import StreamFormat\n\n\n"
+        "class Discovered(StreamFormat):\n"
+        "    name = 'toy_discovered'\n"
+        "    order = 15\n")
+    monkeypatch.setattr(package, "__path__", [*package.__path__, str(tmp_path)])
+    try:
+        names = format_names()
+        assert "toy_discovered" in names
+        assert names.index("krl") < names.index("toy_discovered") < names.index("fanuc_tp")
+    finally:
+        monkeypatch.undo()
+        FORMATS.pop("toy_discovered", None)
+        sys.modules.pop("rfsw_plan.export.toy_discovered", None)
+    assert "toy_discovered" not in format_names()

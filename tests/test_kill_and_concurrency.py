@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.planfiles.waypoints import check_plan_folder
+from rfsw_plan.planfiles.folder import PlanFolder
 
 ROOT = Path(__file__).resolve().parents[1]
 PROBLEM = "zk500_table6_seam"
@@ -79,7 +79,7 @@ def _assert_honest(out: Path) -> None:
     if rec["status"] in ("incomplete", "infeasible", "failed"):
         assert visible == ["plan.json"], visible
     else:
-        check_plan_folder(out)  # every file it vouches for is there, byte for byte
+        PlanFolder.open(out)  # every file it vouches for is there, byte for byte
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +117,7 @@ def test_killed_at_the_write_leaves_no_lie(tmp_path, old_plan, mode, sig) -> Non
     _assert_honest(out)
     # The next run into the folder cleans up and writes a whole, vouched plan.
     assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
-    check_plan_folder(out)
+    PlanFolder.open(out)
     assert not [p for p in out.iterdir() if ".tmp" in p.name]
 
 
@@ -137,7 +137,7 @@ def test_two_writers_on_one_folder(tmp_path, capsys) -> None:
     flag.unlink()
     _, err1 = first.communicate(timeout=300)
     assert first.returncode == 0, err1.decode()
-    rec = check_plan_folder(out)
+    rec = PlanFolder.open(out).record
     assert rec["problem"] == PROBLEM  # one seam only, never a mix
     text = (out / "waypoints.csv").read_text()
     assert len(text.splitlines()) == rec["samples"]["n"] + 1

@@ -63,11 +63,6 @@ CASES: list[tuple[str, float]] = [
 ]
 
 
-@pytest.fixture(scope="module")
-def model() -> ElastostaticModel:
-    return ElastostaticModel(load_robot(ROBOT))
-
-
 def _campaign(hidden: list[str], noise_mm: float = NOISE_MM, seed: int = 1) -> CampaignResult:
     return run_campaign(ROBOT, hidden, poses=POSES, loads_per_pose=LOADS, noise_mm=noise_mm,
                         seed=seed)

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.nlp import (
     ABS_EPS,
     GLOBALS,
@@ -20,33 +19,13 @@ from rfsw_plan.planning.nlp import (
 )
 from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.verify import predict, verify_plan
-from rfsw_plan.process.frames import SeamFrames
-from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 
-Q_SEED = np.deg2rad([-82.6, 41.73, 18.5, 0.18, 30.22, 11.57])
-F_SEAM = np.array([-899.80, 1350.87, 4842.58])  # seed 001 steady forces (f_t, f_l, f_n) [N]
-
-
-def zk500_frames(k: int) -> SeamFrames:
-    a = np.array([269.52, -2070.91, 663.15]) * 1e-3
-    b = np.array([278.10, -1957.60, 664.05]) * 1e-3
-    L = float(np.linalg.norm(b - a))
-    t = np.tile((b - a) / L, (k, 1))
-    n = np.tile([0.0, 0.0, 1.0], (k, 1))
-    n -= np.einsum("ki,ki->k", n, t)[:, None] * t
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    s = np.linspace(0.0, L, k)
-    return SeamFrames(s, a + s[:, None] * t[0], t, np.cross(n, t), n)
-
 
 @pytest.fixture(scope="module")
-def setup():
-    model = ElastostaticModel(load_robot("zk500"))
-    task = task_constant_force(zk500_frames(7), F_SEAM, 3e-3)
-    taught = no_compensation(model.robot, task, Q_SEED)
-    mirror = mirror_compensation(model, task, taught.q)
+def setup(zk500_case):
+    model, task, taught, mirror = zk500_case(7)
     nlp = build_plan_nlp(model, task, WeldWindow(), mirror.q, mirror.offsets, PlanOptions(),
                          compile_c=False)
     return model, task, taught, mirror, nlp

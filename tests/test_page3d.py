@@ -17,8 +17,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.cli.main import main
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.planfiles.page3d import margin_colours
-from rfsw_plan.planfiles.waypoints import check_plan_folder
 from rfsw_plan.process.problem import bundled_problem_names
 
 WEB = Path(__file__).parents[1] / "rfsw_plan" / "planfiles" / "web"
@@ -57,7 +57,7 @@ def test_plan_html_is_committed_in_plan_json(plan_dir: Path) -> None:
     page = plan_dir / "plan.html"
     assert rec["sha256"]["plan.html"] == hashlib.sha256(page.read_bytes()).hexdigest()
     assert str(page) in rec["files"]
-    check_plan_folder(plan_dir)  # every vouched file, the page included, is whole
+    PlanFolder.open(plan_dir)  # every vouched file, the page included, is whole
     assert page.stat().st_size < 5e6
 
 
@@ -88,7 +88,7 @@ def test_view_restores_a_lost_page_and_refuses_a_damaged_folder(
     (folder / "plan.html").unlink()
     assert main(["view", str(folder)]) == 0
     assert (folder / "plan.html").read_bytes() == (plan_dir / "plan.html").read_bytes()
-    check_plan_folder(folder)
+    PlanFolder.open(folder)
     # a waypoints.csv that is not the one plan.json vouches for: one line, exit 2
     with (folder / "waypoints.csv").open("a") as fh:
         fh.write("\n")

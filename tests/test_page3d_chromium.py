@@ -165,10 +165,10 @@ def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
     import json
 
     from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.process.problem import load_problem
     from rfsw_plan.realtime.trial_weld import simulate_trial_weld
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.validation.weld import read_plan_dir
 
     pb = load_problem(PROBLEM)
     model = ElastostaticModel(load_robot(pb.robot))
@@ -177,7 +177,8 @@ def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
     c[0] /= 0.8
     truth.joint_compliance.params = c
     assert main(["-q", "plan", PROBLEM, "-o", str(tmp_path / "plan")]) == 0
-    weld = simulate_trial_weld(pb, read_plan_dir(tmp_path / "plan").waypoints, model, truth)
+    planned = PlanFolder.open(tmp_path / "plan").rebuild().waypoints
+    weld = simulate_trial_weld(pb, planned, model, truth)
     forces, track = weld.write(tmp_path / "weld")
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rfsw_plan.cli.main import main
+from rfsw_plan.planfiles.folder import PlanFolder
 
 PROBLEM_TOML = Path(__file__).resolve().parent.parent / "problems" / "zk500_table6_seam.toml"
 
@@ -117,14 +118,14 @@ def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch
     assert warn == ["rfsw-plan plan: warning: lateral_error.png not written (RuntimeError: "
                     "matplotlib backend exploded); the data files and plan.json are complete"]
     assert "Traceback" not in err
-    rec = wp.check_plan_folder(out)  # every vouched file is there with its bytes
+    rec = PlanFolder.open(out).record  # every vouched file is there with its bytes
     assert rec["status"] != "incomplete"
     assert {"waypoints.csv", "lateral_error_time.png"} <= set(rec["sha256"])
     assert any(name.endswith(".src") for name in rec["sha256"])  # the KRL program
     assert "lateral_error.png" not in rec["sha256"] and not (out / "lateral_error.png").exists()
     assert rec["plots"] == {"written": ["lateral_error_time.png", "tradeoff.png"],
                             "failed": [warn[0].split("warning: ")[1].split("; the data")[0]]}
-    assert len(wp.read_waypoints_csv(out / "waypoints.csv").t) > 100
+    assert len(PlanFolder.open(out).samples.t) > 100
 
 
 def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
@@ -137,7 +138,7 @@ def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
     real = wp.plot_lateral_error
 
     def spy(path, result):
-        seen.append(wp.check_plan_folder(path.parent))
+        seen.append(PlanFolder.open(path.parent).record)
         return real(path, result)
 
     monkeypatch.setattr(wp, "plot_lateral_error", spy)
@@ -145,6 +146,6 @@ def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
     path = wp.write_plan_folder(tmp_path / "p", res)
     assert set(seen[0]["sha256"]) == {"waypoints.csv", "plan.html"}
     assert seen[0]["plots"] == {"pending": list(wp.PLAN_PLOTS)}
-    rec = wp.check_plan_folder(path.parent)
+    rec = PlanFolder.open(path.parent).record
     assert set(rec["sha256"]) == {"waypoints.csv", "plan.html", *wp.PLAN_PLOTS}
     assert rec["plots"] == {"written": list(wp.PLAN_PLOTS), "failed": []}

@@ -174,3 +174,75 @@ def test_joint_values_outside_the_limits_are_refused(tmp_path: Path) -> None:
     lo, hi = np.radians([-10.0] * 6), np.radians([10.0] * 6)
     with pytest.raises(InputError, match="outside the joint limits"):
         read_plan_folder(folder, limits=(lo, hi))
+
+
+# ---- the one owner of the folder: PlanRecord and PlanFolder.rebuild (issue 33) ---------------
+
+
+@pytest.fixture(scope="module")
+def written(planned_result, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The bundled zk500 plan written by the library (as ``rfsw-plan plan -o`` writes it)."""
+    from rfsw_plan.planfiles import write_plan
+
+    res = planned_result("zk500_table6_seam")
+    folder = tmp_path_factory.mktemp("zk500_plan")
+    write_plan(folder, res, robot_file=res.model.robot.description.path)
+    return folder
+
+
+def test_plan_record_round_trips_the_bytes_of_a_written_record(tmp_path: Path,
+                                                               written: Path) -> None:
+    """A record read and written again has the bytes the planner wrote (key order included)."""
+    from rfsw_plan.planfiles.record import PlanRecord
+
+    folder = written
+    rec = PlanRecord.read(folder / "plan.json")
+    assert PlanRecord.from_json(rec.to_json()) == rec
+    rec.write(tmp_path / "plan.json")
+    assert (tmp_path / "plan.json").read_bytes() == (folder / "plan.json").read_bytes()
+    assert rec.verified and rec.problem == "zk500_table6_seam"
+    assert set(rec.sha256) >= {"waypoints.csv", "lateral_error.png"}
+
+
+@pytest.mark.parametrize(("key", "value", "want"), [
+    ("status", 5, "status: a JSON integer (expected string)"),
+    ("sha256", ["waypoints.csv"], "sha256: a JSON array (expected object)"),
+    ("n_start_waypoints", True, "n_start_waypoints: a JSON boolean (expected integer)"),
+])
+def test_a_typed_record_key_of_the_wrong_type_is_one_line(tmp_path: Path, key: str, value: object,
+                                                        want: str) -> None:
+    folder = _folder(tmp_path / "p")
+    rec = json.loads((folder / "plan.json").read_text())
+    rec[key] = value
+    (folder / "plan.json").write_text(json.dumps(rec))
+    with pytest.raises(InputError) as err:
+        read_plan_folder(folder)
+    assert want in str(err.value) and "\n" not in str(err.value)
+
+
+def test_rebuild_gives_the_task_and_waypoints_the_plan_was_made_on(written: Path,
+                                                                   planned_result) -> None:
+    """PlanFolder.rebuild() (what check and validate-weld use) reproduces the planner's task:
+    the same waypoints (arc length, phase, loads) and the same joints, from the files alone."""
+    from rfsw_plan.planfiles.folder import PlanFolder
+
+    res = planned_result("zk500_table6_seam")
+    rebuilt = PlanFolder.open(written).rebuild()
+    task = rebuilt.task()
+    assert len(task) == len(res.task) and task.n_start == res.task.n_start
+    assert np.array_equal(task.phase, res.task.phase)
+    np.testing.assert_allclose(task.s, res.task.s, atol=1e-9)
+    np.testing.assert_allclose(task.force_seam, res.task.force_seam, atol=1e-6)
+    np.testing.assert_allclose(rebuilt.waypoints.q, res.q, atol=1e-9)
+    assert rebuilt.problem.name == "zk500_table6_seam"
+
+
+@pytest.mark.parametrize("status", ["optimal", "optimal_nominal", "verified", "verified_nominal"])
+def test_every_status_the_planner_writes_for_a_verified_plan_reads(tmp_path: Path,
+                                                                   status: str) -> None:
+    """plan() writes ``verified_nominal`` for a fallback plan that does not hold the requested
+    uncertainty (planning/api.py); the strict reader refused it before (test_plan_property)."""
+    folder = _folder(tmp_path / "p")
+    rec = json.loads((folder / "plan.json").read_text())
+    (folder / "plan.json").write_text(json.dumps({**rec, "status": status}))
+    assert read_plan_folder(folder).status == status

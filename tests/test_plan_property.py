@@ -25,7 +25,8 @@ from hypothesis import strategies as st
 
 import rfsw_plan.planning.api as api
 from rfsw_plan.cli.main import main
-from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, read_waypoints_csv
+from rfsw_plan.planfiles.folder import PlanFolder
+from rfsw_plan.planfiles.waypoints import Q_RESOLUTION
 from rfsw_plan.planning.robustness import DOMINANCE_TOL
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.process.problem import resolve_problem_path
@@ -119,7 +120,7 @@ def _check_one(tmp: Path, tally: Tally, monkeypatch: pytest.MonkeyPatch, capsys:
         return
     tally.written += 1
     res = seen[-1]
-    written = read_waypoints_csv(out / "waypoints.csv")
+    written = PlanFolder.open(out).samples
     sv = verify_samples(res.model, res.task, res.window, written, res.options.margin, res.q,
                         Q_RESOLUTION)
     c = np.isin(written.phase, CONTACT_PHASES)

@@ -7,9 +7,12 @@ import pytest
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.realtime.base import ControllerInputs, NoCompensation
+from rfsw_plan.realtime.capped_pid import FilteredCappedPID
+from rfsw_plan.realtime.force_feedback import (
+    ExponentialAverageCompensation,
+    ForceFeedbackFilteredCorrection,
+)
 from rfsw_plan.realtime.hybrid import HybridResidual
-from rfsw_plan.realtime.seed000 import ExponentialAverageCompensation, RealtimeSeed000
-from rfsw_plan.realtime.seed002 import RealtimeSeed002
 from rfsw_plan.realtime.simulator import WeldRun
 
 DT = 0.004
@@ -52,14 +55,15 @@ def loop(strategy: ExponentialAverageCompensation, inputs: ControllerInputs) -> 
 @pytest.mark.parametrize("percent", [0.0, 50.0, 90.0])
 def test_seed000_vectorised_run_equals_step_loop(update: float | None, percent: float) -> None:
     inp = make_inputs(noise=2e-4)
-    st = RealtimeSeed000(percent, update)
-    np.testing.assert_allclose(st.run(inp), loop(RealtimeSeed000(percent, update), inp),
+    st = ForceFeedbackFilteredCorrection(percent, update)
+    np.testing.assert_allclose(st.run(inp),
+                               loop(ForceFeedbackFilteredCorrection(percent, update), inp),
                                atol=1e-15)
 
 
 def test_seed000_is_lateral_only_and_converges_to_minus_model_lateral() -> None:
     inp = make_inputs()
-    corr = RealtimeSeed000(50.0, None).run(inp)
+    corr = ForceFeedbackFilteredCorrection(50.0, None).run(inp)
     assert np.all(corr[:, [0, 2]] == 0.0)  # travel and normal untouched
     assert np.all(corr[:100] == 0.0)  # inactive before the weld
     np.testing.assert_allclose(corr[-1], [0.0, -5e-3, 0.0], atol=1e-12)
@@ -68,15 +72,15 @@ def test_seed000_is_lateral_only_and_converges_to_minus_model_lateral() -> None:
 def test_seed000_average_halves_the_gap_per_update() -> None:
     """50 %: after j updates the remaining gap is 0.5^j of the step (exponential average)."""
     inp = make_inputs()
-    corr = RealtimeSeed000(50.0, None).run(inp)[:, 1]
+    corr = ForceFeedbackFilteredCorrection(50.0, None).run(inp)[:, 1]
     gap = corr[100:110] + 5e-3
     np.testing.assert_allclose(gap, 5e-3 * 0.5 ** np.arange(1, 11), rtol=1e-12)
 
 
 def test_seed000_slower_update_settles_later() -> None:
     inp = make_inputs()
-    fast = RealtimeSeed000(50.0, None).run(inp)[:, 1]
-    slow = RealtimeSeed000(50.0, 0.25).run(inp)[:, 1]
+    fast = ForceFeedbackFilteredCorrection(50.0, None).run(inp)[:, 1]
+    slow = ForceFeedbackFilteredCorrection(50.0, 0.25).run(inp)[:, 1]
     k_fast = np.argmax(np.abs(fast + 5e-3) < 0.1e-3)
     k_slow = np.argmax(np.abs(slow + 5e-3) < 0.1e-3)
     assert k_slow > k_fast + 100  # > 0.4 s later
@@ -87,8 +91,8 @@ def test_seed000_slower_update_settles_later() -> None:
 
 def test_seed000_averaging_reduces_noise() -> None:
     inp = make_inputs(noise=0.3e-3)
-    raw = RealtimeSeed000(0.0, None).run(inp)[800:, 1]
-    avg = RealtimeSeed000(50.0, None).run(inp)[800:, 1]
+    raw = ForceFeedbackFilteredCorrection(0.0, None).run(inp)[800:, 1]
+    avg = ForceFeedbackFilteredCorrection(50.0, None).run(inp)[800:, 1]
     # Exponential average with a = 0.5 divides the white-noise variance by (1+a)/(1-a) = 3.
     ratio = np.var(avg) / np.var(raw)
     assert 0.25 < ratio < 0.42
@@ -97,17 +101,17 @@ def test_seed000_averaging_reduces_noise() -> None:
 @pytest.mark.parametrize("percent", [-1.0, 100.0, 150.0])
 def test_seed000_rejects_bad_percentage(percent: float) -> None:
     with pytest.raises(InputError, match="average_percent"):
-        RealtimeSeed000(percent)
+        ForceFeedbackFilteredCorrection(percent)
 
 
 def test_seed000_rejects_bad_update_period() -> None:
     with pytest.raises(InputError, match="update_period_s"):
-        RealtimeSeed000(50.0, 0.0)
+        ForceFeedbackFilteredCorrection(50.0, 0.0)
 
 
 def test_seed002_converges_in_every_direction_without_overshoot() -> None:
     inp = make_inputs(K=2000)
-    xa = RealtimeSeed002().run(inp)
+    xa = FilteredCappedPID().run(inp)
     np.testing.assert_allclose(xa[-1], [-1e-3, -5e-3, 2e-3], atol=2e-6)
     # Direction y moves monotonically toward -5 mm (no overshoot beyond 2 %).
     assert np.min(xa[:, 1]) > -5e-3 * 1.02
@@ -116,7 +120,7 @@ def test_seed002_converges_in_every_direction_without_overshoot() -> None:
 
 def test_seed002_increment_is_capped() -> None:
     inp = make_inputs(K=600, step=(0.0, 50e-3, 0.0))
-    st = RealtimeSeed002(max_rate=10e-3)
+    st = FilteredCappedPID(max_rate=10e-3)
     xa = st.run(inp)[:, 1]
     assert np.max(np.abs(np.diff(xa))) <= 10e-3 * DT * (1 + 1e-9)
     # A big error saturates the rate: the cap is actually reached.
@@ -126,8 +130,8 @@ def test_seed002_increment_is_capped() -> None:
 def test_seed002_moving_average_delays_the_response() -> None:
     """A longer MAF reacts later to the same step (320 vs 32 samples)."""
     inp = make_inputs(K=800, k_on=10, step=(0.0, 5e-3, 0.0))
-    long = RealtimeSeed002(maf_samples=320).run(inp)[:, 1]
-    short = RealtimeSeed002(maf_samples=32).run(inp)[:, 1]
+    long = FilteredCappedPID(maf_samples=320).run(inp)[:, 1]
+    short = FilteredCappedPID(maf_samples=32).run(inp)[:, 1]
     k_long = np.argmax(long < -2.5e-3)
     k_short = np.argmax(short < -2.5e-3)
     assert k_long > k_short
@@ -136,14 +140,14 @@ def test_seed002_moving_average_delays_the_response() -> None:
 def test_seed002_filter_longer_than_weld_is_rejected() -> None:
     inp = make_inputs(K=120, k_on=100)  # 20 active cycles = 80 ms < 160 ms
     with pytest.raises(InputError, match="longer than the weld"):
-        RealtimeSeed002().run(inp)
+        FilteredCappedPID().run(inp)
 
 
 @pytest.mark.parametrize("kw", [{"algorithm_step_s": 0.0}, {"maf_samples": 0},
                                 {"max_rate": -1.0}, {"derivative_filter": 0.0}])
 def test_seed002_rejects_bad_parameters(kw: dict[str, float]) -> None:
     with pytest.raises(InputError):
-        RealtimeSeed002(**kw)  # type: ignore[arg-type]
+        FilteredCappedPID(**kw)  # type: ignore[arg-type]
 
 
 def test_hybrid_corrects_only_the_residual() -> None:

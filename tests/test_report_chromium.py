@@ -21,11 +21,11 @@ from _browser import CHROMIUM, FLAGS, SKIP_REASON
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.measurements import write_measurements
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign import run_campaign
-from rfsw_plan.validation.weld import read_plan_dir
 
 pytestmark = [
     pytest.mark.slow,
@@ -124,7 +124,8 @@ def test_weld_report_in_chromium(tmp_path: Path) -> None:
     c[0] /= 0.8  # the real joint 1 is 20 % softer than the model
     truth.joint_compliance.params = c
     assert main(["-q", "plan", "zk500_table6_seam", "-o", str(tmp_path / "plan")]) == 0
-    weld = simulate_trial_weld(pb, read_plan_dir(tmp_path / "plan").waypoints, model, truth)
+    wp = PlanFolder.open(tmp_path / "plan").rebuild().waypoints
+    weld = simulate_trial_weld(pb, wp, model, truth)
     forces, track = weld.write(tmp_path / "weld")
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),

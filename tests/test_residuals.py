@@ -10,7 +10,6 @@ import pytest
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.measurements import MeasurementSet
-from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.residuals import (
     NoiseFloor,
     analyze_residuals,
@@ -21,11 +20,6 @@ from rfsw_plan.validation.residuals import (
     residual_features,
     scalar_basis,
 )
-
-
-@pytest.fixture(scope="module")
-def model() -> ElastostaticModel:
-    return ElastostaticModel(load_robot("zk500"))
 
 
 def _data(model: ElastostaticModel, poses: int = 30, loads: int = 3, repeats: int = 2,

@@ -8,30 +8,22 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_nlp import F_SEAM, Q_SEED, zk500_frames
 
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning import nlp as nlp_module
 from rfsw_plan.planning import rows, verify
-from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.layout import variable_layout
 from rfsw_plan.planning.nlp import build_plan_nlp, solve_plan_nlp
 from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.rows import LINK_ROWS, POINT_ROWS, LinkRows, PointRows
 from rfsw_plan.planning.verify import ROW_CHECKS, verify_plan
-from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.robot.kinematics import load_robot
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "dev" / "nlp-rows.md"
 
 
 @pytest.fixture(scope="module")
-def setup():
-    model = ElastostaticModel(load_robot("zk500"))
-    task = task_constant_force(zk500_frames(7), F_SEAM, 3e-3)
-    taught = no_compensation(model.robot, task, Q_SEED)
-    mirror = mirror_compensation(model, task, taught.q)
+def setup(zk500_case):
+    model, task, _, mirror = zk500_case(7)
     return model, task, mirror, np.diff(mirror.offsets, axis=0)
 
 

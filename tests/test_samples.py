@@ -11,7 +11,8 @@ import pytest
 from rfsw_plan import write_plan
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.planfiles.waypoints import Q_RESOLUTION, check_plan_folder, read_waypoints_csv
+from rfsw_plan.planfiles.folder import PlanFolder
+from rfsw_plan.planfiles.waypoints import Q_RESOLUTION
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.timing.trajectory import monotone_interp
 
@@ -38,11 +39,11 @@ def planned(tmp_path_factory, planned_result):
 def test_every_written_in_material_sample_is_inside_the_window(planned, planned_result,
                                                                name) -> None:
     d = planned[name]
-    rec = check_plan_folder(d)  # the commit record vouches for the files beside it
+    rec = PlanFolder.open(d).record  # the commit record vouches for the files beside it
     assert set(rec["sha256"]) == {"waypoints.csv", "lateral_error.png",
                                   "lateral_error_time.png", "tradeoff.png"}
     res = planned_result(name)
-    written = read_waypoints_csv(d / "waypoints.csv")
+    written = PlanFolder.open(d).samples
     assert len(written.t) == len(res.trajectory)
     sv = verify_samples(res.model, res.task, res.window, written, res.options.margin, res.q,
                         Q_RESOLUTION)

@@ -15,8 +15,8 @@ from rfsw_plan.process.problem import Problem, load_problem
 from rfsw_plan.process.taught import taught_path
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.realtime.base import NoCompensation, Strategy
+from rfsw_plan.realtime.force_feedback import ForceFeedbackFilteredCorrection
 from rfsw_plan.realtime.metrics import weld_metrics
-from rfsw_plan.realtime.seed000 import RealtimeSeed000
 from rfsw_plan.realtime.simulator import (
     NominalPath,
     ProcessVariation,
@@ -204,7 +204,7 @@ def test_realtime_seed000_removes_most_of_the_deviation() -> None:
     vw = VirtualWeld(schedule, model, None, SimConfig())
     path = vw.path_from_waypoints(frames.s - frames.s[0], Q)
     none = weld_metrics(vw.run(NoCompensation(), path), WeldWindow())
-    rt = weld_metrics(vw.run(RealtimeSeed000(), path), WeldWindow())
+    rt = weld_metrics(vw.run(ForceFeedbackFilteredCorrection(), path), WeldWindow())
     assert none.inside_window_fraction == 0.0
     assert rt.inside_window_fraction > 0.9
     assert rt.rms_lateral < 0.2 * none.rms_lateral

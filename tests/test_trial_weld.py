@@ -11,10 +11,11 @@ from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.force_series import read_force_series
 from rfsw_plan.io.weld_track import read_weld_track
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir, validate_weld
+from rfsw_plan.validation.weld import validate_weld
 
 
 def test_truth_equal_to_model_is_adequate(tmp_path: Path) -> None:
@@ -22,7 +23,7 @@ def test_truth_equal_to_model_is_adequate(tmp_path: Path) -> None:
     assert main(["-q", "plan", name, "-o", str(tmp_path / "plan")]) == 0
     pb = load_problem(name)
     model = ElastostaticModel(load_robot(pb.robot))
-    rec = read_plan_dir(tmp_path / "plan")
+    rec = PlanFolder.open(tmp_path / "plan").rebuild()
     tw = simulate_trial_weld(pb, rec.waypoints, model, None, seed=3)
     # The track: 0.05 mm white noise on the true offset, ~3 % gaps, every 0.5 mm.
     assert tw.track.e_lat is not None and tw.track.s is not None

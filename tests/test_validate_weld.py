@@ -16,10 +16,11 @@ import pytest
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.weld_track import WeldTrack, read_weld_track, write_weld_track
+from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir, track_on_seam, validate_weld
+from rfsw_plan.validation.weld import track_on_seam, validate_weld
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 import trial_weld_loop
@@ -45,7 +46,7 @@ def first_weld(folder: str) -> tuple[Path, Path, Path]:
     c[0] /= 0.8
     truth.joint_compliance.params = c
     assert main(["-q", "plan", PROBLEM, "-o", str(root / "plan")]) == 0
-    tw = simulate_trial_weld(pb, read_plan_dir(root / "plan").waypoints, model, truth)
+    tw = simulate_trial_weld(pb, PlanFolder.open(root / "plan").rebuild().waypoints, model, truth)
     forces, track = tw.write(root / "weld")
     return root / "plan", forces, track
 
@@ -121,7 +122,7 @@ def test_cli_outputs_report_pngs_and_strict_json(
 def test_base_frame_track_is_projected_onto_the_seam(weld: tuple[Path, Path, Path]) -> None:
     """The same weld as x, y, z points in the base frame gives the same lateral offsets."""
     plan, _, track_path = weld
-    rec = read_plan_dir(plan)
+    rec = PlanFolder.open(plan).rebuild()
     tr = read_weld_track(track_path)
     assert tr.s is not None and tr.e_lat is not None
     fr = rec.problem.frames()
@@ -171,7 +172,7 @@ def test_bad_input_is_one_line_and_exit_2(
                   lambda h, r: [r[0], *(num(v, 1000.0) for v in r[1:])])
     assert "wrong units" in _one_line(capsys, [*base, "--track", str(um)])
     # A base-frame track in metres under _mm headers: points 1 mm from the base origin.
-    rec = read_plan_dir(plan)
+    rec = PlanFolder.open(plan).rebuild()
     p = rec.problem.frames().p
     metres = tmp_path / "m.csv"
     write_weld_track(metres, WeldTrack("base", None, None, None, p * 1e-3, "m"))
@@ -202,7 +203,7 @@ def test_bad_input_is_one_line_and_exit_2(
 
 def test_without_force_log_the_planned_forces_are_used(weld: tuple[Path, Path, Path]) -> None:
     plan, _, track = weld
-    res = validate_weld(read_plan_dir(plan), read_weld_track(track))
+    res = validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
     assert res.forces_source == "planned"
     assert any("planned forces" in n for n in res.notes)
     # The softer joint still dominates the residual.
@@ -290,7 +291,7 @@ def test_weld_report_plots_say_what_they_show(weld: tuple[Path, Path, Path], tmp
     from rfsw_plan.validation import weld_report
 
     plan, _, track = weld
-    res = validate_weld(read_plan_dir(plan), read_weld_track(track))
+    res = validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
     figs: dict[str, Any] = {}
     real = weld_report.write_figure
 

@@ -6,25 +6,16 @@ import dataclasses
 
 import numpy as np
 import pytest
-from test_nlp import F_SEAM, Q_SEED, zk500_frames
 
 from rfsw_plan.elastostatics.compliance import deflection
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
-from rfsw_plan.planning.baselines import mirror_compensation, no_compensation
 from rfsw_plan.planning.verify import ALONG_TOL, predict, verify_plan
-from rfsw_plan.process.task import task_constant_force
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.robot.kinematics import load_robot
 
 
 @pytest.fixture(scope="module")
-def setup():
-    model = ElastostaticModel(load_robot("zk500"))
-    task = task_constant_force(zk500_frames(5), F_SEAM, 3e-3)
-    base = no_compensation(model.robot, task, Q_SEED)
-    mir = mirror_compensation(model, task, base.q)
-    return model, task, base, mir
+def setup(zk500_case):
+    return tuple(zk500_case(5))
 
 
 def test_prediction_equals_joint_compliance_formula(setup):

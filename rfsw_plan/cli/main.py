@@ -278,7 +278,9 @@ def _main(argv: Sequence[str] | None = None) -> int:
         _load_effects(args)
         return int(commands[args.command].run(args) or 0)
     except RfswError as exc:
-        print(f"rfsw-plan {args.command}: error: {exc}", file=sys.stderr)
+        from rfsw_plan.cli.params import as_flag_error
+
+        print(f"rfsw-plan {args.command}: error: {as_flag_error(exc)}", file=sys.stderr)
         return exc.exit_code
     except BrokenPipeError:
         # Output piped into a reader that closed early (``| head``): no traceback; silence

@@ -19,8 +19,6 @@ import math
 import re
 from collections.abc import Callable
 
-from rfsw_plan.exceptions import InputError
-
 __all__ = [
     "MAX_FORCE_N",
     "MAX_MOMENT_NM",
@@ -143,30 +141,8 @@ def wrench(text: str) -> list[float]:
 
 def check_samples(option: str, step: float, duration: float, unit_scale: float = 1.0,
                   unit: str = "s", max_samples: int = MAX_SAMPLES) -> int:
-    """Refuse a time step that does not fit the process it samples (before allocating).
+    """:func:`rfsw_plan.process.frames.check_samples` for an option (imported when called, so
+    the parser stays free of NumPy)."""
+    from rfsw_plan.process.frames import check_samples as check
 
-    Args:
-        option: The option (``--dt``, ``--cycle-ms``), for the message.
-        step: The step [s].
-        duration: The duration it samples [s].
-        unit_scale: Factor from seconds to the option's unit (1e3 for ms), for the message.
-        unit: The option's unit.
-
-    Returns:
-        The number of samples, ``ceil(duration / step) + 1``.
-
-    Raises:
-        InputError: The step is longer than the duration, or gives more than
-            ``max_samples`` samples (one line naming the smallest step that fits).
-    """
-    if duration > 0 and step > duration:
-        raise InputError(option, "", f"{step * unit_scale:g} {unit} is longer than the "
-                         f"process it samples ({duration * unit_scale:g} {unit})",
-                         f"a step of at most {duration * unit_scale:g} {unit}")
-    n = math.ceil(duration / step) + 1 if duration > 0 else 1
-    if n > max_samples:
-        smallest = duration / (max_samples - 1)
-        raise InputError(option, "", f"{step * unit_scale:g} {unit} gives {n:.3g} samples over "
-                         f"{duration:g} s (at most {max_samples:g})",
-                         f"a step of at least {smallest * unit_scale:.3g} {unit}")
-    return n
+    return check(option, step, duration, unit_scale, unit, max_samples)

@@ -12,7 +12,6 @@ import argparse
 import sys
 from collections.abc import Callable
 from dataclasses import replace
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
@@ -73,27 +72,10 @@ def plan(problem: Problem, log: Any, options: Any, spacing: float | None,
 def plan_json(problem: Problem, args: argparse.Namespace, log: Any, check: Any
               ) -> dict[str, Any]:
     """Entries of ``plan.json``: where the problem and robot came from (for validate-weld),
-    and the ``force_log`` block."""
-    from rfsw_plan.planning.force_log import force_log_json
+    and the ``force_log`` block (:func:`rfsw_plan.planfiles.record.provenance_keys`)."""
+    from rfsw_plan.planfiles.record import provenance_keys
 
-    robot_path = getattr(problem.robot, "path", None)
-    out: dict[str, Any] = {
-        "problem_file": str(Path(problem.path).resolve()) if problem.path else None,
-        "robot_file": str(Path(robot_path).resolve()) if robot_path else None,
-    }
-    if log is not None:
-        out["force_log"] = force_log_json(log, check)
-        if log.usable and check is not None:
-            unc = log.uncertainty
-            # Beside tolerated_force_uncertainty: what the trial weld says the force does.
-            out["measured_force_uncertainty"] = {
-                "coverage_sigma": unc.coverage, "frame": "seam (t, l, n)",
-                "weld_bound_N": [float(x) for x in unc.bound.get("weld", [])],
-                "weld_relative": [float(x) for x in unc.weld_relative],
-                "equivalent_relative": check.u_equivalent,
-                "plan_holds": check.holds,
-            }
-    return out
+    return provenance_keys(problem, log, check)
 
 
 def print_text(log: Any, check: Any, result: Any, quiet: bool = False) -> None:

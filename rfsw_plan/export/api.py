@@ -12,8 +12,8 @@ leaves nothing in the output folder and raises :class:`~rfsw_plan.exceptions.Inf
 staging folder is in the temporary directory, which the system cleans).
 
 :func:`export_plan_folder` does the same from a written plan folder read by the strict reader
-(:func:`rfsw_plan.planfiles.folder.read_plan_folder`), and makes the programs part of what the
-folder's record vouches for.
+(:meth:`rfsw_plan.planfiles.folder.PlanFolder.open_with_robot`), and makes the programs part of
+what the folder's record vouches for.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import shutil
 import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -95,19 +95,12 @@ class ExportResult:
         }
 
 
-def plan_spacing(record: dict[str, Any]) -> float:
-    """The plan's waypoint spacing along the seam [m] (median step of the weld waypoints)."""
-    wp = record.get("waypoints") or {}
-    try:
-        s = np.asarray(wp.get("s_mm", []), dtype=float)
-    except (TypeError, ValueError):
-        raise InputError("plan.json", "waypoints.s_mm", "not numbers", "arc lengths") from None
-    steps = np.diff(s)
-    steps = steps[np.isfinite(steps) & (steps > 1e-9)]
-    if steps.size == 0:
-        raise InputError("plan.json", "waypoints.s_mm", "no weld waypoints",
-                         "a plan record with waypoints")
-    return float(np.median(steps)) * 1e-3
+def plan_spacing(record: Mapping[str, Any]) -> float:
+    """The plan's waypoint spacing along the seam [m] (median step of the weld waypoints,
+    :attr:`rfsw_plan.planfiles.record.PlanRecord.spacing`)."""
+    from rfsw_plan.planfiles.record import PlanRecord
+
+    return PlanRecord(dict(record)).spacing
 
 
 def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None, str]:
@@ -139,7 +132,7 @@ def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None
 
 
 def export_programs(
-    robot: Robot, samples: Samples, record: dict[str, Any], fmts: Sequence[str], out: Path, *,
+    robot: Robot, samples: Samples, record: Mapping[str, Any], fmts: Sequence[str], out: Path, *,
     plan_sha256: str, spacing: float | None = None, path_tol: float = 1e-5,
     check: SampleCheck | None = None, stream: Samples | None = None, cycle: float = 0.0,
     options: ProgramOptions | None = None, normal: np.ndarray | None = None,
@@ -171,7 +164,7 @@ def export_programs(
         name=f"rfsw_{problem}", plan_id=f"{problem}-{plan_sha256[:12]}",
         problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
         version=__version__,
-        tolerated_uncertainty=tolerated_from_record(record),
+        tolerated_uncertainty=tolerated_from_record(dict(record)),
         requested_uncertainty=_number(record.get("force_uncertainty_requested",
                                                  record.get("force_uncertainty", 0.0))),
         window_mm=_window(record), path_tol=path_tol, spacing=spacing)
@@ -270,21 +263,20 @@ def export_plan_folder(
         InfeasibleError: A plan that is not verified, or a program that does not reproduce it.
     """
     from rfsw_plan.files import write_json
-    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
+    from rfsw_plan.planfiles.folder import PlanFolder
 
     folder = Path(folder)
-    plan, robot = read_plan_folder_and_robot(folder)
+    plan, robot = PlanFolder.open_with_robot(folder)
     normal, why = plate_normal(plan.problem_file, plan.samples)
     target = folder if out is None else Path(out)
     inside = target.resolve() == folder.resolve()
-    record = dict(plan.record)
+    record = plan.record
     if inside:  # the plan alone stays vouched for while the programs are replaced
-        old = set(record.get("export", {}).get("files", [])) if isinstance(
-            record.get("export"), dict) else set()
-        record["sha256"] = {k: v for k, v in record["sha256"].items()
-                            if k not in {Path(f).name for f in old}}
-        record.pop("export", None)
-        write_json(folder / "plan.json", record)
+        exp = record.get("export")
+        old = set(exp.get("files", [])) if isinstance(exp, dict) else set()
+        record = record.without("export").with_keys(sha256={
+            k: v for k, v in record.sha256.items() if k not in {Path(f).name for f in old}})
+        plan.write_record(record)
     res = export_programs(robot, plan.samples, plan.record, fmts, target,
                           plan_sha256=plan.waypoints_sha256, spacing=spacing,
                           path_tol=path_tol, options=options, normal=normal)
@@ -292,10 +284,8 @@ def export_plan_folder(
         res = replace(res, notes=(*res.notes, f"plate normal not known: {why}"))
     summary = {"status": "exported", "plan": str(folder), **res.to_dict()}
     if inside:
-        record["export"] = summary
-        record["sha256"] = {**record["sha256"],
-                            **{f.name: sha256_file(f) for f in res.files}}
-        write_json(folder / "plan.json", record)
+        plan.write_record(record.with_keys(export=summary).with_keys(sha256={
+            **record.sha256, **{f.name: sha256_file(f) for f in res.files}}))
     else:
         summary["sha256"] = {f.name: sha256_file(f) for f in res.files}
         write_json(target / "export.json", summary)
@@ -314,7 +304,7 @@ def _robot_file(robot: Robot) -> tuple[str, str]:
     return Path(path).name, sha256_file(path)
 
 
-def _window(record: dict[str, Any]) -> tuple[float, float]:
+def _window(record: Mapping[str, Any]) -> tuple[float, float]:
     w = record.get("window_mm")
     if not isinstance(w, list) or len(w) != 2:
         return float("nan"), float("nan")

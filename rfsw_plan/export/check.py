@@ -176,7 +176,7 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
         InputError: An unreadable program or plan folder, or a plan whose model cannot be
             rebuilt (one line).
     """
-    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot, touched_programs
+    from rfsw_plan.planfiles.folder import PlanFolder, touched_programs
 
     path = Path(program)
     if not path.is_file():
@@ -186,7 +186,7 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
     try:
         read = fmt.read(path)
     except InputError:
-        read_plan_folder_and_robot(folder)  # an infeasible or damaged plan is named first
+        PlanFolder.open_with_robot(folder)  # an infeasible or damaged plan is named first
         raise
     own = _own_files(folder, read.files)
     with touched_programs(own):
@@ -194,11 +194,11 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
 
 
 def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) -> CheckResult:
-    from rfsw_plan.planfiles.folder import read_plan_folder_and_robot
+    from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.planning.verify import verify_samples
 
     fmt = format_for_file(path)
-    plan, robot = read_plan_folder_and_robot(folder, touched=tuple(own))
+    plan, robot = PlanFolder.open_with_robot(folder)  # own files: touched_programs
     edited = tuple(sorted(n for n, changed in own.items() if changed))
     plan_id = f"{plan.record.get('problem', '')}-{plan.waypoints_sha256[:12]}"
     stated = _stated_plan_id(path)
@@ -252,10 +252,10 @@ def _own_files(folder: Path, files: tuple[Path, ...]) -> dict[str, bool]:
     """The program's files that lie in the plan folder and are vouched for by its plan.json,
     each with whether its bytes changed since (the touch-up workflow edits them there)."""
     from rfsw_plan.files import sha256_file
-    from rfsw_plan.planfiles.folder import read_plan_record
+    from rfsw_plan.planfiles.record import PlanRecord
 
     try:
-        digests = read_plan_record(folder / "plan.json").get("sha256") or {}
+        digests = PlanRecord.read(folder / "plan.json").get("sha256") or {}
     except InputError:
         return {}
     out = {}
@@ -334,18 +334,9 @@ def _plan_model(plan: Any, robot: Robot) -> tuple[Any, Any, Any]:
     """The plan's elastostatic model, task and window, rebuilt from its robot and problem
     files (with the fitted forces of ``plan --forces``)."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.export.api import plan_spacing
-    from rfsw_plan.process.task import task_from_schedule
-    from rfsw_plan.validation.weld import read_plan_dir
 
-    pr = read_plan_dir(plan.folder)
-    pb = pr.problem
-    frames = pb.seam.frames(plan_spacing(plan.record))
-    sched = pb.process.schedule(frames, 0.05, approach=False)
-    n_start = plan.record.get("n_start_waypoints")
-    task = task_from_schedule(frames, sched, int(n_start) if isinstance(n_start, int) else 12,
-                              pb.seam_reference, pb.process.axial_control)
-    return ElastostaticModel(robot), task, pb.window
+    rebuilt = plan.rebuild()
+    return ElastostaticModel(robot), rebuilt.task(), rebuilt.problem.window
 
 
 @dataclass(frozen=True)

@@ -140,6 +140,7 @@ class FanucTpFormat(ControllerFormat):
     """FANUC TP in ASCII (``.ls``), R-30iB."""
 
     name = "fanuc_tp"
+    order = 20
     description = "FANUC TP ASCII (.ls, R-30iB)"
     suffix = ".ls"
     maker = "FANUC"

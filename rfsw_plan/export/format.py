@@ -39,10 +39,11 @@ if TYPE_CHECKING:
 
 FloatArray = NDArray[np.float64]
 
-#: name -> format class, in registration order (the built-ins first, see :func:`formats`).
+#: name -> format class, every class defined so far (:func:`formats` discovers the package's).
 FORMATS: dict[str, type[ControllerFormat]] = {}
-#: Modules of the built-in formats (imported by :func:`formats`).
-BUILTIN_MODULES = ("krl", "fanuc_tp", "rapid", "stream")
+#: The modules of this package that hold no format (every other module is imported by
+#: :func:`formats`, so a new format is a new module and nothing else).
+SUPPORT_MODULES = frozenset({"api", "check", "config", "format", "program", "readback"})
 
 
 @dataclass(frozen=True)
@@ -118,6 +119,8 @@ class ControllerFormat(abc.ABC):
             ``ABB``), or ``""`` for a vendor-neutral file: a robot description of another
             maker gets a warning line in the program header.
         limits: The controller's limits.
+        order: Where the format stands in :func:`formats` (lowest first, then by name): the
+            order of ``--format``'s default and of the written files.
     """
 
     name: ClassVar[str] = ""
@@ -125,6 +128,7 @@ class ControllerFormat(abc.ABC):
     suffix: ClassVar[str] = ""
     maker: ClassVar[str] = ""
     limits: ClassVar[FormatLimits] = FormatLimits()
+    order: ClassVar[int] = 100
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -179,10 +183,17 @@ class ControllerFormat(abc.ABC):
 
 
 def formats() -> dict[str, type[ControllerFormat]]:
-    """The registry, with the built-in formats imported."""
-    for mod in BUILTIN_MODULES:
-        importlib.import_module(f"rfsw_plan.export.{mod}")
-    return FORMATS
+    """The registry (name -> class, by :attr:`ControllerFormat.order` then name), with every
+    format module of this package imported: each module that is not one of
+    :data:`SUPPORT_MODULES` (found with :mod:`pkgutil`, not listed)."""
+    import pkgutil
+
+    import rfsw_plan.export as package
+
+    for mod in pkgutil.iter_modules(package.__path__):
+        if not mod.name.startswith("_") and mod.name not in SUPPORT_MODULES:
+            importlib.import_module(f"{package.__name__}.{mod.name}")
+    return dict(sorted(FORMATS.items(), key=lambda kv: (kv[1].order, kv[0])))
 
 
 def format_names() -> tuple[str, ...]:
@@ -190,7 +201,7 @@ def format_names() -> tuple[str, ...]:
     return tuple(formats())
 
 
-def get_format(name: str, option: str = "--format") -> ControllerFormat:
+def get_format(name: str, option: str = "format") -> ControllerFormat:
     """An instance of the format called ``name``.
 
     Raises:
@@ -202,7 +213,7 @@ def get_format(name: str, option: str = "--format") -> ControllerFormat:
     return reg[name]()
 
 
-def parse_formats(text: str, option: str = "--export") -> list[str]:
+def parse_formats(text: str, option: str = "formats") -> list[str]:
     """Comma-separated format list -> names (one-line error naming the bad one)."""
     names = [f.strip() for f in text.split(",") if f.strip()]
     reg = formats()

@@ -116,6 +116,7 @@ class KrlFormat(ControllerFormat):
     """KUKA KRL (KRC4, KSS 8): ``.src`` and ``.dat``."""
 
     name = "krl"
+    order = 10
     description = "KUKA KRL (.src/.dat, KRC4)"
     suffix = ".src"
     maker = "KUKA"

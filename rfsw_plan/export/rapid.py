@@ -110,6 +110,7 @@ class RapidFormat(ControllerFormat):
     """ABB RAPID module (``.mod``), IRC5."""
 
     name = "rapid"
+    order = 30
     description = "ABB RAPID module (.mod, IRC5)"
     suffix = ".mod"
     maker = "ABB"

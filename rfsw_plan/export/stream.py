@@ -83,6 +83,7 @@ class StreamFormat(ControllerFormat):
     """One row per controller cycle (CSV) for real-time interfaces: joint targets only."""
 
     name = "stream"
+    order = 40
     description = "stream CSV at the controller cycle (KUKA RSI, ABB EGM)"
     suffix = "_stream.csv"
 

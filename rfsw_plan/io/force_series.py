@@ -70,7 +70,7 @@ def read_force_series(path: str | Path, frame: str | None = None) -> ForceSeries
     """
     path = Path(path)
     if frame is not None and frame not in FORCE_FRAMES:
-        raise InputError("--forces-frame", "", f"unknown frame '{frame}'",
+        raise InputError("forces_frame", "", f"unknown frame '{frame}'",
                          " | ".join(FORCE_FRAMES))
     tab = read_table(path)
     hits = {q.key: tab.find(q) for q in (_TIME, *_FORCES, *_MOMENTS, _FRAME)}
@@ -141,7 +141,7 @@ def _frame(tab: Table, hit: tuple[str, float] | None, frame: str | None) -> str:
         frame = f_file
     if frame is None:
         raise InputError(tab.path, "header", "no frame column and no frame option",
-                         "a 'frame' column or --forces-frame base|seam|tool")
+                         "a 'frame' column or `forces_frame` base|seam|tool")
     return frame
 
 

@@ -418,18 +418,6 @@ def _extras(tab: Table, used: set[str]) -> dict[str, FloatArray]:
     return extra
 
 
-def rotvec_to_matrix(rv: FloatArray) -> FloatArray:
-    """Rotation vectors (m, 3) [rad] to rotation matrices (m, 3, 3) (Rodrigues)."""
-    rv = np.atleast_2d(np.asarray(rv, dtype=float))
-    th = np.linalg.norm(rv, axis=1)
-    k = np.divide(rv, th[:, None], out=np.zeros_like(rv), where=th[:, None] > 0)
-    K = np.zeros((rv.shape[0], 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K = K - K.transpose(0, 2, 1)
-    s, c = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
-    return np.eye(3)[None] + s * K + (1 - c) * (K @ K)
-
-
 def write_measurements(
     path: str | Path, data: MeasurementSet, prismatic: Sequence[bool] | None = None
 ) -> Path:

@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import tomli_w
 
 from rfsw_plan.files import atomic_path, write_json
 from rfsw_plan.numfmt import general
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap
+from rfsw_plan.tomlwriter import dumps_toml
 
 #: Columns of map.csv, in order (file units in the names).
 MAP_COLUMNS = (
@@ -147,7 +147,7 @@ def placed_problem_toml(problem: Any, placement: Placement, anchor: np.ndarray,
         pl["force_uncertainty"] = u if u <= 1.0 else f"{u * 100:.4g} %"
     data["planning"] = pl
     header = "".join(f"# {line}\n" for line in note.splitlines())
-    return header + tomli_w.dumps(data)
+    return header + dumps_toml(data)
 
 
 def write_placed_problem(path: str | Path, problem: Any, placement: Placement,

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects import PoseBatch
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.exceptions import InputError, UnreachableError
+from rfsw_plan.exceptions import UnreachableError
 from rfsw_plan.placement.geometry import (
     PlacedArrays,
     Placement,
@@ -105,15 +105,12 @@ def map_input(problem: Any, max_weld: int = 50, options: PlanOptions | None = No
               model: ElastostaticModel | None = None) -> MapInput:
     """The map's view of a problem: its task subsampled to ``max_weld`` weld waypoints."""
     from rfsw_plan.planning.api import options_from_problem
-    from rfsw_plan.process.task import task_from_schedule
+    from rfsw_plan.process.task import task_for
     from rfsw_plan.robot.kinematics import load_robot
 
     opts = options or options_from_problem(problem)
     model = model or ElastostaticModel(load_robot(problem.robot))
-    frames = problem.seam.frames(problem.spacing)
-    sched = problem.process.schedule(frames, 0.05, approach=False)
-    full = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference,
-                              problem.process.axial_control)
+    full = task_for(problem, max_start=opts.max_start_waypoints)
     task, idx = subsample_task(full, max_weld)
     spread = max(float(np.max(np.diff(idx[task.n_start:]))) if len(idx) > task.n_start + 1
                  else 1.0, 1.0)
@@ -644,9 +641,3 @@ def compliance_shares(model: ElastostaticModel, task: PlanTask, q: FloatArray,
     out = {f"q{j + 1}": float(joint[j] / s) for j in range(len(c))}
     out["other_effects"] = other / s
     return out
-
-
-def check_not_empty(m: PlacementMap, option: str) -> None:
-    """Raise if no placement of the map is reachable (the caller adds the reachable extent)."""
-    if not np.any(m.status != "unreachable"):
-        raise InputError(option, "", "the robot reaches the seam at no placement of this region")

@@ -111,7 +111,7 @@ def yaw_values(yaw_range_deg: tuple[float, float] | None, n: int) -> FloatArray:
         return np.deg2rad(np.sort((np.arange(n) * 360.0 / n + 180.0) % 360.0 - 180.0))
     a0, a1 = yaw_range_deg
     if a1 < a0:
-        raise InputError("--yaw-range", "", f"empty range {a0:g}..{a1:g} deg", "a0 <= a1")
+        raise InputError("yaw_range_deg", "", f"empty range {a0:g}..{a1:g} deg", "a0 <= a1")
     if a1 == a0 or n == 1:
         return np.deg2rad(np.array([0.5 * (a0 + a1)]))
     return np.deg2rad(np.linspace(a0, a1, n))
@@ -132,15 +132,15 @@ def build_grid(mi: MapInput, region: tuple[float, ...] | None,
     """
     nx, ny, nyaw, nz = shape
     if min(shape) < 1:
-        raise InputError("--grid", "", f"got {shape}", "at least 1 point per axis")
+        raise InputError("shape", "", f"got {shape}", "at least 1 point per axis")
     z_given = float(mi.anchor[2])
     if base_height is not None and region is not None and len(region) == 6:
-        raise InputError("--robot-base-height", "", "the region already gives heights z0,z1",
-                         "the height either in --region or as --robot-base-height")
+        raise InputError("base_height", "", "the region already gives heights z0,z1",
+                         "the height either in `region` or as `base_height`")
     if base_height is not None:
         h0, h1 = base_height
         if h1 < h0:
-            raise InputError("--robot-base-height", "", f"empty range {h0 * 1e3:g}.."
+            raise InputError("base_height", "", f"empty range {h0 * 1e3:g}.."
                              f"{h1 * 1e3:g} mm", "h0 <= h1")
         heights = z_given - np.linspace(h0, h1, nz if h1 > h0 else 1)
     elif region is not None and len(region) == 6:
@@ -155,7 +155,7 @@ def build_grid(mi: MapInput, region: tuple[float, ...] | None,
         except InputError as exc:
             if base_height is None:
                 raise
-            raise InputError("--robot-base-height", "",
+            raise InputError("base_height", "",
                              f"every placement is infeasible at robot base heights "
                              f"{base_height[0] * 1e3:g}..{base_height[1] * 1e3:g} mm "
                              f"({exc.problem})", "a height range where the seam is reachable "
@@ -163,7 +163,7 @@ def build_grid(mi: MapInput, region: tuple[float, ...] | None,
     else:
         box = tuple(region[:4])  # type: ignore[assignment]
         if box[1] < box[0] or box[3] < box[2]:
-            raise InputError("--region", "", "empty range", "x0 <= x1 and y0 <= y1")
+            raise InputError("region", "", "empty range", "x0 <= x1 and y0 <= y1")
     xs = np.linspace(box[0], box[1], nx if box[1] > box[0] else 1)
     ys = np.linspace(box[2], box[3], ny if box[3] > box[2] else 1)
     return PlacementGrid(xs, ys, yaws, np.sort(heights)), ext

@@ -63,7 +63,7 @@ def map_problem(problem: Any, request: MapRequest, options: Any = None) -> MapSe
     if not np.any(m.status != "unreachable") and request.region is not None:
         scan = radial_scan(mi, grid.yaw, grid.z)
         r = request.region
-        raise InputError("--region", "", f"the robot reaches the seam at no placement with its "
+        raise InputError("region", "", f"the robot reaches the seam at no placement with its "
                          f"anchor in x {r[0] * 1e3:g}..{r[1] * 1e3:g} mm, y {r[2] * 1e3:g}.."
                          f"{r[3] * 1e3:g} mm; {scan.text()}")
     if not np.any(m.feasible):
@@ -71,12 +71,12 @@ def map_problem(problem: Any, request: MapRequest, options: Any = None) -> MapSe
         why = ", ".join(f"{c} {s}" for s, c in zip(st, cnt, strict=True))
         if request.base_height is not None:
             h0, h1 = request.base_height
-            raise InputError("--robot-base-height", "",
+            raise InputError("base_height", "",
                              f"every placement is infeasible at robot base heights "
                              f"{h0 * 1e3:g}..{h1 * 1e3:g} mm ({why} of {len(m.status)})",
                              "a height range where the seam is reachable within the joint "
                              "limits")
-        where = "--region" if request.region is not None else "placement"
+        where = "region" if request.region is not None else "placement"
         raise InputError(where, "", f"every placement is infeasible ({why} of "
                          f"{len(m.status)})", "a region with a feasible placement")
     return MapSession(mi, m, ext)

@@ -1,13 +1,14 @@
-"""The one strict reader of a written plan folder: :func:`read_plan_folder` -> :class:`PlanFolder`.
+"""The one strict reader of a written plan folder: :meth:`PlanFolder.open` -> :class:`PlanFolder`
+(its record, its samples, and the plan rebuilt from them: :meth:`PlanFolder.rebuild`).
 
-Every command that takes a plan folder (``export``, ``check``, later ``validate-weld``) reads it
-here, so a damaged folder is refused the same way everywhere, with one line naming the file,
-key or row and what was expected:
+Every command that takes a plan folder (``export``, ``check``, ``validate-weld``) and the
+Python API read it here, so a damaged folder is refused the same way everywhere, with one line
+naming the file, key or row and what was expected:
 
 1. ``plan.json`` is decoded as UTF-8 (a UTF-16 or binary file is refused, not guessed) and
    parsed as strict JSON (``NaN``, ``Infinity`` and duplicate keys are refused); it must be an
    object.
-2. Its ``status`` must be a verified plan (``optimal``, ``optimal_nominal``, ``verified``): an
+2. Its ``status`` must be a verified plan (``optimal``, ``verified``, either ``_nominal``): an
    ``infeasible`` plan is refused with exit 3 naming its reason, any other status (``failed``,
    ``incomplete``, missing) with exit 2.
 3. Every file its ``sha256`` table vouches for must be there with those bytes, and
@@ -26,7 +27,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import math
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -38,22 +38,35 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.exceptions import InfeasibleError, InputError
+from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import sha256_file
+from rfsw_plan.planfiles.record import VERIFIED_STATUSES, PlanRecord
 
 if TYPE_CHECKING:
+    from rfsw_plan.planfiles.rebuild import RebuiltPlan
     from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
 
-#: Statuses of a verified plan (``plan.json`` ``status``).
-VERIFIED_STATUSES = ("optimal", "optimal_nominal", "verified")
 #: Phase names of ``waypoints.csv``, in order.
 PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
-#: Largest plan record read [bytes] (a plan of 100k samples writes about 20 MB).
-MAX_RECORD_BYTES = 200_000_000
 #: Joint values may sit this far outside the limits (the CSV's 1e-6 deg rounding) [rad].
 LIMIT_SLACK = 1e-7
+#: Program files that a read of a plan folder accepts with other bytes than plan.json vouches
+#: for (:func:`touched_programs`).
+_TOUCHED: ContextVar[frozenset[str]] = ContextVar("rfsw_plan_touched", default=frozenset())
+
+
+@contextmanager
+def touched_programs(names: Iterable[str]) -> Iterator[None]:
+    """Within the block, every read of a plan folder accepts that the program files ``names``
+    differ from the bytes ``plan.json`` vouches for (a program touched up inside its plan
+    folder; ``rfsw-plan check`` re-verifies it). ``waypoints.csv`` is always checked."""
+    token = _TOUCHED.set(_TOUCHED.get() | frozenset(names))
+    try:
+        yield
+    finally:
+        _TOUCHED.reset(token)
 
 
 @dataclass(frozen=True)
@@ -87,171 +100,141 @@ class PlanSamples:
 
 @dataclass(frozen=True)
 class PlanFolder:
-    """A plan folder that passed :func:`read_plan_folder`.
+    """A plan folder that passed the strict reader (:meth:`PlanFolder.open`).
 
     Attributes:
         folder: The folder.
-        record: ``plan.json`` (strict JSON object).
-        status: Its status (one of :data:`VERIFIED_STATUSES`).
+        record: ``plan.json`` (:class:`~rfsw_plan.planfiles.record.PlanRecord`, a verified
+            plan's).
         samples: The re-verified samples of ``waypoints.csv``.
-        waypoints_sha256: Hex SHA-256 of ``waypoints.csv`` (the plan id's source).
-        robot_file: The robot description the plan names (``robot_file`` or ``robot``).
-        problem_file: The problem it names (``problem_file`` or ``problem``), or ``""``.
     """
 
     folder: Path
-    record: dict[str, Any]
-    status: str
+    record: PlanRecord
     samples: PlanSamples = field(repr=False)
-    waypoints_sha256: str
-    robot_file: str
-    problem_file: str
+
+    @classmethod
+    def open(cls, folder: str | Path, joint_columns: list[str] | None = None,
+             limits: tuple[FloatArray, FloatArray] | None = None) -> PlanFolder:
+        """Read and check a plan folder (see the module docstring).
+
+        Args:
+            folder: Output folder of ``rfsw-plan plan``.
+            joint_columns: The joint columns of ``waypoints.csv`` in joint order (the robot's
+                controller axes, ``A1_deg``...); default: every ``<letters><digit>_deg``
+                column.
+            limits: Joint limits (lower, upper) [rad], (n,) each: every sample must be inside.
+
+        Raises:
+            InputError: A damaged folder (exit 2): one line naming the file and what is wrong.
+            InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
+        """
+        folder = Path(folder)
+        if not folder.is_dir():
+            raise InputError(folder, "", "not a folder",
+                             "a plan folder written by rfsw-plan plan")
+        path = folder / "plan.json"
+        record = PlanRecord.read(path)
+        record.check_status(path)
+        digests = record.get("sha256")
+        if not isinstance(digests, dict) or "waypoints.csv" not in digests:
+            raise InputError(path, "sha256", "does not vouch for waypoints.csv",
+                             "the sha256 table rfsw-plan plan writes")
+        touched = _TOUCHED.get() - {"waypoints.csv"}
+        for name, digest in digests.items():
+            if str(name) not in touched:
+                _check_vouched(folder, str(name), digest)
+        samples = read_plan_samples(folder / "waypoints.csv", joint_columns, limits)
+        return cls(folder, record, samples)
+
+    @classmethod
+    def open_with_robot(cls, folder: str | Path) -> tuple[PlanFolder, Robot]:
+        """A plan folder read against the robot it was planned with: ``plan.json`` first (its
+        status before anything else), then the robot it names, then every sample of
+        ``waypoints.csv`` in that robot's joint columns and inside its joint limits.
+
+        Raises:
+            InputError: A damaged folder, no robot named, or an unknown robot (one line,
+                exit 2).
+            InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
+        """
+        from rfsw_plan.robot.kinematics import load_robot
+
+        path = Path(folder) / "plan.json"
+        record = PlanRecord.read(path)
+        record.check_status(path)  # an infeasible plan is named before its robot is looked for
+        name = record.get("robot_file") or record.get("robot")
+        if not isinstance(name, str) or not name.strip():
+            raise InputError(path, "robot_file", "missing: the plan names no robot",
+                             "the robot file or bundled name the plan was made with")
+        robot = load_robot(name)
+        d = robot.description
+        return cls.open(folder, d.convention.column_names(), (d.lower, d.upper)), robot
+
+    @property
+    def status(self) -> str:
+        """The plan's status (one of :data:`VERIFIED_STATUSES`)."""
+        return self.record.status
 
     @property
     def problem(self) -> str:
         """The problem's name."""
-        return str(self.record.get("problem", "plan"))
+        return self.record.problem
 
+    @property
+    def robot_file(self) -> str:
+        """The robot description the plan names (``robot_file`` or ``robot``)."""
+        return self.record.robot_file
 
-#: File names whose bytes may differ from plan.json's digests while ``touched_programs`` is
-#: active (every reader of the folder in that scope, e.g. the problem reader of ``check``).
-_TOUCHED: ContextVar[frozenset[str]] = ContextVar("rfsw_plan_touched", default=frozenset())
+    @property
+    def problem_file(self) -> str:
+        """The problem it names (``problem_file`` or ``problem``), or ``""``."""
+        return self.record.problem_file
 
+    @property
+    def waypoints_sha256(self) -> str:
+        """Hex SHA-256 of ``waypoints.csv`` (the plan id's source)."""
+        return self.record.sha256["waypoints.csv"]
 
-@contextmanager
-def touched_programs(names: Iterable[str]) -> Iterator[None]:
-    """Within the block, every read of a plan folder accepts that the program files ``names``
-    differ from the bytes ``plan.json`` vouches for (a program touched up inside its plan
-    folder; ``rfsw-plan check`` re-verifies it). ``waypoints.csv`` is always checked."""
-    token = _TOUCHED.set(_TOUCHED.get() | frozenset(names))
-    try:
-        yield
-    finally:
-        _TOUCHED.reset(token)
+    def rebuild(self, problem: str | None = None) -> RebuiltPlan:
+        """The plan rebuilt from its files: the problem it was planned for (``problem``:
+        another problem file or bundled name), with the fitted forces of ``plan --forces``,
+        on its robot file, its waypoints and its task
+        (:func:`rfsw_plan.planfiles.rebuild.rebuild_plan`).
+
+        Raises:
+            InputError: No waypoints in the record, no problem named, an unreadable problem or
+                robot file (one line, exit 2).
+        """
+        from rfsw_plan.planfiles.rebuild import rebuild_plan
+
+        return rebuild_plan(self.folder, self.record, problem)
+
+    def write_record(self, record: PlanRecord) -> Path:
+        """Replace ``plan.json`` by ``record`` (atomically), e.g. to vouch for added files."""
+        return record.write(self.folder / "plan.json")
 
 
 def read_plan_folder(folder: str | Path, joint_columns: list[str] | None = None,
-                     limits: tuple[FloatArray, FloatArray] | None = None,
-                     touched: tuple[str, ...] = ()) -> PlanFolder:
-    """Read and check a plan folder (see the module docstring).
-
-    Args:
-        folder: Output folder of ``rfsw-plan plan``.
-        joint_columns: The joint columns of ``waypoints.csv`` in joint order (the robot's
-            controller axes, ``A1_deg``...); default: every ``<letters><digit>_deg`` column.
-        limits: Joint limits (lower, upper) [rad], (n,) each: every sample must be inside.
-        touched: Program files whose bytes may differ from what ``plan.json`` vouches for
-            (a program touched up inside its plan folder: ``rfsw-plan check`` re-verifies it
-            and says it was edited); never ``waypoints.csv``.
-
-    Raises:
-        InputError: A damaged folder (exit 2): one line naming the file and what is wrong.
-        InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
-    """
-    folder = Path(folder)
-    if not folder.is_dir():
-        raise InputError(folder, "", "not a folder", "a plan folder written by rfsw-plan plan")
-    path = folder / "plan.json"
-    record = read_plan_record(path)
-    status = _check_status(path, record)
-    digests = record.get("sha256")
-    if not isinstance(digests, dict) or "waypoints.csv" not in digests:
-        raise InputError(path, "sha256", "does not vouch for waypoints.csv",
-                         "the sha256 table rfsw-plan plan writes")
-    for name, digest in digests.items():
-        if str(name) in (*touched, *_TOUCHED.get()) and str(name) != "waypoints.csv":
-            continue
-        _check_vouched(folder, str(name), digest)
-    samples = read_plan_samples(folder / "waypoints.csv", joint_columns, limits)
-    robot = record.get("robot_file") or record.get("robot") or ""
-    problem = record.get("problem_file") or record.get("problem") or ""
-    return PlanFolder(folder, record, status, samples, str(digests["waypoints.csv"]),
-                      str(robot), str(problem))
+                     limits: tuple[FloatArray, FloatArray] | None = None) -> PlanFolder:
+    """:meth:`PlanFolder.open`: read and check a plan folder (see the module docstring)."""
+    return PlanFolder.open(folder, joint_columns, limits)
 
 
-def read_plan_folder_and_robot(folder: str | Path,
-                               touched: tuple[str, ...] = ()) -> tuple[PlanFolder, Robot]:
-    """A plan folder read against the robot it was planned with: ``plan.json`` first (its
-    status before anything else), then the robot it names, then every sample of
-    ``waypoints.csv`` in that robot's joint columns and inside its joint limits.
-
-    Raises:
-        InputError: A damaged folder, no robot named, or an unknown robot (one line, exit 2).
-        InfeasibleError: The plan's status is ``infeasible`` (exit 3), with its reason.
-    """
-    from rfsw_plan.robot.kinematics import load_robot
-
-    path = Path(folder) / "plan.json"
-    record = read_plan_record(path)
-    _check_status(path, record)  # an infeasible plan is named before its robot is looked for
-    name = record.get("robot_file") or record.get("robot")
-    if not isinstance(name, str) or not name.strip():
-        raise InputError(path, "robot_file", "missing: the plan names no robot",
-                         "the robot file or bundled name the plan was made with")
-    robot = load_robot(name)
-    d = robot.description
-    return read_plan_folder(folder, d.convention.column_names(), (d.lower, d.upper),
-                            touched), robot
+def read_plan_folder_and_robot(folder: str | Path) -> tuple[PlanFolder, Robot]:
+    """:meth:`PlanFolder.open_with_robot`: a plan folder read against its robot."""
+    return PlanFolder.open_with_robot(folder)
 
 
-def read_plan_record(path: str | Path) -> dict[str, Any]:
-    """``plan.json`` as a strict-JSON object (UTF-8 only; NaN, Infinity, duplicate keys refused).
-
-    Raises:
-        InputError: Missing, not UTF-8, not strict JSON, or not an object.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(p, "", "missing", "a plan.json written by rfsw-plan plan")
-    data = p.read_bytes()
-    if len(data) > MAX_RECORD_BYTES:
-        raise InputError(p, "", f"{len(data)} bytes", f"at most {MAX_RECORD_BYTES} bytes")
-    if not data.strip():
-        raise InputError(p, "", "empty file", "a plan.json written by rfsw-plan plan")
+def sample_time(folder: str | Path) -> float | None:
+    """The sample time of a plan folder's ``waypoints.csv`` [s] (its first two rows), read
+    before the strict reader; None if it cannot tell (the strict reader names the damage)."""
     try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(p, f"byte {exc.start}", "not UTF-8 text",
-                         "plan.json as rfsw-plan writes it (UTF-8 JSON)") from None
-    try:
-        rec = json.loads(text, parse_constant=_reject_constant, object_pairs_hook=_no_duplicates)
-    except (ValueError, RecursionError) as exc:
-        where = (f"line {exc.lineno} column {exc.colno}"
-                 if isinstance(exc, json.JSONDecodeError) else "")
-        msg = exc.msg if isinstance(exc, json.JSONDecodeError) else str(exc)
-        raise InputError(p, where, f"not strict JSON ({msg})",
-                         "plan.json as rfsw-plan writes it") from None
-    if not isinstance(rec, dict):
-        raise InputError(p, "", f"a JSON {type(rec).__name__}, not an object",
-                         "plan.json as rfsw-plan writes it")
-    return rec
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a JSON number")
-
-
-def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for k, v in pairs:
-        if k in out:
-            raise ValueError(f"duplicate key '{k}'")
-        out[k] = v
-    return out
-
-
-def _check_status(path: Path, record: dict[str, Any]) -> str:
-    status = record.get("status")
-    if status in VERIFIED_STATUSES:
-        return str(status)
-    reason = str(record.get("message") or record.get("warning") or "no reason given")
-    reason = " ".join(reason.split())[:300]
-    if status == "infeasible":
-        raise InfeasibleError(f"{path}: status 'infeasible': {reason} (expected a verified "
-                              f"plan: {', '.join(VERIFIED_STATUSES)})", None, "status", None)
-    shown = "missing" if status is None else f"'{status}'"
-    raise InputError(path, "status", f"{shown}: {reason}",
-                     f"a verified plan ({', '.join(VERIFIED_STATUSES)})")
+        with (Path(folder) / "waypoints.csv").open(newline="", encoding="utf-8") as fh:
+            rows = [r for _, r in zip(range(3), csv.DictReader(fh), strict=False)]
+        return float(rows[1]["t_s"]) - float(rows[0]["t_s"])
+    except (OSError, UnicodeDecodeError, IndexError, KeyError, TypeError, ValueError):
+        return None
 
 
 def _check_vouched(folder: Path, name: str, digest: Any) -> None:
@@ -355,3 +338,7 @@ def _check_limits(p: Path, q: FloatArray, joints: list[str],
         raise InputError(p, f"row {k + 2}, column {joints[j]}",
                          f"{math.degrees(q[k, j]):.4f} deg outside the joint limits",
                          f"{math.degrees(lo[j]):g} .. {math.degrees(hi[j]):g} deg")
+
+
+__all__ = ["PHASES", "VERIFIED_STATUSES", "PlanFolder", "PlanSamples", "read_plan_folder",
+           "read_plan_folder_and_robot", "read_plan_samples", "sample_time"]

@@ -398,14 +398,15 @@ def rebuild_plan_page(folder: str | Path, output: str | Path | None = None) -> V
         InfeasibleError: The plan is infeasible (exit 3).
     """
     from rfsw_plan.files import OutputLock, sha256_file, write_json, write_text
-    from rfsw_plan.planfiles.folder import _check_status, _check_vouched, read_plan_record
+    from rfsw_plan.planfiles.folder import _check_vouched
+    from rfsw_plan.planfiles.record import PlanRecord
     from rfsw_plan.process.problem import load_problem
     from rfsw_plan.robot.kinematics import load_robot
 
     folder = Path(folder)
     record_path = folder / "plan.json"
-    record = read_plan_record(record_path)
-    _check_status(record_path, record)
+    record = PlanRecord.read(record_path).to_json()
+    PlanRecord.from_json(record, record_path).check_status(record_path)
     digests = record.get("sha256")
     if not isinstance(digests, dict) or "waypoints.csv" not in digests:
         raise InputError(record_path, "sha256", "does not vouch for waypoints.csv",

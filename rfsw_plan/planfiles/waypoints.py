@@ -38,8 +38,6 @@ from __future__ import annotations
 
 import csv
 import logging
-import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -48,8 +46,9 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.files import atomic_path, sha256_file, write_figure, write_json
+from rfsw_plan.files import atomic_path, write_figure
 from rfsw_plan.numfmt import canonical_quaternion, cell
+from rfsw_plan.planfiles.record import PlanRecord
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
 from rfsw_plan.process.seam import Seam
@@ -154,19 +153,11 @@ def _fmt(v: Any) -> str:
     return cell(v, 6)
 
 
-def write_plan_json(path: str | Path, summary: dict[str, Any],
+def write_plan_json(path: str | Path, summary: PlanRecord | dict[str, Any],
                     vouches_for: list[Path] | tuple[Path, ...] = ()) -> Path:
-    """Write ``plan.json`` atomically as strict JSON (NaN and inf become null).
-
-    ``plan.json`` is the commit record of a plan folder: it is written last, and
-    ``sha256`` maps the name of every file it vouches for (written before it) to the SHA-256
-    of its bytes, so a reader can tell that the files beside it are this plan's and whole
-    (:func:`check_plan_folder`).
-    """
-    record = dict(summary)
-    if vouches_for:
-        record["sha256"] = {Path(f).name: sha256_file(f) for f in vouches_for}
-    return write_json(path, record)
+    """Write ``plan.json`` atomically as strict JSON (NaN and inf become null), vouching for
+    the files ``vouches_for`` (:meth:`PlanRecord.write`)."""
+    return PlanRecord(dict(summary)).write(path, vouches_for)
 
 
 #: The files a plan folder holds (``plan.json``, the commit record, is written last).
@@ -275,8 +266,9 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
     The folder is checked and locked first; an earlier run's outputs are marked stale;
     ``plan.json`` (with the SHA-256 of every file beside it) commits the data file before the
     plots are drawn and is rewritten to vouch for them after (:func:`commit_plan`), so a reader
-    can tell a whole plan from a partial one (:func:`check_plan_folder`). A plot that fails is
-    logged as a warning and listed in ``plan.json`` (``plots.failed``); it is not raised.
+    can tell a whole plan from a partial one (:meth:`~rfsw_plan.planfiles.folder.PlanFolder.open`).
+    A plot that fails is logged as a warning and listed in ``plan.json`` (``plots.failed``);
+    it is not raised.
 
     Args:
         folder: Output folder (created if needed).
@@ -328,10 +320,7 @@ def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...
         if (folder / name).is_dir():
             raise OutputPathError("-o", folder / name, "is a folder where rfsw-plan writes "
                                   "its file; move it away or choose another output folder")
-    write_json(folder / "plan.json", {
-        "status": "incomplete", "problem": problem,
-        "message": "a plan was started into this folder and has not finished; the files "
-                   "beside this record are not a verified plan"})
+    PlanRecord.incomplete(problem).write(folder / "plan.json")
     for name in outputs:
         if name != "plan.json":
             (folder / name).unlink(missing_ok=True)
@@ -355,36 +344,6 @@ def _remove_uncommitted(folder: Path, problem: str, outputs: tuple[str, ...],
         mine = p.name in outputs or (p.name not in before and p.name.lower().startswith(stem))
         if mine and p.name != "plan.json" and p.is_file():
             p.unlink(missing_ok=True)
-
-
-def check_plan_folder(folder: str | Path) -> dict[str, Any]:
-    """Read a plan folder's ``plan.json`` and check the files it vouches for.
-
-    Returns the record. Raises :class:`InputError` if the record is missing, not a
-    successful plan, or a vouched file is missing or changed (one line).
-    """
-    import json
-
-    folder = Path(folder)
-    path = folder / "plan.json"
-    if not path.is_file():
-        raise InputError(path, "", "missing", "a plan.json written by rfsw-plan plan")
-    rec = json.loads(path.read_text(), parse_constant=_reject_constant)
-    if rec.get("status") in ("infeasible", "incomplete"):
-        raise InputError(path, "status", f"'{rec.get('status')}': {rec.get('message', '')}",
-                         "a verified plan")
-    for name, digest in (rec.get("sha256") or {}).items():
-        f = folder / name
-        if not f.is_file():
-            raise InputError(f, "", "missing beside plan.json", "the file plan.json vouches for")
-        if sha256_file(f) != digest:
-            raise InputError(f, "", "changed since plan.json was written",
-                             "the bytes plan.json vouches for (sha256)")
-    return dict(rec)
-
-
-def _reject_constant(c: str) -> float:
-    raise ValueError(f"non-strict JSON constant {c}")
 
 
 def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
@@ -527,53 +486,6 @@ def _lateral_title(result: PlanResult) -> str:
         line2 += (f"; holds up to +-{100 * tol:.3g} % force uncertainty (requested "
                   f"+-{u * 100:.3g} %{'' if result.robust_held else ': NOT held'})")
     return f"{result.problem_name}: {result.verdict().line}\n{line2}"
-
-
-@dataclass(frozen=True)
-class WrittenSamples:
-    """The samples of a written ``waypoints.csv``, read back (SI, base frame): what
-    :func:`rfsw_plan.planning.verify.verify_samples` checks.
-
-    Attributes:
-        t: Time [s], (N,).
-        phase: Phase, (N,).
-        s: Arc length [m], (N,).
-        q: Joint values [rad], (N, n).
-        wrench: Wrench on the tool [N, N m], (N, 6).
-    """
-
-    t: FloatArray
-    phase: NDArray[np.str_]
-    s: FloatArray
-    q: FloatArray
-    wrench: FloatArray
-
-
-def read_waypoints_csv(path: str | Path) -> WrittenSamples:
-    """Read the samples of a ``waypoints.csv`` back (to re-verify what was written)."""
-    p = Path(path)
-    with p.open(newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows:
-        raise InputError(p, "", "empty file", "a waypoints.csv written by rfsw-plan plan")
-    header, body = rows[0], rows[1:]
-    col = {h: i for i, h in enumerate(header)}
-    need = ["t_s", "s_mm", "phase", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
-    # Joint columns: the controller's names (q1_deg, A1_deg, J1_deg...), in joint order.
-    jc = [(re.fullmatch(r"([A-Za-z]+)(\d+)_deg", h), h) for h in header]
-    qcols = sorted((h for mt, h in jc if mt), key=lambda h: int(
-        re.fullmatch(r"[A-Za-z]+(\d+)_deg", h).group(1)))  # type: ignore[union-attr]
-    missing = [h for h in need if h not in col] + ([] if qcols else ["q1_deg"])
-    if missing:
-        raise InputError(p, "header", f"missing column {missing[0]}", "a waypoints.csv")
-
-    def num(name: str) -> FloatArray:
-        return np.array([float(r[col[name]]) for r in body])
-
-    return WrittenSamples(
-        num("t_s"), np.array([r[col["phase"]] for r in body]), num("s_mm") * 1e-3,
-        np.deg2rad(np.column_stack([num(h) for h in qcols])),
-        np.column_stack([num(h) for h in need[3:]]))
 
 
 #: Shading of the phases in :func:`plot_lateral_error_time`.

@@ -62,7 +62,7 @@ from rfsw_plan.planning.verify import (
     verify_samples,
 )
 from rfsw_plan.process.frames import tcp_orientation
-from rfsw_plan.process.task import FloatArray, PlanTask, task_from_schedule
+from rfsw_plan.process.task import FloatArray, PlanTask, task_for
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Stages
 from rfsw_plan.robot.kinematics import Robot, check_stiffness_scale, load_robot
@@ -317,11 +317,8 @@ def plan(
     model = model or ElastostaticModel(robot)
     robot = model.robot
     window: WeldWindow = problem.window
-    frames = problem.seam.frames(spacing or problem.spacing)
     process = problem.process
-    sched = process.schedule(frames, 0.05, approach=False)
-    task = task_from_schedule(frames, sched, opts.max_start_waypoints, problem.seam_reference,
-                              process.axial_control)
+    task = task_for(problem, spacing or problem.spacing, opts.max_start_waypoints)
     q_seed = np.asarray(opts.q_seed) if opts.q_seed is not None else problem.q_seed()
     return plan_task(model, task, window, q_seed, opts, problem.name, compile_c,
                      timing_limits(opts, process), t_all)

@@ -109,7 +109,7 @@ def check_axial(series: ForceSeries, problem: Problem, tool_rotation: float = 0.
                          f"no axial force: median f_n {med:.0f} N over the weld (the problem "
                          f"expects about {ref:.0f} N)",
                          "the axial force on the tool (+n, pushing the tool up) in fx/fy/fz_N; "
-                         "check the frame (--forces-frame) and the channel")
+                         "check the frame (`forces_frame`) and the channel")
 
 
 def load_force_log(

@@ -121,8 +121,6 @@ log = logging.getLogger(__name__)
 #: Names of the per-waypoint constraint rows, in order, as declared in
 #: :data:`~rfsw_plan.planning.rows.POINT_ROWS` (:func:`~rfsw_plan.planning.rows.point_labels`).
 POINT_CONSTRAINTS = point_labels()
-#: Names of the terms returned by the point function, in order.
-POINT_TERMS = TERMS.names
 #: Smoothing of |x| in the worst case [mm]: sqrt(x^2 + eps^2) over-estimates |x| by at most eps.
 ABS_EPS = 1e-2
 

@@ -5,7 +5,7 @@ give :class:`SeamFrames`), the :class:`ProcessModel` (its :meth:`ProcessModel.sc
 a :class:`LoadSchedule`) and the :class:`WeldWindow`. :func:`taught_path` turns the frames
 into joint values; :func:`predict_deviation` says how far the loaded robot misses the seam;
 :func:`task_from_schedule` joins frames and schedule into the :class:`PlanTask` the planner
-places the robot along.
+places the robot along; :func:`task_for` is that recipe for a problem, shared by every caller.
 """
 
 from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
@@ -22,7 +22,14 @@ from rfsw_plan.process.problem import (
     resolve_problem_path,
 )
 from rfsw_plan.process.seam import Seam, interpolate_frames
-from rfsw_plan.process.task import PlanTask, offsets3, task_constant_force, task_from_schedule
+from rfsw_plan.process.task import (
+    PlanTask,
+    offsets3,
+    schedule_for,
+    task_constant_force,
+    task_for,
+    task_from_schedule,
+)
 from rfsw_plan.process.taught import joints_at, taught_path, taught_poses
 from rfsw_plan.process.window import WeldWindow
 
@@ -53,7 +60,9 @@ __all__ = [
     "problem_deviation",
     "process_preset",
     "resolve_problem_path",
+    "schedule_for",
     "task_constant_force",
+    "task_for",
     "task_from_schedule",
     "taught_path",
     "taught_poses",

@@ -20,12 +20,18 @@ components are ``f_t`` (along t; the traverse force resisting travel is negative
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
+from rfsw_plan.exceptions import InputError
+
 FloatArray = NDArray[np.float64]
+
+#: Most time samples one schedule or simulation allocates (a 100 s weld at 0.1 ms).
+MAX_SAMPLES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -124,3 +130,34 @@ def tcp_orientation(frames: SeamFrames, rotation: FloatArray | float = 0.0) -> F
     x = c * x0 + s * y0
     y = np.cross(z, x)
     return np.stack([x, y, z], axis=-1)
+
+
+def check_samples(parameter: str, step: float, duration: float, unit_scale: float = 1.0,
+                  unit: str = "s", max_samples: int = MAX_SAMPLES) -> int:
+    """Refuse a time step that does not fit the process it samples (before allocating).
+
+    Args:
+        parameter: The parameter (``dt``, ``cycle``), for the message.
+        step: The step [s].
+        duration: The duration it samples [s].
+        unit_scale: Factor from seconds to the parameter's unit (1e3 for ms), for the message.
+        unit: The parameter's unit.
+
+    Returns:
+        The number of samples, ``ceil(duration / step) + 1``.
+
+    Raises:
+        InputError: The step is longer than the duration, or gives more than
+            ``max_samples`` samples (one line naming the smallest step that fits).
+    """
+    if duration > 0 and step > duration:
+        raise InputError(parameter, "", f"{step * unit_scale:g} {unit} is longer than the "
+                         f"process it samples ({duration * unit_scale:g} {unit})",
+                         f"a step of at most {duration * unit_scale:g} {unit}")
+    n = math.ceil(duration / step) + 1 if duration > 0 else 1
+    if n > max_samples:
+        smallest = duration / (max_samples - 1)
+        raise InputError(parameter, "", f"{step * unit_scale:g} {unit} gives {n:.3g} samples over "
+                         f"{duration:g} s (at most {max_samples:g})",
+                         f"a step of at least {smallest * unit_scale:.3g} {unit}")
+    return n

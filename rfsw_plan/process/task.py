@@ -14,6 +14,7 @@ array of lateral and normal offsets with a zero along-track column).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +24,15 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.seam import interpolate_frames
 
+if TYPE_CHECKING:
+    from rfsw_plan.process.problem import Problem
+
 FloatArray = NDArray[np.float64]
+
+#: Sample time of the load schedule a task is built from [s].
+SCHEDULE_DT = 0.05
+#: Default largest number of stationary (plunge, dwell) waypoints of a task.
+MAX_START_WAYPOINTS = 12
 
 
 @dataclass(frozen=True)
@@ -167,8 +176,36 @@ def task_constant_force(
                     reference)
 
 
+def schedule_for(problem: Problem, frames: SeamFrames | None = None) -> LoadSchedule:
+    """The load schedule of a problem's process along its seam frames (default: at the
+    problem's spacing), sampled every :data:`SCHEDULE_DT` without the approach: the schedule
+    every task and every rebuilt plan is made from."""
+    return problem.process.schedule(problem.frames() if frames is None else frames,
+                                    SCHEDULE_DT, approach=False)
+
+
+def task_for(problem: Problem, spacing: float | None = None,
+             max_start: int = MAX_START_WAYPOINTS) -> PlanTask:
+    """The planning task of a problem: seam frames at ``spacing`` [m] (default: the problem's),
+    its load schedule (:func:`schedule_for`), then :func:`task_from_schedule` with the
+    problem's seam reference.
+
+    The one recipe shared by the planner (:func:`rfsw_plan.planning.api.plan`), the placement
+    map, and the plan folder's rebuild (``check``, ``validate-weld``), so a written plan is
+    re-verified on the task it was planned on.
+
+    Args:
+        problem: The problem.
+        spacing: Weld waypoint spacing along the seam [m] (default: ``problem.spacing``).
+        max_start: Most stationary waypoints (the planner option ``max_start_waypoints``).
+    """
+    frames = problem.seam.frames(problem.spacing if spacing is None else spacing)
+    return task_from_schedule(frames, schedule_for(problem, frames), max_start,
+                              problem.seam_reference, problem.process.axial_control)
+
+
 def task_from_schedule(
-    frames: SeamFrames, schedule: LoadSchedule, max_start: int = 12,
+    frames: SeamFrames, schedule: LoadSchedule, max_start: int = MAX_START_WAYPOINTS,
     reference: SeamReference = "taught", axial_control: str = "position",
 ) -> PlanTask:
     """The task of a seam and its load schedule.

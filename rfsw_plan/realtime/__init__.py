@@ -2,12 +2,14 @@
 
 Data flow: a :class:`~rfsw_plan.process.frames.LoadSchedule` and a truth robot make a
 :class:`VirtualWeld`; a nominal path (taught or planned) and a :class:`Strategy` (``none``,
-seed 000, seed 002, hybrid) run on it and give a :class:`WeldRun`, which
-:func:`weld_metrics` scores against the weld window. :func:`compare` does all of it for a
-problem, with the sensitivity reruns.
+the force-feedback filtered correction of seed 000 :class:`ForceFeedbackFilteredCorrection`,
+the filtered PID with capped increments of seed 002 :class:`FilteredCappedPID`, hybrid) run on
+it and give a :class:`WeldRun`, which :func:`weld_metrics` scores against the weld window.
+:func:`compare` does all of it for a problem, with the sensitivity reruns.
 """
 
 from rfsw_plan.realtime.base import ControllerInputs, NoCompensation, Strategy
+from rfsw_plan.realtime.capped_pid import FilteredCappedPID
 from rfsw_plan.realtime.compare import (
     STRATEGIES,
     CompareOptions,
@@ -16,10 +18,9 @@ from rfsw_plan.realtime.compare import (
     Scenario,
     compare,
 )
+from rfsw_plan.realtime.force_feedback import ForceFeedbackFilteredCorrection
 from rfsw_plan.realtime.hybrid import HybridResidual
 from rfsw_plan.realtime.metrics import DirectionChange, WeldMetrics, weld_metrics
-from rfsw_plan.realtime.seed000 import RealtimeSeed000
-from rfsw_plan.realtime.seed002 import RealtimeSeed002
 from rfsw_plan.realtime.simulator import (
     NominalPath,
     ProcessVariation,
@@ -36,13 +37,13 @@ __all__ = [
     "CompareResult",
     "ControllerInputs",
     "DirectionChange",
+    "FilteredCappedPID",
+    "ForceFeedbackFilteredCorrection",
     "HybridResidual",
     "NoCompensation",
     "NominalPath",
     "PlannedWaypoints",
     "ProcessVariation",
-    "RealtimeSeed000",
-    "RealtimeSeed002",
     "Scenario",
     "SensorModel",
     "SimConfig",

@@ -31,17 +31,19 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, UnknownNameError
-from rfsw_plan.files import write_figure
+from rfsw_plan.files import write_figure, write_json, write_text
+from rfsw_plan.numfmt import fixed, general
+from rfsw_plan.planfiles.rebuild import PlannedWaypoints
 from rfsw_plan.process.frames import LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Problem
 from rfsw_plan.process.taught import taught_path
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Bar
 from rfsw_plan.realtime.base import FloatArray, NoCompensation, Strategy
+from rfsw_plan.realtime.capped_pid import FilteredCappedPID
+from rfsw_plan.realtime.force_feedback import ForceFeedbackFilteredCorrection
 from rfsw_plan.realtime.hybrid import HybridResidual
 from rfsw_plan.realtime.metrics import WeldMetrics, weld_metrics
-from rfsw_plan.realtime.seed000 import RealtimeSeed000
-from rfsw_plan.realtime.seed002 import RealtimeSeed002
 from rfsw_plan.realtime.simulator import (
     NominalPath,
     ProcessVariation,
@@ -59,25 +61,6 @@ STRATEGIES = ("none", "realtime_seed000", "realtime_seed002", "offline", "hybrid
 PLANNED = ("offline", "hybrid")
 
 EffectSpecs = tuple[tuple[str, Mapping[str, float] | None], ...]
-
-
-@dataclass(frozen=True)
-class PlannedWaypoints:
-    """The offline plan as the simulator needs it.
-
-    Attributes:
-        time: Time each waypoint is reached in the load schedule [s], shape (K,).
-        phase: Phase of each waypoint (plunge/dwell stationary ones, then weld), shape (K,).
-        s: Arc length from the seam start [m], shape (K,).
-        q: Planned joint values [rad], shape (K, n).
-        solve_time_s: Planner wall time [s].
-    """
-
-    time: FloatArray
-    phase: np.ndarray
-    s: FloatArray
-    q: FloatArray
-    solve_time_s: float = 0.0
 
 
 Planner = Callable[[Problem], PlannedWaypoints]
@@ -164,9 +147,10 @@ class CompareOptions:
         if name in ("none", "offline"):
             return NoCompensation()
         if name == "realtime_seed000":
-            return RealtimeSeed000(self.seed000_average_percent, self.seed000_update_s)
+            return ForceFeedbackFilteredCorrection(self.seed000_average_percent,
+                                                   self.seed000_update_s)
         if name == "realtime_seed002":
-            return RealtimeSeed002(self.seed002_step_s, self.seed002_maf_samples)
+            return FilteredCappedPID(self.seed002_step_s, self.seed002_maf_samples)
         if name == "hybrid":
             return HybridResidual(self.hybrid_average_percent)
         raise UnknownNameError("strategy", name, STRATEGIES)
@@ -291,6 +275,23 @@ class CompareResult:
     weld_duration_s: float
     n_cycles: int
     notes: tuple[str, ...] = ()
+
+    def write(self, folder: str | Path, plot: bool = True) -> list[Path]:
+        """Write the compare folder (each file atomically): ``compare.json``, ``compare.md``
+        and, with ``plot``, ``compare_lateral.png``. The folder must exist (the CLI prepares
+        and locks it).
+
+        Returns:
+            The written paths.
+        """
+        out = Path(folder)
+        write_json(out / "compare.json", self.to_dict())
+        write_text(out / "compare.md", format_markdown(self))
+        files = [out / "compare.json", out / "compare.md"]
+        if plot:
+            plot_lateral(self, out / "compare_lateral.png")
+            files.append(out / "compare_lateral.png")
+        return files
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary (mm, s)."""
@@ -606,14 +607,15 @@ def format_table(result: CompareResult) -> str:
 
 
 def format_markdown(result: CompareResult) -> str:
-    """Markdown report (compare.md)."""
+    """Markdown report (compare.md); numbers through :mod:`rfsw_plan.numfmt`."""
     out = [f"# Compensation comparison: {result.problem}", ""]
+    w, o = result.window, result.options
     out.append(
-        f"Weld window [{result.window.lower * 1e3:g}, {result.window.upper * 1e3:g}] mm; weld "
-        f"{result.weld_duration_s:.1f} s; controller cycle {result.options.cycle_s * 1e3:g} ms;"
-        f" sensor {result.options.sensor.rate_hz:g} Hz, delay "
-        f"{result.options.sensor.delay_s * 1e3:g} ms, noise {result.options.sensor.noise_force_N:g}"
-        f" N; force drift +-{result.options.variation.amplitude * 100:g} %."
+        f"Weld window [{general(w.lower * 1e3)}, {general(w.upper * 1e3)}] mm; weld "
+        f"{fixed(result.weld_duration_s, 1)} s; controller cycle {general(o.cycle_s * 1e3)} ms;"
+        f" sensor {general(o.sensor.rate_hz)} Hz, delay "
+        f"{general(o.sensor.delay_s * 1e3)} ms, noise {general(o.sensor.noise_force_N)}"
+        f" N; force drift +-{general(o.variation.amplitude * 100)} %."
     )
     for sc in (result.main, *result.sensitivity):
         out += ["", f"## {sc.name}: {sc.description}", "",
@@ -622,18 +624,18 @@ def format_markdown(result: CompareResult) -> str:
                 "|---|---:|---:|---:|---:|---:|"]
         for name, m in sc.metrics.items():
             out.append(
-                f"| {name} | {m.inside_window_fraction * 100:.1f} | "
-                f"{m.max_abs_lateral * 1e3:.2f} | {m.rms_lateral * 1e3:.2f} | "
+                f"| {name} | {fixed(m.inside_window_fraction * 100, 1)} | "
+                f"{fixed(m.max_abs_lateral * 1e3, 2)} | {fixed(m.rms_lateral * 1e3, 2)} | "
                 f"{m.settling_text()} | {_mae_text(sc, name)} |"
             )
     if result.consistency is not None:
         c = result.consistency
         out += ["", f"Simulator (`none`, no noise or drift) vs `deviation`: max abs lateral "
-                f"{c.simulator_max_abs_lateral * 1e3:.3f} mm vs "
-                f"{c.deviation_max_abs_lateral * 1e3:.3f} mm "
-                f"({c.relative_difference * 100:.2f} % apart)."]
-    out += ["", f"Plan time {result.plan_time_s:.2f} s; simulation time "
-            f"{result.sim_time_s:.3f} s for all scenarios."]
+                f"{fixed(c.simulator_max_abs_lateral * 1e3, 3)} mm vs "
+                f"{fixed(c.deviation_max_abs_lateral * 1e3, 3)} mm "
+                f"({fixed(c.relative_difference * 100, 2)} % apart)."]
+    out += ["", f"Plan time {fixed(result.plan_time_s, 2)} s; simulation time "
+            f"{fixed(result.sim_time_s, 3)} s for all scenarios."]
     out += [f"- {n}" for n in result.notes]
     return "\n".join(out) + "\n"
 
@@ -684,7 +686,7 @@ def parse_effect_arg(text: str) -> tuple[str, dict[str, float] | None]:
     name, _, rest = text.partition("=")
     name = name.strip()
     if not name:
-        raise InputError("--truth-effect", text, "no effect name", "NAME[=key=value,...]")
+        raise InputError("truth_effect", text, "no effect name", "NAME[=key=value,...]")
     if not rest.strip():
         return name, None
     params: dict[str, float] = {}
@@ -695,7 +697,7 @@ def parse_effect_arg(text: str) -> tuple[str, dict[str, float] | None]:
                 raise ValueError
             params[item[:cut].strip()] = float(item[cut + 1:])
         except ValueError:
-            raise InputError("--truth-effect", text, f"bad parameter '{item}'",
+            raise InputError("truth_effect", text, f"bad parameter '{item}'",
                              "NAME[=key=value,...] with numeric values (SI)") from None
     return name, params
 

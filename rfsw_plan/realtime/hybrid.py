@@ -16,7 +16,7 @@ plan already holds the pin in the window), so there is no settling transient.
 from __future__ import annotations
 
 from rfsw_plan.realtime.base import ControllerInputs, FloatArray
-from rfsw_plan.realtime.seed000 import ExponentialAverageCompensation, _lateral_target
+from rfsw_plan.realtime.force_feedback import ExponentialAverageCompensation, _lateral_target
 
 
 class HybridResidual(ExponentialAverageCompensation):

@@ -41,6 +41,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.bundled import bundled_names, resolve_bundled
 from rfsw_plan.robot.urdf import UrdfSerialChain, check_not_xacro, load_urdf_chain
 from rfsw_plan.tomlreader import Table, read_toml
+from rfsw_plan.tomlwriter import dumps_toml
 
 FloatArray = NDArray[np.float64]
 
@@ -176,10 +177,6 @@ class DeviceFrame:
     translation: FloatArray
     marker: FloatArray
     std: dict[str, float] = field(default_factory=dict)
-
-    def to_device(self, p_base: FloatArray) -> FloatArray:
-        """Base-frame points (m, 3) [m] in the device frame."""
-        return np.asarray(p_base, dtype=float) @ self.rotation.T + self.translation
 
     def to_base(self, p_device: FloatArray) -> FloatArray:
         """Device-frame points (m, 3) [m] in the base frame."""
@@ -539,7 +536,7 @@ def derived_description(desc: RobotDescription, *, name: str | None, parent: Pat
     if name is None:
         name = derived_name(desc.name, added)
     if not name.strip():
-        raise InputError("--name", "", "is empty", "a robot name")
+        raise InputError("name", "", "is empty", "a robot name")
     prov = {"created": datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC"),
             "command": command}
     if parent is not None:
@@ -934,7 +931,7 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
     from rfsw_plan.files import write_text
 
     d = robot_description_to_toml_dict(desc)
-    text = dumps_compact_toml(d)
+    text = dumps_toml(d)
     if tomllib.loads(text) != d:  # pragma: no cover - a bug in the emitter, never a user error
         raise RuntimeError("robot TOML emitter does not round-trip")
     p = Path(path)
@@ -945,74 +942,6 @@ def save_robot_description(desc: RobotDescription, path: str | Path) -> Path:
                          f"{exc.problem}", exc.expected) from None
     p.parent.mkdir(parents=True, exist_ok=True)
     return write_text(p, text)
-
-
-_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
-
-
-def _toml_key(k: str) -> str:
-    return k if _BARE_KEY.match(k) else _toml_str(k)
-
-
-def _toml_str(v: str) -> str:
-    out = []
-    for ch in v:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
-def _toml_scalar(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"non-finite number {v} in a robot file")
-        return repr(v)
-    if isinstance(v, str):
-        return _toml_str(v)
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_scalar(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_scalar(x)}" for k, x in v.items()) \
-            + " }" if v else "{}"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
-def _toml_lines(table: dict[str, Any]) -> list[str]:
-    lines = []
-    for k, v in table.items():
-        if isinstance(v, list) and v and all(isinstance(r, list) for r in v):
-            lines.append(f"{_toml_key(k)} = [")
-            lines += [f"    {_toml_scalar(r)}," for r in v]
-            lines.append("]")
-        else:
-            lines.append(f"{_toml_key(k)} = {_toml_scalar(v)}")
-    return lines
-
-
-def dumps_compact_toml(d: dict[str, Any]) -> str:
-    """TOML for a robot-file dict: scalars first, then ``[table]`` s and ``[[array]]`` s.
-
-    Nested dicts inside a table (effect ``params``, ``std``) become inline tables; a list of
-    lists (the coupling matrix) is one row per line.
-    """
-    top = {k: v for k, v in d.items() if not isinstance(v, dict)
-           and not (isinstance(v, list) and v and all(isinstance(x, dict) for x in v))}
-    lines = _toml_lines(top)
-    for k, v in d.items():
-        if isinstance(v, dict):
-            lines += ["", f"[{_toml_key(k)}]", *_toml_lines(v)]
-        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
-            for item in v:
-                lines += ["", f"[[{_toml_key(k)}]]", *_toml_lines(item)]
-    return "\n".join(lines) + "\n"
 
 
 def _r(arr: FloatArray) -> list[float]:

@@ -152,8 +152,8 @@ def run_validate_weld(
     """
     from rfsw_plan.io.force_series import read_force_series
     from rfsw_plan.io.weld_track import read_weld_track
+    from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.validation.plan_record import read_plan_dir
 
     if save_robot is not None and not add:
         raise InputError("--save-robot", str(save_robot), "given without --add",
@@ -161,7 +161,7 @@ def run_validate_weld(
                          "you add)")
     if forces_frame and not forces:
         raise InputError("--forces-frame", "", "given without --forces", "--forces LOG.csv")
-    record = read_plan_dir(plan_dir, problem)
+    record = PlanFolder.open(plan_dir).rebuild(problem)
     measured = read_weld_track(track)
     series = read_force_series(forces, forces_frame) if forces else None
     model = ElastostaticModel(load_robot(robot or record.problem.robot))

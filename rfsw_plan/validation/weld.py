@@ -4,8 +4,8 @@ After a trial weld a welding engineer holds the plan that was run, the force log
 spindle or wrist sensor, and a measurement of where the weld went (a laser line scan of the
 bead, or seed 000's lateral offset Delta y = D1 - D2, Figs. 15-17). :func:`validate_weld`:
 
-1. reads the plan that was run (:mod:`~rfsw_plan.validation.plan_record`) and puts the track on
-   the seam (:mod:`~rfsw_plan.validation.track`);
+1. reads the plan that was run (:meth:`~rfsw_plan.planfiles.folder.PlanFolder.rebuild`) and
+   puts the track on the seam (:mod:`~rfsw_plan.validation.track`);
 2. **predicts the executed pin path** under the logged (or planned) wrench
    (:mod:`~rfsw_plan.validation.weld_samples`);
 3. **compares** it with the track: residual r = measured - predicted against s and time, RMS,
@@ -29,10 +29,10 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.force_series import ForceSeries
 from rfsw_plan.io.weld_track import WeldTrack
+from rfsw_plan.planfiles.rebuild import RebuiltPlan
 from rfsw_plan.process.frames import FloatArray
 from rfsw_plan.validation.candidates import candidate_labels
 from rfsw_plan.validation.identifiability import Identifiability
-from rfsw_plan.validation.plan_record import PlanRecord, read_plan_dir
 from rfsw_plan.validation.scoring import Candidate
 from rfsw_plan.validation.track import TrackOnSeam, noise_floor, track_on_seam
 from rfsw_plan.validation.weld_add import WeldAddResult, add_and_identify
@@ -62,7 +62,7 @@ class WeldValidation:
         forces_source: The force log file, or ``planned``.
     """
 
-    plan: PlanRecord
+    plan: RebuiltPlan
     model: ElastostaticModel
     track: TrackOnSeam
     samples: WeldSamples
@@ -123,14 +123,15 @@ def _stats_mm(r: FloatArray) -> dict[str, float]:
 
 
 def validate_weld(
-    plan: PlanRecord, track: WeldTrack, series: ForceSeries | None = None,
+    plan: RebuiltPlan, track: WeldTrack, series: ForceSeries | None = None,
     model: ElastostaticModel | None = None, add: Sequence[str] = (),
     blocks: int = DEFAULT_BLOCKS, smooth_s: float = 0.25,
 ) -> WeldValidation:
     """Predict the executed weld, compare with the track, diagnose, optionally re-identify.
 
     Args:
-        plan: The plan that was run (:func:`read_plan_dir`).
+        plan: The plan that was run
+            (:meth:`rfsw_plan.planfiles.folder.PlanFolder.rebuild`).
         track: The measured weld.
         series: The force log of the weld (None: the planned forces).
         model: The current robot model (default: the plan's robot).
@@ -197,7 +198,7 @@ def next_command(result: WeldValidation, plan_dir: str, track: str, forces: str 
 
 
 #: The names of the weld validation, re-exported from the modules that define them.
-__all__ = ["Candidate", "Identifiability", "PlanRecord", "TrackOnSeam", "WeldAddResult",
+__all__ = ["Candidate", "Identifiability", "RebuiltPlan", "TrackOnSeam", "WeldAddResult",
            "WeldDiagnosis", "WeldSamples", "WeldValidation", "add_and_identify",
-           "candidate_labels", "diagnose_weld", "next_command", "noise_floor", "read_plan_dir",
-           "track_on_seam", "validate_weld", "weld_samples"]
+           "candidate_labels", "diagnose_weld", "next_command", "noise_floor", "track_on_seam",
+           "validate_weld", "weld_samples"]

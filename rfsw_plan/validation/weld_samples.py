@@ -22,11 +22,11 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.force_series import ForceSeries
+from rfsw_plan.planfiles.rebuild import PlannedWaypoints
 from rfsw_plan.process.force_fit import series_in_seam_frame
 from rfsw_plan.process.frames import FloatArray
 from rfsw_plan.process.problem import Problem
 from rfsw_plan.process.seam import interpolate_frames
-from rfsw_plan.realtime.compare import PlannedWaypoints
 
 
 @dataclass(frozen=True)

@@ -66,10 +66,8 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.realtime.compare import (
         CompareOptions,
         compare,
-        format_markdown,
         format_table,
         parse_effect_arg,
-        plot_lateral,
     )
     from rfsw_plan.realtime.simulator import ProcessVariation, SensorModel
 
@@ -96,29 +94,17 @@ def run(args: argparse.Namespace) -> int:
         seed000_update_s=args.seed000_update_ms * 1e-3 if args.seed000_update_ms > 0 else None,
         seed002_maf_samples=args.maf_samples,
     )
-    from rfsw_plan.files import (
-        OutputLock,
-        prepare_output_dir,
-        strict_json,
-        write_json,
-        write_text,
-    )
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
 
     problem = load_problem(args.problem)
     out = prepare_output_dir(args.output if args.output else Path("out") / NAME / problem.name)
     result = compare(problem, options)
-    data = result.to_dict()
-    files = ["compare.json", "compare.md"]
     with OutputLock(out):
-        write_json(out / "compare.json", data)
-        write_text(out / "compare.md", format_markdown(result))
-        if not args.no_plot:
-            plot_lateral(result, out / "compare_lateral.png")
-            files.append("compare_lateral.png")
-    data["files"] = [str(out / f) for f in files]
+        files = result.write(out, plot=not args.no_plot)
+    data = {**result.to_dict(), "files": [str(f) for f in files]}
     if args.json:
         print(strict_json(data, indent=None), end="")
         return 0
     print(format_table(result))
-    print(f"wrote {', '.join(files)} to {out}")
+    print(f"wrote {', '.join(f.name for f in files)} to {out}")
     return 0

@@ -1,4 +1,4 @@
-"""``rfsw-plan export PLAN_DIR --format krl,fanuc_tp,rapid,stream``: controller programs.
+"""``rfsw-plan export PLAN_DIR [--format krl,rapid]``: controller programs (default: every format).
 
 Also the ``--export`` option of ``rfsw-plan plan`` (:func:`add_export_arguments`,
 :func:`export_plan_result`). Programs are written, re-read, taken through the robot model and
@@ -25,12 +25,11 @@ HELP = "write KUKA KRL, FANUC TP, ABB RAPID programs and a stream file from a wr
 
 def add_export_arguments(parser: argparse.ArgumentParser, flag: str) -> None:
     """The export options shared by ``plan --export`` and ``export --format``."""
-    parser.add_argument(flag, default=None if flag == "--export" else "krl,fanuc_tp,rapid,stream",
-                        metavar="FORMATS",
+    parser.add_argument(flag, default=None, metavar="FORMATS",
                         help="comma-separated formats: krl (.src/.dat), fanuc_tp (.ls), rapid "
                              "(.mod), stream (CSV), or any registered format"
                              + ("" if flag == "--export" else
-                                " (default: all of krl,fanuc_tp,rapid,stream)"))
+                                " (default: every registered format)"))
     parser.add_argument("--export-spacing-mm", type=number(0.01, 1e4, "mm"), default=None,
                         help="program point spacing along the seam [mm] (default: the plan's)")
     parser.add_argument("--stream-cycle-ms",
@@ -183,13 +182,14 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.export.api import export_plan_folder
-    from rfsw_plan.export.format import parse_formats
+    from rfsw_plan.export.format import format_names, parse_formats
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
 
     folder = Path(args.plan_dir)
     if not folder.is_dir():
         raise InputError(folder, "", "not a folder", "a plan folder written by rfsw-plan plan")
-    formats = parse_formats(args.format, "--format")
+    formats = (parse_formats(args.format, "--format") if args.format is not None
+               else list(format_names()))
     spacing, cycle, tol = _checked(args)
     options = _options(args)
     out = prepare_output_dir(args.output if args.output else folder)
@@ -223,13 +223,10 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_cycle(folder: Path, cycle: float) -> None:
     """A stream from a written plan is its samples: the cycle must be their sample time."""
-    import csv
+    from rfsw_plan.planfiles.folder import sample_time
 
-    with (folder / "waypoints.csv").open(newline="", encoding="utf-8") as fh:
-        rows = [r for _, r in zip(range(3), csv.DictReader(fh), strict=False)]
-    try:
-        dt = float(rows[1]["t_s"]) - float(rows[0]["t_s"])
-    except (IndexError, KeyError, ValueError):
+    dt = sample_time(folder)
+    if dt is None:
         return  # the strict reader names the damage
     if abs(dt - cycle) > 1e-6:
         raise InputError("--stream-cycle-ms", "", f"{cycle * 1e3:g} ms is not the plan's "

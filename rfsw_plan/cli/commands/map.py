@@ -17,32 +17,23 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Parse, call the job (:class:`~rfsw_plan.placement.job.PlacementMapRequest`), write its
+    folder, print."""
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
-    from rfsw_plan.placement.files import map_summary, write_map_csv, write_map_json
-    from rfsw_plan.placement.plots import plot_map, plot_yaw
-    from rfsw_plan.placement.session import map_problem
-    from rfsw_plan.planning.api import options_from_problem
+    from rfsw_plan.placement.job import PlacementMapRequest
     from rfsw_plan.process.problem import load_problem
 
     problem = load_problem(args.problem)
-    request = request_from_args(args)
-    over = {} if args.force_uncertainty is None else {"force_uncertainty": args.force_uncertainty}
-    opts = options_from_problem(problem, over)
+    request = PlacementMapRequest(problem, request_from_args(args), args.force_uncertainty)
     out = prepare_output_dir(Path(args.output) if args.output else
                              Path("out") / NAME / problem.name)
     with OutputLock(out):
-        s = map_problem(problem, request, opts)
-        m = s.map
-        u = opts.force_uncertainty
-        extra = {"reach": None if s.extent is None else s.extent.text(),
-                 "files": [str(out / n) for n in ("map.csv", "map.json", "map.png",
-                                                  "map_yaw.png")]}
-        write_map_csv(out / "map.csv", m)
-        plot_map(out / "map.png", m, requested=opts.force_uncertainty)
-        plot_yaw(out / "map_yaw.png", m)
-        write_map_json(out / "map.json", m, u, extra)
-    summary = map_summary(m, u)
-    summary.update(extra)
+        job = request.run()
+        job.write(out)
+    s = job.session
+    m = s.map
+    u = job.options.force_uncertainty
+    summary = job.to_dict(out)
     if args.json:
         print(strict_json(summary).rstrip())
         return 0

@@ -120,43 +120,22 @@ def _options(args: argparse.Namespace, problem: Any) -> Any:
     return opts
 
 
-#: The unit of an :class:`InfeasibleError` margin by its constraint (file units, key suffix).
-_MARGIN_UNITS = {"weld_speed": (1e3, "mm_s"), "singularity": (1.0, "kappa")}
-
-
-def margin_entry(exc: InfeasibleError) -> dict[str, float | None]:
-    """The ``plan.json`` entry of an infeasible plan's margin, with its unit in the key:
-    ``margin_mm`` (window, pose), ``margin_deg`` (joint checks), ``margin_mm_s`` (weld speed:
-    the feasible speed minus the requested one), ``margin_kappa`` (singularity)."""
-    c = exc.constraint or ""
-    scale, unit = _MARGIN_UNITS.get(c, (180.0 / 3.141592653589793, "deg") if c.startswith(
-        "joint_") else (1e3, "mm"))
-    return {f"margin_{unit}": None if exc.margin is None else exc.margin * scale}
-
-
 def _plan_or_record(args: argparse.Namespace, problem: Any, flog: Any, opts: Any,
                     out: Path) -> tuple[Any, Any]:
     """Plan; on a refusal write the ``plan.json`` record (verdict NO), print the verdict
     first and re-raise (exit 2 or 3)."""
     from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.planfiles.waypoints import write_plan_json
+    from rfsw_plan.planfiles.record import PlanRecord
     from rfsw_plan.planning.api import plan
-    from rfsw_plan.planning.verdict import no_plan
 
     try:
         return force_log_cli.plan(problem, flog, opts, None if args.spacing_mm is None
                                   else args.spacing_mm * 1e-3, plan)
     except RfswError as exc:
-        record: dict[str, Any] = {"status": "failed", "problem": problem.name,
-                                  "message": str(exc)}
-        if isinstance(exc, InfeasibleError):
-            verdict = no_plan(str(exc), opts.force_uncertainty)
-            record = {**verdict.to_dict(), **record, "status": "infeasible",
-                      "waypoint": None if exc.waypoint is None else exc.waypoint + 1,
-                      "constraint": exc.constraint, **margin_entry(exc)}
-            if not args.json:
-                print(verdict.line)
-        write_plan_json(out / "plan.json", record)
+        record = PlanRecord.refused(problem.name, exc, opts.force_uncertainty)
+        if isinstance(exc, InfeasibleError) and not args.json:
+            print(record["verdict_text"])
+        record.write(out / "plan.json")
         raise
 
 

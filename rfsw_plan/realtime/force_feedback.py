@@ -1,4 +1,8 @@
-"""Real-time lateral compensation of seed 000 (Fig. 14): force -> elastostatic model -> average.
+"""Force-feedback filtered correction (seed 000 Fig. 14): force -> elastostatic model -> average.
+
+The control law: the measured process wrench, through the elastostatic model, gives the lateral
+deflection to cancel; an exponential average filters it (:class:`ForceFeedbackFilteredCorrection`,
+strategy ``realtime_seed000`` in ``rfsw-plan compare``).
 
 Seed 000 §3.2.6: the load cell in the FSW end effector measures the process wrench; the
 identified elastostatic model (eq. 11, dX = J C J^T F) turns it into the lateral tool deviation
@@ -47,9 +51,9 @@ def _lateral_target(dX: FloatArray, lateral: FloatArray) -> FloatArray:
 class ExponentialAverageCompensation(Strategy):
     """Lateral correction from the model deflection, smoothed by an exponential average.
 
-    Shared machinery of :class:`RealtimeSeed000` (the full model deflection) and the hybrid
-    residual correction (:mod:`rfsw_plan.realtime.hybrid`). Subclasses choose the deflection
-    to cancel in :meth:`target`.
+    Shared machinery of :class:`ForceFeedbackFilteredCorrection` (the full model deflection)
+    and the hybrid residual correction (:mod:`rfsw_plan.realtime.hybrid`). Subclasses choose
+    the deflection to cancel in :meth:`target`.
 
     Args:
         average_percent: Weight of the previous correction [%], 0 <= a < 100 (seed 000: 50).
@@ -114,8 +118,10 @@ class ExponentialAverageCompensation(Strategy):
         return out
 
 
-class RealtimeSeed000(ExponentialAverageCompensation):
-    """Seed 000 Fig. 14: measured force -> elastostatic model -> averaged lateral correction.
+class ForceFeedbackFilteredCorrection(ExponentialAverageCompensation):
+    """Force feedback through the model, filtered (seed 000 Fig. 14): measured force ->
+    elastostatic model -> exponentially averaged lateral correction. Strategy name
+    ``realtime_seed000`` (the paper it reproduces).
 
     corr_k = a corr_{k-1} + (1 - a) (-(dX_m,k . l_k) l_k) with dX_m,k = J C J^T F_m,k the
     model deflection under the measured wrench (seed 000 eq. 11) and a the averaging

@@ -1,4 +1,9 @@
-"""Stiffness compensation control of seed 002 §4.2 (Fig. 9): MAF + self-incrementing PID.
+"""Filtered PID with capped increments (seed 002 §4.2, Fig. 9): MAF + self-incrementing PID.
+
+The control law: the model displacement at the measured joints and force is the error, a
+moving-average filter smooths it, and a PID whose output is the capped increment of the offset
+drives it to zero (:class:`FilteredCappedPID`, strategy ``realtime_seed002`` in
+``rfsw-plan compare``).
 
 Seed 002 runs the algorithm every 0.5 ms on an external PC; the KUKA controller exchanges data
 over RSI every 4 ms (its interpolation cycle). Per algorithm step:
@@ -33,8 +38,9 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.realtime.base import ControllerInputs, FloatArray, Strategy
 
 
-class RealtimeSeed002(Strategy):
-    """Seed 002 Fig. 9: model displacement -> MAF -> PID -> self-incrementing capped offset.
+class FilteredCappedPID(Strategy):
+    """Filtered PID with capped increments (seed 002 Fig. 9): model displacement -> MAF ->
+    PID -> self-incrementing capped offset. Strategy name ``realtime_seed002``.
 
     Args:
         algorithm_step_s: Step of the external control algorithm T_s [s] (seed 002: 0.5 ms).

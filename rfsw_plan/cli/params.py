@@ -1,0 +1,70 @@
+"""The one table from library parameter names to command-line flags.
+
+Library jobs name their own parameters in errors (``dt: 100 s is longer than the process it
+samples``), never a flag; the CLI shows the flag the user typed (``--dt: ...``) by looking the
+error's source up here (:func:`as_flag_error`, applied by :mod:`rfsw_plan.cli.main` to every
+:class:`~rfsw_plan.exceptions.InputError`). A parameter not in the table is shown as it is.
+A library message that names another parameter writes it in backquotes (``given without
+`forces` ``), which the CLI turns into the flag too.
+"""
+
+from __future__ import annotations
+
+import re
+
+from rfsw_plan.exceptions import InputError, RfswError
+
+#: Library parameter -> command-line flag (the same for every command that has it).
+PARAMETER_FLAGS: dict[str, str] = {
+    # deviation (rfsw_plan.process.deviation_job.DeviationRequest), force logs
+    "dt": "--dt",
+    "cosim": "--cosim",
+    "forces": "--forces",
+    "forces_frame": "--forces-frame",
+    # map and place (rfsw_plan.placement: MapRequest, PlaceRequest)
+    "region": "--region",
+    "yaw_range_deg": "--yaw-range",
+    "base_height": "--robot-base-height",
+    "shape": "--grid",
+    "max_weld": "--waypoints",
+    "candidates": "--candidates",
+    "force_uncertainty": "--force-uncertainty",
+    # compare (rfsw_plan.realtime.compare.parse_effect_arg)
+    "truth_effect": "--truth-effect",
+    # export (rfsw_plan.export.format: get_format, parse_formats)
+    "format": "--format",
+    "formats": "--format",
+    # a saved robot file (rfsw_plan.robot.description.derived_description)
+    "name": "--name",
+}
+
+
+def flag_of(parameter: str) -> str:
+    """The flag of a library parameter (the parameter itself if it has none)."""
+    return PARAMETER_FLAGS.get(parameter, parameter)
+
+
+def as_flag_error(exc: RfswError) -> RfswError:
+    """``exc`` as the CLI shows it: an :class:`InputError` whose source is a parameter of the
+    table gets the flag as its source, and every parameter its text names in backquotes
+    (```region```) becomes the flag; any other error is ``exc`` itself."""
+    if not isinstance(exc, InputError):
+        return exc
+    source = PARAMETER_FLAGS.get(exc.source, exc.source)
+    problem, expected = _flags_in(exc.problem), _flags_in(exc.expected)
+    if (source, problem, expected) == (exc.source, exc.problem, exc.expected):
+        return exc
+    out = InputError(source, exc.where, problem, expected)
+    out.exit_code = exc.exit_code
+    return out
+
+
+def _flags_in(text: str) -> str:
+    """```name``` -> the flag of ``name`` (names not in the table keep their backquotes)."""
+    return _QUOTED.sub(lambda m: PARAMETER_FLAGS.get(m.group(1), m.group(0)), text)
+
+
+_QUOTED = re.compile(r"`([a-z][a-z0-9_]*)`")
+
+
+__all__ = ["PARAMETER_FLAGS", "as_flag_error", "flag_of"]
