@@ -506,7 +506,7 @@ def test_user_hooks_replace_the_default_comments(tmp_path: Path) -> None:
     (tmp_path / "cell").mkdir()
     src = get_format("krl").write(cell, tmp_path / "cell")[0].read_text()
     assert "BAS(#TOOL, 3)" in src and "BASE_DATA[2] =" in src and "LOAD_DATA[3] =" in src
-    assert "WRITES THE CELL'S DATA (--cell-data)" in src and "$TOOL =" not in src
+    assert "WRITES THE CELL'S DATA (export option cell_data)" in src and "$TOOL =" not in src
     tp = get_format("fanuc_tp").write(cell, tmp_path / "cell")[0].read_text()
     assert "UFRAME[2]=PR[91] ;" in tp and "PAYLOAD[3] ;" in tp and "WRITES THE CELL" in tp
     for f in ("krl", "fanuc_tp"):  # both forms read back to the same frames

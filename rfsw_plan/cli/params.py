@@ -34,6 +34,11 @@ PARAMETER_FLAGS: dict[str, str] = {
     # export (rfsw_plan.export.format: get_format, parse_formats)
     "format": "--format",
     "formats": "--format",
+    # design-campaign (rfsw_plan.validation.design.DesignRequest)
+    "poses": "--poses",
+    "load_n": "--load-N",
+    # export (rfsw_plan.export.program.ProgramOptions)
+    "cell_data": "--cell-data",
     # a saved robot file (rfsw_plan.robot.description.derived_description)
     "name": "--name",
 }

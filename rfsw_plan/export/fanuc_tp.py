@@ -301,7 +301,7 @@ def _frames(program: Program) -> list[str]:
 def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
     o = program.options
     if o.cell_data:
-        data = (f"WRITES THE CELL'S DATA (--cell-data): UFRAME[{o.base_number}], "
+        data = (f"WRITES THE CELL'S DATA (export option cell_data): UFRAME[{o.base_number}], "
                 f"UTOOL[{o.tool_number}], PR[{PR_UFRAME}], PR[{PR_UTOOL}] are overwritten "
                 f"and PAYLOAD[{o.tool_number}] selects that schedule")
         teach = f"replace the PR[{PR_UFRAME}] values with it"
@@ -534,7 +534,7 @@ def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
     if set(frames) != {"UFRAME", "UTOOL"}:
         raise InputError(p, "UFRAME/UTOOL", "not both stated",
                          "the '! UFRAME[n] X .. Y .. Z ..' and 'W .. P .. R ..' remarks (or "
-                         "the frames set through PR[] with --cell-data)")
+                         "the frames set through PR[] with `cell_data`)")
     return frames
 
 

@@ -138,7 +138,7 @@ class KrlFormat(ControllerFormat):
 def _header_extra(program: Program) -> list[str]:
     o = program.options
     if o.cell_data:
-        data = (f"WRITES THE CELL'S DATA (--cell-data): TOOL_DATA[{o.tool_number}], "
+        data = (f"WRITES THE CELL'S DATA (export option cell_data): TOOL_DATA[{o.tool_number}], "
                 f"LOAD_DATA[{o.tool_number}] and BASE_DATA[{o.base_number}] are overwritten "
                 "below with the plan's values and stay so after the run")
         teach = "delete the BASE_DATA line, enter the taught values there instead"
@@ -353,7 +353,7 @@ def read_krl(src: str | Path) -> ReadProgram:
     if set(frames) != {"TOOL", "BASE"}:
         raise InputError(src, "$TOOL/$BASE", "not both assigned",
                          "the tool and base values in the program ($TOOL = {...}, $BASE = "
-                         "{...}, or TOOL_DATA[n]/BASE_DATA[n] with --cell-data)")
+                         "{...}, or TOOL_DATA[n]/BASE_DATA[n] with `cell_data`)")
     tool, base = (xyzabc_to_frame([frames[f].get(k, 0.0) for k in "XYZABC"])
                   for f in ("TOOL", "BASE"))
     decl = {m.group(2).upper(): (m.group(1).upper(), _agg(m.group(3), str(dat)))

@@ -295,6 +295,12 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
     return path
 
 
+def discard_incomplete_record(folder: str | Path) -> None:
+    """Remove the ``incomplete`` record :func:`mark_outputs_stale` left in ``folder`` (an
+    interrupted run into a folder it created leaves nothing behind)."""
+    (Path(folder) / "plan.json").unlink(missing_ok=True)
+
+
 def mark_outputs_stale(folder: str | Path, problem: str, outputs: tuple[str, ...]) -> None:
     """Before planning into ``folder``: ``plan.json`` becomes an ``incomplete`` record (first,
     so an earlier success record never sits beside removed or new data), then the other

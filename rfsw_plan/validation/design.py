@@ -252,7 +252,7 @@ def _greedy(pool: _Pool, n: int) -> list[int]:
 def _model(request: DesignRequest) -> tuple[ElastostaticModel, tuple[int, ...]]:
     """The model with the requested effects, and the joints whose approach matters."""
     if not request.load_n >= 0:
-        raise InputError("--load-N", "", f"{request.load_n:g}",
+        raise InputError("load_n", "", f"{request.load_n:g}",
                          "a force >= 0 N (0: an unloaded campaign)")
     model = ElastostaticModel(request.robot)
     for label in check_effect_labels(model, request.effects):
@@ -274,7 +274,7 @@ def run(request: DesignRequest) -> CampaignDesign:
         {e.joint for e in model.effects if e.offset_like})
     need = -(-n_params // 3)
     if request.poses < need:
-        raise InputError("--poses", "", f"{request.poses}",
+        raise InputError("poses", "", f"{request.poses}",
                          f"at least {need} poses for the {n_params} parameters of "
                          f"{', '.join(model.labels)} (3 measured coordinates each; a play "
                          "counts its joint's zero offset too)")

@@ -68,7 +68,11 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
     from rfsw_plan.cli.commands.export import check_export_arguments
     from rfsw_plan.files import OutputLock, created_this_run, prepare_output_dir, strict_json
-    from rfsw_plan.planfiles.waypoints import PLAN_OUTPUTS, mark_outputs_stale
+    from rfsw_plan.planfiles.waypoints import (
+        PLAN_OUTPUTS,
+        discard_incomplete_record,
+        mark_outputs_stale,
+    )
     from rfsw_plan.process.problem import load_problem
 
     check_export_arguments(args)
@@ -85,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
             summary, written, failed_plots = _write(args, problem, flog, check, result, out)
     except KeyboardInterrupt:
         if created_this_run(out):  # Ctrl-C into a new folder writes nothing (main removes it)
-            (out / "plan.json").unlink(missing_ok=True)
+            discard_incomplete_record(out)
         raise
     for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
