@@ -34,7 +34,7 @@ from rfsw_plan.exceptions import RfswError
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir
+from rfsw_plan.validation.plan_record import read_plan_dir
 
 PROBLEM = "zk500_table6_seam"
 #: Truth differences: (name, joint made 20 % softer or None, hidden effect label or None).

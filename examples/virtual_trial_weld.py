@@ -29,7 +29,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import RfswError
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import read_plan_dir
+from rfsw_plan.validation.plan_record import read_plan_dir
 
 
 def main(argv: list[str] | None = None) -> int:

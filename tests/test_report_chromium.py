@@ -24,8 +24,8 @@ from rfsw_plan.io.measurements import write_measurements
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import run_campaign
-from rfsw_plan.validation.weld import read_plan_dir
+from rfsw_plan.validation.campaign.simulation import run_campaign
+from rfsw_plan.validation.plan_record import read_plan_dir
 
 pytestmark = [
     pytest.mark.slow,

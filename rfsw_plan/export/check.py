@@ -176,7 +176,7 @@ def _plan_model(plan: Any, robot: Robot) -> tuple[Any, Any, Any]:
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.export.api import plan_spacing
     from rfsw_plan.process.task import task_from_schedule
-    from rfsw_plan.validation.weld import read_plan_dir
+    from rfsw_plan.validation.plan_record import read_plan_dir
 
     pr = read_plan_dir(plan.folder)
     pb = pr.problem

@@ -80,7 +80,7 @@ def simulate_trial_weld(
     Args:
         problem: The welding problem (seam, process, window, seam reference).
         plan: The planned joints per waypoint (:func:`~rfsw_plan.realtime.compare.planned_waypoints`
-            of a plan result, or :func:`~rfsw_plan.validation.weld.read_plan_dir`'s).
+            of a plan result, or :func:`~rfsw_plan.validation.plan_record.read_plan_dir`'s).
         model: The robot model the plan was made with (it does not move the pin; kept for the
             controller inputs).
         truth: The robot as it really is (default: the model).
