@@ -43,11 +43,13 @@ if TYPE_CHECKING:
         ChainStep,
         CrossValidation,
         Diagnosis,
+        Selection,
         Skipped,
         candidate_labels,
         cross_validate,
         diagnose,
         evaluate_candidates,
+        forward_select,
         make_folds,
     )
     from rfsw_plan.validation.engine.residuals import (
@@ -92,8 +94,9 @@ _SOURCES: dict[str, str] = {
         "engine.residuals",
     ),
     **dict.fromkeys(
-        ("DEFAULT_FOLDS", "Candidate", "ChainStep", "CrossValidation", "Diagnosis", "Skipped",
-         "candidate_labels", "cross_validate", "diagnose", "evaluate_candidates", "make_folds"),
+        ("DEFAULT_FOLDS", "Candidate", "ChainStep", "CrossValidation", "Diagnosis", "Selection",
+         "Skipped", "candidate_labels", "cross_validate", "diagnose", "evaluate_candidates",
+         "forward_select", "make_folds"),
         "engine.diagnosis",
     ),
     **dict.fromkeys(
@@ -123,6 +126,7 @@ __all__ = [
     "NoiseFloor",
     "ReportFiles",
     "ResidualAnalysis",
+    "Selection",
     "Skipped",
     "ValidationResult",
     "analyze_residuals",
@@ -137,6 +141,7 @@ __all__ = [
     "estimate_noise_floor",
     "evaluate_candidates",
     "explained_share",
+    "forward_select",
     "make_folds",
     "make_plots",
     "parse_hidden",
