@@ -375,6 +375,6 @@ if __name__ == "__main__":
     ap.add_argument("--seed", type=int, default=0, help="random seed of the noise (default 0)")
     args = ap.parse_args()
     for case in seed001_cases(args.seed):
-        errors = " ".join("  --  " if np.isnan(e) else f"{e * 100:+5.1f}"
+        errors = " ".join(f"{'--':>5}" if np.isnan(e) else f"{e * 100:+5.1f}"
                           for e in case.relative_error)
         print(f"{case.label}\n  k1..k6 error [%]: {errors}")
