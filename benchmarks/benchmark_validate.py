@@ -49,13 +49,13 @@ def _reset_peak() -> float:
 
 def child(samples: int, case: str, folds: int, old: bool) -> dict[str, Any]:
     """Run one case on one size in this process; return its figures."""
-    import rfsw_plan.validation.crossval as crossval
-    import rfsw_plan.validation.diagnosis as diagnosis
+    import rfsw_plan.validation.engine.crossval as crossval
+    import rfsw_plan.validation.engine.diagnosis as diagnosis
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation import workbench
-    from rfsw_plan.validation.campaign import run_campaign
-    from rfsw_plan.validation.report import write_report
+    from rfsw_plan.validation.campaign.simulation import run_campaign
+    from rfsw_plan.validation.report.validate import write_report
 
     if old:  # the stacked regressor of all samples (before the fit in blocks)
         @crossval.single_thread_numpy_blas

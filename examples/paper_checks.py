@@ -10,7 +10,7 @@ Run: ``.venv/bin/python examples/paper_checks.py``
     reproduced together (issue 28). The robot is the problems' ``zk500_seed001`` (Table 3
     re-identified by ``validate`` on ``examples/seed001``); ``zk500`` is Table 3 as published.
     Table 2 -> Table 3: the cable campaign of §2.2.2 simulated on the five Table 2 poses with
-    the Table 3 stiffness as truth and identified (rfsw_plan.validation.seed001_campaign).
+    the Table 3 stiffness as truth and identified (examples/seed001/seed001_campaign.py).
 (b) FANUC S-900iB/400, seed 000: the influence index nu_p of the complementary stiffness Kc
     (eq. 9) over the vertical workspace plane of Fig. 13 (q1 = 0, wrist joints at 45 deg) with
     the wrench and joint stiffness of eq. 10.
@@ -21,9 +21,11 @@ taken as 1e4 N m/rad (the wrist joints 4-6 share one value, the list lost a repe
 
 from __future__ import annotations
 
+import sys
 import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -42,7 +44,10 @@ from rfsw_plan.realtime.compare import CompareOptions, compare
 from rfsw_plan.robot.description import ModifiedDH, load_robot_description
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot, load_robot
-from rfsw_plan.validation.seed001_campaign import (
+
+# The seed 001 reproductions live beside the paper's evidence files, not in the package.
+sys.path.insert(0, str(Path(__file__).resolve().parent / "seed001"))
+from seed001_campaign import (
     CABLE_COMPLIANCE_MM_PER_KN,
     OFF_AXIS_ATTACHMENT_MM,
     CampaignIdentification,
@@ -616,7 +621,7 @@ def _seed001_table3_rows(cases: list[CampaignIdentification]) -> list[Check]:
             f"errors {_pct(tcp3.relative_error[:5])} %, standard errors "
             f"{_pct(tcp3.relative_std[:5])} % (3-D, 4 tensions 1-4 kN, 50-sample means)",
             first5,
-            "simulated campaign with Table 3 as truth (rfsw_plan.validation.seed001_campaign); "
+            "simulated campaign with Table 3 as truth (examples/seed001/seed001_campaign.py); "
             "cable anchor at the Table 6 seam start, tensions and device noise ASSUMED; "
             "reproduced = every error within 3 standard errors; a vertical cable loses "
             f"{vert_lost or 'nothing'} (no torque about the vertical j1 axis)",

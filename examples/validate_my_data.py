@@ -8,8 +8,8 @@ Run with your file (the measurement CSV format: docs/formats/measurements.md)::
 
 Without a file it first simulates one: the load campaign of the guide (docs/guide/validate.md)
 of the bundled ZK-500 with two hidden effects, a 150 kg spindle's weight and backlash in joint
-2 (:func:`rfsw_plan.validation.campaign.run_campaign`), so you can see the whole loop: the
-forward selection names both, in order, and adding them brings the held-out error to the
+2 (:func:`rfsw_plan.validation.campaign.simulation.run_campaign`), so you can see the whole
+loop: the forward selection names both, in order, and adding them brings the held-out error to the
 noise floor. The same steps on the command line::
 
     rfsw-plan validate --robot zk500 --data MY_DATA.csv
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import rfsw_plan
 from rfsw_plan.elastostatics.model import ElastostaticModel
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 from rfsw_plan.validation.workbench import save_extended_robot, validate
 
 

@@ -185,6 +185,110 @@ def test_the_folder_cycle_check_sees_a_lazy_cycle(tmp_path):
     assert folder_cycles(folder_graph(root)) == [["planning", "robot"]]
 
 
+def subfolder_graphs(root: Path = PACKAGE) -> dict[str, dict[str, set[str]]]:
+    """For every folder that has subfolders (``validation/engine``, ``cli/commands``...): its
+    parts -> the parts they import, lazy imports included. A part is a subfolder or a module
+    directly in the folder; the folder's ``__init__`` is its facade and left out. A subfolder
+    is on its folder's layer (``_rank`` reads the top folder only); inside the folder the
+    parts still import one way."""
+    graphs: dict[str, dict[str, set[str]]] = {}
+    folders = sorted(p for p in root.iterdir() if (p / "__init__.py").is_file()
+                     and any((c / "__init__.py").is_file() for c in p.iterdir()))
+    for folder in folders:
+        graph: dict[str, set[str]] = {}
+        for path in sorted(folder.rglob("*.py")):
+            parts = _module_name(path, root).split(".")
+            if len(parts) < 3:
+                continue
+            deps = graph.setdefault(parts[2], set())
+            for mod in _imports(path, root):
+                m = mod.split(".")
+                if len(m) > 2 and m[1] == folder.name and m[2] != parts[2]:
+                    deps.add(m[2])
+        graphs[folder.name] = graph
+    return graphs
+
+
+def test_the_subfolders_of_a_folder_import_each_other_without_cycles():
+    """Inside a folder split by concept (validation: engine, campaign, weld, report, and the
+    command modules beside them), the subfolders and modules import each other one way."""
+    graphs = subfolder_graphs()
+    assert {"engine", "campaign", "weld", "report"} <= set(graphs["validation"])
+    found = [f"{folder}: " + " <-> ".join(c) for folder, graph in graphs.items()
+             for c in folder_cycles(graph)]
+    assert not found, "parts of a folder that import each other in a cycle: " + "; ".join(found)
+
+
+def test_a_subfolder_is_on_its_folders_layer(tmp_path):
+    """A module in a subfolder is ranked by its top folder: importing a later layer from
+    ``validation/engine/`` is backward, importing another validation subfolder is not (same
+    layer); a cycle between two subfolders is seen by the subfolder check."""
+    root = tmp_path / "rfsw_plan"
+    for folder in ("validation", "validation/engine", "validation/weld", "export"):
+        (root / folder).mkdir(parents=True)
+        (root / folder / "__init__.py").write_text("")
+    (root / "validation" / "engine" / "scoring.py").write_text(
+        "from rfsw_plan.validation.weld import fit\n"
+        "def f():\n    from rfsw_plan.export import program\n")
+    (root / "validation" / "weld" / "fit.py").write_text(
+        "from rfsw_plan.validation.engine.scoring import f\n")
+    (root / "validation" / "commands.py").write_text("from rfsw_plan.validation.weld import fit\n")
+    assert backward_imports(root) == {("rfsw_plan.validation.engine.scoring", "rfsw_plan.export")}
+    graph = subfolder_graphs(root)["validation"]
+    assert graph == {"engine": {"weld"}, "weld": {"engine"}, "commands": {"weld"}}
+    assert folder_cycles(graph) == [["engine", "weld"]]
+
+
+#: The examples; the paper reproductions among them are ``paper_checks.py`` and the modules
+#: beside a paper's evidence (``examples/seed001/seed001_campaign.py``, ``seed001_evidence.py``).
+EXAMPLES = PACKAGE.parent / "examples"
+
+
+def paper_reproduction_imports(root: Path = PACKAGE, examples: Path = EXAMPLES) -> list[str]:
+    """Package modules that import a module of ``examples/`` (by its name, anywhere in the
+    file), and package modules named like a paper reproduction: the package never depends on
+    a reproduction or carries one; the reproductions depend on the package."""
+    names = {p.stem for p in examples.rglob("*.py")}
+    papers = {p.stem for p in (*examples.glob("paper_*.py"), *examples.glob("seed*/*.py"))}
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        where = str(path.relative_to(root))
+        if path.stem in papers:
+            found.append(f"{where} (a paper reproduction of examples/)")
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                mods = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and not node.level:
+                mods = [node.module or ""]
+            else:
+                continue
+            found += [f"{where}:{node.lineno} imports {m}" for m in mods
+                      if m.split(".")[0] in names or m.split(".")[0] == "examples"]
+    return found
+
+
+def test_nothing_in_the_package_imports_a_paper_reproduction():
+    """The seed 001 reproductions (the cable campaign, the evidence set) live in
+    ``examples/seed001/``, used by examples, tests and docs only (issue 33)."""
+    assert (EXAMPLES / "seed001" / "seed001_campaign.py").is_file()
+    assert not list(PACKAGE.rglob("seed001_*.py"))
+    found = paper_reproduction_imports()
+    assert not found, "the package imports a paper reproduction: " + ", ".join(found)
+
+
+def test_the_paper_reproduction_check_sees_an_import(tmp_path):
+    root, examples = tmp_path / "rfsw_plan", tmp_path / "examples"
+    (root / "validation").mkdir(parents=True)
+    (examples / "seed001").mkdir(parents=True)
+    (examples / "seed001" / "seed001_campaign.py").write_text("")
+    (root / "validation" / "a.py").write_text(
+        "import numpy\ndef f():\n    from seed001_campaign import seed001_cases\n")
+    (root / "validation" / "seed001_campaign.py").write_text("")
+    assert paper_reproduction_imports(root, examples) == [
+        "validation/a.py:3 imports seed001_campaign",
+        "validation/seed001_campaign.py (a paper reproduction of examples/)"]
+
+
 def test_the_layering_check_sees_backward_imports(tmp_path):
     """The walker finds a lazy function-local import and a relative import into later layers,
     and accepts imports down the layers."""

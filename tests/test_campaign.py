@@ -13,7 +13,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, UnknownNameError
 from rfsw_plan.io.measurements import read_measurements
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import (
+from rfsw_plan.validation.campaign.simulation import (
     AMBIENT_C,
     FORCE_RANGE_N,
     LIMIT_MARGIN_DEG,

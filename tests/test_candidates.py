@@ -14,7 +14,7 @@ from rfsw_plan.elastostatics.effects import EFFECTS, ComplianceEffect, PoseBatch
 from rfsw_plan.elastostatics.effects.base import PARAM_LIMIT, FloatArray
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.validation.candidates import (
+from rfsw_plan.validation.engine.candidates import (
     PLAUSIBLE_FACTOR,
     addable_effects,
     candidate_form,

@@ -17,7 +17,7 @@ from rfsw_plan.elastostatics.identification import identify
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.design import DesignRequest, random_campaign
+from rfsw_plan.validation.campaign.design import DesignRequest, random_campaign
 
 EFFECTS = ("payload_gravity", "joint_backlash:j1")
 TRUTH = {"payload_gravity": [150.0, 0.0, 0.0, -37.5], "joint_backlash:j1": [2e-4]}

@@ -9,15 +9,15 @@ from rfsw_plan.elastostatics.identification import identify
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
 from rfsw_plan.io.measurements import MeasurementSet
-from rfsw_plan.validation.campaign import run_campaign
-from rfsw_plan.validation.diagnosis import (
+from rfsw_plan.validation.campaign.simulation import run_campaign
+from rfsw_plan.validation.engine.diagnosis import (
     FIT_TOL,
     candidate_labels,
     cross_validate,
     diagnose,
     make_folds,
 )
-from rfsw_plan.validation.residuals import NoiseFloor
+from rfsw_plan.validation.engine.residuals import NoiseFloor
 
 
 def _data(hidden: list[str], poses: int = 30, loads: int = 4, noise_mm: float = 0.01,
@@ -182,7 +182,7 @@ def test_fit_in_blocks_is_the_fit_on_the_stacked_regressor(
     """cross_validate visits the samples in blocks (bounded memory on 10^6 samples): with
     blocks of 37 samples (4 blocks here) it gives the stacked regressor's fit and score."""
     import rfsw_plan.elastostatics.identification_blocks as ib
-    from rfsw_plan.validation.crossval import _cross_validate_stacked
+    from rfsw_plan.validation.engine.crossval import _cross_validate_stacked
 
     monkeypatch.setattr(ib, "BLOCK_SAMPLES", 37)
     d = _data(["payload_gravity", "joint_backlash:j3"], poses=30)

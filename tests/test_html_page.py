@@ -1,4 +1,4 @@
-"""The shared HTML page of the validation reports (rfsw_plan.validation.html_page)."""
+"""The shared HTML page of the validation reports (rfsw_plan.validation.report.html_page)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import base64
 from html.parser import HTMLParser
 from pathlib import Path
 
-from rfsw_plan.validation.html_page import CSS, PAGE_END, figure, page_head, table
+from rfsw_plan.validation.report.html_page import CSS, PAGE_END, figure, page_head, table
 
 _VOID = {"meta", "img", "br"}
 
@@ -48,7 +48,8 @@ def test_both_reports_use_the_shared_page() -> None:
     """validate and validate-weld render with the same head, stylesheet and foot."""
     import inspect
 
-    from rfsw_plan.validation import report, weld_report
+    from rfsw_plan.validation.report import validate as report
+    from rfsw_plan.validation.report import validate_weld as weld_report
 
     for mod in (report, weld_report):
         src = inspect.getsource(mod)

@@ -20,7 +20,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.measurements import read_measurements, write_measurements
 from rfsw_plan.validation import run_campaign, validate
-from rfsw_plan.validation.campaign import campaign_poses
+from rfsw_plan.validation.campaign.simulation import campaign_poses
 
 NOISE_MM, FORCE_NOISE_N = 0.02, 5.0
 

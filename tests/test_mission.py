@@ -21,7 +21,7 @@ from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.measurements import MeasurementSet, write_measurements
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import THERMAL_DRIFT, CampaignResult, run_campaign
+from rfsw_plan.validation.campaign.simulation import THERMAL_DRIFT, CampaignResult, run_campaign
 from rfsw_plan.validation.workbench import ValidationResult, validate
 
 ROBOT = "zk500"

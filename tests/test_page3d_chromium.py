@@ -114,7 +114,7 @@ def test_validate_report_3d_view_in_chromium(tmp_path: Path) -> None:
     import json
 
     from rfsw_plan.io.measurements import write_measurements
-    from rfsw_plan.validation.campaign import run_campaign
+    from rfsw_plan.validation.campaign.simulation import run_campaign
 
     data = run_campaign("zk500", ["payload_gravity"], poses=24, loads_per_pose=4,
                         noise_mm=0.01, seed=7).data

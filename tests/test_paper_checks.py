@@ -189,9 +189,7 @@ def test_seed000_1700mm_sensitivity(paper: ModuleType) -> None:
 def test_seed001_table3_rows_keep_their_finding(paper: ModuleType) -> None:
     """Five Table 2 poses with the cable at the TCP identify k1-k5 within their standard
     errors; k6 is not identifiable, 3-D or 6-D; off the tool axis with 6-D data it is."""
-    from rfsw_plan.validation.seed001_campaign import seed001_cases
-
-    rows = paper._seed001_table3_rows(seed001_cases())
+    rows = paper._seed001_table3_rows(paper.seed001_cases())
     assert [r.reproduced for r in rows] == [True, False, False]
     assert "not identifiable with the cable at the TCP" in rows[1].project
     assert "k6 not identified" in rows[1].why and "3-D: k6 not identified" in rows[1].why

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from rfsw_plan.io.measurements import write_measurements
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 
 ROOT = Path(__file__).resolve().parents[1]
 

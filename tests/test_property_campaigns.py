@@ -15,7 +15,7 @@ import pytest
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 from rfsw_plan.validation.workbench import validate
 
 ROBOTS = ("zk500_seed001", "kuka_kr600_r2830", "fanuc_s900ib_400")

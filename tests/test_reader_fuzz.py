@@ -563,7 +563,7 @@ def test_a_weld_track_in_metres_is_refused(tmp_path: Path) -> None:
     """Lateral offsets in metres in ``e_lat_mm`` were "100.0 % inside the window"."""
     from rfsw_plan.io.weld_track import read_weld_track
     from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.validation.track import track_on_seam
+    from rfsw_plan.validation.weld.track import track_on_seam
 
     pb = load_problem("zk500_table6_seam")
     length_mm = float(pb.frames().s[-1] - pb.frames().s[0]) * 1e3

@@ -11,8 +11,8 @@ import pytest
 
 from rfsw_plan.cli.main import main
 from rfsw_plan.io.measurements import write_measurements
-from rfsw_plan.validation.campaign import run_campaign
-from rfsw_plan.validation.report import PNG_WIDTH_PX, engineering
+from rfsw_plan.validation.campaign.simulation import run_campaign
+from rfsw_plan.validation.report.validate import PNG_WIDTH_PX, engineering
 
 
 @pytest.fixture(scope="module")
@@ -80,8 +80,8 @@ def test_title_names_the_evaluated_model(reports: tuple[Path, Path]) -> None:
 
 
 def test_one_row_per_reason_a_candidate_was_not_fitted() -> None:
-    from rfsw_plan.validation.diagnosis import Skipped
-    from rfsw_plan.validation.report import skipped_by_reason
+    from rfsw_plan.validation.engine.diagnosis import Skipped
+    from rfsw_plan.validation.report.validate import skipped_by_reason
 
     why = "not identifiable from this data: does not move the measured TCP"
     rows = skipped_by_reason([Skipped("tilting_compliance:j6", why), Skipped("a", "other"),
@@ -99,7 +99,7 @@ def test_the_histogram_draws_what_it_names() -> None:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from rfsw_plan.validation.report import _histogram
+    from rfsw_plan.validation.report.validate import _histogram
 
     res = np.random.default_rng(0).normal(0, 0.01, (200, 3))
     fig = _histogram(plt, res, 0.01)

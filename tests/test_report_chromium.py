@@ -25,7 +25,7 @@ from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 
 pytestmark = [
     pytest.mark.slow,

@@ -10,7 +10,7 @@ import pytest
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.io.measurements import MeasurementSet
-from rfsw_plan.validation.residuals import (
+from rfsw_plan.validation.engine.residuals import (
     NoiseFloor,
     analyze_residuals,
     correlations,

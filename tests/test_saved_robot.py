@@ -18,7 +18,7 @@ from rfsw_plan.robot.description import (
     load_robot_description,
     save_robot_description,
 )
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 
 
 @pytest.fixture(scope="module")

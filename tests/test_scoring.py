@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from rfsw_plan.validation.scoring import ALPHA, named, rank, score, ties_of
+from rfsw_plan.validation.engine.scoring import ALPHA, named, rank, score, ties_of
 
 
 def _cand(label: str, sse: float, n_params: int = 1, **kw: Any):  # type: ignore[no-untyped-def]

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.validation.seed001_campaign import (
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "seed001"))
+from seed001_campaign import (
     OFF_AXIS_ATTACHMENT_MM,
     TABLE2_DEG,
     TABLE3_K,

@@ -4,6 +4,7 @@ bundled zk500_seed001 is what ``validate --add ... --save-robot`` makes of them.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +14,10 @@ from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.io.measurements import read_measurements
 from rfsw_plan.process.presets import SEED001_FIG10
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.seed001_evidence import (
+from rfsw_plan.validation.workbench import validate
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "seed001"))
+from seed001_evidence import (
     FD0_N,
     FL0_N,
     FR0_N,
@@ -21,7 +25,6 @@ from rfsw_plan.validation.seed001_evidence import (
     seed001_evidence,
     write_seed001_evidence,
 )
-from rfsw_plan.validation.workbench import validate
 
 FOLDER = Path(__file__).resolve().parents[1] / "examples" / "seed001"
 ADDED = "torque_dependent_stiffness:j2"

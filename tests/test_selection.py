@@ -102,7 +102,7 @@ def test_never_unexplained_while_a_library_effect_explains_most() -> None:
     """A drift with time that no library effect describes sits on top of a payload: the
     payload is named (it explains almost all of the residual) and the message says the rest is
     above the floor, instead of "unexplained"."""
-    from rfsw_plan.validation.campaign import run_campaign
+    from rfsw_plan.validation.campaign.simulation import run_campaign
     from rfsw_plan.validation.workbench import validate
 
     camp = run_campaign("zk500", ["payload_gravity=m:150,m_rz:-37.5",

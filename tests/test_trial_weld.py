@@ -15,7 +15,7 @@ from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import validate_weld
+from rfsw_plan.validation.weld.workbench import validate_weld
 
 
 def test_truth_equal_to_model_is_adequate(tmp_path: Path) -> None:

@@ -15,7 +15,7 @@ from rfsw_plan.elastostatics.effects import EFFECTS
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.measurements import write_measurements
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.campaign import run_campaign
+from rfsw_plan.validation.campaign.simulation import run_campaign
 
 FOLDS = "3"
 

@@ -20,7 +20,7 @@ from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
-from rfsw_plan.validation.weld import track_on_seam, validate_weld
+from rfsw_plan.validation.weld.workbench import track_on_seam, validate_weld
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
 import trial_weld_loop
@@ -288,7 +288,7 @@ def test_weld_report_plots_say_what_they_show(weld: tuple[Path, Path, Path], tmp
                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """weld_residual.png was titled "residual: missing" (issue 33, wall 10): its title says
     what is plotted and the verdict with its best candidate; no text of either plot is clipped."""
-    from rfsw_plan.validation import weld_report
+    from rfsw_plan.validation.report import validate_weld as weld_report
 
     plan, _, track = weld
     res = validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
@@ -316,7 +316,7 @@ def test_residual_histogram_title_is_not_clipped() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rfsw_plan.validation.report import _histogram
+    from rfsw_plan.validation.report.validate import _histogram
 
     rng = np.random.default_rng(3)
     fig = _histogram(plt, rng.normal(0.0, 0.05, (200, 3)), 0.0331)

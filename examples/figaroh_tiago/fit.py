@@ -37,7 +37,7 @@ from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_setup
 from rfsw_plan.io.measurements import read_measurements
-from rfsw_plan.validation.diagnosis import make_folds
+from rfsw_plan.validation.engine.diagnosis import make_folds
 from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot, validate
 
 HERE = Path(__file__).resolve().parent

@@ -34,7 +34,7 @@ PARAMETER_FLAGS: dict[str, str] = {
     # export (rfsw_plan.export.format: get_format, parse_formats)
     "format": "--format",
     "formats": "--format",
-    # design-campaign (rfsw_plan.validation.design.DesignRequest)
+    # design-campaign (rfsw_plan.validation.campaign.design.DesignRequest)
     "poses": "--poses",
     "load_n": "--load-N",
     # export (rfsw_plan.export.program.ProgramOptions)

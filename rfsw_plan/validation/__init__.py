@@ -6,9 +6,18 @@ residuals (:func:`analyze_residuals`, :func:`estimate_noise_floor`) and diagnose
 effects (:func:`diagnose`); :func:`write_report` turns the :class:`ValidationResult` into plots,
 HTML and JSON.
 
-The names are imported on first use (PEP 562), so ``import rfsw_plan.validation.campaign``
-does not load SciPy's statistics or, through the report, matplotlib (which the report only
-imports inside :func:`~rfsw_plan.validation.report.make_plots` anyway).
+Layout, one concept per folder: ``engine/`` the one diagnosis engine (residuals, candidates,
+cross-validation, scoring, the forward selection) shared by ``validate`` and ``validate-weld``;
+``campaign/`` simulated campaigns and the design of the next one; ``weld/`` the weld workbench;
+``report/`` the reports. The modules at this level are the commands and what they share:
+``workbench`` (``validate``), ``commands`` (each workbench command as a library call),
+``identify_robot``, ``derived_robot`` (the re-identified robot file) and ``sanity`` (measured
+data before any fit). A plan folder is read through :mod:`rfsw_plan.planfiles`.
+
+The names are imported on first use (PEP 562), so
+``import rfsw_plan.validation.campaign.simulation`` does not load SciPy's statistics or,
+through the report, matplotlib (which the report only imports inside
+:func:`~rfsw_plan.validation.report.validate.make_plots` anyway).
 """
 
 from __future__ import annotations
@@ -17,7 +26,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from rfsw_plan.validation.campaign import (
+    from rfsw_plan.validation.campaign.simulation import (
         THERMAL_DRIFT,
         CampaignResult,
         HiddenSpec,
@@ -28,27 +37,22 @@ if TYPE_CHECKING:
         run_campaign,
         simulate_campaign,
     )
-    from rfsw_plan.validation.diagnosis import (
+    from rfsw_plan.validation.engine.diagnosis import (
         DEFAULT_FOLDS,
         Candidate,
         ChainStep,
         CrossValidation,
         Diagnosis,
+        Selection,
         Skipped,
         candidate_labels,
         cross_validate,
         diagnose,
         evaluate_candidates,
+        forward_select,
         make_folds,
     )
-    from rfsw_plan.validation.report import (
-        ReportFiles,
-        make_plots,
-        render_html,
-        result_json,
-        write_report,
-    )
-    from rfsw_plan.validation.residuals import (
+    from rfsw_plan.validation.engine.residuals import (
         AxisStats,
         FeatureCorrelation,
         JointBreakdown,
@@ -60,6 +64,13 @@ if TYPE_CHECKING:
         explained_share,
         repeat_groups,
         residual_features,
+    )
+    from rfsw_plan.validation.report.validate import (
+        ReportFiles,
+        make_plots,
+        render_html,
+        result_json,
+        write_report,
     )
     from rfsw_plan.validation.workbench import (
         AddResult,
@@ -74,18 +85,19 @@ _SOURCES: dict[str, str] = {
     **dict.fromkeys(
         ("THERMAL_DRIFT", "CampaignResult", "HiddenSpec", "campaign_poses", "campaign_wrenches",
          "check_hidden_label", "parse_hidden", "run_campaign", "simulate_campaign"),
-        "campaign",
+        "campaign.simulation",
     ),
     **dict.fromkeys(
         ("AxisStats", "FeatureCorrelation", "JointBreakdown", "NoiseFloor", "ResidualAnalysis",
          "analyze_residuals", "correlations", "estimate_noise_floor", "explained_share",
          "repeat_groups", "residual_features"),
-        "residuals",
+        "engine.residuals",
     ),
     **dict.fromkeys(
-        ("DEFAULT_FOLDS", "Candidate", "ChainStep", "CrossValidation", "Diagnosis", "Skipped",
-         "candidate_labels", "cross_validate", "diagnose", "evaluate_candidates", "make_folds"),
-        "diagnosis",
+        ("DEFAULT_FOLDS", "Candidate", "ChainStep", "CrossValidation", "Diagnosis", "Selection",
+         "Skipped", "candidate_labels", "cross_validate", "diagnose", "evaluate_candidates",
+         "forward_select", "make_folds"),
+        "engine.diagnosis",
     ),
     **dict.fromkeys(
         ("AddResult", "ValidationResult", "check_effect_labels", "save_extended_robot",
@@ -93,7 +105,8 @@ _SOURCES: dict[str, str] = {
         "workbench",
     ),
     **dict.fromkeys(
-        ("ReportFiles", "make_plots", "render_html", "result_json", "write_report"), "report"
+        ("ReportFiles", "make_plots", "render_html", "result_json", "write_report"),
+        "report.validate",
     ),
 }
 
@@ -113,6 +126,7 @@ __all__ = [
     "NoiseFloor",
     "ReportFiles",
     "ResidualAnalysis",
+    "Selection",
     "Skipped",
     "ValidationResult",
     "analyze_residuals",
@@ -127,6 +141,7 @@ __all__ = [
     "estimate_noise_floor",
     "evaluate_candidates",
     "explained_share",
+    "forward_select",
     "make_folds",
     "make_plots",
     "parse_hidden",

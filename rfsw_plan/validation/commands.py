@@ -19,10 +19,10 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import OutputLock
 from rfsw_plan.robot.description import DeviceFrame
 from rfsw_plan.validation.derived_robot import save_derived_robot
-from rfsw_plan.validation.report import ReportFiles, write_report
+from rfsw_plan.validation.report.validate import ReportFiles, write_report
+from rfsw_plan.validation.report.validate_weld import WeldReportFiles, write_weld_report
 from rfsw_plan.validation.sanity import prepare_data
-from rfsw_plan.validation.weld import WeldValidation, next_command, validate_weld
-from rfsw_plan.validation.weld_report import WeldReportFiles, write_weld_report
+from rfsw_plan.validation.weld.workbench import WeldValidation, next_command, validate_weld
 from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot, validate
 
 #: Called with the name of each stage as it starts (the CLI's progress line).
@@ -130,8 +130,8 @@ def run_validate_weld(
     blocks: int = 5, on_stage: OnStage = _nothing,
 ) -> WeldRun:
     """Read the plan, the track and the force log, validate the weld
-    (:func:`~rfsw_plan.validation.weld.validate_weld`), write the report into ``out`` and the
-    re-identified robot into ``save_robot``.
+    (:func:`~rfsw_plan.validation.weld.workbench.validate_weld`), write the report into ``out``
+    and the re-identified robot into ``save_robot``.
 
     Args:
         plan_dir: The plan folder that was run.

@@ -1,9 +1,9 @@
 """The validate -> add -> re-identify loop of the model-against-measurement workbench.
 
 :func:`validate` compares a model with measurements: it predicts every sample, analyses the
-residual (:mod:`rfsw_plan.validation.residuals`), optionally adds effects and re-identifies
+residual (:mod:`rfsw_plan.validation.engine.residuals`), optionally adds effects and re-identifies
 all parameters (scoring before/after on held-out folds), and always runs the diagnosis
-(:mod:`rfsw_plan.validation.diagnosis`) on the resulting model. :func:`save_extended_robot`
+(:mod:`rfsw_plan.validation.engine.diagnosis`) on the resulting model. :func:`save_extended_robot`
 writes the re-identified model as a robot description that ``predict`` and the planner load
 with its effects.
 """
@@ -29,7 +29,7 @@ from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import DeviceFrame
 from rfsw_plan.validation.derived_robot import save_derived_robot
-from rfsw_plan.validation.diagnosis import (
+from rfsw_plan.validation.engine.diagnosis import (
     DEFAULT_FOLDS,
     CrossValidation,
     Diagnosis,
@@ -38,7 +38,7 @@ from rfsw_plan.validation.diagnosis import (
     diagnose,
     make_folds,
 )
-from rfsw_plan.validation.residuals import (
+from rfsw_plan.validation.engine.residuals import (
     ResidualAnalysis,
     analyze_residuals,
     estimate_noise_floor,

@@ -30,8 +30,8 @@ def register(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.validation.design import DesignRequest
-    from rfsw_plan.validation.design import run as design
+    from rfsw_plan.validation.campaign.design import DesignRequest
+    from rfsw_plan.validation.campaign.design import run as design
 
     effects = tuple(x.strip() for e in args.effects for x in e.split(",") if x.strip())
     request = DesignRequest(load_robot(args.robot), args.poses, effects, args.load_n,

@@ -12,8 +12,8 @@ HELP = "write a measurement CSV of a simulated load campaign with hidden effects
 
 def _epilog() -> str:
     """The --help epilog (lists the effects: imported only when the help is shown)."""
-    from rfsw_plan.validation.campaign import THERMAL_DRIFT
-    from rfsw_plan.validation.candidates import addable_effects
+    from rfsw_plan.validation.campaign.simulation import THERMAL_DRIFT
+    from rfsw_plan.validation.engine.candidates import addable_effects
 
     return f"""\
 --hidden EFFECT[:jN][=name:value,...] (repeatable). Effects: {", ".join(
@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.io.measurements import write_measurements
     from rfsw_plan.robot.description import save_robot_description
     from rfsw_plan.robot.kinematics import load_robot
-    from rfsw_plan.validation.campaign import parse_hidden, run_campaign
+    from rfsw_plan.validation.campaign.simulation import parse_hidden, run_campaign
 
     prepare_output_file(args.output, "-o")
     if args.save_truth:

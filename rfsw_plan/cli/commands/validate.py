@@ -12,8 +12,8 @@ from rfsw_plan.exceptions import InputError
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
-    from rfsw_plan.validation.report import ReportFiles
-    from rfsw_plan.validation.scoring import Candidate
+    from rfsw_plan.validation.engine.scoring import Candidate
+    from rfsw_plan.validation.report.validate import ReportFiles
     from rfsw_plan.validation.workbench import ValidationResult
 
 NAME = "validate"
@@ -21,7 +21,7 @@ HELP = "compare the model with measurements, diagnose the missing effect, add it
 
 def _epilog() -> str:
     """The --help epilog (lists the effects: imported only when the help is shown)."""
-    from rfsw_plan.validation.candidates import addable_effects
+    from rfsw_plan.validation.engine.candidates import addable_effects
 
     return f"""\
 Effects for --add: {", ".join(addable_effects())}; per-joint ones
@@ -98,7 +98,7 @@ def _run(args: argparse.Namespace, report: Path | None, stages: Stages) -> int:
     from rfsw_plan.files import prepare_output_file
     from rfsw_plan.robot.kinematics import load_robot
     from rfsw_plan.validation.commands import run_validate
-    from rfsw_plan.validation.report import result_json
+    from rfsw_plan.validation.report.validate import result_json
 
     if args.folds < 2:
         raise InputError("--folds", "", f"{args.folds}", "at least 2")

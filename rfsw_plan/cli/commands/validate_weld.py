@@ -11,8 +11,8 @@ from rfsw_plan.cli.numbers import count
 
 if TYPE_CHECKING:
     from rfsw_plan.progress import Stages
-    from rfsw_plan.validation.scoring import Candidate
-    from rfsw_plan.validation.weld import WeldValidation
+    from rfsw_plan.validation.engine.scoring import Candidate
+    from rfsw_plan.validation.weld.workbench import WeldValidation
 
 NAME = "validate-weld"
 HELP = ("compare a trial weld's measured track with the plan's predicted pin path, diagnose "

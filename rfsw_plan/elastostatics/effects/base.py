@@ -280,7 +280,7 @@ class Effect(abc.ABC):
         """Random, physically plausible parameters of this effect on a real cell [SI].
 
         What a simulated load campaign hides in its truth model when the user gives no values
-        (:func:`rfsw_plan.validation.campaign.run_campaign`). Every name of
+        (:func:`rfsw_plan.validation.campaign.simulation.run_campaign`). Every name of
         :meth:`param_names` is present, every value is finite and inside :meth:`param_range`,
         and the effect is not a no-op: a hidden effect of size zero would be a campaign that
         silently hides nothing. Load-dependent effects may size themselves on the campaign.

@@ -1,12 +1,12 @@
 """Which physical effect is missing from a model, on a load campaign (``rfsw-plan validate``).
 
-For every candidate (:func:`~rfsw_plan.validation.candidates.candidate_labels`: each library
+For every candidate (:func:`~rfsw_plan.validation.engine.candidates.candidate_labels`: each library
 effect the model lacks, at every joint where it applies) the effect is added, all parameters
 are re-identified, and the model is scored on data the fit did not see (k folds, grouped by
 pose so that repeats of one pose never sit on both sides;
-:func:`~rfsw_plan.validation.crossval.cross_validate`). The held-out F test, the ranking, the
+:func:`~rfsw_plan.validation.engine.crossval.cross_validate`). The held-out F test, the ranking, the
 ties and the named candidate are the workbench's one scoring
-(:mod:`rfsw_plan.validation.scoring`), shared with ``validate-weld``.
+(:mod:`rfsw_plan.validation.engine.scoring`), shared with ``validate-weld``.
 
 The residual is *at the noise floor* when SSE_0 / sigma^2 is not above chi^2(n) (sigma given)
 or F(n, dof) (sigma from repeats) at level ALPHA, or RMS_0 <= NOISE_TOLERANCE sigma.
@@ -37,8 +37,8 @@ from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError
 from rfsw_plan.progress import progress
-from rfsw_plan.validation.candidates import candidate_form, candidate_labels
-from rfsw_plan.validation.crossval import (
+from rfsw_plan.validation.engine.candidates import candidate_form, candidate_labels
+from rfsw_plan.validation.engine.crossval import (
     DEFAULT_FOLDS,
     FIT_TOL,
     CrossValidation,
@@ -46,7 +46,7 @@ from rfsw_plan.validation.crossval import (
     make_folds,
     single_thread_numpy_blas,
 )
-from rfsw_plan.validation.residuals import (
+from rfsw_plan.validation.engine.residuals import (
     FeatureCorrelation,
     NoiseFloor,
     correlation_json,
@@ -55,7 +55,7 @@ from rfsw_plan.validation.residuals import (
     noise_json,
     residual_features,
 )
-from rfsw_plan.validation.scoring import (
+from rfsw_plan.validation.engine.scoring import (
     ALPHA,
     TIE_LEVEL,
     Candidate,
@@ -174,7 +174,7 @@ def evaluate_candidates(
     Effects whose :meth:`~rfsw_plan.elastostatics.effects.base.Effect.identifiable` gives a
     reason, that no data can fit, or none of whose parameters the data identifies are returned
     as :class:`Skipped` with the reason. The scored candidates come ranked
-    (:func:`~rfsw_plan.validation.scoring.rank`, ties against the noise floor ``noise``).
+    (:func:`~rfsw_plan.validation.engine.scoring.rank`, ties against the noise floor ``noise``).
     """
     F_true = model.true_wrench(batch, data.wrench)
     done: list[tuple[str, CrossValidation]] = []
@@ -215,7 +215,7 @@ class ChainStep:
             selection started from: the share of its residual the effects so far explain.
         tested: Candidates tested in this step.
         ties: Significant candidates of this step the data cannot tell from the one added
-            (:func:`~rfsw_plan.validation.scoring.ties_of`).
+            (:func:`~rfsw_plan.validation.engine.scoring.ties_of`).
     """
 
     label: str
@@ -396,7 +396,7 @@ def forward_select(
     could not fit too: an effect whose estimate was negative next to a larger unmodelled one
     may be clear once that one is in), re-identifies all parameters with it on the training
     folds and scores it on the held-out fold (:func:`evaluate_candidates`); the candidate
-    :func:`~rfsw_plan.validation.scoring.named` picks (significant by the held-out F test at
+    :func:`~rfsw_plan.validation.engine.scoring.named` picks (significant by the held-out F test at
     level ALPHA, Bonferroni over the step's candidates, plausible, the simplest among those
     the data cannot tell apart) is added and becomes the next step's starting model.
 
@@ -504,7 +504,7 @@ def _path(
     old: Sequence[ChainStep],
 ) -> tuple[list[ChainStep], ElastostaticModel, CrossValidation]:
     """The steps of adding ``labels`` in order from ``model``, each scored against the one
-    before it (the held-out F test of :func:`~rfsw_plan.validation.scoring.improvement`)."""
+    before it (the held-out F test of :func:`~rfsw_plan.validation.engine.scoring.improvement`)."""
     mse0 = base.sse / max(base.n_obs, 1)
     cv = base
     steps: list[ChainStep] = []

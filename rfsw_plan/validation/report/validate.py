@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.files import write_figure, write_text
-from rfsw_plan.validation.diagnosis import Skipped
-from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
+from rfsw_plan.validation.engine.diagnosis import Skipped
+from rfsw_plan.validation.report.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
 
 #: At most this many points are drawn per scatter plot (a seeded random subset).

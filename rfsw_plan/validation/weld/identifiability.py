@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rfsw_plan.process.frames import FloatArray
-from rfsw_plan.validation.scoring import Candidate
-from rfsw_plan.validation.weld_fit import WeldFit
+from rfsw_plan.validation.engine.scoring import Candidate
+from rfsw_plan.validation.weld.fit import WeldFit
 
 #: Relative parameter change whose effect on the track defines visibility (20 %).
 PARAM_CHANGE = 0.2

@@ -8,11 +8,11 @@ from typing import Any
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError
-from rfsw_plan.validation.candidates import candidate_form, joint_form, parts_of
-from rfsw_plan.validation.track import TrackOnSeam
-from rfsw_plan.validation.weld_diagnosis import DEFAULT_BLOCKS
-from rfsw_plan.validation.weld_fit import WeldObservations, fit_form, rms
-from rfsw_plan.validation.weld_samples import WeldSamples
+from rfsw_plan.validation.engine.candidates import candidate_form, joint_form, parts_of
+from rfsw_plan.validation.weld.diagnosis import DEFAULT_BLOCKS
+from rfsw_plan.validation.weld.fit import WeldObservations, fit_form, rms
+from rfsw_plan.validation.weld.samples import WeldSamples
+from rfsw_plan.validation.weld.track import TrackOnSeam
 
 
 @dataclass(frozen=True)

@@ -5,7 +5,7 @@ model of its ZK-500 must reproduce together:
 
 * §2.2.2, Table 2 and Table 3: the joint stiffness identified by a steel-cable campaign in five
   poses. The raw readings are not published; the rows here are what the Table 3 model predicts
-  for the campaign of :mod:`rfsw_plan.validation.seed001_campaign` (ASSUMED anchor, tensions
+  for the campaign of ``seed001_campaign.py`` beside this file (ASSUMED anchor, tensions
   and device noise). They carry Table 3, nothing more.
 * §2.1 and §3: the real weld. Commanded plunge about 8 mm after surface contact, the actual
   plunge "suitable for the length of the stirring tool" (pin 4.8 mm, §2.3.1), steady forces
@@ -34,7 +34,9 @@ it is read to about 0.1 mm (``sigma_mm``).
 
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -42,13 +44,16 @@ import numpy as np
 
 from rfsw_plan.elastostatics.measurement_set import FloatArray, MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
+from rfsw_plan.exceptions import RfswError
 from rfsw_plan.files import atomic_path
 from rfsw_plan.io.measurements import write_measurements
 from rfsw_plan.process.cosim import PenetrationObservation
 from rfsw_plan.process.presets import SEED001_FIG10
 from rfsw_plan.process.problem import Problem, load_problem
 from rfsw_plan.process.taught import taught_path
-from rfsw_plan.validation.seed001_campaign import CableCampaign, simulate_cable_campaign
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # seed001_campaign beside this file
+from seed001_campaign import CableCampaign, simulate_cable_campaign
 
 #: Seed 001 §2.1: "the motion command of the robot end-effector was about 8 mm" [mm].
 COMMANDED_PLUNGE_MM = 8.0
@@ -155,3 +160,17 @@ def write_seed001_evidence(folder: str | Path, evidence: Seed001Evidence | None 
         tmp.write_text("\n".join(rows) + "\n")
     paths.append(out / "plunges.csv")
     return paths
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(
+        description="Write seed 001's evidence set (measurements.csv, plunges.csv) into FOLDER; "
+                    "examples/seed001/ holds the written set (see its README).")
+    ap.add_argument("folder", help="folder to write into (created if missing)")
+    args = ap.parse_args()
+    try:
+        for path in write_seed001_evidence(args.folder):
+            print(path)
+    except RfswError as exc:  # a folder that cannot be written: one line, as the CLI says it
+        print(f"seed001_evidence: error: {exc}", file=sys.stderr)
+        sys.exit(getattr(exc, "exit_code", 2))

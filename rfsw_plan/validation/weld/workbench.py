@@ -5,15 +5,15 @@ spindle or wrist sensor, and a measurement of where the weld went (a laser line 
 bead, or seed 000's lateral offset Delta y = D1 - D2, Figs. 15-17). :func:`validate_weld`:
 
 1. reads the plan that was run (:meth:`~rfsw_plan.planfiles.folder.PlanFolder.rebuild`) and
-   puts the track on the seam (:mod:`~rfsw_plan.validation.track`);
+   puts the track on the seam (:mod:`~rfsw_plan.validation.weld.track`);
 2. **predicts the executed pin path** under the logged (or planned) wrench
-   (:mod:`~rfsw_plan.validation.weld_samples`);
+   (:mod:`~rfsw_plan.validation.weld.samples`);
 3. **compares** it with the track: residual r = measured - predicted against s and time, RMS,
    max, the share of the measured weld inside the window;
 4. **diagnoses** what the model misses with the workbench's one diagnosis engine, the weld's
-   prediction as its input (:mod:`~rfsw_plan.validation.weld_diagnosis`), and says what one
-   weld can identify (:mod:`~rfsw_plan.validation.identifiability`);
-5. optionally **re-identifies** the candidates asked for (:mod:`~rfsw_plan.validation.weld_add`).
+   prediction as its input (:mod:`~rfsw_plan.validation.weld.diagnosis`), and says what one
+   weld can identify (:mod:`~rfsw_plan.validation.weld.identifiability`);
+5. optionally **re-identifies** the candidates asked for (:mod:`~rfsw_plan.validation.weld.add`).
 """
 
 from __future__ import annotations
@@ -31,14 +31,14 @@ from rfsw_plan.io.force_series import ForceSeries
 from rfsw_plan.io.weld_track import WeldTrack
 from rfsw_plan.planfiles.rebuild import RebuiltPlan
 from rfsw_plan.process.frames import FloatArray
-from rfsw_plan.validation.candidates import candidate_labels
-from rfsw_plan.validation.identifiability import Identifiability
-from rfsw_plan.validation.scoring import Candidate
-from rfsw_plan.validation.track import TrackOnSeam, noise_floor, track_on_seam
-from rfsw_plan.validation.weld_add import WeldAddResult, add_and_identify
-from rfsw_plan.validation.weld_diagnosis import DEFAULT_BLOCKS, WeldDiagnosis, diagnose_weld
-from rfsw_plan.validation.weld_fit import rms
-from rfsw_plan.validation.weld_samples import WeldSamples, weld_samples
+from rfsw_plan.validation.engine.candidates import candidate_labels
+from rfsw_plan.validation.engine.scoring import Candidate
+from rfsw_plan.validation.weld.add import WeldAddResult, add_and_identify
+from rfsw_plan.validation.weld.diagnosis import DEFAULT_BLOCKS, WeldDiagnosis, diagnose_weld
+from rfsw_plan.validation.weld.fit import rms
+from rfsw_plan.validation.weld.identifiability import Identifiability
+from rfsw_plan.validation.weld.samples import WeldSamples, weld_samples
+from rfsw_plan.validation.weld.track import TrackOnSeam, noise_floor, track_on_seam
 
 #: At most this many track points enter the diagnosis (evenly spread).
 MAX_POINTS = 600

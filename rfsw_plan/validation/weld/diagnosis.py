@@ -1,17 +1,17 @@
 """Which candidate explains the residual of one weld (``rfsw-plan validate-weld``).
 
 The candidates are every joint stiffness of the model and every library effect it lacks
-(:func:`~rfsw_plan.validation.candidates.candidate_labels` with ``joint_stiffness``): one weld
-does not re-identify the model, so a joint stiffness can be what is missing. Each is fitted to
-the weld through the weld's prediction (:func:`~rfsw_plan.validation.weld_fit.fit_form`),
+(:func:`~rfsw_plan.validation.engine.candidates.candidate_labels` with ``joint_stiffness``): one
+weld does not re-identify the model, so a joint stiffness can be what is missing. Each is fitted to
+the weld through the weld's prediction (:func:`~rfsw_plan.validation.weld.fit.fit_form`),
 cross-validated over contiguous blocks of s, and scored by the workbench's one scoring
-(:mod:`rfsw_plan.validation.scoring`: held-out F test against the model as it is, Bonferroni
+(:mod:`rfsw_plan.validation.engine.scoring`: held-out F test against the model as it is, Bonferroni
 over the candidates at level ALPHA, ranking by held-out RMS, ties, the simplest named).
 
 The noise floor sigma is estimated from successive differences of the residual
-(:func:`~rfsw_plan.validation.track.noise_floor`); a held-out RMS within NOISE_TOLERANCE
+(:func:`~rfsw_plan.validation.weld.track.noise_floor`); a held-out RMS within NOISE_TOLERANCE
 sigma is at the floor. What the weld can identify is stated with the verdict
-(:mod:`rfsw_plan.validation.identifiability`).
+(:mod:`rfsw_plan.validation.weld.identifiability`).
 
 Verdict: ``adequate`` (the residual is at the noise floor), ``missing`` (the named candidate
 brings the held-out residual to the noise floor; the candidates the weld cannot tell from it
@@ -31,12 +31,16 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError, InputError
 from rfsw_plan.process.frames import FloatArray
 from rfsw_plan.progress import progress
-from rfsw_plan.validation.candidates import candidate_form, candidate_labels, stiffness_labels
-from rfsw_plan.validation.identifiability import Identifiability, assess, visibility
-from rfsw_plan.validation.scoring import ALPHA, Candidate, named, rank, score, ties_of
-from rfsw_plan.validation.track import TrackOnSeam, noise_floor
-from rfsw_plan.validation.weld_fit import WeldFit, WeldObservations, fit_form, rms
-from rfsw_plan.validation.weld_samples import WeldSamples
+from rfsw_plan.validation.engine.candidates import (
+    candidate_form,
+    candidate_labels,
+    stiffness_labels,
+)
+from rfsw_plan.validation.engine.scoring import ALPHA, Candidate, named, rank, score, ties_of
+from rfsw_plan.validation.weld.fit import WeldFit, WeldObservations, fit_form, rms
+from rfsw_plan.validation.weld.identifiability import Identifiability, assess, visibility
+from rfsw_plan.validation.weld.samples import WeldSamples
+from rfsw_plan.validation.weld.track import TrackOnSeam, noise_floor
 
 #: A held-out RMS within this factor of the noise floor is "at the noise floor" (the floor of
 #: a weld comes from successive differences, a slight underestimate where the error is smooth).

@@ -2,7 +2,7 @@
 identifiable (``rfsw-plan design-campaign``).
 
 The design picks N samples from a pool of candidates: reachable campaign poses
-(:func:`~rfsw_plan.validation.campaign.campaign_poses`), each with one load from a set of
+(:func:`~rfsw_plan.validation.campaign.simulation.campaign_poses`), each with one load from a set of
 directions and both signs (or none), and, where an effect depends on the side of a joint's
 play, each approach direction of that joint. The criterion is FIGAROH's (its
 ``BaseOptimalCalibration``: maximise det(sum_i w_i R_i^T R_i) over the candidates'
@@ -45,7 +45,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import write_json, write_text
 from rfsw_plan.numfmt import fixed, general
 from rfsw_plan.robot.kinematics import Robot
-from rfsw_plan.validation.campaign import campaign_poses
+from rfsw_plan.validation.campaign.simulation import campaign_poses
 from rfsw_plan.validation.workbench import check_effect_labels
 
 #: Candidate poses in the pool per designed pose (at least POOL_MIN).

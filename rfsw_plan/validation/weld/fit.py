@@ -1,12 +1,12 @@
 """Fitting a candidate to one weld: the weld's prediction as the input of the diagnosis engine.
 
 The observations are the measured offsets of the track (lateral, and normal where measured),
-stacked; a model predicts them through :meth:`~rfsw_plan.validation.weld_samples.WeldSamples.
-predict`. A candidate (:class:`~rfsw_plan.validation.candidates.CandidateForm`) is fitted by
+stacked; a model predicts them through :meth:`~rfsw_plan.validation.weld.samples.WeldSamples.
+predict`. A candidate (:class:`~rfsw_plan.validation.engine.candidates.CandidateForm`) is fitted by
 bounded nonlinear least squares on its parameters (scipy ``least_squares``, trust region
 reflective, bounds from the effect's ``param_ranges``); its Jacobian at the fit is taken by
 finite differences, and the held-out residual over contiguous blocks of s is the workbench's
-one cross-validation (:func:`~rfsw_plan.validation.crossval.heldout_residual`), each step
+one cross-validation (:func:`~rfsw_plan.validation.engine.crossval.heldout_residual`), each step
 clipped to the physical range.
 """
 
@@ -18,10 +18,10 @@ import numpy as np
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.process.frames import FloatArray
-from rfsw_plan.validation.candidates import CandidateForm
-from rfsw_plan.validation.crossval import heldout_residual
-from rfsw_plan.validation.track import TrackOnSeam
-from rfsw_plan.validation.weld_samples import WeldSamples
+from rfsw_plan.validation.engine.candidates import CandidateForm
+from rfsw_plan.validation.engine.crossval import heldout_residual
+from rfsw_plan.validation.weld.samples import WeldSamples
+from rfsw_plan.validation.weld.track import TrackOnSeam
 
 #: Relative cut-off of small singular values in the held-out steps of a weld (a weld sees few
 #: directions: a near-invisible parameter must not swing the held-out prediction).

@@ -10,7 +10,7 @@ one, with a robot model::
 
 (dX the model's process deflection with the problem's seam reference; p the seam point at the
 pin depth.) This prediction is the input of the weld diagnosis
-(:mod:`rfsw_plan.validation.weld_fit`).
+(:mod:`rfsw_plan.validation.weld.fit`).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The one scoring of a diagnosis: held-out F test, ranking, ties, and the candidate it names.
 
-Every candidate (:mod:`rfsw_plan.validation.candidates`) is fitted and cross-validated
-(:mod:`rfsw_plan.validation.crossval`) by the command's own prediction: the pose model on a
+Every candidate (:mod:`rfsw_plan.validation.engine.candidates`) is fitted and cross-validated
+(:mod:`rfsw_plan.validation.engine.crossval`) by the command's own prediction: the pose model on a
 load campaign (``validate``), the executed pin path on a weld (``validate-weld``). From the
 held-out sums of squares this module decides, the same way for both:
 

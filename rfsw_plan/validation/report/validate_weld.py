@@ -18,10 +18,10 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.files import write_figure, write_json, write_text
-from rfsw_plan.validation.candidates import PLAUSIBLE_FACTOR
-from rfsw_plan.validation.html_page import PAGE_END, figure, page_head, table
-from rfsw_plan.validation.identifiability import IDENT_RATIO, PARAM_CHANGE
-from rfsw_plan.validation.weld import WeldValidation
+from rfsw_plan.validation.engine.candidates import PLAUSIBLE_FACTOR
+from rfsw_plan.validation.report.html_page import PAGE_END, figure, page_head, table
+from rfsw_plan.validation.weld.identifiability import IDENT_RATIO, PARAM_CHANGE
+from rfsw_plan.validation.weld.workbench import WeldValidation
 
 #: PNG size: 13 x 7.5 in at 110 dpi = 1430 x 825 px.
 FIGSIZE = (13.0, 7.5)
