@@ -66,6 +66,13 @@ def rotation_from_vector(w: FloatArray) -> FloatArray:
     return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
 
 
+def _rotations(w: FloatArray) -> FloatArray:
+    """Rotation matrices (m, 3, 3) of rotation vectors (m, 3) [rad]."""
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_rotvec(np.asarray(w, dtype=float)).as_matrix())
+
+
 def _distinct_poses(data: MeasurementSet, rows: np.ndarray) -> int:
     if data.pose_id is not None:
         return len(set(data.pose_id[rows]))
@@ -95,8 +102,11 @@ def estimate_device_frame(
             "(6 registration + 3 marker parameters, 3 values per pose, and one to spare)"
         )
     batch = model.batch_of(data.subset(full))
-    p = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench[full])[:, :3]
-    Rt = batch.T[:, :3, :3]
+    d = model.deflection_batch(batch, data.wrench[full])
+    p = batch.T[:, :3, 3] + d[:, :3]
+    # The marker turns with the tool's predicted rotation (a joint offset, a link error or a
+    # compliance turns the tool): R_tool = exp(d_rot) R_fk.
+    Rt = np.einsum("mab,mbc->mac", _rotations(d[:, 3:]), batch.T[:, :3, :3])
     y = data.position[full]
     if np.linalg.matrix_rank(p - p.mean(axis=0), tol=1e-6) < 2:
         raise IdentificationError(

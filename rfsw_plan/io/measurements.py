@@ -300,15 +300,16 @@ def read_measurements(
     t, sigma, pose_id, load_step = _optional(tab)
     quantities = [joint_quantity(j + 1, None) for j in range(q.shape[1])]
     quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
-    quantities += [q for m in MARKERS for q in m]
     quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME, TEMPERATURE]
-    names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
+    markers_q = [q for m in MARKERS for q in m]
+    names = {x.key: h[0] for x in quantities + markers_q if (h := tab.find(x)) is not None}
     # A known quantity under a misspelt name (x__mm, Z_MM) would become an "extra" column and
-    # its axis would silently go missing: refused with the names it may have.
+    # its axis would silently go missing: refused with the names it may have. (Markers 2..9
+    # are not: a file's own x2, y2 columns of other points stay extras unless named x2_mm.)
     known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
     refuse_near_misses(tab, known, set(names.values()))
     if mapping is not None:  # a mapped key no reader asks for would be ignored
-        unknown = sorted(set(mapping.columns) - {x.key for x in known})
+        unknown = sorted(set(mapping.columns) - {x.key for x in known + markers_q})
         if unknown:
             raise InputError(mapping.source, f"columns.{unknown[0]}", "not a quantity of a "
                              "measurement file", ", ".join(x.key for x in known[:-6]))

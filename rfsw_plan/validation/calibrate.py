@@ -59,8 +59,10 @@ SELECTION_FOLDS = 5
 #: :data:`HELDOUT_FOLDS` folds by pose group.
 MAX_LOGO_GROUPS = 60
 HELDOUT_FOLDS = 10
-#: Alternations of per-file registration and model fit when there are several files.
-REGISTRATION_ROUNDS = 3
+#: At most this many alternations of per-file registration and model fit (several files),
+#: stopped when no registration moves by more than FRAME_TOL_M.
+REGISTRATION_ROUNDS = 40
+FRAME_TOL_M = 1e-6
 #: Joint values equal to this [rad or m] are one pose (one group).
 GROUP_TOL = 1e-6
 
@@ -533,12 +535,13 @@ def run(request: CalibrationRequest) -> CalibrationResult:
     frames: list[DeviceFrame | None] = [
         estimate_device_frame(model, d) if device else None for d in sets]
     nominal = _nominal_rms(model, sets, frames)
+    geometry = [g for g in request.geometry if not model.has(g)]
+    frames = converge_frames(model, geometry, sets, frames, request)
     res, chosen, steps, data, setup = _fit_rounds(model, sets, frames, None, request)
-    rounds = REGISTRATION_ROUNDS if len(sets) > 1 and device else 1
-    for _ in range(rounds - 1):
-        fitted, frames = _refold(res, setup, frames, sets)
+    if len(sets) > 1 and device and chosen != geometry:
+        frames = converge_frames(model, chosen, sets, frames, request)
         res, _, _, data, setup = _fit_rounds(model, sets, frames, chosen, request)
-    fitted, frames = _refold(res, setup, frames, sets)
+    fitted, frames = _refold(res, setup, frames)
     form = _form(model, chosen, setup)
     groups = pose_groups(data.q)
     folds, scheme = _heldout_folds(groups, request)
@@ -560,6 +563,55 @@ def run(request: CalibrationRequest) -> CalibrationResult:
     )
 
 
+def converge_frames(model: ElastostaticModel, labels: Sequence[str],
+                    sets: list[MeasurementSet], frames: list[DeviceFrame | None],
+                    request: CalibrationRequest) -> list[DeviceFrame | None]:
+    """Each file's registration for the model form ``labels``, when there are several files.
+
+    Alternates (at most :data:`REGISTRATION_ROUNDS` times): identify the form with one common
+    registration correction on the files registered with ``frames``, fold the correction in,
+    and register each file again (closed form) with the fitted model and the common marker,
+    until no frame moves by more than :data:`FRAME_TOL_M` (a rotation counted at 1 m). A
+    single file needs none of it: its registration is fitted jointly with everything else.
+    """
+    from rfsw_plan.files import check_interrupt
+
+    if len(sets) < 2 or frames[0] is None:
+        return frames
+    for _ in range(REGISTRATION_ROUNDS):
+        check_interrupt()
+        marker = np.mean([f.marker for f in frames if f is not None], axis=0)
+        setup = _common_setup(model, marker)
+        data = _concat([_registered(d, f) for d, f in zip(sets, frames, strict=True)], "")
+        fit = identify(_form(model, labels, setup), data)
+        fitted, correction = setup.fold(fit.model, fit.estimates)
+        new = [_register(fitted, d, correction.marker) for d in sets]
+        moved = max(_frame_change(f, g) for f, g in zip(frames, new, strict=True)
+                    if f is not None)
+        frames = list(new)
+        if moved < FRAME_TOL_M:
+            break
+    return frames
+
+
+def _register(model: ElastostaticModel, data: MeasurementSet, marker: FloatArray
+              ) -> DeviceFrame:
+    """A file's registration (closed form) with ``model`` and the marker held: the model's
+    TCP moved to the marker first, so that its rotations move the marker too."""
+    held = DeviceFrame(np.eye(3), np.zeros(3), np.asarray(marker, dtype=float))
+    at_marker = DeviceSetup(held, False, False, model.robot).model(model)
+    frame = estimate_device_frame(at_marker, data, np.zeros(3))
+    return replace(frame, marker=held.marker)
+
+
+def _frame_change(a: DeviceFrame, b: DeviceFrame) -> float:
+    """How far a registration moved [m]: translation, and rotation angle times 1 m."""
+    from scipy.spatial.transform import Rotation
+
+    angle = float(np.linalg.norm(Rotation.from_matrix(a.rotation.T @ b.rotation).as_rotvec()))
+    return max(float(np.linalg.norm(a.translation - b.translation)), angle)
+
+
 def _nominal_rms(model: ElastostaticModel, sets: list[MeasurementSet],
                  frames: list[DeviceFrame | None]) -> float:
     """3-D RMS over markers of the robot file's model, each file registered (closed form)."""
@@ -572,20 +624,14 @@ def _nominal_rms(model: ElastostaticModel, sets: list[MeasurementSet],
 
 
 def _refold(res: ValidationResult, setup: DeviceSetup | None,
-            frames: list[DeviceFrame | None], sets: list[MeasurementSet]
+            frames: list[DeviceFrame | None]
             ) -> tuple[ElastostaticModel, list[DeviceFrame | None]]:
-    """The fitted robot model and each file's registration: the common correction folded
-    into each file's frame, then (several files) each frame estimated again with the fitted
-    model and the common marker held."""
+    """The fitted robot model and each file's registration (the common correction folded
+    into each file's frame)."""
     if setup is None:
         return res.identification.model, frames
     fitted, correction = setup.fold(res.identification.model, res.identification.estimates)
-    new = [None if f is None else _compose(f, correction) for f in frames]
-    if len(sets) > 1:
-        new = [estimate_device_frame(fitted.copy(), d, correction.marker) for d in sets]
-        for f in new:
-            assert f is not None
-    return fitted, new
+    return fitted, [None if f is None else _compose(f, correction) for f in frames]
 
 
 def _file_scores(sets: list[MeasurementSet], frames: list[DeviceFrame | None],
