@@ -72,7 +72,8 @@ def run(args: argparse.Namespace) -> int:
     geometry = () if args.geometry.strip() == "none" else tuple(
         g.strip() for g in args.geometry.split(",") if g.strip())
     request = CalibrationRequest(
-        robot=args.robot, geometry=geometry, data=tuple(args.data), columns=args.columns, frame=args.frame,
+        robot=args.robot, geometry=geometry, data=tuple(args.data), columns=args.columns,
+        frame=args.frame,
         max_effects=args.max_effects, folds=args.folds, heldout_folds=args.heldout_folds,
         every=args.every, keep_registration=args.keep_registration, save_robot=save,
         name=args.name, seed=args.seed)
