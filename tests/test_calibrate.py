@@ -210,10 +210,12 @@ def test_calibrate_two_tracker_set_ups_markers_and_repeats(
     the noise gives; validate on a third set-up re-registers only its device frame."""
     a = _mat(tmp_path, "a.mat", campaign(1, 8, 3, R1, T1, DQ, NOISE_M))
     b = _mat(tmp_path, "b.mat", campaign(2, 8, 3, R2, T2, DQ, NOISE_M))
+    R3, T3 = _rot([0.02, 0.01, 1.7]), np.array([0.3, 1.5, -0.6])
+    c = _mat(tmp_path, "c.mat", campaign(3, 16, 1, R3, T3, DQ, NOISE_M))
     cols, fitted = _map(tmp_path), tmp_path / "FITTED.toml"
     assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(a), "--data",
                  str(b), "--columns", str(cols), "--frame", "device", "--max-effects", "0",
-                 "--geometry", "kinematic_offsets",
+                 "--geometry", "kinematic_offsets", "--score", str(c),
                  "--save-robot", str(fitted), "-o", str(tmp_path / "out"), "--json"]) == 0
     j = json.loads(capsys.readouterr().out)
     assert j == json.loads((tmp_path / "out" / "calibrate.json").read_text())
@@ -235,14 +237,14 @@ def test_calibrate_two_tracker_set_ups_markers_and_repeats(
                if p["effect"] == "kinematic_offsets"}
     for k in (2, 3, 4):
         assert offsets[f"dq{k + 1}"] == pytest.approx(DQ[k] * 1e3, abs=0.1), k
-    # Another set-up: only its device frame is registered again.
-    R3, T3 = _rot([0.02, 0.01, 1.7]), np.array([0.3, 1.5, -0.6])
-    c = _mat(tmp_path, "c.mat", campaign(3, 16, 1, R3, T3, DQ, NOISE_M))
+    # Another set-up: only its device frame is registered again (calibrate --score says
+    # what validate says).
     assert main(["validate", "--robot", str(fitted), "--data", str(c), "--columns", str(cols),
                  "--frame", "device", "--json", "--no-report"]) == 0
     v = json.loads(capsys.readouterr().out)
     assert v["device_frame"]["registration"] == "fitted" and v["device_frame"]["marker"] == "held"
     assert v["rms_3d_mm"] < 2.5 * floor
+    assert j["scores"][0]["rms_3d_mm"] == pytest.approx(v["rms_3d_mm"], rel=1e-6)
 
 
 def test_calibrate_refuses_a_file_given_twice(tmp_path: Path,

@@ -66,11 +66,11 @@ def rotation_from_vector(w: FloatArray) -> FloatArray:
     return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
 
 
-def _rotations(w: FloatArray) -> FloatArray:
-    """Rotation matrices (m, 3, 3) of rotation vectors (m, 3) [rad]."""
-    from scipy.spatial.transform import Rotation
-
-    return np.asarray(Rotation.from_rotvec(np.asarray(w, dtype=float)).as_matrix())
+def _cross_matrices(w: FloatArray) -> FloatArray:
+    """Cross-product matrices [w]x (m, 3, 3) of vectors w (m, 3)."""
+    out = np.zeros((w.shape[0], 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    return out - out.transpose(0, 2, 1)
 
 
 def _distinct_poses(data: MeasurementSet, rows: np.ndarray) -> int:
@@ -105,8 +105,9 @@ def estimate_device_frame(
     d = model.deflection_batch(batch, data.wrench[full])
     p = batch.T[:, :3, 3] + d[:, :3]
     # The marker turns with the tool's predicted rotation (a joint offset, a link error or a
-    # compliance turns the tool): R_tool = exp(d_rot) R_fk.
-    Rt = np.einsum("mab,mbc->mac", _rotations(d[:, 3:]), batch.T[:, :3, :3])
+    # compliance turns the tool), to first order as the model with its TCP at the marker
+    # predicts it: R_tool c = R_fk c + d_rot x (R_fk c) = (I + [d_rot]x) R_fk c.
+    Rt = np.einsum("mab,mbc->mac", np.eye(3) + _cross_matrices(d[:, 3:]), batch.T[:, :3, :3])
     y = data.position[full]
     if np.linalg.matrix_rank(p - p.mean(axis=0), tol=1e-6) < 2:
         raise IdentificationError(

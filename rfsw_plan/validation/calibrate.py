@@ -87,6 +87,8 @@ class CalibrationRequest:
         save_robot: Calibrated robot file to write (None: none).
         name: Robot name in that file.
         seed: Seed of the fold split.
+        score: Other files scored with the calibrated model as ``validate`` scores them
+            (:func:`score_file`), never used to choose or fit anything.
     """
 
     robot: str
@@ -102,6 +104,7 @@ class CalibrationRequest:
     save_robot: str | None = None
     name: str | None = None
     seed: int = 0
+    score: tuple[str, ...] = ()
 
     def check(self) -> None:
         """Refuse impossible options (one line each)."""
@@ -109,6 +112,10 @@ class CalibrationRequest:
             raise InputError("--data", "", "no training file", "--data FILE (repeatable)")
         if len(set(self.data)) != len(self.data):
             raise InputError("--data", "", "a file given twice", "each training file once")
+        both = sorted(set(self.data) & set(self.score))
+        if both:
+            raise InputError("--score", both[0], "is a training file too",
+                             "files not given to --data (held out)")
         if not 0 <= self.max_effects <= 10:
             raise InputError("--max-effects", "", f"{self.max_effects}", "0 .. 10")
         if self.folds < 2:
@@ -204,6 +211,7 @@ class CalibrationResult:
         seconds: Wall time [s].
         markers: Markers per pose.
         samples: Samples used (after ``every``).
+        scores: The ``score`` files: 3-D RMS of the tracked point [m] and samples.
     """
 
     request: CalibrationRequest
@@ -224,6 +232,7 @@ class CalibrationResult:
     seconds: float
     markers: int
     samples: int
+    scores: tuple[tuple[str, float, int], ...] = ()
 
     @property
     def repeatability(self) -> float | None:
@@ -253,6 +262,8 @@ class CalibrationResult:
             "parameters": list(self.parameters),
             "not_identifiable": list(self.not_identifiable),
             "files": [f.to_json() for f in self.files],
+            "scores": [{"data": d, "rms_3d_mm": v * 1e3, "samples": n}
+                       for d, v, n in self.scores],
             "registration": "held" if r.keep_registration else "each_file",
             "saved_robot": None if self.saved is None else str(self.saved),
             "seconds": self.seconds,
@@ -553,14 +564,36 @@ def run(request: CalibrationRequest) -> CalibrationResult:
     saved = None
     if request.save_robot is not None:
         saved = _save(request, res, fitted, frames[0], model)
+    held = frames[0] if request.keep_registration else None
+    marker = None if frames[0] is None else frames[0].marker
+    scores = tuple(score_file(fitted, path, request, marker, held) for path in request.score)
     return CalibrationResult(
         request=request, model=fitted, frames=tuple(frames), effects=tuple(chosen),
         steps=tuple(steps), heldout_rms=_rms3d(err), heldout_groups=int(groups.max()) + 1,
         heldout_scheme=scheme, fit_rms=_rms3d(fit_err), nominal_rms=nominal,
         iso=iso9283(measured, err, groups), files=files, parameters=tuple(params),
         not_identifiable=tuple(missing), saved=saved, seconds=time.perf_counter() - t0,
-        markers=measured.shape[1], samples=len(data),
+        markers=measured.shape[1], samples=len(data), scores=scores,
     )
+
+
+def score_file(model: ElastostaticModel, path: str, request: CalibrationRequest,
+               marker: FloatArray | None, held: DeviceFrame | None
+               ) -> tuple[str, float, int]:
+    """3-D RMS [m] of the tracked point of another file with ``model`` held: only its device
+    frame registered (closed form, ``marker`` held), or nothing refitted when ``held`` is
+    given; what ``validate --json`` reports as ``rms_3d_mm`` for the saved robot file."""
+    from rfsw_plan.io.measurements import read_measurements
+
+    data = read_measurements(path, model.robot.nq, prismatic=list(model.robot.prismatic),
+                             columns=request.columns, frame=request.frame)
+    check_data(model, data)
+    if data.frame == "device" and marker is not None:
+        frame = held if held is not None else _register(model, data, marker)
+        at_marker = DeviceSetup(frame, False, False, model.robot).model(model)
+        data = _registered(data, frame)
+        return path, _rms3d(marker_errors(at_marker, data, replace(data, markers=None))), len(data)
+    return path, _rms3d(marker_errors(model, data, replace(data, markers=None))), len(data)
 
 
 def converge_frames(model: ElastostaticModel, labels: Sequence[str],

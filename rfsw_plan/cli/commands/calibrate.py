@@ -30,6 +30,10 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", required=True, action="append", metavar="FILE",
                         help="training measurement file (CSV or .mat; repeatable, each with its "
                         "own device frame)")
+    parser.add_argument("--score", action="append", default=[], metavar="OTHER",
+                        help="also score this file with the calibrated model, only its device "
+                        "frame registered again (as validate's rms_3d_mm; repeatable; never "
+                        "used to choose or fit)")
     parser.add_argument("--columns", metavar="FILE.toml",
                         help="column map of the files (docs/formats/measurements.md)")
     parser.add_argument("--frame", choices=("base", "device"),
@@ -76,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
         frame=args.frame,
         max_effects=args.max_effects, folds=args.folds, heldout_folds=args.heldout_folds,
         every=args.every, keep_registration=args.keep_registration, save_robot=save,
-        name=args.name, seed=args.seed)
+        name=args.name, seed=args.seed, score=tuple(args.score))
     result = calibrate(request)
     if out is not None:
         result.write(out)
@@ -97,6 +101,9 @@ def run(args: argparse.Namespace) -> int:
               f"worst pose ({iso['repeated_groups']} repeated poses); AP {iso['AP_mean_mm']:.3f}"
               f" mm mean, {iso['AP_max_mm']:.3f} mm worst (held out)")
     print(f"effects: {', '.join(j['effects']) or 'none'}")
+    for sc in j["scores"]:
+        print(f"scored {sc['data']}: {sc['rms_3d_mm']:.3f} mm 3-D RMS over {sc['samples']} "
+              "samples, only its device frame registered again")
     if result.saved is not None:
         print(f"wrote {result.saved}")
     return 0
