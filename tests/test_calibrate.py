@@ -269,3 +269,59 @@ def test_fanuc_leave_one_pose_out_beats_the_published_in_sample_figure(
     assert j["heldout_rms_mm"] <= 0.53
     assert j["repeatability_mm"] is not None and j["iso9283"]["repeated_groups"] == 24
     assert j["effects"][:2] == ["kinematic_offsets", "link_errors"]
+
+
+# -- bundled robots against their public sources ------------------------------------------
+def _rz(t: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:2, :2] = [[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]]
+    return T
+
+
+def _rx(t: float) -> np.ndarray:
+    T = np.eye(4)
+    T[1:3, 1:3] = [[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]]
+    return T
+
+
+def _tr(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = [x, y, z]
+    return T
+
+
+def _axis(axis: tuple[float, float, float], t: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_rotvec(np.array(axis, dtype=float) * t).as_matrix()
+    return T
+
+
+def test_ur10_is_urs_standard_dh() -> None:
+    """UR's published standard DH of the UR10 (d1 127.3, a2 -612, a3 -572.3, d4 163.941,
+    d5 115.7, d6 92.2 mm; alpha 90, 0, 0, 90, -90, 0 deg), chained here by hand."""
+    d = [0.1273, 0, 0, 0.163941, 0.1157, 0.0922]
+    a = [0, -0.612, -0.5723, 0, 0, 0]
+    alpha = [math.pi / 2, 0, 0, math.pi / 2, -math.pi / 2, 0]
+    robot = load_robot("ur10")
+    for q in np.random.default_rng(4).uniform(-3, 3, (5, 6)):
+        T = np.eye(4)
+        for i in range(6):
+            T = T @ _rz(q[i]) @ _tr(0, 0, d[i]) @ _tr(a[i], 0, 0) @ _rx(alpha[i])
+        np.testing.assert_allclose(robot.fk(q), T, atol=1e-12)
+
+
+def test_fanuc_r2000ic_165f_is_the_ros_industrial_urdf() -> None:
+    """The joint origins and axes of ROS-Industrial's r2000ic165f_macro.xacro, chained here
+    by hand, from base_link to tool0 (the faceplate: same origin, z out of the flange)."""
+    origins = [(0, 0, 0.670), (0.312, 0, 0), (0, 0, 1.075), (0, 0, 0.225), (1.280, 0, 0),
+               (0.215, 0, 0)]
+    axes = [(0, 0, 1), (0, 1, 0), (0, -1, 0), (-1, 0, 0), (0, -1, 0), (-1, 0, 0)]
+    tool0 = np.eye(4)
+    tool0[:3, :3] = Rotation.from_euler("xyz", [math.pi, -math.pi / 2, 0]).as_matrix()
+    robot = load_robot("fanuc_r2000ic_165f")
+    for q in np.random.default_rng(5).uniform(-1.5, 1.5, (5, 6)):
+        T = np.eye(4)
+        for o, ax, qi in zip(origins, axes, q, strict=True):
+            T = T @ _tr(*o) @ _axis(ax, qi)
+        np.testing.assert_allclose(robot.fk(q)[:3, 3], (T @ tool0)[:3, 3], atol=1e-12)
+        np.testing.assert_allclose(robot.fk(q)[:3, 2], (T @ tool0)[:3, 2], atol=1e-12)
