@@ -325,3 +325,23 @@ def test_fanuc_r2000ic_165f_is_the_ros_industrial_urdf() -> None:
             T = T @ _tr(*o) @ _axis(ax, qi)
         np.testing.assert_allclose(robot.fk(q)[:3, 3], (T @ tool0)[:3, 3], atol=1e-12)
         np.testing.assert_allclose(robot.fk(q)[:3, 2], (T @ tool0)[:3, 2], atol=1e-12)
+
+
+def test_pose_groups_and_iso9283_by_hand() -> None:
+    from rfsw_plan.validation.calibrate import iso9283, pose_groups
+
+    q = np.array([[0.1, 0.2], [0.3, 0.4], [0.1, 0.2], [0.3, 0.4 + 1e-9], [0.1, 0.2]])
+    np.testing.assert_array_equal(pose_groups(q), [0, 1, 0, 1, 0])
+    # Group 0: three repeats at distances 1, 1, 1 (mm) from their barycentre; group 1: two.
+    measured = np.zeros((5, 1, 3))
+    measured[[0, 2, 4], 0] = [[1e-3, 0, 0], [-0.5e-3, 0.866e-3, 0], [-0.5e-3, -0.866e-3, 0]]
+    measured[[1, 3], 0] = [[0, 0, 2e-3], [0, 0, -2e-3]]
+    err = np.zeros((5, 1, 3))
+    err[[1, 3], 0, 0] = 3e-3  # group 1's barycentre 3 mm off the prediction
+    iso = iso9283(measured, err, pose_groups(q))
+    # RP needs 3 repeats: group 0 only, l = 1 mm each, S_l = 0: RP = 1 mm.
+    assert iso.rp_max == pytest.approx(1e-3, rel=1e-3) and iso.rp_mean == iso.rp_max
+    assert iso.ap_max == pytest.approx(3e-3) and iso.ap_mean == pytest.approx(1.5e-3)
+    assert iso.groups == 2 and iso.repeated_groups == 2
+    # Deviations from the barycentres: five of 1, 1, 1, 2, 2 mm.
+    assert iso.repeat_rms_3d == pytest.approx(math.sqrt((3 * 1 + 2 * 4) / 5) * 1e-3, rel=1e-3)
