@@ -113,13 +113,22 @@ def read_column_map(path: str | Path, allowed_options: Mapping[str, str]) -> Col
                          "quantity = { name = 'column in the file', unit = '...' }")
     out: dict[str, tuple[str, str]] = {}
     for key, entry in cols.items():
-        if not isinstance(entry, dict) or set(entry) - {"name", "unit"} or "name" not in entry:
+        if (not isinstance(entry, dict) or set(entry) - {"name", "unit", "column"}
+                or "name" not in entry):
             raise InputError(p, f"columns.{key}", f"got {entry!r}",
-                             "{ name = 'column in the file', unit = '...' }")
+                             "{ name = 'column in the file', unit = '...' } (and column = N "
+                             "for column N of a MATLAB array)")
         name, unit = entry["name"], entry.get("unit", "")
         if not isinstance(name, str) or not isinstance(unit, str) or not name.strip():
             raise InputError(p, f"columns.{key}", f"got {entry!r}", "name and unit as strings")
-        out[key] = (name.strip(), unit.strip())
+        name = name.strip()
+        if "column" in entry:
+            col = entry["column"]
+            if isinstance(col, bool) or not isinstance(col, int) or col < 1:
+                raise InputError(p, f"columns.{key}.column", f"got {col!r}",
+                                 "a column number of the array, 1 or more")
+            name = array_column(name, col)
+        out[key] = (name, unit.strip())
     used = [v[0] for v in out.values()]
     dup = sorted({n for n in used if used.count(n) > 1})
     if dup:
@@ -162,6 +171,8 @@ class Table:
     @property
     def dialect(self) -> str:
         """What was detected, e.g. ``"semicolon-separated, decimal comma"``."""
+        if self.path.suffix.lower() == ".mat":
+            return "MATLAB file"
         return (f"{_NAMES[self.delimiter]}-separated, "
                 f"decimal {'comma' if self.decimal == ',' else 'point'}")
 
@@ -340,8 +351,14 @@ def _detect_delimiter(line: str) -> str:
     return best if counts[best] > 0 else ","
 
 
+def array_column(array: str, column: int) -> str:
+    """The table column name of column ``column`` (1-based) of a MATLAB array: ``q[3]``."""
+    return f"{array}[{column}]"
+
+
 def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
-    """Read a CSV file with a header row (see module docstring).
+    """Read a CSV file with a header row (see module docstring), or a MATLAB ``.mat`` file
+    (:func:`read_mat_table`).
 
     Raises:
         InputError: Unreadable or empty file, no data rows, a duplicated or empty column name,
@@ -349,6 +366,8 @@ def read_table(path: str | Path, mapping: ColumnMap | None = None) -> Table:
             the header, a malformed CSV row.
     """
     p = Path(path)
+    if p.suffix.lower() == ".mat":
+        return read_mat_table(p, mapping)
     try:
         text = p.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
@@ -404,3 +423,68 @@ def _check_header(p: Path, header: list[str]) -> None:
             raise InputError(p, "header", f"column '{h}' appears twice",
                              "each column name once")
         seen.add(h)
+
+
+def read_mat_table(path: str | Path, mapping: ColumnMap | None) -> Table:
+    """Read the arrays of a MATLAB (v4 to v7.2) file that ``mapping`` names, as a table.
+
+    A MATLAB file has no column names, so nothing is guessed: every quantity is declared in
+    the column map as ``{ name = "ARRAY", column = N, unit = "..." }`` (column N, 1-based, of
+    the 2-D numeric array ARRAY, one sample per array row), or ``{ name = "ARRAY" }`` for a
+    one-column array. The table's columns are named ``ARRAY[N]`` (:func:`array_column`) and
+    its rows are the array rows (``row 1`` is the first sample). Arrays the map does not name
+    are not read.
+
+    Raises:
+        InputError: No column map, an unreadable file, a named array that is missing, not
+            numeric or not 2-D, a column beyond the array's, mapped arrays of different row
+            counts.
+    """
+    import scipy.io
+
+    p = Path(path)
+    if mapping is None:
+        raise InputError(p, "", "a MATLAB file has no column names",
+                         "--columns FILE.toml naming each quantity's array and column")
+    try:
+        arrays = scipy.io.loadmat(str(p))
+    except (OSError, ValueError, NotImplementedError, TypeError) as exc:
+        raise InputError(p, "", f"cannot read MATLAB file: {exc}",
+                         "a MATLAB v4-v7.2 .mat file (v7.3/HDF5 is not read)") from None
+    wanted: dict[str, list[int]] = {}
+    for key, (name, _unit) in mapping.columns.items():
+        m = re.fullmatch(r"(.+)\[(\d+)\]", name)
+        array, col = (m.group(1), int(m.group(2))) if m else (name, 0)
+        value = arrays.get(array)
+        where = f"array '{array}' (columns.{key} of {mapping.source})"
+        if value is None:
+            known = sorted(k for k in arrays if not k.startswith("__"))
+            raise InputError(p, where, "missing", f"one of {', '.join(known) or 'no arrays'}")
+        if not isinstance(value, np.ndarray) or value.ndim != 2 or value.dtype.kind not in "iuf":
+            raise InputError(p, where, f"not a 2-D numeric array ({getattr(value, 'shape', '')})",
+                             "a numeric matrix with one sample per row")
+        if col == 0 and value.shape[1] != 1:
+            raise InputError(mapping.source, f"columns.{key}", f"array '{array}' has "
+                             f"{value.shape[1]} columns", "column = N to say which one")
+        if col > value.shape[1]:
+            raise InputError(mapping.source, f"columns.{key}.column", f"{col} but array "
+                             f"'{array}' has {value.shape[1]} columns",
+                             f"1 .. {value.shape[1]}")
+        wanted.setdefault(array, []).append(col)
+    n_rows = {a: int(arrays[a].shape[0]) for a in wanted}
+    if len(set(n_rows.values())) > 1:
+        a, b = sorted(n_rows, key=lambda k: n_rows[k])[0], max(n_rows, key=lambda k: n_rows[k])
+        raise InputError(p, f"array '{a}'", f"{n_rows[a]} rows but array '{b}' has {n_rows[b]}",
+                         "one sample per row in every mapped array")
+    m_rows = next(iter(n_rows.values()))
+    if m_rows == 0:
+        raise InputError(p, "", "no samples in the mapped arrays")
+    header: list[str] = []
+    columns: list[FloatArray] = []
+    for array, cols in wanted.items():
+        for col in sorted(set(cols)):
+            header.append(array if col == 0 else array_column(array, col))
+            columns.append(np.asarray(arrays[array][:, max(col, 1) - 1], dtype=float))
+    # repr() round-trips every float exactly, so the strict cell checks apply unchanged.
+    rows = [[repr(float(c[i])) for c in columns] for i in range(m_rows)]
+    return Table(p, header, rows, list(range(1, m_rows + 1)), ",", ".", mapping)

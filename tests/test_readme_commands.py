@@ -60,6 +60,8 @@ NEEDS = {
          "out/plan/zk500/rfsw_zk500_table6_seam.src"),
     "rfsw-plan validate --robot zk500 --data out/campaign.csv":
         ("rfsw-plan simulate-campaign --robot zk500 --hidden payload_gravity", "out/campaign.csv"),
+    "rfsw-plan validate --robot out/fanuc_fitted.toml":
+        ("rfsw-plan calibrate --robot fanuc_r2000ic_165f", "out/fanuc_fitted.toml"),
 }
 
 _BLOCK = re.compile(r"^```(sh|python)\n(.*?)^```\n(?:\n```text title=\"output\"\n(.*?)^```)?",

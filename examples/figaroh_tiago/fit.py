@@ -1,6 +1,7 @@
 """The recommended real-data fit: choose the model on the training recording, save it, score it.
 
-Usage (from the repository root; ``fit.sh`` wraps it)::
+Usage (from the repository root; ``fit.sh`` runs the same choice as ``rfsw-plan calibrate``;
+this script prints more about it)::
 
     python examples/figaroh_tiago/fit.py TRAIN.csv FITTED.toml [OTHER.csv ...]
 
@@ -9,11 +10,12 @@ Usage (from the repository root; ``fit.sh`` wraps it)::
    robot file's model), and its geometry: joint zero offsets and a full geometric
    calibration of the links (``link_errors``, with a prior of its plausible size). These are
    not put to a vote: a real arm has them. What the data cannot identify is named.
-2. Forward selection on TRAIN only: the workbench's diagnosis scores every other library
-   effect by 5-fold cross-validation on TRAIN; the best one whose gain is significant is
-   added and everything is re-identified; repeated until no candidate is significant (at
-   most MAX_EFFECTS). Identification keeps a parameter only where it is plausible (a joint
-   softer than 100 N m/rad, a link off by 5 mm or 3 deg, is a stand-in, not a calibration).
+2. Forward selection on TRAIN only, as ``rfsw-plan calibrate`` does it (``fit.sh`` is that
+   command): the workbench's diagnosis scores every other library effect by 5-fold
+   cross-validation on TRAIN; the best one whose gain is significant is added and everything
+   is re-identified; repeated until no candidate is significant (at most MAX_EFFECTS).
+   Identification keeps a parameter only where it is plausible (a joint softer than
+   100 N m/rad, a link off by 5 mm or 3 deg, is a stand-in, not a calibration).
 3. FITTED.toml: the robot with the chosen effects and the registration, which
    ``rfsw-plan validate --robot FITTED.toml --data OTHER.csv --columns
    examples/figaroh_tiago/columns.toml --frame device --json`` evaluates with no refit.
@@ -37,8 +39,9 @@ from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel, load_model
 from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_setup
 from rfsw_plan.io.measurements import read_measurements
+from rfsw_plan.validation.calibrate import CalibrationRequest, choose_effects
 from rfsw_plan.validation.engine.diagnosis import make_folds
-from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot, validate
+from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot
 
 HERE = Path(__file__).resolve().parent
 COLUMNS = HERE / "columns.toml"
@@ -60,23 +63,16 @@ def read(path: str | Path, model: ElastostaticModel) -> MeasurementSet:
 
 
 def choose_model(model: ElastostaticModel, train: MeasurementSet) -> ValidationResult:
-    """Forward selection of effects by cross-validation on the training recording."""
+    """The choice ``rfsw-plan calibrate`` makes (:func:`rfsw_plan.validation.calibrate.
+    choose_effects`: the geometry, then the diagnosis's best significant effect at a time)."""
     setup = prepare_device_setup(model, train)
-    added: list[str] = list(GEOMETRY)
-    res = validate(model, train, add=added, setup=setup)
-    print(f"  {' + '.join(['registration', *added]):<50} training CV "
-          f"{res.diagnosis.heldout_rms * 1e3:6.3f} mm/axis, fit {res.rms * 1e3:6.3f} mm/axis")
-    for _ in range(MAX_EFFECTS):
-        best = next((c for c in res.diagnosis.candidates if c.significant), None)
-        if best is None:
-            break
-        step = validate(model, train, add=[*added, best.label], setup=setup)
-        if step.diagnosis.heldout_rms >= res.diagnosis.heldout_rms:
-            break  # nothing identified beyond what the model had: stop
-        added.append(best.label)
-        res = step
-        print(f"  + {best.label:<48} training CV {res.diagnosis.heldout_rms * 1e3:6.3f} mm/axis, "
-              f"fit {res.rms * 1e3:6.3f} mm/axis")
+    request = CalibrationRequest(robot=ROBOT, data=(train.source,), geometry=GEOMETRY,
+                                 max_effects=MAX_EFFECTS)
+    res, _, steps = choose_effects(model, train, setup, request)
+    for k, step in enumerate(steps):
+        label = step.added if k == 0 else f"+ {step.added}"
+        print(f"  {label:<50} training CV {step.cv_rms * 1e3:6.3f} mm/axis, "
+              f"fit {step.fit_rms * 1e3:6.3f} mm/axis")
     return res
 
 

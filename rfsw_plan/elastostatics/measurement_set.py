@@ -54,6 +54,9 @@ class MeasurementSet:
         load_change: The last change of the logged wrench at the same pose before the sample
             [N, N m], base frame, shape (m, 6) (:func:`rfsw_plan.elastostatics.approach.
             load_changes`), computed on the whole recording like ``approach``, or None.
+        markers: Every marker of a sample measured with several (a laser tracker's three
+            reflectors), in ``frame`` [m], shape (m, k, 3), or None; ``position`` is then
+            their centroid.
     """
 
     q: FloatArray
@@ -71,6 +74,7 @@ class MeasurementSet:
     columns: dict[str, str] = field(default_factory=dict)
     approach: FloatArray | None = None
     load_change: FloatArray | None = None
+    markers: FloatArray | None = None
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -103,6 +107,7 @@ class MeasurementSet:
             columns=self.columns,
             approach=None if self.approach is None else self.approach[idx],
             load_change=None if self.load_change is None else self.load_change[idx],
+            markers=None if self.markers is None else self.markers[idx],
         )
 
     def load_changes(self) -> FloatArray:
@@ -144,7 +149,9 @@ class MeasurementSet:
         return float(np.sqrt(np.mean(np.var(Fz, axis=0, ddof=1))))
 
     def with_position(self, position: FloatArray, frame: str) -> MeasurementSet:
-        """The same samples with positions (m, 3) [m] expressed in another frame."""
+        """The same samples with positions (m, 3) [m] expressed in another frame (the
+        individual markers, kept in the old frame, are dropped)."""
         from dataclasses import replace
 
-        return replace(self, position=np.asarray(position, dtype=float), frame=frame)
+        return replace(self, position=np.asarray(position, dtype=float), frame=frame,
+                       markers=None)

@@ -66,6 +66,13 @@ def rotation_from_vector(w: FloatArray) -> FloatArray:
     return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)
 
 
+def _cross_matrices(w: FloatArray) -> FloatArray:
+    """Cross-product matrices [w]x (m, 3, 3) of vectors w (m, 3)."""
+    out = np.zeros((w.shape[0], 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    return out - out.transpose(0, 2, 1)
+
+
 def _distinct_poses(data: MeasurementSet, rows: np.ndarray) -> int:
     if data.pose_id is not None:
         return len(set(data.pose_id[rows]))
@@ -95,8 +102,12 @@ def estimate_device_frame(
             "(6 registration + 3 marker parameters, 3 values per pose, and one to spare)"
         )
     batch = model.batch_of(data.subset(full))
-    p = batch.T[:, :3, 3] + model.deflection_batch(batch, data.wrench[full])[:, :3]
-    Rt = batch.T[:, :3, :3]
+    d = model.deflection_batch(batch, data.wrench[full])
+    p = batch.T[:, :3, 3] + d[:, :3]
+    # The marker turns with the tool's predicted rotation (a joint offset, a link error or a
+    # compliance turns the tool), to first order as the model with its TCP at the marker
+    # predicts it: R_tool c = R_fk c + d_rot x (R_fk c) = (I + [d_rot]x) R_fk c.
+    Rt = np.einsum("mab,mbc->mac", np.eye(3) + _cross_matrices(d[:, 3:]), batch.T[:, :3, :3])
     y = data.position[full]
     if np.linalg.matrix_rank(p - p.mean(axis=0), tol=1e-6) < 2:
         raise IdentificationError(

@@ -18,6 +18,15 @@ lab's own column names and units are read through a mapping file (``--columns FI
 * Optional orientation of the tool frame, in the same frame as the positions: a rotation
   vector ``rx_mrad, ry_mrad, rz_mrad`` (or ``_rad``/``_deg``), or a unit quaternion
   ``quat_w, quat_x, quat_y, quat_z``. All components or none.
+* Several markers per pose (a laser tracker's three reflectors): ``x2_mm, y2_mm, z2_mm`` ...
+  up to ``x9_mm`` beside marker 1's ``x_mm, y_mm, z_mm``, all in the same frame. Every marker
+  is kept (:attr:`MeasurementSet.markers`); the position is their centroid, a point fixed to
+  the tool like each of them.
+* Orientation as Euler angles (a 6-D probe): ``rx, ry, rz`` columns with the mapping key
+  ``orientation = "euler_xyz"`` (extrinsic x-y-z, scipy's ``"xyz"``) or another of
+  :data:`ORIENTATIONS`; converted to a rotation vector here.
+* Optional ``temperature_C`` (room or arm temperature [deg C], sanity-checked), kept as the
+  extra ``temperature_C`` that the diagnosis correlates the residual with.
 * Optional ``t_s`` (time [s]), ``pose_id`` (text), ``load_step`` (integer label of the commanded
   load), ``sigma_mm`` (1-sigma noise of the position measurement of that row), ``frame``
   (``base`` or ``device``, the same on every row). Any other numeric column is kept as an
@@ -74,7 +83,15 @@ MAPPING_OPTIONS = {
     "frame": "base | device",
     "wrench_frame": "base | tool | sensor",
     "source": "a note on where the data comes from",
+    "orientation": "rotation_vector | euler_xyz | euler_XYZ | euler_zyx | euler_ZYX",
 }
+#: How the ``rx, ry, rz`` columns hold an orientation: a rotation vector, or Euler angles
+#: (scipy's sequence names: lower case extrinsic, upper case intrinsic).
+ORIENTATIONS = ("rotation_vector", "euler_xyz", "euler_XYZ", "euler_zyx", "euler_ZYX")
+#: Extra markers beside marker 1 (x, y, z): x2 .. x9.
+MAX_MARKERS = 9
+#: A temperature outside this range [deg C] is refused as a unit slip (K or deg F).
+TEMPERATURE_RANGE_C = (-40.0, 100.0)
 
 _ANGLE = {"deg": math.pi / 180.0, "rad": 1.0}
 _LENGTH = {"mm": 1e-3, "m": 1.0}
@@ -89,6 +106,9 @@ SIGMA = Quantity("sigma", _LENGTH)
 POSE_ID = Quantity("pose_id", {"": 1.0}, text=True)
 LOAD_STEP = Quantity("load_step", {"": 1.0}, text=True)
 FRAME = Quantity("frame", {"": 1.0}, text=True)
+TEMPERATURE = Quantity("temperature", {"C": 1.0})
+MARKERS = tuple(tuple(Quantity(f"{a}{k}", _LENGTH) for a in "xyz")
+                for k in range(2, MAX_MARKERS + 1))
 
 #: A function giving the TCP rotation in the base frame for joint values (m, n), shape
 #: (m, 3, 3): what the reader needs to bring a tool- or sensor-frame wrench into the base frame.
@@ -154,8 +174,12 @@ def _vector(tab: Table, qs: Sequence[Quantity], label: str,
     return np.stack([tab.numbers(h[0], h[1], allow_blank) for h in hits if h is not None], axis=1)
 
 
-def _orientation(tab: Table) -> FloatArray | None:
+def _orientation(tab: Table, kind: str = "rotation_vector") -> FloatArray | None:
     rv = _vector(tab, ROTVEC, "an orientation rotation vector")
+    if rv is not None and kind != "rotation_vector":
+        from scipy.spatial.transform import Rotation
+
+        return np.asarray(Rotation.from_euler(kind.removeprefix("euler_"), rv).as_rotvec())
     quat = _vector(tab, QUATERNION, "an orientation quaternion")
     if rv is not None and quat is not None:
         raise InputError(tab.path, "header", "both a rotation vector and a quaternion",
@@ -271,31 +295,40 @@ def read_measurements(
     wf = _wrench_frame(tab, mapping, wrench_frame)
     wrench = _to_base(tab, _logged_wrench(tab), q, wf, sensor_pose, tool_rotation)
     position = _positions(tab)
+    markers = _markers(tab, position)
+    if markers is not None:
+        position = np.mean(markers, axis=1)
     t, sigma, pose_id, load_step = _optional(tab)
     quantities = [joint_quantity(j + 1, None) for j in range(q.shape[1])]
     quantities += [*FORCES, *MOMENTS, *ROTVEC, *QUATERNION, *POSITIONS]
-    quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME]
-    names = {x.key: h[0] for x in quantities if (h := tab.find(x)) is not None}
+    quantities += [TIME, SIGMA, POSE_ID, LOAD_STEP, FRAME, TEMPERATURE]
+    markers_q = [q for m in MARKERS for q in m]
+    names = {x.key: h[0] for x in quantities + markers_q if (h := tab.find(x)) is not None}
     # A known quantity under a misspelt name (x__mm, Z_MM) would become an "extra" column and
-    # its axis would silently go missing: refused with the names it may have.
+    # its axis would silently go missing: refused with the names it may have. (Markers 2..9
+    # are not: a file's own x2, y2 columns of other points stay extras unless named x2_mm.)
     known = quantities + [joint_quantity(j + 1, None) for j in range(q.shape[1], 12)]
     refuse_near_misses(tab, known, set(names.values()))
     refuse_group_near_misses(tab, [FORCES, MOMENTS, POSITIONS, ROTVEC, QUATERNION],
                              set(names.values()))
     if mapping is not None:  # a mapped key no reader asks for would be ignored
-        unknown = sorted(set(mapping.columns) - {x.key for x in known})
+        unknown = sorted(set(mapping.columns) - {x.key for x in known + markers_q})
         if unknown:
             raise InputError(mapping.source, f"columns.{unknown[0]}", "not a quantity of a "
                              "measurement file", ", ".join(x.key for x in known[:-6]))
     extra = _extras(tab, set(names.values()))
+    temperature = _temperature(tab)
+    if temperature is not None:
+        extra["temperature_C"] = temperature
     approach = _approach(tab, extra, q, t)
     measured_in = _frame(tab, frame, mapping)
     if measured_in == "device":
         _whole_positions(tab, position)
     data = MeasurementSet(
         q, wrench, position, t, pose_id, sigma, extra,
-        str(tab.path), frame=measured_in, rotation=_orientation(tab),
+        str(tab.path), frame=measured_in, rotation=_orientation(tab, _orientation_kind(mapping)),
         load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
+        markers=markers,
     )
     return replace(data, load_change=data.load_changes())
 
@@ -367,6 +400,52 @@ def _positions(tab: Table) -> FloatArray:
         raise InputError(tab.path, "columns x_mm, y_mm, z_mm", "every position cell is blank",
                          "at least one measured value")
     return position
+
+
+def _markers(tab: Table, position: FloatArray) -> FloatArray | None:
+    """All markers of every row [m], shape (m, k, 3) (marker 1 = ``position``), or None when
+    the file has marker 1 only. Every marker needs all three axes on every row (a centroid of
+    some markers would be another point)."""
+    extra: list[FloatArray] = []
+    for k, qs in enumerate(MARKERS, start=2):
+        v = _vector(tab, qs, f"marker {k}")
+        if v is None:
+            break
+        extra.append(v)
+    later = next((qs[0].key for qs in MARKERS[len(extra) + 1:] if tab.find(qs[0])), None)
+    if later is not None:
+        raise InputError(tab.path, f"columns of marker {later[1:]}", "given, but marker "
+                         f"{len(extra) + 2} is missing", "markers numbered 2, 3, ... without gaps")
+    if not extra:
+        return None
+    out = np.stack([position, *extra], axis=1)
+    blank = np.flatnonzero(~np.all(np.isfinite(out), axis=(1, 2)))
+    if blank.size:
+        raise InputError(tab.path, f"row {tab.row_numbers[int(blank[0])]}", "a marker axis is "
+                         "blank", "every axis of every marker on every row (several markers)")
+    return out
+
+
+def _temperature(tab: Table) -> FloatArray | None:
+    """The temperature column [deg C], sanity-checked, or None."""
+    hit = tab.find(TEMPERATURE)
+    if hit is None:
+        return None
+    temp = tab.numbers(*hit)
+    lo, hi = TEMPERATURE_RANGE_C
+    bad = np.flatnonzero((temp < lo) | (temp > hi))
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(tab.path, f"row {tab.row_numbers[k]}, column '{hit[0]}'",
+                         f"temperature {temp[k]:g} deg C is outside {lo:g} .. {hi:g} "
+                         "(kelvin or deg F?)", "degrees Celsius")
+    return temp
+
+
+def _orientation_kind(mapping: ColumnMap | None) -> str:
+    if mapping is None or "orientation" not in mapping.options:
+        return "rotation_vector"
+    return _choice(mapping.options["orientation"], ORIENTATIONS, mapping.source, "orientation")
 
 
 def _whole_positions(tab: Table, position: FloatArray) -> None:

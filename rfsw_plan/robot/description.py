@@ -171,12 +171,17 @@ class DeviceFrame:
         marker: Tracked point in the tool (TCP) frame [m], shape (3,).
         std: 1-sigma standard errors, keyed by parameter (``rx_mrad``, ``x_mm``...), as
             identified; empty if given, not identified.
+        each_file: The device is set up anew for every recording (``registration =
+            "each_file"``: a laser tracker moved between series): every command registers
+            each file's device frame again, holding the marker; False (``"held"``): the
+            registration holds for every file (a fixed motion-capture body).
     """
 
     rotation: FloatArray
     translation: FloatArray
     marker: FloatArray
     std: dict[str, float] = field(default_factory=dict)
+    each_file: bool = False
 
     def to_base(self, p_device: FloatArray) -> FloatArray:
         """Device-frame points (m, 3) [m] in the base frame."""
@@ -332,7 +337,9 @@ JOINT_KEYS = ("lower_deg", "upper_deg", "velocity_deg_s", "acceleration_deg_s2",
               "coupling", "source")
 STIFFNESS_KEYS = ("k_Nm_per_rad", "k_N_per_m", "source")
 DEVICE_FRAME_KEYS = ("base_in_device_xyz_mm", "base_in_device_rpy_deg", "marker_xyz_mm", "std",
-                     "source")
+                     "registration", "source")
+#: ``[device_frame] registration``: held for every file, or registered again for each file.
+REGISTRATIONS = ("held", "each_file")
 EFFECT_KEYS = ("name", "params", "source")
 CONTROLLER_KEYS = ("maker", "axes", "sign", "offset_deg", "base_xyz_mm", "base_rpy_deg",
                    "flange_xyz_mm", "flange_rpy_deg", "source")
@@ -690,6 +697,9 @@ def _device_frame(r: Table, sources: dict[str, str]) -> DeviceFrame | None:
         return None
     std = t.mapping("std", ge=0.0, le=1e9)
     sources["device_frame"] = t.str_("source", "not stated")
+    registration = t.str_("registration", "held")
+    if registration not in REGISTRATIONS:
+        raise t.error("registration", f"got '{registration}'", " | ".join(REGISTRATIONS))
     return DeviceFrame(
         rotation=_rpy_to_matrix(np.radians(t.vec("base_in_device_rpy_deg", 3,
                                                  ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG))),
@@ -698,6 +708,7 @@ def _device_frame(r: Table, sources: dict[str, str]) -> DeviceFrame | None:
         marker=t.vec("marker_xyz_mm", 3, [0.0, 0.0, 0.0], ge=-MAX_TOOL_MM,
                      le=MAX_TOOL_MM) / 1000.0,
         std=std,
+        each_file=registration == "each_file",
     )
 
 
@@ -889,6 +900,7 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
             "base_in_device_rpy_deg": _r(np.degrees(_matrix_to_rpy(dfr.rotation))),
             "marker_xyz_mm": _r(dfr.marker * 1000.0),
             "std": {k: float(f"{v:.6g}") for k, v in dfr.std.items()},
+            **({"registration": "each_file"} if dfr.each_file else {}),
             "source": desc.sources.get("device_frame", "not stated"),
         }
     if desc.provenance:

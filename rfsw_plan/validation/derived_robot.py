@@ -18,6 +18,7 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import (
+    DeviceFrame,
     RobotDescription,
     derived_description,
     save_robot_description,
@@ -36,7 +37,7 @@ def save_derived_robot(
     data: str | Path, command: str, name: str | None = None,
     added: Sequence[str] | None = None, forces: str | Path | None = None,
     setup: DeviceSetup | None = None, estimates: Sequence[ParameterEstimate] = (),
-    device_note: str | None = None,
+    device_note: str | None = None, device_frame: DeviceFrame | None = None,
 ) -> Path:
     """Write ``model`` as a robot description TOML derived from ``parent``.
 
@@ -53,6 +54,8 @@ def save_derived_robot(
         setup: The device set-up of device-frame data: its effects go into ``[device_frame]``.
         estimates: The identification's estimates (to fold the set-up effects).
         device_note: Where a fitted registration comes from (``sources.device_frame``).
+        device_frame: A registration already folded (``calibrate``), written as the file's
+            ``[device_frame]`` when there is no ``setup``.
 
     Returns:
         The path written.
@@ -63,6 +66,10 @@ def save_derived_robot(
     """
     if setup is None:
         robot_model, desc = model, model.to_description(note)
+        if device_frame is not None:
+            desc = replace(desc, device_frame=device_frame)
+            if device_note:
+                desc.sources["device_frame"] = device_note
     else:
         robot_model, frame = setup.fold(model, tuple(estimates))
         desc = replace(robot_model.to_description(note), device_frame=frame)

@@ -202,7 +202,9 @@ def prepare_data(
     Args:
         model: The robot model.
         data: The measurements.
-        held: A known registration (default: the robot file's ``[device_frame]``, if any).
+        held: A known registration (default: the robot file's ``[device_frame]``, if any;
+            one that says ``registration = "each_file"`` is registered again on ``data``,
+            its marker held).
         marker: A known marker offset in the tool frame [m], shape (3,).
 
     Returns:
@@ -214,8 +216,11 @@ def prepare_data(
     check_data(model, data)
     if data.frame != "device":
         return None
-    setup = prepare_device_setup(model, data,
-                                 held if held is not None else model.robot.description.device_frame,
-                                 marker)
+    own = model.robot.description.device_frame
+    if held is None and own is not None and own.each_file:
+        # The device was set up anew for this file: register it again, hold the marker.
+        setup = prepare_device_setup(model, data, None, own.marker if marker is None else marker)
+    else:
+        setup = prepare_device_setup(model, data, held if held is not None else own, marker)
     check_registered(setup.model(model), setup.data(data))
     return setup
