@@ -111,14 +111,23 @@ def test_nothing_hidden_is_adequate(model: ElastostaticModel, seed: int) -> None
 
 
 @pytest.mark.parametrize("seed", [1, 2])
-def test_drift_with_time_is_unexplained_and_points_at_time(
+def test_drift_with_time_is_never_explained_away_and_points_at_time(
     model: ElastostaticModel, seed: int
 ) -> None:
+    """A drift with time is physics outside the library. Since issue 34 a library effect that
+    explains most of the held-out residual is named ("never unexplained while a library effect
+    is significant and explains most of it": here a geometric effect takes up the drift's
+    pose-dependent part), but never as the whole story: the selection does not reach the
+    noise floor, and the message points at time for the rest."""
     camp = _campaign([THERMAL_DRIFT], seed=seed)
     res = validate(model, camp.data, folds=FOLDS)
     dg = res.diagnosis
-    assert dg.verdict == "unexplained", dg.message
-    assert dg.missing is None
+    assert dg.verdict in ("unexplained", "missing"), dg.message
+    assert res.verdict != "adequate" and not dg.chain_at_noise, dg.message
+    if dg.verdict == "missing":
+        assert dg.missing is not None
+        assert "the rest is above the noise floor" in dg.message, dg.message
+        assert "correlates most with time" in dg.message, dg.message
     assert dg.correlations[0].feature == "time"
     assert dg.correlations[0].significant
     assert "time" in dg.message

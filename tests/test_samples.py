@@ -40,7 +40,7 @@ def test_every_written_in_material_sample_is_inside_the_window(planned, planned_
                                                                name) -> None:
     d = planned[name]
     rec = PlanFolder.open(d).record  # the commit record vouches for the files beside it
-    assert set(rec["sha256"]) == {"waypoints.csv", "lateral_error.png",
+    assert set(rec["sha256"]) == {"waypoints.csv", "plan.html", "lateral_error.png",
                                   "lateral_error_time.png", "tradeoff.png"}
     res = planned_result(name)
     written = PlanFolder.open(d).samples
