@@ -46,14 +46,9 @@ import numpy as np
 
 def _task(problem: Any, spacing: float) -> Any:
     from rfsw_plan.planning.api import options_from_problem
-    from rfsw_plan.process.task import task_from_schedule
+    from rfsw_plan.process.task import task_for
 
-    opts = options_from_problem(problem)
-    frames = problem.seam.frames(spacing)
-    axial = getattr(problem.process, "axial_control", None)
-    return task_from_schedule(frames, problem.process.schedule(frames, 0.05, approach=False),
-                              opts.max_start_waypoints, problem.seam_reference,
-                              *((axial,) if axial else ()))
+    return task_for(problem, spacing, options_from_problem(problem).max_start_waypoints)
 
 
 def mirror_pipeline(problem: Any, spacing: float) -> None:
