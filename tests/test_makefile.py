@@ -16,8 +16,10 @@ ROOT = Path(__file__).resolve().parents[1]
 def dry_run(tmp: Path, target: str) -> str:
     for f in ("Makefile", "pyproject.toml"):
         shutil.copy(ROOT / f, tmp / f)
-    proc = subprocess.run(["make", "-n", target], cwd=tmp, capture_output=True, text=True,
-                          check=True)
+    # --no-print-directory: under `make test` (CI) this make is a sub-make and would print
+    # "make[1]: Entering/Leaving directory" lines around the commands
+    proc = subprocess.run(["make", "--no-print-directory", "-n", target], cwd=tmp,
+                          capture_output=True, text=True, check=True)
     return proc.stdout
 
 
