@@ -1,7 +1,10 @@
 """Test helpers shared by several test modules (no test imports another test module):
-the ZK-500 seed 001 seam, its seed pose and its steady process force."""
+the ZK-500 seed 001 seam, its seed pose and its steady process force, and a simulated trial
+weld of the default problem."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -24,3 +27,25 @@ def zk500_frames(k: int) -> SeamFrames:
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     s = np.linspace(0.0, L, k)
     return SeamFrames(s, a + s[:, None] * t[0], t, np.cross(n, t), n)
+
+
+def softer_joint1_weld(root: Path, problem: str = "zk500_table6_seam") -> tuple[Path, Path, Path]:
+    """Plan ``problem`` with its robot's model into ``root/plan``, then weld it (simulated) on a
+    truth whose joint 1 is 20 % softer; returns (plan folder, forces CSV, track CSV)."""
+    from rfsw_plan.cli.main import main
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planfiles.folder import PlanFolder
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.realtime.trial_weld import simulate_trial_weld
+    from rfsw_plan.robot.kinematics import load_robot
+
+    pb = load_problem(problem)
+    model = ElastostaticModel(load_robot(pb.robot))
+    truth = model.copy()
+    c = np.array(truth.joint_compliance.params)
+    c[0] /= 0.8
+    truth.joint_compliance.params = c
+    assert main(["-q", "plan", problem, "-o", str(root / "plan")]) == 0
+    planned = PlanFolder.open(root / "plan").rebuild().waypoints
+    forces, track = simulate_trial_weld(pb, planned, model, truth).write(root / "weld")
+    return root / "plan", forces, track

@@ -164,22 +164,9 @@ def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
     the RMS it shows before and after is the one of validate_weld.json's samples."""
     import json
 
-    from rfsw_plan.elastostatics.model import ElastostaticModel
-    from rfsw_plan.planfiles.folder import PlanFolder
-    from rfsw_plan.process.problem import load_problem
-    from rfsw_plan.realtime.trial_weld import simulate_trial_weld
-    from rfsw_plan.robot.kinematics import load_robot
+    from _helpers import softer_joint1_weld
 
-    pb = load_problem(PROBLEM)
-    model = ElastostaticModel(load_robot(pb.robot))
-    truth = model.copy()
-    c = np.array(truth.joint_compliance.params)
-    c[0] /= 0.8
-    truth.joint_compliance.params = c
-    assert main(["-q", "plan", PROBLEM, "-o", str(tmp_path / "plan")]) == 0
-    planned = PlanFolder.open(tmp_path / "plan").rebuild().waypoints
-    weld = simulate_trial_weld(pb, planned, model, truth)
-    forces, track = weld.write(tmp_path / "weld")
+    _, forces, track = softer_joint1_weld(tmp_path, PROBLEM)
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),
                  "--forces", str(forces), "-o", str(out), "--add", "joint_compliance:j1"]) == 0

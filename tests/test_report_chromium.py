@@ -17,14 +17,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from _browser import CHROMIUM, FLAGS, SKIP_REASON
+from _helpers import softer_joint1_weld
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.measurements import write_measurements
-from rfsw_plan.planfiles.folder import PlanFolder
-from rfsw_plan.process.problem import load_problem
-from rfsw_plan.realtime.trial_weld import simulate_trial_weld
-from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.campaign.simulation import run_campaign
 
 pytestmark = [
@@ -117,16 +113,7 @@ def test_validate_report_in_chromium(tmp_path: Path) -> None:
 
 
 def test_weld_report_in_chromium(tmp_path: Path) -> None:
-    pb = load_problem("zk500_table6_seam")
-    model = ElastostaticModel(load_robot(pb.robot))
-    truth = model.copy()
-    c = np.array(truth.joint_compliance.params)
-    c[0] /= 0.8  # the real joint 1 is 20 % softer than the model
-    truth.joint_compliance.params = c
-    assert main(["-q", "plan", "zk500_table6_seam", "-o", str(tmp_path / "plan")]) == 0
-    wp = PlanFolder.open(tmp_path / "plan").rebuild().waypoints
-    weld = simulate_trial_weld(pb, wp, model, truth)
-    forces, track = weld.write(tmp_path / "weld")
+    _, forces, track = softer_joint1_weld(tmp_path)  # the real joint 1 is 20 % softer
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),
                  "--forces", str(forces), "-o", str(out)]) == 0

@@ -12,14 +12,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from _helpers import softer_joint1_weld
 
 from rfsw_plan.cli.main import main
-from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.weld_track import WeldTrack, read_weld_track, write_weld_track
 from rfsw_plan.planfiles.folder import PlanFolder
-from rfsw_plan.process.problem import load_problem
-from rfsw_plan.realtime.trial_weld import simulate_trial_weld
-from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.weld.workbench import track_on_seam, validate_weld
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
@@ -38,17 +35,7 @@ def _strict(text: str) -> object:
 @cache
 def first_weld(folder: str) -> tuple[Path, Path, Path]:
     """Plan with the model; weld on a truth whose joint 1 is 20 % softer."""
-    root = Path(folder)
-    pb = load_problem(PROBLEM)
-    model = ElastostaticModel(load_robot(pb.robot))
-    truth = model.copy()
-    c = np.array(truth.joint_compliance.params)
-    c[0] /= 0.8
-    truth.joint_compliance.params = c
-    assert main(["-q", "plan", PROBLEM, "-o", str(root / "plan")]) == 0
-    tw = simulate_trial_weld(pb, PlanFolder.open(root / "plan").rebuild().waypoints, model, truth)
-    forces, track = tw.write(root / "weld")
-    return root / "plan", forces, track
+    return softer_joint1_weld(Path(folder), PROBLEM)
 
 
 @pytest.fixture(scope="module")
