@@ -4,7 +4,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 # .installed: the runtime (what `make demo` needs); .installed-dev: plus the dev extras (pytest,
-# ruff, mypy, hypothesis, radon...) for `make test`, `make lint` and `make bench`.
+# ruff, mypy, hypothesis, radon, mkdocs...) for `make test`, `make lint`, `make docs` and `make bench`.
 STAMP := $(VENV)/.installed
 DEV_STAMP := $(VENV)/.installed-dev
 PROBLEM ?= problems/zk500_table6_seam.toml
@@ -40,8 +40,9 @@ lint: $(DEV_STAMP)
 	$(BIN)/mypy
 
 # The manual (docs/, mkdocs.yml) with warnings as errors, into out/site; its CLI reference and
-# API pages are generated from the argparse parser and the docstrings (docs/hooks/).
-docs: $(STAMP)
+# API pages are generated from the argparse parser and the docstrings (docs/hooks/). mkdocs is a
+# dev extra, so docs needs the dev stamp (after `make demo` alone, .venv had no mkdocs: issue 39).
+docs: $(DEV_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 # Benchmarks print figures; they are never part of the tests.

@@ -47,3 +47,20 @@ def test_first_demo_shows_the_verdict_not_pip(tmp_path: Path) -> None:
         assert " -q " in ln and "install.log 2>&1" in ln and "--progress-bar on" not in ln, ln
         assert "tail -n 40 .venv/install.log" in ln, ln  # a failed install shows its log
     assert "rfsw-plan plan" in commands[-1]
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="no make")
+def test_docs_after_demo_adds_the_dev_extras(tmp_path: Path) -> None:
+    """``make docs`` after ``make demo`` failed with ``.venv/bin/mkdocs: not found`` (issue 39):
+    docs depended on the runtime stamp only, and mkdocs is a dev extra. With the runtime
+    stamp in place (as ``make demo`` leaves it), ``make docs`` first installs the dev extras,
+    then builds."""
+    for f in ("Makefile", "pyproject.toml"):
+        shutil.copy(ROOT / f, tmp_path / f)
+    (tmp_path / ".venv").mkdir()
+    (tmp_path / ".venv" / ".installed").touch()  # newer than pyproject.toml: demo is done
+    out = subprocess.run(["make", "--no-print-directory", "-n", "docs"], cwd=tmp_path,
+                         capture_output=True, text=True, check=True).stdout
+    assert "python3 -m venv" not in out  # the runtime is not installed again
+    assert "-e '.[dev]'" in out
+    assert out.index("-e '.[dev]'") < out.index("mkdocs build")

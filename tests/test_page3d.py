@@ -79,6 +79,21 @@ def test_plan_html_same_bytes_for_the_same_plan(plan_dir: Path, tmp_path: Path,
     assert (plan_dir / "plan.json").read_bytes() == record
 
 
+def test_view_creates_the_folder_of_its_output(plan_dir: Path, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """``rfsw-plan view FOLDER -o out/view/plan.html``, as docs/guide/plan-3d.md writes it,
+    failed when ``out/view`` did not exist (issue 39): the folder is created, like every
+    other command's output folder; a file in its way is one line, exit 2."""
+    target = tmp_path / "out" / "view" / "plan.html"
+    assert main(["view", str(plan_dir), "-o", str(target)]) == 0
+    assert target.read_bytes() == (plan_dir / "plan.html").read_bytes()
+    (tmp_path / "file").write_text("x")
+    capsys.readouterr()
+    assert main(["view", str(plan_dir), "-o", str(tmp_path / "file" / "plan.html")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "-o" in err and "file" in err, err
+
+
 def test_view_restores_a_lost_page_and_refuses_a_damaged_folder(
         plan_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     import shutil

@@ -23,8 +23,11 @@ def register(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from rfsw_plan.files import prepare_output_file
     from rfsw_plan.planfiles.page3d import rebuild_plan_page
 
+    if args.output is not None:  # its folder is created (``-o out/view/plan.html``, issue 39)
+        prepare_output_file(args.output, "-o")
     res = rebuild_plan_page(args.plan, args.output)
     state = "written" if res.changed else "up to date (same bytes)"
     print(f"{res.path}: {state}, {res.size / 1e6:.2f} MB; open it in a browser "
