@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -306,8 +305,29 @@ def test_reader_fuzz_long(tmp_path_factory: pytest.TempPathFactory,
     _run_fuzz(tmp_path_factory, capsys, 400)
 
 
-def test_mutated_values_stay_finite() -> None:
-    assert math.isfinite(float("1e300"))  # the reader, not float(), must reject it
+@pytest.mark.parametrize("value", ["1e300", "-1e300", "1e400", "inf", "nan"])
+def test_huge_and_non_finite_values_are_refused_by_the_readers(tmp_path: Path,
+                                                               value: str) -> None:
+    """The readers, not float(), refuse a value float() takes (1e300 is finite, 1e400 is
+    inf): one line naming the file, the row (the header is row 1) and the column."""
+    lines = write_measurements(tmp_path / "m.csv", _campaign()).read_text().splitlines()
+    cells = lines[3].split(",")
+    cells[lines[0].split(",").index("fx_N")] = value
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([*lines[:3], ",".join(cells), *lines[4:]]) + "\n")
+    with pytest.raises(InputError) as exc:
+        read_measurements(bad, 6)
+    msg = str(exc.value)
+    assert "\n" not in msg and str(bad) in msg and "row 4, column 'fx_N'" in msg, msg
+    force = FORCE_TEXT.splitlines()
+    cells = force[3].split(",")
+    cells[3] = value  # fz_N
+    f = tmp_path / "f.csv"
+    f.write_text("\n".join([*force[:3], ",".join(cells), *force[4:]]) + "\n")
+    with pytest.raises(InputError) as exc:
+        read_force_series(f, frame="base")
+    msg = str(exc.value)
+    assert "\n" not in msg and str(f) in msg and "row 4, column 'fz_N'" in msg, msg
 
 
 def test_orientation_makes_joint_6_identifiable(tmp_path: Path,

@@ -1,6 +1,7 @@
 """``make demo`` installs the runtime only, ``make test`` and ``make lint`` add the dev extras
 (issue 24: the demo installed 61 packages, a 1.2 GB venv). Checked with ``make -n`` in a clean
-folder holding the Makefile and pyproject.toml, so nothing is installed."""
+folder holding the Makefile and pyproject.toml, so nothing is installed. ``.ci/run`` is run
+with its installers and make replaced by recorders."""
 
 from __future__ import annotations
 
@@ -64,3 +65,49 @@ def test_docs_after_demo_adds_the_dev_extras(tmp_path: Path) -> None:
     assert "python3 -m venv" not in out  # the runtime is not installed again
     assert "-e '.[dev]'" in out
     assert out.index("-e '.[dev]'") < out.index("mkdocs build")
+
+
+def _fake_bin(folder: Path, tools: dict[str, str]) -> Path:
+    folder.mkdir()
+    for name, body in tools.items():
+        (folder / name).write_text(f"#!/bin/bash\n{body}\n")
+        (folder / name).chmod(0o755)
+    for real in ("dirname", "bash"):
+        (folder / real).symlink_to(shutil.which(real) or f"/usr/bin/{real}")
+    return folder
+
+
+@pytest.mark.skipif(shutil.which("bash") is None, reason="no bash")
+@pytest.mark.parametrize(("present", "installed"), [
+    ((), ["chromium", "default-jre-headless"]),
+    (("chromium",), ["default-jre-headless"]),
+    (("chromium", "java"), None)])
+def test_ci_installs_java_and_chromium_where_missing(tmp_path: Path, present: tuple[str, ...],
+                                                     installed: list[str] | None) -> None:
+    """``.ci/run`` on a clean machine installs what the browser tests (Chromium) and the ANTLR
+    grammar test (Java) need from Debian's packages, so they run instead of skipping (issue
+    41); then lint, docs and the tests. Run here with apt-get, id and make replaced by
+    recorders, on a PATH that holds only them (and the tools named in ``present``)."""
+    (tmp_path / ".ci").mkdir()
+    shutil.copy(ROOT / ".ci" / "run", tmp_path / ".ci" / "run")
+    log = tmp_path / "log"
+    tools = {"apt-get": f'echo "apt-get $*" >> {log}', "id": "echo 0",
+             "make": f'echo "make $*" >> {log}',
+             **{name: "true" for name in present}}
+    path = _fake_bin(tmp_path / "bin", tools)
+    subprocess.run([str(path / "bash"), str(tmp_path / ".ci" / "run")], cwd=tmp_path,
+                   env={"PATH": str(path)}, check=True, capture_output=True, text=True)
+    lines = log.read_text().splitlines()
+    installs = [ln.split()[4:] for ln in lines if ln.startswith("apt-get install")]
+    assert installs == ([] if installed is None else [installed]), lines
+    assert lines[-3:] == ["make lint", "make docs", "make test"]
+
+
+def test_dask_is_a_dev_extra() -> None:
+    """The ``place --dask`` test (tests/test_placement.py) imports dask.distributed: it is in
+    the dev extras, so ``make test`` runs it instead of skipping (issue 41)."""
+    import tomllib
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"]
+    assert any(d.split(">")[0].split("=")[0] == "distributed" for d in extras["dev"])

@@ -299,7 +299,14 @@ def _fuzz(check: Callable[[Mutation, Path], str], cases: Callable[[], tuple[Muta
     run()
     print(f"\n{title}: {sum(counts.values())} cases, exit 0/2/3 only, no traceback: "
           + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
-    assert sum(counts.values()) >= min(n, 10)
+    # The drawn sample reaches both sides of the reader: files it refuses (one line, exit 2 or
+    # 3, checked above) and files it accepts and that were compared with the original's
+    # result. A reader that refused everything, or accepted everything, fails here.
+    rejected = sum(v for k, v in counts.items() if k.endswith(": rejected"))
+    assert 0 < rejected < sum(counts.values()), counts
+    # and, as the module says, a renamed or unknown key is never accepted
+    assert not [k for k in counts if k.split(":")[0] in ("rename", "unknown")
+                and not k.endswith(": rejected")], counts
 
 
 @pytest.mark.parametrize("name", ROBOTS)
