@@ -134,8 +134,11 @@ def test_page_carries_the_samples_of_waypoints_csv(plan_dir: Path) -> None:
     header, rows = csv_rows(plan_dir / "waypoints.csv")
     col = {h: i for i, h in enumerate(header)}
     margins = [(float(r[col["margin_mm"]]), k) for k, r in enumerate(rows) if r[col["margin_mm"]]]
-    worst_row = min(margins)[1] + 2  # file line (header = line 1)
+    # a sample is numbered as the user sees it: data row N of waypoints.csv, the first sample
+    # = 1 (the verdict's "sample N"); the page counted the header as row 1 (issue 39)
+    worst_row = min(margins)[1] + 1
     assert d["row"][d["worst"]] == worst_row
+    assert d["row"][0] == 1
     # evenly spread (900), plus the first and last sample of each phase and the worst one
     assert d["n"] == len(d["row"]) <= 900 + 2 * len(d["phases"]) + 1
     assert d["row"] == sorted(set(d["row"]))
@@ -145,7 +148,7 @@ def test_page_carries_the_samples_of_waypoints_csv(plan_dir: Path) -> None:
     tcp_local = np.array(d["chain_tcp_pos"])
     tcp_rot = Rotation.from_quat(d["chain_tcp_quat"])
     for k, line in enumerate(d["row"]):
-        r = rows[line - 2]
+        r = rows[line - 1]
         assert d["phases"][d["phase"][k]] == r[col["phase"]]
         assert d["t"][k] == pytest.approx(float(r[col["t_s"]]), abs=6e-4)
         assert d["s"][k] == pytest.approx(float(r[col["s_mm"]]), abs=6e-4)
@@ -164,8 +167,8 @@ def test_page_carries_the_samples_of_waypoints_csv(plan_dir: Path) -> None:
     # every phase is there, with its first and last sample
     phases = [r[col["phase"]] for r in rows]
     for p in set(phases):
-        first = phases.index(p) + 2
-        last = len(phases) - phases[::-1].index(p) + 1
+        first = phases.index(p) + 1
+        last = len(phases) - phases[::-1].index(p)
         assert first in d["row"] and last in d["row"], p
 
 

@@ -67,15 +67,15 @@ def test_plan_page_in_chromium(tmp_path: Path) -> None:
         ink = np.mean(before.mean(axis=2) < 0.9)
         assert 0.01 < ink < 0.8, ink
         assert len(np.unique((before * 8).astype(int).reshape(-1, 3), axis=0)) > 20
-        assert readout(page)["row"] == "2"
+        assert readout(page)["row"] == "1"  # the first sample, data row 1
         tcp_before = np.array(page.eval("window.planView.tcp()"))
         # the worst sample: the slider's position that shows that row of waypoints.csv
         shown = page.eval("window.planView.row")
-        assert worst + 2 in shown, "the worst sample is not in the page"
-        move_slider(page, shown.index(worst + 2))
+        assert worst + 1 in shown, "the worst sample is not in the page"
+        move_slider(page, shown.index(worst + 1))
         got = readout(page)
         row = rows[worst]
-        assert got["row"] == str(worst + 2)
+        assert got["row"] == str(worst + 1)
         assert got["phase"] == row["phase"]
         for key, name, digits in (("t", "t_s", 3), ("s", "s_mm", 3), ("lat", "e_lat_mm", 4),
                                   ("margin", "margin_mm", 4)):
@@ -91,7 +91,10 @@ def test_plan_page_in_chromium(tmp_path: Path) -> None:
         # the worst sample is one click away (from anywhere)
         move_slider(page, 0)
         page.eval("document.getElementById('worst').click()")
-        assert readout(page)["row"] == str(worst + 2)
+        assert readout(page)["row"] == str(worst + 1)
+        note = page.eval("document.getElementById('worst-note').textContent")
+        assert (f"sample {worst + 1} (data row {worst + 1} of waypoints.csv, the first "
+                "sample = 1)") in note, note
         assert page.console_errors == [] and page.exceptions == []
         assert page.network_requests() == []
         if os.environ.get("RFSW_UPDATE_SCREENSHOT"):
@@ -101,7 +104,7 @@ def test_plan_page_in_chromium(tmp_path: Path) -> None:
         page.eval("document.getElementById('cam-seam').click()")
         close = canvas_pixels(page, page.screenshot())
         assert np.mean(np.abs(close - after).max(axis=2) > 0.1) > 0.05
-        assert readout(page)["row"] == str(worst + 2)
+        assert readout(page)["row"] == str(worst + 1)
         assert page.console_errors == [] and page.exceptions == []
         if os.environ.get("RFSW_UPDATE_SCREENSHOT"):
             CLOSE_UP.write_bytes(page.screenshot())

@@ -5,8 +5,9 @@ the joint frames of every shown sample are computed here with Pinocchio), the sp
 plate with the seam, the taught seam, the commanded TCP path (the fake targets) and the
 predicted pin path with every deviation from the seam magnified by a factor the user sets
 (x1 ... x200), the weld window as a band around the seam, the process force and the deflection
-as arrows, a time slider with play, a readout of the sample (row of ``waypoints.csv``, t, s,
-phase, lateral and depth error, margin) and the worst sample one click away. Samples are
+as arrows, a time slider with play, a readout of the sample (its number N: data row N of
+``waypoints.csv``, the first sample = 1, as in the verdict's "sample N"; t, s, phase, lateral
+and depth error, margin) and the worst sample one click away. Samples are
 coloured by their margin with :func:`margin_colours`, the colours of the margin panel of
 ``lateral_error_time.png``.
 
@@ -265,7 +266,9 @@ def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArr
     pos, quat = link_frames(robot, q)
     lo, hi = window_mm
     phases = list(dict.fromkeys(ph))
-    rows = idx + 2  # the line of waypoints.csv (its header is line 1)
+    # The sample number a user sees: data row N of waypoints.csv, the first sample = 1 (the
+    # verdict's "sample N", SampleFailure.sample; the file's line is N + 1, below the header).
+    rows = idx + 1
     data = {
         "title": json.dumps(title), "verdict": json.dumps(verdict),
         "window": _nums(np.array([lo, hi]), 4), "n": str(len(idx)),

@@ -232,7 +232,8 @@ if (D.worst === null) {
 } else {
   worstBtn.textContent = "worst sample (margin " + num(D.margin[D.worst], 3) + " mm)";
   worstBtn.addEventListener("click", () => select(D.worst));
-  $("worst-note").textContent = "Worst sample: row " + D.row[D.worst] + " of waypoints.csv, t = " +
+  $("worst-note").textContent = "Worst sample: sample " + D.row[D.worst] +
+    " (data row " + D.row[D.worst] + " of waypoints.csv, the first sample = 1), t = " +
     num(D.t[D.worst], 3) + " s, " + D.phases[D.phase[D.worst]] + " (red ring).";
 }
 let timer = null;
