@@ -99,3 +99,11 @@ def test_every_picture_is_marked_illustrative_and_names_its_test() -> None:
             if stem not in test or "RFSW_UPDATE_SCREENSHOT" not in test:
                 bad.append(f"{page.relative_to(ROOT)}: {mark[1]} does not write {image}")
     assert not bad, "\n".join(bad)
+
+
+def test_calibrate_page_warns_of_its_run_time() -> None:
+    """``calibrate`` on the FANUC example ran for minutes with no word of it on its page
+    (issue 39): the step that runs it says how long it takes, before the command."""
+    text = (GUIDE / "calibrate.md").read_text()
+    step = text.split("## 4. Calibrate", 1)[1].split("```sh", 1)[0]
+    assert re.search(r"takes (about )?[\w\d .,]*\b(s|min|minutes?|seconds?)\b", step), step
