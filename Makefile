@@ -45,8 +45,11 @@ lint: $(DEV_STAMP)
 docs: $(DEV_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
-# Benchmarks print figures; they are never part of the tests.
+# Benchmarks print figures; they are never part of the tests. benchmark_commands.py times every
+# command as a user runs it (median of 5 runs, the import floor, the ratios); give it
+# --vs OTHER_CHECKOUT to compare two trees in one run.
 bench: $(DEV_STAMP)
+	$(BIN)/python benchmarks/benchmark_commands.py
 	$(BIN)/python benchmarks/benchmark_foundation.py
 	$(BIN)/python benchmarks/benchmark_planner.py
 	$(BIN)/python benchmarks/benchmark_validate.py

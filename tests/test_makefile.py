@@ -111,3 +111,12 @@ def test_dask_is_a_dev_extra() -> None:
     extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
         "optional-dependencies"]
     assert any(d.split(">")[0].split("=")[0] == "distributed" for d in extras["dev"])
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="no make")
+def test_bench_times_every_command(tmp_path: Path) -> None:
+    """``make bench`` runs the command benchmark (issue 41) beside the others; the benchmark
+    itself is never run in the tests (timings are not asserted)."""
+    out = dry_run(tmp_path, "bench")
+    assert "benchmarks/benchmark_commands.py" in out
+    assert (ROOT / "benchmarks" / "benchmark_commands.py").is_file()
