@@ -624,3 +624,41 @@ def test_the_flag_check_sees_a_flag_in_a_fixture(tmp_path):
         "    return dt - -1, 'dt', '--'\n")
     (root / "cli" / "main.py").write_text("FLAG = '--dt'\n")
     assert flag_names_in_library(root) == {"process/job.py": ["4 --dt"]}
+
+
+#: Engines a command that reads a written plan (``export``, ``check``, ``view``) never loads: the
+#: plan holds the joint values, so neither the NLP (CasADi), the timing (TOPPRA, Ruckig) nor
+#: the plots (matplotlib) are on their path (issue 41: each command at its import floor).
+PLAN_READER_FORBIDDEN = ("casadi", "toppra", "ruckig", "matplotlib")
+
+
+def modules_loaded_by(imports: list[str], then: str = "") -> set[str]:
+    """Top-level packages in ``sys.modules`` after a fresh interpreter imports ``imports`` and
+    runs the statement ``then``."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n" + "".join(f"import {m}\n" for m in imports) + then + "\n"
+            + "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120)
+    return set(out.stdout.split())
+
+
+def test_export_and_check_never_import_the_planner():
+    """``export`` and ``check`` read the plan folder and the formats: importing their command
+    modules, the export package with every format, the check and the plan folder reader loads
+    none of :data:`PLAN_READER_FORBIDDEN` (``casadi`` costs the import, the planner its
+    modules; ``planning/__init__`` and ``planning/rows.py`` import them on first use)."""
+    loaded = modules_loaded_by([
+        "rfsw_plan.cli.commands.export", "rfsw_plan.cli.commands.check", "rfsw_plan.export",
+        "rfsw_plan.export.check", "rfsw_plan.planfiles", "rfsw_plan.planfiles.rebuild",
+        "rfsw_plan.planning.result", "rfsw_plan.planning.verify"],
+        "rfsw_plan.export.format.formats()")
+    assert "rfsw_plan" in loaded
+    assert not loaded & set(PLAN_READER_FORBIDDEN), sorted(loaded & set(PLAN_READER_FORBIDDEN))
+
+
+def test_the_import_check_sees_casadi():
+    """The same check on the planner's NLP module finds CasADi (the check can fail)."""
+    assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
