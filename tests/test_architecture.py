@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import rfsw_plan
 
@@ -558,10 +559,10 @@ _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
 #: module that names a flag and is not here fails the test, and so does an entry that no longer
 #: names one. Kept for the merge: ``validation/`` and ``io/measurements.py`` are being edited
 #: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
-#: ``plan --forces`` as a lever; ``table.py`` hints ``--columns`` in a reader error.
+#: ``plan --forces`` as a lever.
 KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
     "export/api.py", "export/fanuc_tp.py", "export/program.py", "io/measurements.py",
-    "planning/verdict.py", "table.py", "validation/campaign/simulation.py",
+    "planning/verdict.py", "validation/campaign/simulation.py",
     "validation/engine/candidates.py", "validation/commands.py", "validation/engine/crossval.py",
     "validation/engine/diagnosis.py", "validation/report/validate.py",
     "validation/engine/residuals.py", "validation/sanity.py", "validation/weld/workbench.py",
@@ -662,3 +663,78 @@ def test_export_and_check_never_import_the_planner():
 def test_the_import_check_sees_casadi():
     """The same check on the planner's NLP module finds CasADi (the check can fail)."""
     assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
+
+
+#: The plan folder's write transaction and the planner itself: a command reaches them through
+#: a library job (``PlanRequest.run()``, ``PlanRun.write(folder)``), never by itself.
+TRANSACTION_NAMES = frozenset({
+    "mark_outputs_stale", "commit_plan", "write_plan_data", "discard_incomplete_record",
+    "write_plan_plots", "plan_with_force_log", "plan_task"})
+
+
+def cli_transaction_calls(root: Path = PACKAGE) -> list[str]:
+    """Places in ``cli/`` that import a name of :data:`TRANSACTION_NAMES` or the planner's
+    ``planning.api.plan``."""
+    found = []
+    for path in sorted((root / "cli").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                for alias in node.names:
+                    if alias.name in TRANSACTION_NAMES or (
+                            node.module == "rfsw_plan.planning.api" and alias.name == "plan"):
+                        found.append(f"{path.relative_to(root)}:{node.lineno} {alias.name}")
+    return found
+
+
+def test_plan_is_a_library_job():
+    """ARCHITECTURE.md: ``plan`` is one library job like the others; the CLI parses, calls
+    ``PlanRequest`` and prints, and runs neither the planner nor the write transaction."""
+    assert not cli_transaction_calls()
+
+
+def test_the_job_check_sees_a_transaction_in_a_fixture(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    (root / "cli" / "commands").mkdir(parents=True)
+    (root / "cli" / "commands" / "plan.py").write_text(
+        "def run(args):\n"
+        "    from rfsw_plan.planning.api import plan, options_from_problem\n"
+        "    from rfsw_plan.planfiles.waypoints import commit_plan\n")
+    assert cli_transaction_calls(root) == [
+        "cli/commands/plan.py:2 plan", "cli/commands/plan.py:3 commit_plan"]
+
+
+#: Largest cyclomatic complexity of a function (radon; issue 41: no function above 20).
+MAX_COMPLEXITY = 20
+
+#: Functions above :data:`MAX_COMPLEXITY` in modules being edited in parallel (issues 38-40),
+#: scheduled to be split. This list only shrinks: a new one fails the test, and so does an
+#: entry that is no longer above the limit.
+KNOWN_COMPLEX: frozenset[str] = frozenset({
+    "planfiles/page3d.py:rebuild_plan_page", "planning/verify.py:verify_samples",
+    "robot/description.py:robot_description_to_toml_dict",
+    "validation/campaign/design.py:_pool", "validation/engine/diagnosis.py:_verdict"})
+
+
+def complex_functions(root: Path = PACKAGE, limit: int = MAX_COMPLEXITY) -> dict[str, int]:
+    """``module:function`` -> cyclomatic complexity (radon) of every function above ``limit``."""
+    cc = pytest.importorskip("radon.complexity")  # in the dev extras
+    found = {}
+    for path in sorted(root.rglob("*.py")):
+        for block in cc.cc_visit(path.read_text()):
+            if block.complexity > limit:
+                found[f"{path.relative_to(root).as_posix()}:{block.name}"] = block.complexity
+    return found
+
+
+def test_no_function_is_above_the_complexity_limit():
+    found = complex_functions()
+    new = {k: v for k, v in found.items() if k not in KNOWN_COMPLEX}
+    assert not new, f"above complexity {MAX_COMPLEXITY}: {new}"
+    gone = sorted(KNOWN_COMPLEX - set(found))
+    assert not gone, "within the limit now, delete from KNOWN_COMPLEX: " + ", ".join(gone)
+
+
+def test_the_complexity_check_sees_a_branchy_function(tmp_path):
+    body = "".join(f"    if x == {k}:\n        return {k}\n" for k in range(25))
+    (tmp_path / "m.py").write_text(f"def branchy(x):\n{body}    return -1\n")
+    assert complex_functions(tmp_path) == {"m.py:branchy": 26}
