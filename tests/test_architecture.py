@@ -738,3 +738,40 @@ def test_the_complexity_check_sees_a_branchy_function(tmp_path):
     body = "".join(f"    if x == {k}:\n        return {k}\n" for k in range(25))
     (tmp_path / "m.py").write_text(f"def branchy(x):\n{body}    return -1\n")
     assert complex_functions(tmp_path) == {"m.py:branchy": 26}
+
+
+def option_definitions(root: Path = PACKAGE) -> list[str]:
+    """Modules that define planner options (``PlanOptions``, ``OPTION_KEYS``,
+    ``options_from_table``, ``check_well_posed``) or import them from anywhere but
+    ``process/plan_options.py``."""
+    names = {"PlanOptions", "OPTION_KEYS", "options_from_table", "check_well_posed"}
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        for node in ast.walk(ast.parse(path.read_text())):
+            defined = ((isinstance(node, (ast.ClassDef, ast.FunctionDef)) and node.name in names)
+                       or (isinstance(node, ast.Assign) and any(
+                           isinstance(t, ast.Name) and t.id in names for t in node.targets)))
+            imported = (isinstance(node, ast.ImportFrom) and node.module
+                        and node.module != "rfsw_plan.process.plan_options"
+                        and node.module.startswith("rfsw_plan")
+                        and any(a.name in names for a in node.names))
+            if (defined and rel != "process/plan_options.py") or imported:
+                found.append(f"{rel}:{node.lineno}")
+    return found
+
+
+def test_the_planner_options_live_in_one_module():
+    """Issue 41: the planner's options, their keys, their reader and their check are one
+    module, ``process/plan_options.py``; everything imports them from there."""
+    assert not option_definitions()
+
+
+def test_the_options_check_sees_a_second_module(tmp_path):
+    (tmp_path / "planning").mkdir()
+    (tmp_path / "planning" / "options.py").write_text(
+        "from rfsw_plan.process.plan_options import PlanOptions\n"
+        "def check_well_posed(o):\n    return o\n")
+    (tmp_path / "planning" / "api.py").write_text(
+        "from rfsw_plan.planning.options import PlanOptions\n")
+    assert option_definitions(tmp_path) == ["planning/api.py:1", "planning/options.py:2"]

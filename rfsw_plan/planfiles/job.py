@@ -113,8 +113,7 @@ class PlanRequest:
         return log.problem, log
 
     def _options(self, problem: Problem) -> PlanOptions:
-        from rfsw_plan.planning.options import check_well_posed
-        from rfsw_plan.process.plan_options import options_from_table
+        from rfsw_plan.process.plan_options import check_well_posed, options_from_table
 
         opts = options_from_table(dict(self.overrides), "overrides", problem.planning,
                                   prefix="", what="option")

@@ -15,26 +15,26 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rfsw_plan.planning.api import plan, plan_task
     from rfsw_plan.planning.nlp import build_plan_nlp, solve_plan_nlp
-    from rfsw_plan.planning.options import PlanOptions
     from rfsw_plan.planning.result import PlanResult
     from rfsw_plan.planning.verify import verify_plan
+    from rfsw_plan.process.plan_options import PlanOptions
 
 #: Public name -> the module that defines it.
 _WHERE = {
-    "PlanOptions": "options",
-    "PlanResult": "result",
-    "build_plan_nlp": "nlp",
-    "plan": "api",
-    "plan_task": "api",
-    "solve_plan_nlp": "nlp",
-    "verify_plan": "verify",
+    "PlanOptions": "rfsw_plan.process.plan_options",
+    "PlanResult": "rfsw_plan.planning.result",
+    "build_plan_nlp": "rfsw_plan.planning.nlp",
+    "plan": "rfsw_plan.planning.api",
+    "plan_task": "rfsw_plan.planning.api",
+    "solve_plan_nlp": "rfsw_plan.planning.nlp",
+    "verify_plan": "rfsw_plan.planning.verify",
 }
 
 
 def __getattr__(name: str) -> Any:
     if name not in _WHERE:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(import_module(f"{__name__}.{_WHERE[name]}"), name)
+    return getattr(import_module(_WHERE[name]), name)
 
 
 __all__ = [
