@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from rfsw_plan.exceptions import RfswError
     from rfsw_plan.io.measurements import MeasurementSet, read_measurements, write_measurements
     from rfsw_plan.planfiles import PlanFolder, PlanRecord, write_plan
+    from rfsw_plan.planfiles.job import PlanRequest
     from rfsw_plan.planning.api import plan
     from rfsw_plan.planning.result import PlanResult
     from rfsw_plan.process.frames import LoadSchedule, SeamFrames
@@ -51,6 +52,7 @@ _EXPORTS = {
     "plan": "rfsw_plan.planning.api",
     "PlanResult": "rfsw_plan.planning.result",
     "write_plan": "rfsw_plan.planfiles",
+    "PlanRequest": "rfsw_plan.planfiles.job",
     "PlanFolder": "rfsw_plan.planfiles.folder",
     "PlanRecord": "rfsw_plan.planfiles.record",
     "LoadSchedule": "rfsw_plan.process.frames",
@@ -81,6 +83,7 @@ __all__ = [
     "MeasurementSet",
     "PlanFolder",
     "PlanRecord",
+    "PlanRequest",
     "PlanResult",
     "RfswError",
     "Robot",

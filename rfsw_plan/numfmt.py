@@ -23,7 +23,8 @@ import math
 import re
 from typing import Any, SupportsFloat
 
-__all__ = ["angle", "canonical_quaternion", "cell", "fixed", "fixed_many", "general", "shortest"]
+__all__ = ["angle", "canonical_quaternion", "cell", "cell_many", "fixed", "fixed_many", "general",
+           "shortest"]
 
 _NONZERO = frozenset("123456789")
 _MINUS_180 = re.compile(r"-180(\.0*)?")
@@ -130,6 +131,24 @@ def fixed_many(values: Any, digits: int) -> list[str]:
     for v in flat.tolist():
         if v != v:  # NaN
             out.append(None)  # type: ignore[arg-type]
+            continue
+        t = fmt(v)
+        out.append(zero if t == minus_zero else t)
+    return out
+
+
+def cell_many(values: Any, digits: int = 6) -> list[str]:
+    """:func:`cell` of every number of ``values`` (any array-like, flattened): the same text,
+    many times faster for the columns of a long table (an empty cell for NaN and +-inf)."""
+    import numpy as np
+
+    fmt = f"{{:.{digits}f}}".format
+    zero = fmt(0.0)
+    minus_zero = "-" + zero
+    out: list[str] = []
+    for v in np.asarray(values, dtype=float).ravel().tolist():
+        if v - v != 0.0:  # NaN or +-inf (inf - inf is NaN)
+            out.append("")
             continue
         t = fmt(v)
         out.append(zero if t == minus_zero else t)

@@ -111,24 +111,7 @@ def read_column_map(path: str | Path, allowed_options: Mapping[str, str]) -> Col
     if not isinstance(cols, dict) or not cols:
         raise InputError(p, "[columns]", "missing or empty table",
                          "quantity = { name = 'column in the file', unit = '...' }")
-    out: dict[str, tuple[str, str]] = {}
-    for key, entry in cols.items():
-        if (not isinstance(entry, dict) or set(entry) - {"name", "unit", "column"}
-                or "name" not in entry):
-            raise InputError(p, f"columns.{key}", f"got {entry!r}",
-                             "{ name = 'column in the file', unit = '...' } (and column = N "
-                             "for column N of a MATLAB array)")
-        name, unit = entry["name"], entry.get("unit", "")
-        if not isinstance(name, str) or not isinstance(unit, str) or not name.strip():
-            raise InputError(p, f"columns.{key}", f"got {entry!r}", "name and unit as strings")
-        name = name.strip()
-        if "column" in entry:
-            col = entry["column"]
-            if isinstance(col, bool) or not isinstance(col, int) or col < 1:
-                raise InputError(p, f"columns.{key}.column", f"got {col!r}",
-                                 "a column number of the array, 1 or more")
-            name = array_column(name, col)
-        out[key] = (name, unit.strip())
+    out = {key: _column_entry(p, key, entry) for key, entry in cols.items()}
     used = [v[0] for v in out.values()]
     dup = sorted({n for n in used if used.count(n) > 1})
     if dup:
@@ -143,6 +126,27 @@ def read_column_map(path: str | Path, allowed_options: Mapping[str, str]) -> Col
             raise InputError(p, key, "unknown key", known)
         options[key] = value
     return ColumnMap(out, options, str(p))
+
+
+def _column_entry(p: Path, key: str, entry: Any) -> tuple[str, str]:
+    """(column name, unit) of one ``[columns]`` entry of a column map (:class:`ColumnMap`),
+    checked; ``column = N`` names column N of a MATLAB array (:func:`array_column`)."""
+    if (not isinstance(entry, dict) or set(entry) - {"name", "unit", "column"}
+            or "name" not in entry):
+        raise InputError(p, f"columns.{key}", f"got {entry!r}",
+                         "{ name = 'column in the file', unit = '...' } (and column = N "
+                         "for column N of a MATLAB array)")
+    name, unit = entry["name"], entry.get("unit", "")
+    if not isinstance(name, str) or not isinstance(unit, str) or not name.strip():
+        raise InputError(p, f"columns.{key}", f"got {entry!r}", "name and unit as strings")
+    name = name.strip()
+    if "column" in entry:
+        col = entry["column"]
+        if isinstance(col, bool) or not isinstance(col, int) or col < 1:
+            raise InputError(p, f"columns.{key}.column", f"got {col!r}",
+                             "a column number of the array, 1 or more")
+        name = array_column(name, col)
+    return name, unit.strip()
 
 
 @dataclass(frozen=True)
@@ -219,7 +223,7 @@ class Table:
         if same:
             units = ", ".join(u if u else "(none)" for u in q.units)
             hint = (f"; found '{same[0]}': rename it to '{want}' if it holds {q.key} "
-                    f"(units in the column name: {units}), or map it with --columns")
+                    f"(units in the column name: {units}), or map it with `columns`")
         return InputError(self.path, f"column '{want}'", f"missing{hint}",
                           f"a column named {' or '.join(repr(n) for n in q.names())}")
 
@@ -284,7 +288,7 @@ def refuse_near_misses(tab: Table, known: list[Quantity], allowed: set[str]) -> 
         raise InputError(tab.path, f"column '{h}'", f"looks like {q.key} but is not one of its "
                          "names, so it would be ignored",
                          f"{' or '.join(repr(n) for n in q.names())} (units in the name), or "
-                         "map it with --columns")
+                         "map it with `columns`")
 
 
 def refuse_group_near_misses(tab: Table, groups: list[tuple[Quantity, ...]],
@@ -316,7 +320,7 @@ def refuse_group_near_misses(tab: Table, groups: list[tuple[Quantity, ...]],
                                  f"missing while {', '.join(p.key for p in present)} "
                                  "are given; it would be ignored",
                                  f"{' or '.join(repr(n) for n in q.names())}, or map it with "
-                                 "--columns")
+                                 "`columns`")
 
 
 def _one_edit(a: str, b: str) -> bool:
@@ -445,7 +449,8 @@ def read_mat_table(path: str | Path, mapping: ColumnMap | None) -> Table:
     p = Path(path)
     if mapping is None:
         raise InputError(p, "", "a MATLAB file has no column names",
-                         "--columns FILE.toml naming each quantity's array and column")
+                         "a column map (`columns` FILE.toml) naming each quantity's array "
+                         "and column")
     try:
         arrays = scipy.io.loadmat(str(p))
     except (OSError, ValueError, NotImplementedError, TypeError) as exc:
@@ -453,23 +458,7 @@ def read_mat_table(path: str | Path, mapping: ColumnMap | None) -> Table:
                          "a MATLAB v4-v7.2 .mat file (v7.3/HDF5 is not read)") from None
     wanted: dict[str, list[int]] = {}
     for key, (name, _unit) in mapping.columns.items():
-        m = re.fullmatch(r"(.+)\[(\d+)\]", name)
-        array, col = (m.group(1), int(m.group(2))) if m else (name, 0)
-        value = arrays.get(array)
-        where = f"array '{array}' (columns.{key} of {mapping.source})"
-        if value is None:
-            known = sorted(k for k in arrays if not k.startswith("__"))
-            raise InputError(p, where, "missing", f"one of {', '.join(known) or 'no arrays'}")
-        if not isinstance(value, np.ndarray) or value.ndim != 2 or value.dtype.kind not in "iuf":
-            raise InputError(p, where, f"not a 2-D numeric array ({getattr(value, 'shape', '')})",
-                             "a numeric matrix with one sample per row")
-        if col == 0 and value.shape[1] != 1:
-            raise InputError(mapping.source, f"columns.{key}", f"array '{array}' has "
-                             f"{value.shape[1]} columns", "column = N to say which one")
-        if col > value.shape[1]:
-            raise InputError(mapping.source, f"columns.{key}.column", f"{col} but array "
-                             f"'{array}' has {value.shape[1]} columns",
-                             f"1 .. {value.shape[1]}")
+        array, col = _mapped_array_column(p, arrays, mapping, key, name)
         wanted.setdefault(array, []).append(col)
     n_rows = {a: int(arrays[a].shape[0]) for a in wanted}
     if len(set(n_rows.values())) > 1:
@@ -488,3 +477,26 @@ def read_mat_table(path: str | Path, mapping: ColumnMap | None) -> Table:
     # repr() round-trips every float exactly, so the strict cell checks apply unchanged.
     rows = [[repr(float(c[i])) for c in columns] for i in range(m_rows)]
     return Table(p, header, rows, list(range(1, m_rows + 1)), ",", ".", mapping)
+
+
+def _mapped_array_column(p: Path, arrays: Mapping[str, Any], mapping: ColumnMap, key: str,
+                         name: str) -> tuple[str, int]:
+    """The array and 1-based column (0: a one-column array) a column-map entry names in a
+    MATLAB file's arrays, checked (see :func:`read_mat_table`)."""
+    m = re.fullmatch(r"(.+)\[(\d+)\]", name)
+    array, col = (m.group(1), int(m.group(2))) if m else (name, 0)
+    value = arrays.get(array)
+    where = f"array '{array}' (columns.{key} of {mapping.source})"
+    if value is None:
+        known = sorted(k for k in arrays if not k.startswith("__"))
+        raise InputError(p, where, "missing", f"one of {', '.join(known) or 'no arrays'}")
+    if not isinstance(value, np.ndarray) or value.ndim != 2 or value.dtype.kind not in "iuf":
+        raise InputError(p, where, f"not a 2-D numeric array ({getattr(value, 'shape', '')})",
+                         "a numeric matrix with one sample per row")
+    if col == 0 and value.shape[1] != 1:
+        raise InputError(mapping.source, f"columns.{key}", f"array '{array}' has "
+                         f"{value.shape[1]} columns", "column = N to say which one")
+    if col > value.shape[1]:
+        raise InputError(mapping.source, f"columns.{key}.column", f"{col} but array "
+                         f"'{array}' has {value.shape[1]} columns", f"1 .. {value.shape[1]}")
+    return array, col

@@ -11,6 +11,7 @@ import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import rfsw_plan
 
@@ -558,10 +559,10 @@ _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
 #: module that names a flag and is not here fails the test, and so does an entry that no longer
 #: names one. Kept for the merge: ``validation/`` and ``io/measurements.py`` are being edited
 #: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
-#: ``plan --forces`` as a lever; ``table.py`` hints ``--columns`` in a reader error.
+#: ``plan --forces`` as a lever.
 KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
     "export/api.py", "export/fanuc_tp.py", "export/program.py", "io/measurements.py",
-    "planning/verdict.py", "table.py", "validation/campaign/simulation.py",
+    "planning/verdict.py", "validation/campaign/simulation.py",
     "validation/engine/candidates.py", "validation/commands.py", "validation/engine/crossval.py",
     "validation/engine/diagnosis.py", "validation/report/validate.py",
     "validation/engine/residuals.py", "validation/sanity.py", "validation/weld/workbench.py",
@@ -624,3 +625,153 @@ def test_the_flag_check_sees_a_flag_in_a_fixture(tmp_path):
         "    return dt - -1, 'dt', '--'\n")
     (root / "cli" / "main.py").write_text("FLAG = '--dt'\n")
     assert flag_names_in_library(root) == {"process/job.py": ["4 --dt"]}
+
+
+#: Engines a command that reads a written plan (``export``, ``check``, ``view``) never loads: the
+#: plan holds the joint values, so neither the NLP (CasADi), the timing (TOPPRA, Ruckig) nor
+#: the plots (matplotlib) are on their path (issue 41: each command at its import floor).
+PLAN_READER_FORBIDDEN = ("casadi", "toppra", "ruckig", "matplotlib")
+
+
+def modules_loaded_by(imports: list[str], then: str = "") -> set[str]:
+    """Top-level packages in ``sys.modules`` after a fresh interpreter imports ``imports`` and
+    runs the statement ``then``."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n" + "".join(f"import {m}\n" for m in imports) + then + "\n"
+            + "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120)
+    return set(out.stdout.split())
+
+
+def test_export_and_check_never_import_the_planner():
+    """``export`` and ``check`` read the plan folder and the formats: importing their command
+    modules, the export package with every format, the check and the plan folder reader loads
+    none of :data:`PLAN_READER_FORBIDDEN` (``casadi`` costs the import, the planner its
+    modules; ``planning/__init__`` and ``planning/rows.py`` import them on first use)."""
+    loaded = modules_loaded_by([
+        "rfsw_plan.cli.commands.export", "rfsw_plan.cli.commands.check", "rfsw_plan.export",
+        "rfsw_plan.export.check", "rfsw_plan.planfiles", "rfsw_plan.planfiles.rebuild",
+        "rfsw_plan.planning.result", "rfsw_plan.planning.verify"],
+        "rfsw_plan.export.format.formats()")
+    assert "rfsw_plan" in loaded
+    assert not loaded & set(PLAN_READER_FORBIDDEN), sorted(loaded & set(PLAN_READER_FORBIDDEN))
+
+
+def test_the_import_check_sees_casadi():
+    """The same check on the planner's NLP module finds CasADi (the check can fail)."""
+    assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
+
+
+#: The plan folder's write transaction and the planner itself: a command reaches them through
+#: a library job (``PlanRequest.run()``, ``PlanRun.write(folder)``), never by itself.
+TRANSACTION_NAMES = frozenset({
+    "mark_outputs_stale", "commit_plan", "write_plan_data", "discard_incomplete_record",
+    "write_plan_plots", "plan_with_force_log", "plan_task"})
+
+
+def cli_transaction_calls(root: Path = PACKAGE) -> list[str]:
+    """Places in ``cli/`` that import a name of :data:`TRANSACTION_NAMES` or the planner's
+    ``planning.api.plan``."""
+    found = []
+    for path in sorted((root / "cli").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module:
+                for alias in node.names:
+                    if alias.name in TRANSACTION_NAMES or (
+                            node.module == "rfsw_plan.planning.api" and alias.name == "plan"):
+                        found.append(f"{path.relative_to(root)}:{node.lineno} {alias.name}")
+    return found
+
+
+def test_plan_is_a_library_job():
+    """ARCHITECTURE.md: ``plan`` is one library job like the others; the CLI parses, calls
+    ``PlanRequest`` and prints, and runs neither the planner nor the write transaction."""
+    assert not cli_transaction_calls()
+
+
+def test_the_job_check_sees_a_transaction_in_a_fixture(tmp_path):
+    root = tmp_path / "rfsw_plan"
+    (root / "cli" / "commands").mkdir(parents=True)
+    (root / "cli" / "commands" / "plan.py").write_text(
+        "def run(args):\n"
+        "    from rfsw_plan.planning.api import plan, options_from_problem\n"
+        "    from rfsw_plan.planfiles.waypoints import commit_plan\n")
+    assert cli_transaction_calls(root) == [
+        "cli/commands/plan.py:2 plan", "cli/commands/plan.py:3 commit_plan"]
+
+
+#: Largest cyclomatic complexity of a function (radon; issue 41: no function above 20).
+MAX_COMPLEXITY = 20
+
+#: Functions above :data:`MAX_COMPLEXITY` in modules being edited in parallel (issues 38-40),
+#: scheduled to be split. This list only shrinks: a new one fails the test, and so does an
+#: entry that is no longer above the limit.
+KNOWN_COMPLEX: frozenset[str] = frozenset({
+    "planfiles/page3d.py:rebuild_plan_page", "planning/verify.py:verify_samples",
+    "robot/description.py:robot_description_to_toml_dict",
+    "validation/campaign/design.py:_pool", "validation/engine/diagnosis.py:_verdict"})
+
+
+def complex_functions(root: Path = PACKAGE, limit: int = MAX_COMPLEXITY) -> dict[str, int]:
+    """``module:function`` -> cyclomatic complexity (radon) of every function above ``limit``."""
+    cc = pytest.importorskip("radon.complexity")  # in the dev extras
+    found = {}
+    for path in sorted(root.rglob("*.py")):
+        for block in cc.cc_visit(path.read_text()):
+            if block.complexity > limit:
+                found[f"{path.relative_to(root).as_posix()}:{block.name}"] = block.complexity
+    return found
+
+
+def test_no_function_is_above_the_complexity_limit():
+    found = complex_functions()
+    new = {k: v for k, v in found.items() if k not in KNOWN_COMPLEX}
+    assert not new, f"above complexity {MAX_COMPLEXITY}: {new}"
+    gone = sorted(KNOWN_COMPLEX - set(found))
+    assert not gone, "within the limit now, delete from KNOWN_COMPLEX: " + ", ".join(gone)
+
+
+def test_the_complexity_check_sees_a_branchy_function(tmp_path):
+    body = "".join(f"    if x == {k}:\n        return {k}\n" for k in range(25))
+    (tmp_path / "m.py").write_text(f"def branchy(x):\n{body}    return -1\n")
+    assert complex_functions(tmp_path) == {"m.py:branchy": 26}
+
+
+def option_definitions(root: Path = PACKAGE) -> list[str]:
+    """Modules that define planner options (``PlanOptions``, ``OPTION_KEYS``,
+    ``options_from_table``, ``check_well_posed``) or import them from anywhere but
+    ``process/plan_options.py``."""
+    names = {"PlanOptions", "OPTION_KEYS", "options_from_table", "check_well_posed"}
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        rel = path.relative_to(root).as_posix()
+        for node in ast.walk(ast.parse(path.read_text())):
+            defined = ((isinstance(node, (ast.ClassDef, ast.FunctionDef)) and node.name in names)
+                       or (isinstance(node, ast.Assign) and any(
+                           isinstance(t, ast.Name) and t.id in names for t in node.targets)))
+            imported = (isinstance(node, ast.ImportFrom) and node.module
+                        and node.module != "rfsw_plan.process.plan_options"
+                        and node.module.startswith("rfsw_plan")
+                        and any(a.name in names for a in node.names))
+            if (defined and rel != "process/plan_options.py") or imported:
+                found.append(f"{rel}:{node.lineno}")
+    return found
+
+
+def test_the_planner_options_live_in_one_module():
+    """Issue 41: the planner's options, their keys, their reader and their check are one
+    module, ``process/plan_options.py``; everything imports them from there."""
+    assert not option_definitions()
+
+
+def test_the_options_check_sees_a_second_module(tmp_path):
+    (tmp_path / "planning").mkdir()
+    (tmp_path / "planning" / "options.py").write_text(
+        "from rfsw_plan.process.plan_options import PlanOptions\n"
+        "def check_well_posed(o):\n    return o\n")
+    (tmp_path / "planning" / "api.py").write_text(
+        "from rfsw_plan.planning.options import PlanOptions\n")
+    assert option_definitions(tmp_path) == ["planning/api.py:1", "planning/options.py:2"]

@@ -17,8 +17,8 @@ from rfsw_plan.planning.nlp import (
     point_layout,
     solve_plan_nlp,
 )
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.verify import predict, verify_plan
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import load_robot
 

@@ -236,3 +236,16 @@ def test_fixed_many_is_fixed_for_every_number() -> None:
     assert fixed_many(np.array([[1.0, np.nan]]), 2) == ["1.00", None]
     with pytest.raises(ValueError):
         fixed_many([1.0, np.inf], 2)
+
+
+def test_cell_many_is_cell_for_every_number() -> None:
+    """The column formatter of ``waypoints.csv`` gives :func:`cell`'s text for every number,
+    including the empty "no value" cell of NaN and +-inf."""
+    from rfsw_plan.numfmt import cell, cell_many
+
+    rng = np.random.default_rng(4)
+    values = np.concatenate([
+        [0.0, -0.0, -1e-17, 1e-17, -4.9e-7, -5e-7, 5e-7, np.nan, np.inf, -np.inf, 1e12],
+        rng.normal(size=500) * 10.0 ** rng.integers(-9, 5, 500)])
+    for digits in (0, 3, 6):
+        assert cell_many(values, digits) == [cell(v, digits) for v in values], digits

@@ -13,9 +13,9 @@ from rfsw_plan.planning import nlp as nlp_module
 from rfsw_plan.planning import rows, verify
 from rfsw_plan.planning.layout import variable_layout
 from rfsw_plan.planning.nlp import build_plan_nlp, solve_plan_nlp
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.rows import LINK_ROWS, POINT_ROWS, LinkRows, PointRows
 from rfsw_plan.planning.verify import ROW_CHECKS, verify_plan
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.window import WeldWindow
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "dev" / "nlp-rows.md"

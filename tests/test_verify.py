@@ -107,7 +107,7 @@ def test_offset_rate_is_checked_against_the_load_steps(setup):
     """The offsets' change per travel is checked (it was not before the rows were declared):
     the mirror plan changes its offsets exactly as the load demands, so it holds against
     itself as reference at any rate, and fails a tight rate without that allowance."""
-    from rfsw_plan.planning.options import PlanOptions
+    from rfsw_plan.process.plan_options import PlanOptions
 
     model, task, _, mir = setup
     w = WeldWindow()

@@ -29,6 +29,9 @@ PARAMETER_FLAGS: dict[str, str] = {
     "max_weld": "--waypoints",
     "candidates": "--candidates",
     "force_uncertainty": "--force-uncertainty",
+    # plan (rfsw_plan.planfiles.job.PlanRequest)
+    "overrides": "--set",
+    "spacing": "--spacing-mm",
     # compare (rfsw_plan.realtime.compare.parse_effect_arg)
     "truth_effect": "--truth-effect",
     # export (rfsw_plan.export.format: get_format, parse_formats)
@@ -39,6 +42,8 @@ PARAMETER_FLAGS: dict[str, str] = {
     "load_n": "--load-N",
     # export (rfsw_plan.export.program.ProgramOptions)
     "cell_data": "--cell-data",
+    # a lab's column map (rfsw_plan.table: read_measurements, read_force_series... columns)
+    "columns": "--columns",
     # a saved robot file (rfsw_plan.robot.description.derived_description)
     "name": "--name",
 }
@@ -51,11 +56,11 @@ def flag_of(parameter: str) -> str:
 
 def as_flag_error(exc: RfswError) -> RfswError:
     """``exc`` as the CLI shows it: an :class:`InputError` whose source is a parameter of the
-    table gets the flag as its source, and every parameter its text names in backquotes
-    (```region```) becomes the flag; any other error is ``exc`` itself."""
+    table gets the flag as its source, and every parameter its source or text names in
+    backquotes (```region```) becomes the flag; any other error is ``exc`` itself."""
     if not isinstance(exc, InputError):
         return exc
-    source = PARAMETER_FLAGS.get(exc.source, exc.source)
+    source = PARAMETER_FLAGS.get(exc.source) or _flags_in(exc.source)
     problem, expected = _flags_in(exc.problem), _flags_in(exc.expected)
     if (source, problem, expected) == (exc.source, exc.problem, exc.expected):
         return exc

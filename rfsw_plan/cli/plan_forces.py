@@ -1,21 +1,14 @@
 """The ``plan --forces LOG.csv [--forces-frame F] [--robot FILE]`` hook of ``rfsw-plan plan``.
 
-Kept out of :mod:`rfsw_plan.cli.commands.plan` so the plan command only calls five small
-functions: the arguments, the problem with the fitted forces (and another robot), the plan
-with the derived force uncertainty (:mod:`rfsw_plan.planning.force_log`), the ``plan.json``
-entries and the text.
+The arguments and the text; the job (:class:`rfsw_plan.planfiles.job.PlanRequest`) fits the
+log and plans with the derived force uncertainty (:mod:`rfsw_plan.planning.force_log`).
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Callable
-from dataclasses import replace
-from typing import TYPE_CHECKING, Any
-
-if TYPE_CHECKING:  # the parser answers before the heavy libraries are imported
-    from rfsw_plan.process.problem import Problem
+from typing import Any
 
 
 def register(parser: argparse.ArgumentParser) -> None:
@@ -30,52 +23,6 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", metavar="ROBOT", default=None,
                         help="robot name or TOML file instead of the problem's (e.g. one "
                         "re-identified by validate-weld --save-robot)")
-
-
-def prepare(problem: Problem, args: argparse.Namespace) -> tuple[Problem, Any]:
-    """The problem with ``--robot`` applied, and the fitted ``--forces`` log (or None).
-
-    Raises:
-        InputError: ``--forces-frame`` without ``--forces``, a bad log, a log without axial
-            force; UnknownNameError: unknown robot.
-    """
-    from rfsw_plan.exceptions import InputError
-
-    if args.robot is not None:
-        from rfsw_plan.robot.description import load_robot_description
-
-        problem = replace(problem, robot=load_robot_description(args.robot))
-    if args.forces is None:
-        if args.forces_frame is not None:
-            raise InputError("--forces-frame", "", "given without --forces",
-                             "--forces LOG.csv --forces-frame base|seam|tool")
-        return problem, None
-    from rfsw_plan.planning.force_log import load_force_log
-
-    if args.force_uncertainty is not None:
-        raise InputError("--force-uncertainty", "", "given with --forces",
-                         "one of them: --forces derives the uncertainty from the log")
-    log = load_force_log(problem, args.forces, args.forces_frame)
-    return log.problem, log
-
-
-def plan(problem: Problem, log: Any, options: Any, spacing: float | None,
-         plan_fn: Callable[..., Any]) -> tuple[Any, Any]:
-    """The plan (and its check under the measured force box, or None)."""
-    if log is None:
-        return plan_fn(problem, options, spacing=spacing), None
-    from rfsw_plan.planning.force_log import plan_with_force_log
-
-    return plan_with_force_log(log, options, spacing)
-
-
-def plan_json(problem: Problem, args: argparse.Namespace, log: Any, check: Any
-              ) -> dict[str, Any]:
-    """Entries of ``plan.json``: where the problem and robot came from (for validate-weld),
-    and the ``force_log`` block (:func:`rfsw_plan.planfiles.record.provenance_keys`)."""
-    from rfsw_plan.planfiles.record import provenance_keys
-
-    return provenance_keys(problem, log, check)
 
 
 def print_text(log: Any, check: Any, result: Any, quiet: bool = False) -> None:

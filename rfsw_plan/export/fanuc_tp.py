@@ -71,6 +71,7 @@ from rfsw_plan.export.program import (
     number,
     path_deviation,
     payload_assumed,
+    sample_poses,
 )
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
@@ -227,8 +228,7 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
     tol = program.header.path_tol
     pts = program.poses[:, :3, 3]
     idx = program.sample_index
-    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
-        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+    P = sample_poses(program)
     cr: dict[int, int] = {}
     blends: dict[int, float] = {}
     for m in program.motions:

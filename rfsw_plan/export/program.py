@@ -514,14 +514,20 @@ def _anchor_points(samples: Samples, spacing: float) -> set[int]:
     return keep
 
 
-def _deviation(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
-    """Position distance [m] and orientation angle [rad] of samples i..j from the LIN i -> j."""
+def _chord_fraction(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
+    """Position distance [m] of samples i..j from the chord i -> j, and the fraction of the
+    chord at which each is nearest (0 to 1; evenly spread on a chord of zero length)."""
     p = P[i:j + 1, :3, 3]
     a, b = p[0], p[-1]
     d = b - a
     L2 = float(d @ d)
     f = np.clip(((p - a) @ d) / L2, 0.0, 1.0) if L2 > 0 else np.linspace(0.0, 1.0, len(p))
-    pos = np.linalg.norm(p - (a + f[:, None] * d), axis=1)
+    return np.linalg.norm(p - (a + f[:, None] * d), axis=1), f
+
+
+def _deviation(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
+    """Position distance [m] and orientation angle [rad] of samples i..j from the LIN i -> j."""
+    pos, f = _chord_fraction(P, i, j)
     R = Rotation.from_matrix(P[[i, j], :3, :3])
     slerp = Slerp([0.0, 1.0], R)
     ang = (slerp(f).inv() * Rotation.from_matrix(P[i:j + 1, :3, :3])).magnitude()
@@ -567,7 +573,7 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    dev = np.array([float(np.max(_deviation(P, int(idx[k]), int(idx[k + 1]))[0]))
+    dev = np.array([float(np.max(_chord_fraction(P, int(idx[k]), int(idx[k + 1]))[0]))
                     for k in range(len(idx) - 1)])
     for k in range(1, len(idx)):
         i, j = idx[k - 1], idx[k]
@@ -619,6 +625,22 @@ def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
 # Checks of a program
 
 
+_POSES: list[tuple[Program, FloatArray]] = []
+
+
+def sample_poses(program: Program) -> FloatArray:
+    """The TCP pose of every verified sample in the program's base frame, (N, 4, 4) [m]
+    (forward kinematics once per program: the path checks ask for it many times)."""
+    for src, P in _POSES:
+        if src is program:
+            return P
+    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
+        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+    P.setflags(write=False)
+    _POSES[:] = [*_POSES[-7:], (program, P)]
+    return P
+
+
 def path_deviation(program: Program, blends: dict[int, float] | None = None) -> FloatArray:
     """Bound of every verified sample's distance to the path the controller runs [m], (N,).
 
@@ -631,8 +653,7 @@ def path_deviation(program: Program, blends: dict[int, float] | None = None) -> 
         blends: Point index -> blend distance [m] a format rounds with (default: the
             program's own, :attr:`Motion.blend`).
     """
-    P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
-        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+    P = sample_poses(program)
     idx = program.sample_index
     pts = P[idx, :3, 3]
     out = np.zeros(len(program.all_samples))
@@ -649,7 +670,7 @@ def path_deviation(program: Program, blends: dict[int, float] | None = None) -> 
 
     for k in range(len(idx) - 1):
         i, j = int(idx[k]), int(idx[k + 1])
-        pos = _deviation(P, i, j)[0]
+        pos = _chord_fraction(P, i, j)[0]
         p = P[i:j + 1, :3, 3]
         for c in (k, k + 1):
             d, extra = corner_bound(c)

@@ -53,9 +53,9 @@ from rfsw_plan.placement.geometry import (
 from rfsw_plan.placement.ik import rotation_error, solve_poses
 from rfsw_plan.planning.api import subsample_task
 from rfsw_plan.planning.baselines import no_compensation
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.verify import dexterity_batch
 from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot

@@ -34,8 +34,8 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InputError, RfswError
 from rfsw_plan.placement.geometry import Placement, rot_z
 from rfsw_plan.placement.map import PlacementMap, compliance_shares
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.verify import predict, verify_samples
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 

@@ -47,7 +47,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, write_figure
-from rfsw_plan.numfmt import canonical_quaternion, cell
+from rfsw_plan.numfmt import canonical_quaternion, cell, cell_many
 from rfsw_plan.planfiles.record import PlanRecord
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
@@ -140,9 +140,15 @@ def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(header)
-        for r in rows:
-            wr.writerow([_fmt(v) for v in r])
+        wr.writerows(zip(*(_column(rows[:, j]) for j in range(rows.shape[1])), strict=True))
     return p
+
+
+def _column(values: NDArray[Any]) -> list[str]:
+    """The cells of one column of ``waypoints.csv`` (:func:`_fmt` of each, a column at once)."""
+    if len(values) and isinstance(values[0], str | np.str_):
+        return [_fmt(v) for v in values]
+    return cell_many(values.astype(float), 6)
 
 
 def _fmt(v: Any) -> str:

@@ -49,7 +49,6 @@ from rfsw_plan.planning.nlp import (
     solve_plan_nlp,
     update_parameters,
 )
-from rfsw_plan.planning.options import PlanOptions, check_well_posed
 from rfsw_plan.planning.result import BranchInfo, PlanResult
 from rfsw_plan.planning.robustness import DOMINANCE_TOL, SECOND_STAGE_SLACK, nlp_options
 from rfsw_plan.planning.verify import (
@@ -62,6 +61,7 @@ from rfsw_plan.planning.verify import (
     verify_samples,
 )
 from rfsw_plan.process.frames import tcp_orientation
+from rfsw_plan.process.plan_options import PlanOptions, check_well_posed
 from rfsw_plan.process.task import FloatArray, PlanTask, task_for
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.progress import Stages

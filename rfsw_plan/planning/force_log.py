@@ -206,7 +206,7 @@ def plan_with_force_log(
 
     Args:
         log: The fitted log (if not usable, this is a plain :func:`plan` of its problem).
-        options: :class:`~rfsw_plan.planning.options.PlanOptions`; its ``force_uncertainty``
+        options: :class:`~rfsw_plan.process.plan_options.PlanOptions`; its ``force_uncertainty``
             is replaced by the equivalent of the measured box when the log is usable.
         spacing: Waypoint spacing [m].
         model: Elastostatic model (default: the problem's robot).

@@ -52,7 +52,7 @@ of :mod:`rfsw_plan.planning.layout`. Per waypoint there are
 :func:`~rfsw_plan.planning.rows.point_row_count` rows (19) and n + 5 variables; per link n + 4
 rows; x has K (n + 5) + 1 entries.
 
-Objective (weights and priorities in :mod:`rfsw_plan.planning.options`):
+Objective (weights and priorities in :mod:`rfsw_plan.process.plan_options`):
 w_stiffness share c_max / ref plus the mean over waypoints of
 w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw
 + w_robust (sigma_k / hw + 1 - rho)
@@ -98,7 +98,6 @@ from rfsw_plan.planning.layout import (
     problem_layout,
     variable_layout,
 )
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.rows import (
     LinkContext,
     PointBounds,
@@ -111,6 +110,7 @@ from rfsw_plan.planning.rows import (
     point_row_layout,
 )
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot

@@ -10,9 +10,9 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning.baselines import BaselineMetrics
-from rfsw_plan.planning.options import PlanOptions
 from rfsw_plan.planning.verdict import GO, TradeoffPoint, Verdict, tradeoff, verdict_of
 from rfsw_plan.planning.verify import SampleVerification, Verification
+from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from rfsw_plan.planning.options import PlanOptions
+from rfsw_plan.process.plan_options import PlanOptions
 
 #: The force uncertainty the robust-first NLP pursues (1.0 = +-100 %): above it the window's
 #: worst case is no longer what limits a weld, so the NLP stops buying robustness there.

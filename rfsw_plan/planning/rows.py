@@ -31,13 +31,27 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import casadi as ca
 import numpy as np
 
 from rfsw_plan.planning.layout import OFFSET_LABELS, FloatArray, Layout
 from rfsw_plan.process.plan_options import PlanOptions
+
+if TYPE_CHECKING:
+    import casadi as ca
+else:
+    class _CasadiOnUse:
+        """CasADi, imported when a row expression is first built: the declarations (names,
+        bounds, checks) are read by the verification of a written plan (``export``,
+        ``check``), which never needs CasADi."""
+
+        def __getattr__(self, name: str) -> Any:
+            import casadi
+
+            return getattr(casadi, name)
+
+    ca = _CasadiOnUse()
 
 INF = float("inf")
 #: The NLP keeps the pin at the plunge start at least this far above the surface [mm], so that

@@ -1,7 +1,8 @@
 """Planner options: weights, limits and solver settings (the problem file's ``[planning]`` table).
 
 The options are part of a problem (:attr:`rfsw_plan.process.problem.Problem.planning`), so they
-live beside it in ``process/``; ``rfsw_plan.planning.options`` re-exports them. The ``[planning]``
+live beside it in ``process/``, with the planner's check that they make a well-posed NLP
+(:func:`check_well_posed`): the one module of the planner's options. The ``[planning]``
 table and ``plan --set KEY=VALUE`` are read by one function, :func:`options_from_table`, with
 the keys and valid ranges of :data:`OPTION_KEYS` (file units, the unit in the key name).
 
@@ -297,4 +298,32 @@ def options_from_table(table: Mapping[str, Any], source: str | Path = "planning"
     return replace(defaults, **kw)
 
 
-__all__ = ["OPTION_KEYS", "OptionKey", "PlanOptions", "options_from_table"]
+def check_well_posed(options: PlanOptions, window: Any, source: str = "planning") -> None:
+    """Reject option combinations that make the planning NLP ill-posed, before any solver runs.
+
+    The nominal lateral error must lie in [lower + margin, upper - margin], which is empty
+    unless 2 margin < upper - lower (IPOPT then fails with "Ill-posed problem detected:
+    LBG <= UBG" deep inside CasADi).
+
+    Args:
+        options: The planner options.
+        window: The weld window (``lower``, ``upper`` [m]).
+        source: Where the options came from, for the message.
+
+    Raises:
+        InputError: one line naming the options and the valid range (exit 2).
+    """
+    lo, hi = float(window.lower), float(window.upper)
+    if not (np.isfinite(lo) and np.isfinite(hi)) or not lo < hi:
+        raise InputError(source, "window", f"lower {lo * 1e3:g} mm, upper {hi * 1e3:g} mm",
+                         "finite bounds with lower < upper")
+    half = 0.5 * (hi - lo)
+    if not options.margin < half:
+        raise InputError(
+            source, "margin_mm",
+            f"margin {options.margin * 1e3:g} mm leaves no room in the window "
+            f"[{lo * 1e3:g}, {hi * 1e3:+g}] mm (width {2 * half * 1e3:g} mm)",
+            f"0 <= margin_mm < {half * 1e3:g} (half the window width), or a wider window")
+
+
+__all__ = ["OPTION_KEYS", "OptionKey", "PlanOptions", "check_well_posed", "options_from_table"]

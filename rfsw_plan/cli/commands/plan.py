@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -35,15 +34,13 @@ def register(parser: argparse.ArgumentParser) -> None:
     force_log_cli.register(parser)
 
 
-def _overrides(items: list[str], base: Any) -> Any:
-    """``--set KEY=VALUE`` items (file units, as in ``[planning]``) applied to ``base``.
+def _set_table(items: list[str]) -> dict[str, Any]:
+    """``--set KEY=VALUE`` items as a ``[planning]`` table in file units (numbers, true/false
+    or a name such as ``solver=full``); the job checks the keys and values.
 
     Raises:
-        InputError: A malformed item, or an unknown key (with a "did you mean"), a wrong type
-            or an out-of-range value, as for the problem file.
+        InputError: An item without ``=``.
     """
-    from rfsw_plan.process.plan_options import options_from_table
-
     table: dict[str, Any] = {}
     for it in items:
         key, sep, val = it.partition("=")
@@ -61,37 +58,40 @@ def _overrides(items: list[str], base: Any) -> Any:
                 if v.is_integer() and abs(v) < 2**53:
                     v = int(v)
         table[key.strip()] = v
-    return options_from_table(table, "--set", base, prefix="", what="option")
+    return table
+
+
+def request(args: argparse.Namespace) -> Any:
+    """The :class:`~rfsw_plan.planfiles.job.PlanRequest` of the command line."""
+    from rfsw_plan.planfiles.job import PlanRequest
+
+    return PlanRequest(args.problem, _set_table(args.set), args.force_uncertainty,
+                       None if args.spacing_mm is None else args.spacing_mm * 1e-3,
+                       args.forces, args.forces_frame, args.robot)
 
 
 def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.cli.commands.export import check_export_arguments
-    from rfsw_plan.files import OutputLock, created_this_run, prepare_output_dir, strict_json
-    from rfsw_plan.planfiles.waypoints import (
-        PLAN_OUTPUTS,
-        discard_incomplete_record,
-        mark_outputs_stale,
-    )
-    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
+    from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
+    from rfsw_plan.planfiles.job import write_refusal
 
     check_export_arguments(args)
-    problem = load_problem(args.problem)
-    problem, flog = force_log_cli.prepare(problem, args)
-    opts = _options(args, problem)
+    prepared = request(args).prepare()
+    problem, flog = prepared.problem, prepared.force_log
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
-    try:
-        with OutputLock(out):
-            # An earlier run's files must never sit beside this run's as if they were its own:
-            # plan.json (the commit record) first becomes "incomplete", the other outputs go.
-            mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
-            result, check = _plan_or_record(args, problem, flog, opts, out)
-            summary, written, failed_plots = _write(args, problem, flog, check, result, out)
-    except KeyboardInterrupt:
-        if created_this_run(out):  # Ctrl-C into a new folder writes nothing (main removes it)
-            discard_incomplete_record(out)
-        raise
-    for line in failed_plots:  # the plan is whole without its plots: a warning, exit 0
+    with OutputLock(out):  # taken before planning: a second writer is refused at once
+        try:
+            run_ = prepared.run()
+        except RfswError as exc:  # the refusal is recorded (verdict NO), printed first
+            record = write_refusal(out, problem.name, exc, prepared.options.force_uncertainty)
+            if isinstance(exc, InfeasibleError) and not args.json:
+                print(record["verdict_text"])
+            raise
+        written = run_.write(out, lambda result, folder, record:
+                             export_plan_result(args, result, folder, record))
+    result, check, summary = run_.result, run_.check, written.record
+    for line in written.failed_plots:  # the plan is whole without its plots: exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
               file=sys.stderr)
     if args.json:
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         brief = {k: v for k, v in summary.items() if k != "waypoints"}
         print(strict_json(brief), end="")
         return 0
-    _print_text(problem, result, summary, written, out)
+    _print_text(problem, result, summary, written.files, out)
     force_log_cli.print_text(flog, check, result)
     return 0
 
@@ -107,67 +107,6 @@ def run(args: argparse.Namespace) -> int:
 def default_output(name: str) -> Path:
     """The default output folder of ``plan``: ``out/plan/<problem>``."""
     return Path("out") / NAME / name
-
-
-def _options(args: argparse.Namespace, problem: Any) -> Any:
-    """The problem's planner options with ``--set`` and ``--force-uncertainty`` applied and
-    checked (one line, exit 2, before any planning)."""
-    from rfsw_plan.planning.options import check_well_posed
-
-    opts = _overrides(args.set, problem.planning)
-    if args.force_uncertainty is not None:  # a fraction, range-checked by its parser
-        opts = replace(opts, force_uncertainty=args.force_uncertainty)
-    if args.spacing_mm is not None and not 0.01 <= args.spacing_mm <= 1e4:
-        raise InputError("--spacing-mm", "", f"got {args.spacing_mm:g}",
-                         "a number in [0.01, 10000]")
-    check_well_posed(opts, problem.window, f"{problem.name}: [planning] and --set")
-    return opts
-
-
-def _plan_or_record(args: argparse.Namespace, problem: Any, flog: Any, opts: Any,
-                    out: Path) -> tuple[Any, Any]:
-    """Plan; on a refusal write the ``plan.json`` record (verdict NO), print the verdict
-    first and re-raise (exit 2 or 3)."""
-    from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.planfiles.record import PlanRecord
-    from rfsw_plan.planning.api import plan
-
-    try:
-        return force_log_cli.plan(problem, flog, opts, None if args.spacing_mm is None
-                                  else args.spacing_mm * 1e-3, plan)
-    except RfswError as exc:
-        record = PlanRecord.refused(problem.name, exc, opts.force_uncertainty)
-        if isinstance(exc, InfeasibleError) and not args.json:
-            print(record["verdict_text"])
-        record.write(out / "plan.json")
-        raise
-
-
-def _write(args: argparse.Namespace, problem: Any, flog: Any, check: Any, result: Any,
-           out: Path) -> tuple[dict[str, Any], list[Path], list[str]]:
-    """Write the data files (and programs with ``--export``), commit them in ``plan.json``,
-    draw the plots. Returns the summary, every file written and the plots that failed."""
-    from rfsw_plan.cli import plan_forces as force_log_cli
-    from rfsw_plan.cli.commands.export import export_plan_result
-    from rfsw_plan.planfiles.waypoints import commit_plan, write_plan_data
-    from rfsw_plan.progress import Stages
-
-    summary = result.summary()
-    summary["robot_file"] = str(problem.robot.path)
-    # The planner's own bar has closed; writing and plotting gets a bar of its own.
-    with Stages("plan", ("files", "plots")) as stages:
-        written = write_plan_data(out, result, problem.seam)
-        exported = export_plan_result(args, result, out, summary)
-        if exported is not None:
-            written += list(exported.files)
-            summary["export"] = exported.to_dict()
-        summary.update(force_log_cli.plan_json(problem, args, flog, check))
-        stages.start("plots")
-        # plan.json commits the data files first, then the plots are drawn and committed:
-        # a plot that fails or is killed never costs the waypoints or the programs.
-        path, failed = commit_plan(out, summary, written, result)
-    files = [Path(f) for f in summary.get("files", [])] + [path]
-    return summary, files, failed
 
 
 def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: list[Path],

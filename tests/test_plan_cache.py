@@ -1,0 +1,66 @@
+"""The planner's CasADi caches change nothing but the time (issue 41).
+
+The default test plans the problem at its own spacing (the functions in CasADi's virtual
+machine); the slow one at 1000 weld waypoints, where they are compiled to C.
+
+The point functions, the NLP evaluation, the IPOPT solvers and the mapped functions are built
+once per problem structure and kept in memory (``planning/nlp.py``); the point functions are
+compiled to C once and kept on disk (``planning/casadi_.py``, ``$RFSW_PLAN_CACHE``). A plan
+made with every cache warm and one made after emptying them are the same bytes."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from collections import OrderedDict
+from pathlib import Path
+
+import pytest
+
+from rfsw_plan.planfiles.waypoints import write_waypoints_csv
+from rfsw_plan.planning import api
+from rfsw_plan.planning import nlp as nlp_module
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBLEM = "zk500_table6_seam"
+CACHES = ("_POINT_CACHE", "_SOLVER_CACHE", "_EVAL_CACHE", "_INFO_MAPS")
+
+
+def _csv(tmp: Path, name: str) -> bytes:
+    return write_waypoints_csv(tmp / f"{name}.csv", api.plan(PROBLEM)).read_bytes()
+
+
+def test_a_plan_with_warm_caches_is_the_plan_with_empty_ones(tmp_path, monkeypatch) -> None:
+    """Warm caches (a second plan in one process) give the bytes of a plan after every
+    in-memory cache was emptied (the functions and solvers rebuilt)."""
+    warm = _csv(tmp_path, "first")  # fills the caches if they were empty
+    assert all(len(getattr(nlp_module, c)) for c in CACHES)
+    again = _csv(tmp_path, "warm")
+    for cache in CACHES:
+        monkeypatch.setattr(nlp_module, cache, OrderedDict())
+    cold = _csv(tmp_path, "cold")
+    assert all(len(getattr(nlp_module, c)) for c in CACHES)  # rebuilt by the cold plan
+    assert warm == again == cold
+
+
+@pytest.mark.slow
+def test_a_plan_compiled_afresh_is_the_plan_from_the_disk_cache(tmp_path) -> None:
+    """At 1000 weld waypoints the point functions run as compiled C: a process with an empty
+    compile cache (``$RFSW_PLAN_CACHE``: the C code generated and compiled again) writes the
+    bytes of one that loads the compiled library from disk."""
+    code = ("import sys\nfrom rfsw_plan.planning import api\n"
+            "from rfsw_plan.process.problem import load_problem\n"
+            "from rfsw_plan.planfiles.waypoints import write_waypoints_csv\n"
+            f"p = load_problem({PROBLEM!r})\n"  # 1000 weld waypoints: compiled (K >= 200)
+            "write_waypoints_csv(sys.argv[1], api.plan(p, spacing=p.seam.length / 999))\n")
+    out = {}
+    for name, cache in (("fresh", tmp_path / "cache"), ("disk", None)):
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        if cache is not None:
+            env["RFSW_PLAN_CACHE"] = str(cache)
+        subprocess.run([sys.executable, "-c", code, str(tmp_path / f"{name}.csv")], env=env,
+                       check=True, timeout=900)
+        out[name] = (tmp_path / f"{name}.csv").read_bytes()
+    assert list((tmp_path / "cache").glob("rfsw_point_*.so"))  # it did compile
+    assert out["fresh"] == out["disk"]
