@@ -889,11 +889,18 @@ def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
         d = np.zeros_like(W)
         d[:, :3] = (w * np.einsum("ki,ki->k", W[:, :3], b))[:, None] * b
         dW.append(d)
-    linear = not model.physical().linear_compliance(c.batch.rows(slice(0, 1)))[1]
-    h = 1.0 if linear else LINEARISATION_STEP
+    phys = model.physical()
+    linear = not phys.linear_compliance(c.batch.rows(slice(0, 1)))[1]
     base = _quantities(c, window, c.deflection)
-    D = [(model.process_deflection_batch(c.batch, W + h * d, task.reference) - c.deflection) / h
-         if np.any(d) else np.zeros_like(c.deflection) for d in dW]
+    if linear:
+        # dX = C F + const (the taught reference's load-independent part cancels): the
+        # Cartesian compliance gives every D_i at once.
+        C = phys.cartesian_compliance(c.batch)[:, :, :3]
+        D = [np.einsum("kij,kj->ki", C, d[:, :3]) for d in dW]
+    else:
+        h = LINEARISATION_STEP
+        D = [(model.process_deflection_batch(c.batch, W + h * d, task.reference)
+              - c.deflection) / h if np.any(d) else np.zeros_like(c.deflection) for d in dW]
     gains = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
              for Di in D]
     force = task.axial_control == "force"
