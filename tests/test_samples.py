@@ -128,7 +128,8 @@ def test_robust_status_warning_and_robust_hard(tmp_path, capsys) -> None:
     # The verdict comes first, then its levers (issue 24).
     lines = cap.out.splitlines()
     assert lines[0].startswith("HOLDS NOMINALLY: ") and rec["verdict"] == "HOLDS NOMINALLY"
-    head = "\n".join(lines[:5])
+    refuse = lines.index("  to refuse such plans instead: --set robust_hard=true")
+    head = "\n".join(lines[:refuse + 1])
     for part in (f"+-{100 * tol:.3g} %", "not the requested +-20 %", "robust_hard=true",
                  "placement", "trial weld", "hybrid"):
         assert part in head

@@ -40,10 +40,22 @@ def test_first_line_is_the_verdict_and_plan_json_carries_it(tmp_path: Path, caps
     assert f"{nlp['worst_case_window_margin_mm']:.3f}" in plan_row
     assert f"holds up to +-{100 * tol:.3g} %" in plan_row
     assert nlp["tolerated_force_uncertainty_pct"] == pytest.approx(100 * tol)
-    req = next(p for p in rec["tradeoff"] if p["point"] == "requested")
+    # The quantity that limits it is named first, where, and its own levers lead: the depth
+    # in position control, with axial force control's gain measured.
+    lim = rec["limiting"]
+    assert lim["quantity"] == min(rec["tolerated_force_uncertainty_by_quantity"].items(),
+                                  key=lambda kv: kv[1])[0] == "depth"
+    assert f"depth limits it first, at sample {lim['sample']} (t = {lim['t_s']:.2f} s, " \
+           f"{lim['phase']}, s = {lim['s_mm']:.2f} mm)" in first
+    assert text.splitlines()[1].strip().startswith("the depth limits in position control")
+    assert text.splitlines()[2].strip() == "held per quantity: " + ", ".join(
+        f"{q} +-{100 * u:.3g} %" for q, u in rec["tolerated_force_uncertainty_by_quantity"].items())
+    fc = rec["levers"][0]
+    assert fc["lever"] == "axial_force_control" and fc["gain_pct_points"] > 0
     lever = next(lv for lv in rec["levers"] if lv["lever"] == "placement")
-    assert f"to {req['min_lateral_stiffness_N_mm']:.0f} N/mm" in lever["need"]
-    assert [lv["lever"] for lv in rec["levers"]] == ["placement", "force_model", "realtime"]
+    assert f"x{0.2 / tol:.2f}" in lever["need"]
+    assert [lv["lever"] for lv in rec["levers"]] == ["axial_force_control", "depth", "placement",
+                                                   "force_model", "realtime"]
     # The worst margin of the table is the worst case over the written samples too: the
     # largest distance outside the window at +-20 % is what the plan does not hold.
     assert nlp["worst_case_window_margin_mm"] < 0
@@ -56,13 +68,14 @@ def test_first_line_is_the_verdict_and_plan_json_carries_it(tmp_path: Path, caps
 
 def test_go_when_the_request_is_held(tmp_path: Path, capsys) -> None:
     out = tmp_path / "p"
+    # zk500 holds about +-2.1 % (the depth limits, see test_first_line...): +-2 % is held.
     assert main(["plan", "zk500_table6_seam", "-o", str(out), "--force-uncertainty",
-                 "0.1"]) == 0
+                 "0.02"]) == 0
     first = capsys.readouterr().out.splitlines()[0]
     rec = json.loads((out / "plan.json").read_text())
-    assert rec["verdict"] == GO and rec["levers"] == []
-    assert re.fullmatch(r"GO: holds the weld window at every written sample up to \+-16\.[5-7] % "
-                        r"force uncertainty; the requested \+-10 % is held", first), first
+    assert rec["verdict"] == GO and rec["levers"] == [] and rec["limiting"] is None
+    assert re.fullmatch(r"GO: holds the weld envelope at every written sample up to \+-2\.\d+ % "
+                        r"force uncertainty; the requested \+-2 % is held", first), first
 
 
 def test_no_is_the_first_line_exit_3_and_the_margin_keeps_its_unit(tmp_path: Path,

@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
-from rfsw_plan.planning.verify import SampleVerification, predict
+from rfsw_plan.planning.verify import RobustClaim, SampleVerification, predict, waypoint_claim
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
@@ -364,10 +364,12 @@ class BaselineMetrics:
         robust_margin: min distance of the worst case e +- r to the nearest window bound [m]
             (negative: the worst case leaves the window by that much). Unlike ``worst_case``
             it accounts for the asymmetric window.
-        tolerated: The largest uniform relative force uncertainty u whose worst case
-            e +- u R keeps every point in the window (min dist / R; inf if no force reaches
-            the lateral axis, 0 if a nominal error is outside).
+        tolerated: The largest uniform relative force uncertainty u for which every weld
+            quantity (lateral error, depth, work and travel angle, pin speed) holds at every
+            vertex of the force box at every point (:func:`~rfsw_plan.planning.verify.
+            robust_claim`; inf if no uncertain force moves any, 0 if one fails nominally).
         samples: The figures include the written samples (the plan).
+        claim: The tolerated level per quantity behind ``tolerated``.
     """
 
     name: str
@@ -379,8 +381,9 @@ class BaselineMetrics:
     robust_margin: float = float("nan")
     tolerated: float = float("nan")
     samples: bool = False
+    claim: RobustClaim | None = None
 
-    def to_dict(self) -> dict[str, float | str | bool | None]:
+    def to_dict(self) -> dict[str, float | str | bool | dict[str, float] | None]:
         """File units: mm, N/mm and percent (the tolerated force uncertainty)."""
         return {
             "strategy": self.name,
@@ -391,6 +394,8 @@ class BaselineMetrics:
             "inside_window_fraction": self.inside_fraction,
             "worst_case_window_margin_mm": self.robust_margin * 1e3,
             "tolerated_force_uncertainty_pct": self.tolerated * 100,
+            "tolerated_force_uncertainty_by_quantity_pct": None if self.claim is None else {
+                q: u * 100 for q, u in self.claim.levels.items()},
             "includes_written_samples": self.samples,
         }
 
@@ -405,7 +410,8 @@ def metrics(
 
     At each point e is the lateral pin error and R the worst case per unit force uncertainty,
     R = sum_i |f_i| |l^T C_tt b_i| (seed 000 eq. 11); the worst case at the requested u is
-    e +- u R and the tolerated uncertainty min dist / R (dist: e to the nearest bound).
+    e +- u R. The tolerated uncertainty is the whole envelope's
+    (:func:`~rfsw_plan.planning.verify.robust_claim` at the waypoints, and at the samples).
     """
     pred = predict(model, task, q, 1.0)
     e, R = pred.e_lat, pred.worst
@@ -420,13 +426,13 @@ def metrics(
     sl = task.weld
     inside = (e[sl] >= window.lower) & (e[sl] <= window.upper)
     robust = np.minimum(e_all - r - window.lower, window.upper - (e_all + r))
-    dist = np.minimum(e_all - window.lower, window.upper - e_all)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = np.where(R_all > 0, np.maximum(dist, 0.0) / R_all, np.where(dist >= 0, np.inf, 0.0))
+    claim = waypoint_claim(model, task, window, q)
+    if samples is not None and samples.claim is not None:
+        claim = samples.claim.combined(claim)
     return BaselineMetrics(name, float(np.max(np.abs(e_all))), float(np.sqrt(np.mean(e ** 2))),
                            float(np.max(worst)), float(np.min(pred.lateral_stiffness)),
-                           float(np.mean(inside)), float(np.min(robust)), float(np.min(u)),
-                           samples is not None)
+                           float(np.mean(inside)), float(np.min(robust)), claim.tolerated,
+                           samples is not None, claim)
 
 
 @dataclass(frozen=True)

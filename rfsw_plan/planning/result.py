@@ -128,9 +128,18 @@ class PlanResult:
 
     @property
     def tolerated_force_uncertainty(self) -> float:
-        """The largest uniform relative force uncertainty whose worst case keeps every
-        in-material waypoint and written sample in the window (inf: no lateral force)."""
+        """The largest uniform relative force uncertainty for which every weld quantity
+        (lateral error, depth, work and travel angle, pin speed) holds at every in-material
+        waypoint and written sample (:func:`~rfsw_plan.planning.verify.robust_claim`; inf: no
+        uncertain force moves any)."""
         return self.plan_metrics.tolerated
+
+    @property
+    def tolerated_by_quantity(self) -> dict[str, float]:
+        """Tolerated relative force uncertainty of every weld quantity of the written plan
+        (``lateral``, ``depth``, ``tilt``, ``speed``; inf: no uncertain force moves it)."""
+        claim = self.plan_metrics.claim
+        return {} if claim is None else claim.levels
 
     @property
     def tolerated_by_strategy(self) -> dict[str, float]:
@@ -148,7 +157,8 @@ class PlanResult:
         (:mod:`rfsw_plan.planning.verdict`)."""
         return verdict_of(self.baselines, self.options.force_uncertainty,
                           self.options.robust_first, self.forces_calibrated,
-                          self.measured_force_uncertainty)
+                          self.measured_force_uncertainty,
+                          self.task.axial_control == "position")
 
     def tradeoff(self) -> tuple[TradeoffPoint, ...]:
         """Tolerated uncertainty against the weakest lateral stiffness: the plan, the
@@ -236,6 +246,9 @@ class PlanResult:
             "robust_first": self.options.robust_first,
             "force_uncertainty_requested": self.options.force_uncertainty,
             "tolerated_force_uncertainty": self.tolerated_force_uncertainty,
+            # The level each weld quantity holds (fractions like the one above; null: no
+            # uncertain force moves it, or under axial force control the depth).
+            "tolerated_force_uncertainty_by_quantity": self.tolerated_by_quantity,
             "tolerated_force_uncertainty_by_strategy": dict(self.tolerated_by_strategy),
             "robust_window_held": verdict.word == GO,
             "tradeoff": [p.to_dict() for p in self.tradeoff()],

@@ -2,11 +2,16 @@
 
 Three verdicts (the first line of ``rfsw-plan plan`` and ``"verdict"`` in ``plan.json``):
 
-* ``GO``: every written in-material sample is in the weld window, and stays there under the
-  requested force uncertainty (the plan tolerates +-x % >= the requested +-y %).
-* ``HOLDS NOMINALLY``: every written sample is in the window, but under force uncertainty only
-  up to +-x % < +-y %. The verdict then names the three levers that raise x, each with what it
-  must achieve (from the same numbers) and its measured gain where one is known.
+* ``GO``: every written in-material sample holds the weld envelope, and every weld quantity
+  (lateral error, depth, work and travel angle, pin speed) still holds it under the requested
+  force uncertainty (the plan tolerates +-x % >= the requested +-y %: x is the smallest of the
+  per-quantity levels of :func:`~rfsw_plan.planning.verify.robust_claim`).
+* ``HOLDS NOMINALLY``: every written sample holds the envelope, but under force uncertainty
+  only up to +-x % < +-y %. The verdict names the quantity that limits x first, where (sample,
+  t, phase, s), and its levers: the quantity's own first (for the depth under position control
+  axial force control, with the level the plan would reach under it, measured on the same
+  model), then the three that raise the stiffness-limited levels, each with what it must
+  achieve and its measured gain where one is known.
 * ``NO``: no plan (infeasible window, speed or singularity, exit 3).
 
 Every number comes from the plan's :class:`~rfsw_plan.planning.baselines.BaselineMetrics`
@@ -27,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from rfsw_plan.planning.baselines import BaselineMetrics
+from rfsw_plan.planning.verify import RobustClaim
 
 GO = "GO"
 HOLDS_NOMINALLY = "HOLDS NOMINALLY"
@@ -135,19 +141,49 @@ class Verdict:
     robust_first: bool = True
     levers: tuple[Lever, ...] = ()
     reason: str = ""
+    claim: RobustClaim | None = None
+    position_control: bool = True
 
     @property
     def line(self) -> str:
         """The first line of ``rfsw-plan plan``."""
         if self.word == NO:
             return f"NO: no plan holds the weld envelope: {self.reason}"
-        every = "holds the weld window at every written sample"
+        every = "holds the weld envelope at every written sample"
         if self.word == GO:
             upto = ("under any force uncertainty" if self.tolerated == np.inf
                     else f"up to {pct(self.tolerated)} force uncertainty")
             return f"GO: {every} {upto}; the requested {pct(self.requested)} is held"
+        first = ""
+        if self.claim is not None:
+            lim = self.claim.limiting
+            at = f", at {lim.where}" if lim.where else ""
+            first = f": {lim.quantity} limits it first{at}"
         return (f"HOLDS NOMINALLY: {every}, but under force uncertainty only up to "
-                f"{pct(self.tolerated)}, not the requested {pct(self.requested)}")
+                f"{pct(self.tolerated)}, not the requested {pct(self.requested)}{first}")
+
+    @property
+    def held(self) -> str:
+        """The level every weld quantity holds, in the order the claim lists them:
+        ``held per quantity: lateral +-11.4 %, depth +-2.14 %, tilt +-47.2 %, speed +-5.71 %``
+        (empty without a claim); the depth under axial force control is the controller's."""
+        if self.claim is None:
+            return ""
+        parts = [f"{q} {'the force loop' if q == 'depth' and not self.position_control else pct(u)}"
+                 for q, u in self.claim.levels.items()]
+        return "held per quantity: " + ", ".join(parts)
+
+    @property
+    def depth_note(self) -> str:
+        """Where the depth limits under position control: what that means, first (empty
+        otherwise)."""
+        if (self.word != HOLDS_NOMINALLY or self.claim is None or not self.position_control
+                or self.claim.limiting.quantity != "depth"):
+            return ""
+        return ("the depth limits in position control: the robot's axial deflection under "
+                "the force spread moves the pin along the tool axis, and no pose holds it; "
+                "under axial force control the set force is exact and the depth is the "
+                "material's answer")
 
     @property
     def traded(self) -> str:
@@ -159,14 +195,41 @@ class Verdict:
                 f"holds {pct(self.mirror)} on the same waypoints")
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``plan.json`` entries (percent)."""
-        return {"verdict": self.word, "verdict_text": self.line,
+        """The ``plan.json`` entries (percent): the verdict, its text, what limits it
+        (``limiting``: quantity, level, sample, t, phase, s; null for GO and NO) and the
+        levers."""
+        lim = None
+        if self.claim is not None and self.word == HOLDS_NOMINALLY:
+            m = self.claim.limiting
+            lim = {"quantity": m.quantity, "tolerated_pct": m.level * 100,
+                   m.kind: m.index + 1 if m.index >= 0 else None, "t_s": m.t,
+                   "phase": m.phase or None, "s_mm": m.s * 1e3, "note": self.depth_note or None}
+        return {"verdict": self.word, "verdict_text": self.line, "limiting": lim,
                 "levers": [lv.to_dict() for lv in self.levers]}
+
+
+#: The levers that raise a quantity's tolerated force uncertainty when it, not the lateral
+#: error, limits it (the depth's first lever under position control is axial force control,
+#: with its measured gain).
+ROBUST_LEVERS = {
+    "depth": "a wider depth window ([window] depth_shallow_mm / depth_deep_mm), or a placement "
+             "stiffer along the plate normal (rfsw-plan place)",
+    "tilt": "a wider [window] tilt_tol_deg, or a placement stiffer in rotation (rfsw-plan "
+            "place)",
+    "speed": "a wider [window] speed_tol_pct, or a placement stiffer along the seam "
+             "(rfsw-plan place)",
+}
 
 
 def levers(plan: BaselineMetrics, requested: float, forces_calibrated: bool = False,
            measured_uncertainty: float | None = None) -> tuple[Lever, ...]:
-    """The three levers that raise the tolerated force uncertainty x to the requested y.
+    """The levers that raise the tolerated force uncertainty x to the requested y.
+
+    First, when another quantity than the lateral error limits x, that quantity's own lever
+    (:data:`ROBUST_LEVERS`), and for the depth under position
+    control axial force control with the level the other quantities hold with the axial force
+    exact (:attr:`~rfsw_plan.planning.verify.RobustClaim.axial_force_control`, its gain
+    measured on the plan's model). Then the three that raise the stiffness-limited levels:
 
     1. a stiffer placement: the weakest lateral stiffness must rise by y / x (the trade-off's
        requested point);
@@ -178,10 +241,28 @@ def levers(plan: BaselineMetrics, requested: float, forces_calibrated: bool = Fa
     """
     x = plan.tolerated
     k = plan.min_lateral_stiffness
+    own: list[Lever] = []
+    claim = plan.claim
+    if claim is not None and claim.limiting.quantity != "lateral":
+        q = claim.limiting.quantity
+        if q == "depth" and np.isfinite(claim.axial_force_control):
+            fc = claim.axial_force_control
+            own.append(Lever("axial_force_control", "axial force control ([process] "
+                             "axial_control = \"force\": the set force exact, the depth the "
+                             "material's answer)",
+                             f"with the axial force exact the other quantities hold {pct(fc)}",
+                             gain=fc - x if np.isfinite(fc) else None))
+        own.append(Lever(q, f"the {q}'s own lever", ROBUST_LEVERS[q]))
     factor = requested / x if x > 0 else float("inf")
-    stiff = (f"the weakest lateral stiffness must rise from {k * 1e-3:.0f} to "
-             f"{k * factor * 1e-3:.0f} N/mm (x{factor:.2f})" if np.isfinite(factor)
-             else "the nominal error must first come inside the window")
+    q = "lateral" if claim is None else claim.limiting.quantity
+    if not np.isfinite(factor):
+        stiff = "the nominal error must first come inside the window"
+    elif q == "lateral":
+        stiff = (f"the weakest lateral stiffness must rise from {k * 1e-3:.0f} to "
+                 f"{k * factor * 1e-3:.0f} N/mm (x{factor:.2f})")
+    else:
+        stiff = (f"the {q}'s worst case scales with the compliance: the stiffness behind it "
+                 f"must rise x{factor:.2f}")
     out = [Lever("placement", "a stiffer placement (rfsw-plan place)", stiff)]
     if forces_calibrated:
         meas = ("" if measured_uncertainty is None
@@ -196,20 +277,25 @@ def levers(plan: BaselineMetrics, requested: float, forces_calibrated: bool = Fa
     out.append(Lever("realtime", "real-time compensation on top of the plan (rfsw-plan "
                      "compare, hybrid strategy)",
                      f"it must remove {100 * share:.0f} % of the force-induced error"))
-    return tuple(out)
+    return tuple(own + out)
 
 
 def verdict_of(baselines: tuple[BaselineMetrics, ...], requested: float,
                robust_first: bool = True, forces_calibrated: bool = False,
-               measured_uncertainty: float | None = None) -> Verdict:
-    """The verdict on a written plan from its metrics (``nlp`` includes the samples)."""
+               measured_uncertainty: float | None = None, position_control: bool = True
+               ) -> Verdict:
+    """The verdict on a written plan from its metrics (``nlp`` includes the samples);
+    ``position_control``: the axial force is the process's answer to the robot's position
+    (else the controller's set force)."""
     by = {b.name: b for b in baselines}
     plan = by["nlp"]
     mirror = by["mirror"].tolerated if "mirror" in by else float("nan")
     if plan.tolerated >= requested * (1 - HELD_RTOL):
-        return Verdict(GO, plan.tolerated, requested, mirror, robust_first)
+        return Verdict(GO, plan.tolerated, requested, mirror, robust_first,
+                       claim=plan.claim, position_control=position_control)
     return Verdict(HOLDS_NOMINALLY, plan.tolerated, requested, mirror, robust_first,
-                   levers(plan, requested, forces_calibrated, measured_uncertainty))
+                   levers(plan, requested, forces_calibrated, measured_uncertainty),
+                   claim=plan.claim, position_control=position_control)
 
 
 def no_plan(reason: str, requested: float) -> Verdict:

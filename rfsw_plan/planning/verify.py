@@ -27,14 +27,16 @@ planner constraint cannot go without its independent check.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.compliance import dexterity
+from rfsw_plan.elastostatics.effects.base import PoseBatch
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
@@ -645,6 +647,399 @@ ENVELOPE_LEVERS = {
 }
 
 
+# --------------------------------------------------------------------------------------------
+# The robust claim: how much force uncertainty every weld quantity holds
+
+#: The weld quantities of the robust claim, in the order a tie names the limiting one.
+ROBUST_QUANTITIES = ("lateral", "depth", "tilt", "speed")
+#: A model that is not linear in the wrench: the step of its linearisation at the nominal
+#: force (relative, 0.1 %), the factor over the smallest linearised level within which a
+#: point's vertices are evaluated with the model, the secant corrections of the level, the
+#: halvings after them, and the tolerance of a vertex's margin [m, 1] (IPOPT's).
+LINEARISATION_STEP = 1e-3
+CANDIDATE_FACTOR = 1.5
+SECANT_STEPS = 4
+BISECTIONS = 8
+VERTEX_TOL = 1e-7
+
+
+@dataclass(frozen=True)
+class RobustLimit:
+    """Where one weld quantity reaches its tolerated force uncertainty.
+
+    Attributes:
+        quantity: ``lateral``, ``depth``, ``tilt`` or ``speed``.
+        level: The largest uniform relative force uncertainty u for which the quantity holds
+            at every vertex of the force box, at every sample it applies to (inf: no uncertain
+            force moves it; 0: it fails at u = 0).
+        index: 0-based sample (or waypoint) where it is reached, -1 if nowhere.
+        t: Its time [s] (NaN if nowhere).
+        phase: Its phase ("" if nowhere).
+        s: Its arc length [m] (NaN if nowhere).
+        kind: ``sample`` (a written sample, 1-based row of ``waypoints.csv``) or ``waypoint``.
+    """
+
+    quantity: str
+    level: float
+    index: int = -1
+    t: float = float("nan")
+    phase: str = ""
+    s: float = float("nan")
+    kind: str = "sample"
+
+    @property
+    def where(self) -> str:
+        """``sample 1234 (t = 20.10 s, weld, s = 30.20 mm)`` (or ``waypoint ...``, its time
+        on the schedule's clock), or ``""`` if nowhere."""
+        if self.index < 0:
+            return ""
+        return (f"{self.kind} {self.index + 1} (t = {self.t:.2f} s, {self.phase}, s = "
+                f"{self.s * 1e3:.2f} mm)")
+
+
+@dataclass(frozen=True)
+class RobustClaim:
+    """The tolerated force uncertainty of every weld quantity (:func:`robust_claim`).
+
+    Attributes:
+        limits: Per quantity of :data:`ROBUST_QUANTITIES` its :class:`RobustLimit`.
+        axial_force_control: The level every quantity but the depth would hold with the axial
+            force exact and the depth the material's answer (axial force control); NaN where
+            the plan already is under force control.
+        linear: The model is linear in the wrench (closed form at the box's vertices), else
+            the vertices were evaluated with the model and bisected.
+        lateral_per_unit: Worst change of the lateral error per unit u at every point,
+            sum_i |l . D_i| [m], (N,) (the closed form's; the secant's for a model that is
+            not linear in the wrench).
+    """
+
+    limits: dict[str, RobustLimit]
+    axial_force_control: float = float("nan")
+    linear: bool = True
+    lateral_per_unit: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def levels(self) -> dict[str, float]:
+        """Quantity -> tolerated level."""
+        return {q: lim.level for q, lim in self.limits.items()}
+
+    @property
+    def tolerated(self) -> float:
+        """The level every quantity holds: the smallest one (inf if nothing is moved)."""
+        return min(self.levels.values(), default=np.inf)
+
+    @property
+    def limiting(self) -> RobustLimit:
+        """The quantity that limits the claim (the first of the smallest)."""
+        return min(self.limits.values(), key=lambda lim: lim.level)
+
+    def combined(self, other: RobustClaim) -> RobustClaim:
+        """The claim over both point sets: per quantity the smaller level (ties: this one)."""
+        limits = {q: (other.limits[q] if other.limits[q].level < lim.level else lim)
+                  for q, lim in self.limits.items()}
+        fc = np.nanmin([self.axial_force_control, other.axial_force_control]) if not (
+            np.isnan(self.axial_force_control) and np.isnan(other.axial_force_control)
+        ) else float("nan")
+        return RobustClaim(limits, float(fc), self.linear and other.linear,
+                           np.concatenate([self.lateral_per_unit, other.lateral_per_unit]))
+
+
+@dataclass(frozen=True)
+class ClaimInput:
+    """The points a robust claim is computed on (written samples or planned waypoints; base
+    frame, SI).
+
+    Attributes:
+        t: Time [s], (N,).
+        phase: Phase, (N,).
+        s: Arc length along the seam [m], (N,).
+        batch: The model's kinematics of the joint values.
+        wrench: Process wrench on the tool [N, N m], (N, 6).
+        deflection: The model's process deflection under ``wrench`` [m, rad], (N, 6).
+        p, t_dir, l_dir, n_dir: Seam point and unit tangent, lateral and tool-axis direction at
+            every point, (N, 3).
+        plate_normal: Plate normal, (N, 3).
+        contact: Points in the material (lateral and tilt), (N,).
+        full_depth: Points at full depth (depth), (N,).
+        travel: Constant-speed travel points (speed), (N,).
+        speed_axis: Abscissa of the pin's speed: time [s] (samples) or arc length [m]
+            (waypoints), (N,).
+        speed_scale: 1 / weld speed [s/m] for time, 1 for arc length.
+    """
+
+    t: FloatArray
+    phase: NDArray[np.str_]
+    s: FloatArray
+    batch: PoseBatch
+    wrench: FloatArray
+    deflection: FloatArray
+    p: FloatArray
+    t_dir: FloatArray
+    l_dir: FloatArray
+    n_dir: FloatArray
+    plate_normal: FloatArray
+    contact: NDArray[np.bool_]
+    full_depth: NDArray[np.bool_]
+    travel: NDArray[np.bool_]
+    speed_axis: FloatArray
+    speed_scale: float
+
+
+def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = ""
+                ) -> dict[str, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]]:
+    """Every weld quantity under the deflection dX (N, 6): value, lower and upper bound, and
+    where it applies, each (M,) (tilt: work angles then travel angles, M = 2N). Every value is
+    affine in dX, so for a wrench-linear model it is linear in the force box's u:
+
+    * lateral: l . (FK_p + dX_p - p) in [lower, upper];
+    * depth: n_plate . (FK_p + dX_p - p) in [-depth_deep, depth_shallow] (+ shallow);
+    * tilt: sin of the work (travel) angle of the commanded tool axis z turned by the change
+      of the deflection's rotation from the nominal one, (z + (dX_r - dX0_r) x z) . l (. t),
+      in [-sin tol, sin tol] (the nominal rotation is the nominal tilt check's, which
+      checks the commanded axis);
+    * speed: d sigma / d x x scale - 1, sigma = s + t . (FK_p + dX_p - p) the pin's arc
+      length, in [-speed_tol, speed_tol].
+
+    ``only``: compute that quantity alone (the others are left out).
+    """
+    x = c.batch.T[:, :3, 3]
+    pin = x + dX[:, :3] - c.p
+    N = len(x)
+    one = np.ones(N)
+    out = {}
+    if only in ("", "lateral"):
+        out["lateral"] = (np.einsum("ki,ki->k", c.l_dir, pin), window.lower * one,
+                          window.upper * one, c.contact)
+    if only in ("", "depth"):
+        out["depth"] = (np.einsum("ki,ki->k", c.plate_normal, pin), -window.depth_deep * one,
+                        window.depth_shallow * one, c.full_depth)
+    if only in ("", "tilt"):
+        z = c.batch.T[:, :3, 2]
+        zr = z + np.cross(dX[:, 3:] - c.deflection[:, 3:], z)
+        sin_tol = np.sin(window.tilt_tol)
+        out["tilt"] = (np.concatenate([np.einsum("ki,ki->k", zr, c.l_dir),
+                                       np.einsum("ki,ki->k", zr, c.t_dir)]),
+                       -sin_tol * np.ones(2 * N), sin_tol * np.ones(2 * N),
+                       np.concatenate([c.contact, c.contact]))
+    if only in ("", "speed"):
+        speed = np.zeros(N)
+        if c.travel.sum() >= 3:
+            sigma = c.s + np.einsum("ki,ki->k", c.t_dir, pin)
+            speed[c.travel] = np.gradient(sigma[c.travel],
+                                          c.speed_axis[c.travel]) * c.speed_scale - 1
+        out["speed"] = (speed, -window.speed_tol * one, window.speed_tol * one,
+                        c.travel & (c.travel.sum() >= 3))
+    return out
+
+
+def _closed_form(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArray[np.bool_],
+                 G: FloatArray) -> tuple[float, int]:
+    """Largest u with value +- u G inside [lo, hi] at every masked point, and the point
+    where it is reached: min dist / G (inf where G = 0 and inside, 0 where outside)."""
+    if not mask.any():
+        return np.inf, -1
+    dist = np.minimum(value - lo, hi - value)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(G > 0, np.maximum(dist, 0.0) / G, np.where(dist >= 0, np.inf, 0.0))
+    u = np.where(mask, u, np.inf)
+    k = int(np.argmin(u))
+    return float(u[k]), (k if np.isfinite(u[k]) else -1)
+
+
+def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                 c: ClaimInput, kind: str = "sample") -> RobustClaim:
+    """The largest uniform relative force uncertainty u each weld quantity holds.
+
+    The force box: the seam-frame components f_i (traverse, lateral, axial) of every point's
+    process force, each scaled by 1 +- u w_i (w = :attr:`PlanTask.spread_weights`: under axial
+    force control the controller holds f_n, w_n = 0); the moments are kept. A quantity holds
+    at u if at every vertex of the box (2^3 sign choices sigma) it stays inside its bounds at
+    every point it applies to (:func:`_quantities`: lateral error, depth, work and travel
+    angle, pin speed).
+
+    * Wrench-linear model (every compliance effect has a Cartesian compliance: joints,
+      springs, flange): the deflection at a vertex is dX0 + u sum_i sigma_i D_i, D_i the
+      model's process deflection change for the component i alone (one batch call each), and
+      every quantity is affine in dX, so its worst vertex is value0 +- u sum_i |g_i| and the
+      largest u is min dist / sum_i |g_i| (closed form, exact: the vertices suffice, a
+      linear function takes its extremes over a box at vertices).
+    * Otherwise (torque- or direction-dependent stiffness, play): the closed form of the
+      model linearised at the nominal force (D_i from a 0.1 % step) is the first guess; the
+      vertices are then evaluated with the model itself (its public batch API) at every
+      point whose linearised level is within :data:`CANDIDATE_FACTOR` of the smallest, the
+      level is corrected by the vertices' own worst change (secant, up to
+      :data:`SECANT_STEPS` times) and, if a vertex still fails, halved
+      (:func:`_vertex_level`). That is exact
+      where each quantity is monotone in each force component over the box (a stiffness that
+      grows with the torque's size, or changes with its sign, keeps a joint's deflection
+      monotone in its torque); where it is not, the worst case may lie inside the box and the
+      vertices are a check, not a proof.
+
+    Under position control the depth is the robot's: the force box moves it. Under axial
+    force control the set force is exact and the depth is the material's answer to it, not
+    the robot's deflection: the depth is not part of the claim (level inf). For position
+    control :attr:`RobustClaim.axial_force_control` is the level the other quantities would
+    hold with the axial force exact (w_n = 0; linearised at the nominal force for a model
+    that is not wrench-linear): the measured gain of the force-control lever.
+    """
+    W = c.wrench
+    dirs = (c.t_dir, c.l_dir, c.n_dir)
+    dW = []
+    for b, w in zip(dirs, task.spread_weights, strict=True):
+        d = np.zeros_like(W)
+        d[:, :3] = (w * np.einsum("ki,ki->k", W[:, :3], b))[:, None] * b
+        dW.append(d)
+    phys = model.physical()
+    linear = not phys.linear_compliance(c.batch.rows(slice(0, 1)))[1]
+    base = _quantities(c, window, c.deflection)
+    if linear:
+        # dX = C F + const (the taught reference's load-independent part cancels): the
+        # Cartesian compliance gives every D_i at once.
+        C = phys.cartesian_compliance(c.batch)[:, :, :3]
+        D = [np.einsum("kij,kj->ki", C, d[:, :3]) for d in dW]
+    else:
+        h = LINEARISATION_STEP
+        D = [(model.process_deflection_batch(c.batch, W + h * d, task.reference)
+              - c.deflection) / h if np.any(d) else np.zeros_like(c.deflection) for d in dW]
+    gains = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
+             for Di in D]
+    force = task.axial_control == "force"
+    limits: dict[str, RobustLimit] = {}
+    fc = np.inf
+    N = len(c.t)
+    lateral = np.zeros(N)
+    for q in ROBUST_QUANTITIES:
+        value, lo, hi, mask = base[q]
+        if q == "depth" and force:
+            mask = np.zeros_like(mask)
+        G = np.sum([np.abs(g[q]) for g in gains], axis=0)
+        if q == "lateral":
+            lateral = G
+        u_k = _levels(value, lo, hi, mask, G)
+        k = int(np.argmin(u_k)) if len(u_k) else -1
+        u = float(u_k[k]) if k >= 0 else np.inf
+        if q != "depth" and len(u_k):
+            fc = min(fc, float(np.min(_levels(value, lo, hi, mask, np.abs(gains[0][q])
+                                               + np.abs(gains[1][q])))))
+        if not linear and np.isfinite(u) and u > 0:
+            u, k = _vertex_level(model, task, window, c, dW, q, u_k, u,
+                                 [g[q] for g in gains])
+        kk = k % N if k >= 0 and np.isfinite(u) else -1
+        limits[q] = (RobustLimit(q, u) if kk < 0 else
+                     RobustLimit(q, u, kk, float(c.t[kk]), str(c.phase[kk]), float(c.s[kk]),
+                                 kind))
+    return RobustClaim(limits, float("nan") if force else fc, linear, lateral)
+
+
+def _levels(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArray[np.bool_],
+            G: FloatArray) -> FloatArray:
+    """Per point the largest u with value +- u G inside [lo, hi]: dist / G (inf where G = 0
+    and inside, 0 where outside, inf where the quantity does not apply)."""
+    dist = np.minimum(value - lo, hi - value)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(G > 0, np.maximum(dist, 0.0) / G, np.where(dist >= 0, np.inf, 0.0))
+    return np.where(mask, u, np.inf)
+
+
+def _take(c: ClaimInput, idx: NDArray[np.int_]) -> ClaimInput:
+    """The claim's points ``idx`` (sorted)."""
+    b = c.batch
+    batch = PoseBatch(b.robot, b.q[idx], b.T[idx], b.J[idx], b.frames[idx],
+                      None if b.approach is None else b.approach[idx], b.force_noise,
+                      None if b.load_change is None else b.load_change[idx])
+    return ClaimInput(c.t[idx], c.phase[idx], c.s[idx], batch, c.wrench[idx],
+                      c.deflection[idx], c.p[idx], c.t_dir[idx], c.l_dir[idx], c.n_dir[idx],
+                      c.plate_normal[idx], c.contact[idx], c.full_depth[idx], c.travel[idx],
+                      c.speed_axis[idx], c.speed_scale)
+
+
+def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                  c: ClaimInput, dW: list[FloatArray], q: str, u_k: FloatArray, u0: float,
+                  gains: list[FloatArray]) -> tuple[float, int]:
+    """The level of quantity q at the force box's vertices, each evaluated with the model,
+    from the linearised per-point levels u_k (M,), their minimum u0 and the linearised
+    changes per component ``gains`` (3 x (M,)): the level and the point (index into ``c``'s
+    rows) where it is reached (see :func:`robust_claim`).
+
+    A quantity of one point (lateral, depth, tilt) is checked at every point it applies to,
+    at the two vertices the linearisation finds worst there (sigma = +-sign g: where the
+    quantity is monotone in each component its extremes over the box are there); the pin
+    speed, a difference of neighbouring samples, at all 8 vertices of one box for the whole
+    weld, at the points whose linearised level is within :data:`CANDIDATE_FACTOR` of its
+    smallest (and their neighbours)."""
+    N = len(c.t)
+    M = len(u_k)
+    if q == "speed":
+        cand = np.unique(np.flatnonzero(u_k <= CANDIDATE_FACTOR * u0) % N)
+        idx = np.unique(np.clip(np.concatenate([cand - 1, cand, cand + 1]), 0, N - 1))
+    else:
+        idx = np.unique(np.flatnonzero(np.isfinite(u_k)) % N)
+        cand = idx
+    sub = _take(c, idx)
+    n = len(idx)
+    value, lo, hi, mask = _quantities(sub, window, sub.deflection, q)[q]
+    rows = np.tile(np.isin(idx, cand), M // N)
+    mask = mask & rows
+    blocks = M // N  # tilt: work angles, then travel angles
+    sets: list[tuple[FloatArray, NDArray[np.bool_]]] = []
+    if q == "speed":
+        sets = [(np.broadcast_to(np.array(sig), (n, 3)), np.ones(n, dtype=bool))
+                for sig in itertools.product((-1.0, 1.0), repeat=3)]
+    else:
+        for blk in range(blocks):
+            sgn = np.stack([np.where(g[blk * N:(blk + 1) * N][idx] >= 0, 1.0, -1.0)
+                            for g in gains], axis=1)
+            on = np.zeros(blocks * n, dtype=bool)
+            on[blk * n:(blk + 1) * n] = True
+            sets += [(sgn, on), (-sgn, on)]
+    dWs = [d[idx] for d in dW]
+
+    def vertices(u: float) -> tuple[FloatArray, FloatArray]:
+        """Worst margin and worst change of q over the vertices at u, per point."""
+        margin = np.full(len(value), np.inf)
+        change = np.zeros(len(value))
+        for sgn, on in sets:
+            Wv = sub.wrench + u * sum((sgn[:, i, None] * dWs[i] for i in range(3)),
+                                      np.zeros_like(sub.wrench))
+            dX = model.process_deflection_batch(sub.batch, Wv, task.reference)
+            v = _quantities(sub, window, dX, q)[q][0]
+            margin = np.where(on, np.minimum(margin, np.minimum(v - lo, hi - v)), margin)
+            change = np.where(on, np.maximum(change, np.abs(v - value)), change)
+        return np.where(mask, margin, np.inf), change
+
+    u = u0
+    for _ in range(SECANT_STEPS):
+        margin, change = vertices(u)
+        if np.min(margin) >= -VERTEX_TOL:
+            return u, int(idx[int(np.argmin(margin)) % n])
+        lv = _levels(value, lo, hi, mask, change / u)
+        u = min(float(np.min(lv)), 0.999 * u)
+    lo_u = 0.0
+    for _ in range(BISECTIONS):
+        margin, _change = vertices(u)
+        if np.min(margin) >= -VERTEX_TOL:
+            lo_u = u
+            break
+        u *= 0.5
+    return lo_u, int(idx[int(np.argmin(margin)) % n])
+
+
+def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                   q: FloatArray) -> RobustClaim:
+    """:func:`robust_claim` of joint values q (K, n) [rad] at the task's waypoints (every one in
+    the material but the plunge start; the pin speed as d sigma / d s over the weld
+    waypoints): how a baseline without written samples (the mirror) is judged, and the
+    plan's waypoints beside its samples."""
+    batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
+    W = task.wrench_base
+    dX = model.process_deflection_batch(batch, W, task.reference)
+    fr = task.frames
+    c = ClaimInput(task.time, task.phase, task.s, batch, W, dX, fr.p, fr.t, fr.l, fr.n,
+                   task.plate_normal, ~task.at_surface, np.isin(task.phase, FULL_DEPTH_PHASES),
+                   task.phase == "weld", task.s, 1.0)
+    return robust_claim(model, task, window, c, "waypoint")
+
+
 @dataclass(frozen=True)
 class SampleVerification:
     """Result of :func:`verify_samples` (base frame, SI unless stated).
@@ -657,9 +1052,10 @@ class SampleVerification:
         margin: Distance of e_lat to the nearest window bound [m], (N,) (>= 0 inside).
         worst_per_unit: Change of e_lat per unit relative force uncertainty,
             R = sum_i |f_i| |l^T C_tt b_i| [m], (N,) (the worst case at +-u is u R).
-        tolerated_uncertainty: Largest uniform u for which e +- u R stays in the window at
-            every in-material sample (inf if no force reaches the lateral axis; 0 if a
-            sample is outside the window).
+        tolerated_uncertainty: Largest uniform u for which every weld quantity holds at
+            every vertex of the force box at every sample it applies to (the
+            :class:`RobustClaim`'s; inf if no uncertain force moves any; 0 if one fails at
+            u = 0).
         limit_ratios: max |derivative| / limit over all samples and joints per order
             (``velocity``, ``acceleration``, ``jerk``).
         station_excess: Largest distance of a plunge or dwell sample's commanded TCP outside
@@ -674,6 +1070,7 @@ class SampleVerification:
             elsewhere).
         height: Predicted pin tip height above the plate surface along the plate normal [m],
             (N,) (negative in the plate).
+        claim: The tolerated force uncertainty per weld quantity (:func:`robust_claim`).
     """
 
     ok: bool
@@ -689,6 +1086,7 @@ class SampleVerification:
     tilt_error: FloatArray | None = None
     speed_ratio: FloatArray | None = None
     height: FloatArray | None = None
+    claim: RobustClaim | None = None
 
     @property
     def first_failure(self) -> SampleFailure | None:
@@ -761,11 +1159,11 @@ def verify_samples(
       weld waypoint), each widened by ``STATION_TOL``: the TCP moves only as the fake target
       must follow the force ramp, no overshoot between ramp points.
 
-    It also gives the tolerated force uncertainty: the worst case of e over the force box
-    |delta f_i| <= u |f_i| (seam-frame components) is e +- u R with
-    R = sum_i |f_i| |l^T C_tt b_i| (deflection linear in F; seed 000 eq. 11), so the largest
-    u keeping every in-material sample in the window is min_k dist_k / R_k (closed form;
-    dist_k the distance of e_k to the nearest bound of the bare window).
+    It also gives the tolerated force uncertainty of every weld quantity
+    (:func:`robust_claim`): the largest u for which the lateral error, the depth, the work
+    and travel angle and the pin speed hold at every vertex of the force box
+    |delta f_i| <= u |f_i| (seam-frame components) at every sample they apply to, on the
+    model itself (bare windows, no margin).
 
     Args:
         model: Elastostatic model (all effects are evaluated).
@@ -806,20 +1204,15 @@ def verify_samples(
     # spindle clearance down to the surface).
     contact = np.isin(phase, CONTACT_PHASES) & ~((phase == "plunge") & (height > AIR_TOL))
     dist = np.minimum(e - window.lower, window.upper - e)
-    # Worst case per unit uncertainty, at the in-material samples only.
-    R = np.zeros(N)
-    if contact.any():
-        sub = model.batch(Q[contact])
-        Ctt = model.physical().cartesian_compliance(sub)[:, :3, :3]
-        lC = np.einsum("ki,kij->kj", ll[contact], Ctt)
-        f = W[contact, :3]
-        for b, wgt in zip((tt[contact], ll[contact], nn[contact]), task.spread_weights,
-                          strict=True):
-            R[contact] += wgt * np.abs(np.einsum("ki,ki->k", f, b)) * np.abs(
-                np.einsum("kj,kj->k", lC, b))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u_k = np.where(R > 0, np.maximum(dist, 0.0) / R, np.where(dist >= 0, np.inf, 0.0))
-    tolerated = float(np.min(u_k[contact])) if contact.any() else np.inf
+    full = np.isin(phase, FULL_DEPTH_PHASES)
+    welding = phase == "weld"
+    claim = robust_claim(model, task, window, ClaimInput(
+        t, phase, s, batch, W, dX, p, tt, ll, nn, npl, contact, full, welding, t,
+        1.0 / task.travel_speed if task.travel_speed > 0 else 0.0))
+    # Worst case of the lateral error per unit uncertainty: sum_i |l . D_i| (the box's
+    # worst vertex; for a wrench-linear model sum_i |f_i| |l^T C_tt b_i|, seed 000 eq. 11).
+    R = np.where(contact, claim.lateral_per_unit, 0.0)
+    tolerated = claim.tolerated
 
     fails: list[SampleFailure] = []
 
@@ -837,7 +1230,6 @@ def verify_samples(
     first(bad, "window", e * 1e3, np.where(e < lo, lo, hi) * 1e3, "mm")
     # The rest of the weld envelope: depth along the plate normal, tilt, pin speed, and the
     # pin above the plate before the plunge.
-    full = np.isin(phase, FULL_DEPTH_PHASES)
     derr = np.where(full, height + depth_full, np.nan)
     # The depth window itself (the planner's depth rows hold it with the margin at the
     # waypoints; between them the pin may use the margin, as it may not the window). Under
@@ -857,7 +1249,6 @@ def verify_samples(
               float(np.rad2deg(window.tilt_tol)), "deg")
     tilt_err = np.where(contact, np.maximum(np.abs(work), np.abs(trav)), np.nan)
     speed_ratio = np.full(N, np.nan)
-    welding = phase == "weld"
     if N >= 3 and welding.sum() >= 3 and task.travel_speed > 0:
         sigma = s + np.einsum("ki,ki->k", tt, pin - p)
         speed_ratio[welding] = np.gradient(sigma[welding], t[welding]) / task.travel_speed
@@ -923,7 +1314,7 @@ def verify_samples(
                 first(bad, check, val, tol * scale, unit)
     fails.sort(key=lambda f: (f.index, f.check))
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
-                              tuple(fails), derr, tilt_err, speed_ratio, height)
+                              tuple(fails), derr, tilt_err, speed_ratio, height, claim)
 
 
 def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,

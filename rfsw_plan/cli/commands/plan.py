@@ -114,6 +114,10 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
     """The verdict first, then the levers, the strategy table, the trade-off and the files."""
     verdict = result.verdict()
     print(verdict.line)
+    if verdict.depth_note:
+        print(f"  {verdict.depth_note}")
+    if verdict.held:
+        print(f"  {verdict.held}")
     if verdict.traded:
         print(f"  note: {verdict.traded}")
     for k, lever in enumerate(verdict.levers, 1):
@@ -172,8 +176,8 @@ def _print_table(result: Any) -> None:
           f"{pct(u)} (k_lat: what the plan's errors need)")
     print(f"(worst: largest |e| under +-{u * 100:.3g} % force; worst margin: distance of that "
           "worst case to the window, negative = outside; held: the largest uniform +-u on the "
-          "seam-frame force components that keeps every in-material waypoint, and for the plan "
-          "every written sample, in the window)")
+          "seam-frame force components for which lateral error, depth, tilt and pin speed hold "
+          "at every in-material waypoint, and for the plan every written sample)")
 
 
 def _held(u: float) -> str:
