@@ -561,7 +561,7 @@ _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
 #: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
 #: ``plan --forces`` as a lever.
 KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
-    "export/api.py", "export/fanuc_tp.py", "export/program.py", "io/measurements.py",
+    "export/api.py", "export/fanuc_tp.py", "export/program.py",
     "planning/verdict.py", "validation/campaign/simulation.py",
     "validation/engine/candidates.py", "validation/commands.py", "validation/engine/crossval.py",
     "validation/engine/diagnosis.py", "validation/report/validate.py",
