@@ -711,7 +711,6 @@ MAX_COMPLEXITY = 20
 #: entry that is no longer above the limit.
 KNOWN_COMPLEX: frozenset[str] = frozenset({
     "planfiles/page3d.py:rebuild_plan_page", "planning/verify.py:verify_samples",
-    "robot/description.py:robot_description_to_toml_dict",
     "validation/campaign/design.py:_pool", "validation/engine/diagnosis.py:_verdict"})
 
 
