@@ -561,7 +561,7 @@ _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
 #: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
 #: ``plan --forces`` as a lever.
 KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
-    "export/api.py", "export/fanuc_tp.py", "export/program.py", "io/measurements.py",
+    "export/api.py", "export/fanuc_tp.py", "export/program.py",
     "planning/verdict.py", "validation/campaign/simulation.py",
     "validation/engine/candidates.py", "validation/commands.py", "validation/engine/crossval.py",
     "validation/engine/diagnosis.py", "validation/report/validate.py",
@@ -711,7 +711,6 @@ MAX_COMPLEXITY = 20
 #: entry that is no longer above the limit.
 KNOWN_COMPLEX: frozenset[str] = frozenset({
     "planfiles/page3d.py:rebuild_plan_page", "planning/verify.py:verify_samples",
-    "robot/description.py:robot_description_to_toml_dict",
     "validation/campaign/design.py:_pool", "validation/engine/diagnosis.py:_verdict"})
 
 

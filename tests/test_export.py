@@ -630,3 +630,27 @@ def test_a_program_of_another_problem_is_never_overwritten(tmp_path: Path) -> No
                         spacing=5e-3)
     src.write_text(src.read_text().replace("problem: other_seam", "problem: golden"))
     export_programs(robot, samples, rec, ["krl"], tmp_path, plan_sha256="1" * 64, spacing=5e-3)
+
+
+def test_the_batched_path_checks_are_the_one_segment_ones() -> None:
+    """Issue 41: the Douglas-Peucker rounds judge their segments together
+    (``program._slerp_angles``) and the path bound reuses each segment's chord distances; the
+    numbers are bit for bit those of :func:`program._deviation` one segment at a time, so the
+    programs are the same bytes."""
+    from scipy.spatial.transform import Rotation
+
+    from rfsw_plan.export.program import _chord_fraction, _deviation, _slerp_angles
+
+    rng = np.random.default_rng(7)
+    n = 300
+    P = np.tile(np.eye(4), (n, 1, 1))
+    P[:, :3, :3] = Rotation.from_rotvec(np.cumsum(rng.normal(scale=0.03, size=(n, 3)),
+                                                  axis=0)).as_matrix()
+    P[:, :3, 3] = np.cumsum(rng.normal(scale=1e-3, size=(n, 3)), axis=0)
+    P[120:125, :3, 3] = P[120, :3, 3]  # a chord of zero length (a wait)
+    segs = [(0, 40), (40, 120), (120, 124), (124, 299), (7, 9)]
+    angles = _slerp_angles(P, segs, [_chord_fraction(P, i, j)[1] for i, j in segs])
+    for (i, j), ang in zip(segs, angles, strict=True):
+        pos, ref = _deviation(P, i, j)
+        np.testing.assert_array_equal(ang, ref)
+        np.testing.assert_array_equal(_chord_fraction(P, i, j)[0], pos)

@@ -314,3 +314,26 @@ def test_documented_shapes_match_the_built_nlp(setup):
                         ("shape (K (n + 4) + 1,)", "var"), ("12 K + (n + 3)(K - 1)", "link")):
         hits = [int(m) for p, k in SHAPE_PATTERNS if k == kind for m in re.findall(p, stale)]
         assert hits and any(h != actual[kind] for h in hits), stale
+
+
+def test_dense_calls_are_the_plain_calls() -> None:
+    """Issue 41: ``call_dense`` (CasADi's buffers, no ``DM`` conversions) gives the numbers of
+    the plain call bit for bit, mapped over waypoints and for a sparse output (the fallback);
+    a wrong input size is refused."""
+    import casadi as ca
+
+    from rfsw_plan.planning.nlp import call_dense
+
+    x = ca.SX.sym("x", 3)
+    p = ca.SX.sym("p", 2)
+    f = ca.Function("f", [x, p], [ca.vertcat(ca.sin(x) * p[0], p[1] * ca.sumsqr(x)),
+                                  ca.exp(x[0]) + p[1]])
+    fm = f.map(50)
+    rng = np.random.default_rng(5)
+    X, P = rng.normal(size=(50, 3)), rng.normal(size=(50, 2))
+    for got, ref in zip(call_dense(fm, X, P), fm(X.T, P.T), strict=True):
+        np.testing.assert_array_equal(got, np.asarray(ref).T)
+    sparse = ca.Function("s", [x], [ca.diag(x)])  # a sparse output: the plain call
+    np.testing.assert_array_equal(call_dense(sparse, X[0])[0], np.diag(X[0]))
+    with pytest.raises(ValueError, match="input 0"):
+        call_dense(fm, X[:10], P)

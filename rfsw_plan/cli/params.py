@@ -44,6 +44,10 @@ PARAMETER_FLAGS: dict[str, str] = {
     "cell_data": "--cell-data",
     # a lab's column map (rfsw_plan.table: read_measurements, read_force_series... columns)
     "columns": "--columns",
+    # measurement files (rfsw_plan.io.measurements.read_measurements)
+    "frame": "--frame",
+    "wrench_frame": "--wrench-frame",
+    "sensor_pose": "--sensor-pose",
     # a saved robot file (rfsw_plan.robot.description.derived_description)
     "name": "--name",
 }

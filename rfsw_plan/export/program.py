@@ -535,21 +535,48 @@ def _deviation(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
 
 
 def _refine(P: FloatArray, keep: set[int], tol: float, ang_tol: float) -> set[int]:
-    """Douglas-Peucker on position and orientation between the kept samples."""
+    """Douglas-Peucker on position and orientation between the kept samples.
+
+    A segment is split or kept by its own samples alone, so the segments of one round are
+    judged together (:func:`_slerp_angles`: one rotation computation for all of them, the
+    numbers of :func:`_deviation` one segment at a time); the kept set is the same.
+    """
     out = set(keep)
     stack = list(zip(sorted(keep)[:-1], sorted(keep)[1:], strict=True))
     while stack:
-        i, j = stack.pop()
-        if j - i < 2:
-            continue
-        pos, ang = _deviation(P, i, j)
-        excess = np.maximum(pos / tol, ang / ang_tol)
-        k = int(np.argmax(excess))
-        if excess[k] > 1.0:
-            m = i + k
-            out.add(m)
-            stack += [(i, m), (m, j)]
+        segs = [(i, j) for i, j in stack if j - i >= 2]
+        stack = []
+        chords = [_chord_fraction(P, i, j) for i, j in segs]
+        angles = _slerp_angles(P, segs, [f for _, f in chords])
+        for (i, j), (pos, _), ang in zip(segs, chords, angles, strict=True):
+            excess = np.maximum(pos / tol, ang / ang_tol)
+            k = int(np.argmax(excess))
+            if excess[k] > 1.0:
+                m = i + k
+                out.add(m)
+                stack += [(i, m), (m, j)]
     return out
+
+
+def _slerp_angles(P: FloatArray, segs: list[tuple[int, int]], fracs: list[FloatArray]
+                  ) -> list[FloatArray]:
+    """:func:`_deviation`'s orientation angles [rad] of several segments at once: for segment
+    (i, j) and chord fractions f (j - i + 1,), the angle of sample k from the slerp of
+    R_i -> R_j at f_k, ``|log((R_i exp(f_k log(R_i^T R_j)))^T R_k)|`` (SciPy's ``Slerp``
+    written out, element by element the same operations)."""
+    if not segs:
+        return []
+    first = np.array([i for i, _ in segs])
+    last = np.array([j for _, j in segs])
+    r_first = Rotation.from_matrix(P[first, :3, :3])
+    rotvec = (r_first.inv() * Rotation.from_matrix(P[last, :3, :3])).as_rotvec()
+    counts = [len(f) for f in fracs]
+    seg = np.repeat(np.arange(len(segs)), counts)
+    f = np.concatenate(fracs)
+    at = r_first[seg] * Rotation.from_rotvec(rotvec[seg] * f[:, None])
+    idx = np.concatenate([np.arange(i, j + 1) for i, j in segs])
+    ang = (at.inv() * Rotation.from_matrix(P[idx, :3, :3])).magnitude()
+    return np.split(ang, np.cumsum(counts)[:-1])
 
 
 def blend_distance(d0: FloatArray, d1: FloatArray, tol: float, dev: float) -> float:
@@ -575,12 +602,15 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     dev = np.array([float(np.max(_chord_fraction(P, int(idx[k]), int(idx[k + 1]))[0]))
                     for k in range(len(idx) - 1)])
+    # the rotation between consecutive points, all at once
+    turn = ((Rotation.from_matrix(P[idx[:-1], :3, :3]).inv()
+             * Rotation.from_matrix(P[idx[1:], :3, :3])).magnitude() if len(idx) > 1
+            else np.zeros(0))
     for k in range(1, len(idx)):
         i, j = idx[k - 1], idx[k]
         phase = str(samples.phase[j])
         dt = float(samples.t[j] - samples.t[i])
-        ang = (Rotation.from_matrix(P[i, :3, :3]).inv()
-               * Rotation.from_matrix(P[j, :3, :3])).magnitude()
+        ang = turn[k - 1]
         if seg[k - 1] < STILL_POS and ang < STILL_ANG:
             motions.append(Motion("wait", k, phase, duration=dt))
             continue
@@ -641,6 +671,21 @@ def sample_poses(program: Program) -> FloatArray:
     return P
 
 
+_CHORDS: list[tuple[Program, list[FloatArray]]] = []
+
+
+def _chord_distances(program: Program) -> list[FloatArray]:
+    """Per segment k of the program, the distance [m] of its samples idx[k]..idx[k + 1] from
+    the chord between its points (once per program: the blend search asks many times)."""
+    for src, chords in _CHORDS:
+        if src is program:
+            return chords
+    P, idx = sample_poses(program), program.sample_index
+    chords = [_chord_fraction(P, int(idx[k]), int(idx[k + 1]))[0] for k in range(len(idx) - 1)]
+    _CHORDS[:] = [*_CHORDS[-7:], (program, chords)]
+    return chords
+
+
 def path_deviation(program: Program, blends: dict[int, float] | None = None) -> FloatArray:
     """Bound of every verified sample's distance to the path the controller runs [m], (N,).
 
@@ -668,12 +713,12 @@ def path_deviation(program: Program, blends: dict[int, float] | None = None) -> 
         cos_t = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
         return d, d * math.sqrt(max(0.0, 1.0 - cos_t * cos_t)) / 2.0
 
-    for k in range(len(idx) - 1):
+    bounds = [corner_bound(c) for c in range(len(pts))]
+    for k, pos in enumerate(_chord_distances(program)):
         i, j = int(idx[k]), int(idx[k + 1])
-        pos = _chord_fraction(P, i, j)[0]
         p = P[i:j + 1, :3, 3]
         for c in (k, k + 1):
-            d, extra = corner_bound(c)
+            d, extra = bounds[c]
             if d > 0:
                 pos = pos + (np.linalg.norm(p - pts[c], axis=1) <= d + 1e-12) * extra
         out[i:j + 1] = np.maximum(out[i:j + 1], pos)

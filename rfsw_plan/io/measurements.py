@@ -215,7 +215,7 @@ def _frame(tab: Table, frame: str | None, mapping: ColumnMap | None) -> str:
         sources.append((_choice(mapping.options["frame"], MEASUREMENT_FRAMES, mapping.source,
                                 "frame"), mapping.source))
     if frame is not None:
-        sources.append((_choice(frame, MEASUREMENT_FRAMES, "--frame", ""), "--frame"))
+        sources.append((_choice(frame, MEASUREMENT_FRAMES, "frame", ""), "`frame`"))
     if len({s[0] for s in sources}) > 1:
         said = "; ".join(f"{b} says {a}" for a, b in sources)
         raise InputError(tab.path, "frame", f"conflicting frames: {said}", "one frame")
@@ -235,12 +235,12 @@ def _to_base(
     if frame == "base":
         if sensor_pose is not None:
             raise InputError(tab.path, "wrench frame", "a sensor pose was given but the "
-                             "wrench frame is base", "--wrench-frame sensor with a sensor pose")
+                             "wrench frame is base", "`wrench_frame` sensor with a sensor pose")
         return wrench
     if frame == "sensor":
         if sensor_pose is None:
             raise InputError(tab.path, "wrench frame", "sensor frame without a sensor pose",
-                             "--sensor-pose X_MM,Y_MM,Z_MM,RX_DEG,RY_DEG,RZ_DEG (sensor in "
+                             "`sensor_pose` X_MM,Y_MM,Z_MM,RX_DEG,RY_DEG,RZ_DEG (sensor in "
                              "the tool frame)")
         Rs, ps = sensor_pose[:3, :3], sensor_pose[:3, 3]
         f = wrench[:, :3] @ Rs.T
@@ -248,7 +248,7 @@ def _to_base(
         wrench = np.concatenate([f, m], axis=1)
     elif sensor_pose is not None:
         raise InputError(tab.path, "wrench frame", "a sensor pose was given but the wrench "
-                         "frame is tool", "--wrench-frame sensor")
+                         "frame is tool", "`wrench_frame` sensor")
     if tool_rotation is None:
         raise InputError(tab.path, "wrench frame", f"a {frame}-frame wrench needs the robot's "
                          "kinematics", "the robot (read through the CLI or the API with it)")
@@ -381,9 +381,9 @@ def _wrench_frame(tab: Table, mapping: ColumnMap | None, wrench_frame: str | Non
                          "wrench_frame")
         if wf is not None and wf != wf_map:
             raise InputError(tab.path, "wrench frame", f"{mapping.source} says {wf_map}, "
-                             f"--wrench-frame says {wf}", "one frame")
+                             f"`wrench_frame` says {wf}", "one frame")
         wf = wf_map
-    return _choice(wf or "base", WRENCH_FRAMES, "--wrench-frame", "")
+    return _choice(wf or "base", WRENCH_FRAMES, "wrench_frame", "")
 
 
 def _positions(tab: Table) -> FloatArray:

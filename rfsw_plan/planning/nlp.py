@@ -397,8 +397,8 @@ class PlanNLP:
         terms :data:`~rfsw_plan.planning.layout.TERMS`."""
         K = self.n_waypoints
         W = x_layout(self.n_joints, K).split(np.asarray(x, dtype=float))["points"]
-        g, t, dx = _info_map(self.point, K)(W.reshape(K, self.n_w).T, self.par.T)
-        return np.asarray(g).T, np.asarray(t).T, np.asarray(dx).T
+        g, t, dx = call_dense(_info_map(self.point, K), W.reshape(K, self.n_w), self.par)
+        return g, t, dx
 
     def point_rows(self, x: FloatArray) -> tuple[dict[str, FloatArray], dict[str, FloatArray]]:
         """The per-waypoint rows by family (K, rows) and the terms by name (K, 1) at x."""
@@ -423,8 +423,8 @@ class PlanNLP:
 
     def evaluate(self, x: FloatArray) -> tuple[float, FloatArray]:
         """Objective and constraint values at x."""
-        f, g = self.nlp_function(x, self.p)
-        return float(f), np.asarray(g).ravel()
+        f, g = call_dense(self.nlp_function, np.asarray(x, dtype=float), self.p)
+        return float(f.ravel()[0]), g.ravel()
 
     def violations(self, x: FloatArray, tol: float = 1e-6) -> list[tuple[str, float]]:
         """Constraint rows violated by more than tol at x, with the violation (NLP units:
@@ -446,6 +446,40 @@ def _info_map(pf: PointFunctions, K: int) -> ca.Function:
         while len(_INFO_MAPS) > 16:
             _INFO_MAPS.popitem(last=False)
     return _INFO_MAPS[key]
+
+
+_BUFFERS: OrderedDict[int, tuple[ca.Function, Any, Any]] = OrderedDict()
+
+
+def call_dense(fn: ca.Function, *args: FloatArray) -> list[FloatArray]:
+    """``fn`` on dense inputs, transposed: each arg (cols, rows) [C order] is CasADi's
+    (rows, cols) input, each output comes back as (cols, rows), ``np.asarray(out).T``.
+
+    The same numbers as ``fn(*[a.T for a in args])`` (the same compiled or virtual-machine
+    code runs), through CasADi's buffer interface: no conversion to and from ``DM``, which
+    on a thousand waypoints costs ten times the evaluation itself (issue 41). Falls back to
+    the plain call where CasADi has no buffers or an output is sparse.
+    """
+    dense = all(fn.sparsity_out(i).is_dense() for i in range(fn.n_out()))
+    if not dense or not hasattr(fn, "buffer"):
+        return [np.asarray(o).T for o in fn.call([np.asarray(a).T for a in args])]
+    key = id(fn)
+    if key not in _BUFFERS or _BUFFERS[key][0] is not fn:
+        _BUFFERS[key] = (fn, *fn.buffer())
+        while len(_BUFFERS) > 16:
+            _BUFFERS.popitem(last=False)
+    _, buf, evaluate = _BUFFERS[key]
+    ins = [np.ascontiguousarray(a, dtype=float) for a in args]
+    for i, a in enumerate(ins):
+        if a.size != fn.numel_in(i):
+            raise ValueError(f"{fn.name()}: input {i} has {a.size} numbers, not "
+                             f"{fn.numel_in(i)}")
+        buf.set_arg(i, a.data)
+    outs = [np.empty((fn.size2_out(i), fn.size1_out(i))) for i in range(fn.n_out())]
+    for i, o in enumerate(outs):
+        buf.set_res(i, o.data)
+    evaluate()
+    return outs
 
 
 @dataclass(frozen=True)

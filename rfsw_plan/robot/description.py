@@ -832,11 +832,10 @@ def _matrix_to_rpy(R: FloatArray) -> FloatArray:
 # Writing
 
 
-def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
-    """Serialise a description to a TOML-ready dict (file units: mm, deg)."""
-    out: dict[str, Any] = {"name": desc.name, "title": desc.title, "euler": desc.euler}
+def _kinematics_toml(desc: RobotDescription) -> dict[str, Any]:
+    """The ``[kinematics]`` table of a description (modified DH or URDF), file units."""
     if isinstance(desc.chain, ModifiedDH):
-        out["kinematics"] = {
+        return {
             "convention": "modified_dh",
             "a_mm": _r(desc.chain.a * 1000.0),
             "d_mm": _r(desc.chain.d * 1000.0),
@@ -844,12 +843,32 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
             "theta0_deg": _r(np.degrees(desc.chain.theta0)),
             "source": desc.sources.get("kinematics", "not stated"),
         }
-    else:
-        out["kinematics"] = {
-            "urdf": str(desc.chain.path.resolve()),
-            "tip_link": desc.chain.tip_link,
-            "source": desc.sources.get("kinematics", "not stated"),
-        }
+    return {
+        "urdf": str(desc.chain.path.resolve()),
+        "tip_link": desc.chain.tip_link,
+        "source": desc.sources.get("kinematics", "not stated"),
+    }
+
+
+def _controller_toml(conv: ControllerConvention) -> dict[str, Any]:
+    """The ``[controller]`` table of a controller joint convention, file units."""
+    return {
+        **({"maker": conv.maker} if conv.maker else {}),
+        "axes": list(conv.axes),
+        "sign": _r(conv.sign),
+        "offset_deg": _r(np.degrees(conv.offset)),
+        "base_xyz_mm": _r(conv.base[:3, 3] * 1000.0),
+        "base_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.base[:3, :3]))),
+        "flange_xyz_mm": _r(conv.flange[:3, 3] * 1000.0),
+        "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
+        "source": conv.source,
+    }
+
+
+def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
+    """Serialise a description to a TOML-ready dict (file units: mm, deg)."""
+    out: dict[str, Any] = {"name": desc.name, "title": desc.title, "euler": desc.euler,
+                           "kinematics": _kinematics_toml(desc)}
     out["tool"] = {
         "xyz_mm": _r(desc.tool[:3, 3] * 1000.0),
         "rpy_deg": _r(np.degrees(_matrix_to_rpy(desc.tool[:3, :3]))),
@@ -877,17 +896,7 @@ def robot_description_to_toml_dict(desc: RobotDescription) -> dict[str, Any]:
     }
     conv = desc.convention
     if conv.kind == "controller":
-        out["controller"] = {
-            **({"maker": conv.maker} if conv.maker else {}),
-            "axes": list(conv.axes),
-            "sign": _r(conv.sign),
-            "offset_deg": _r(np.degrees(conv.offset)),
-            "base_xyz_mm": _r(conv.base[:3, 3] * 1000.0),
-            "base_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.base[:3, :3]))),
-            "flange_xyz_mm": _r(conv.flange[:3, 3] * 1000.0),
-            "flange_rpy_deg": _r(np.degrees(_matrix_to_rpy(conv.flange[:3, :3]))),
-            "source": conv.source,
-        }
+        out["controller"] = _controller_toml(conv)
     stiff: dict[str, Any] = {"k_Nm_per_rad": [float(f"{k:.6g}") for k in desc.stiffness[rev]]}
     if pri.any():
         stiff["k_N_per_m"] = [float(f"{k:.6g}") for k in desc.stiffness[pri]]
