@@ -98,11 +98,14 @@ def _judge(w: dict[str, Any], problem: str) -> list[str]:
     if lat > STANDSTILL_MM or along > STANDSTILL_MM:
         bad.append(f"pin moves {lat:.3f} mm sideways, {along:.3f} mm along during the dwell")
     # No step while standing: every component of the force changes no faster than the dwell's
-    # own ramp allows (its total change over the softening time constant, times the 1.875
-    # peak slope of the smoothstep between waypoints, plus a newton of round-off).
+    # own ramp allows: the steepest slope of its exponential, the total change D over the
+    # dwell T with time constant tau giving D / (tau (1 - exp(-T / tau))), times the 1.875
+    # peak slope of the smoothstep between waypoints, plus a newton of round-off.
     dF = np.abs(np.diff(F[stand], axis=0))
     total = np.ptp(F[stand], axis=0)
-    allowed = 1.875 * total / proc.forces.dwell_tau * np.diff(t[stand]).max() + 1.0
+    tau = proc.forces.dwell_tau
+    slope = total / (tau * (1.0 - np.exp(-max(proc.dwell_time, step) / tau)))
+    allowed = 1.875 * slope * np.diff(t[stand]).max() + 1.0
     if np.any(dF > allowed[None]):
         bad.append(f"force steps by {dF.max(axis=0).round(1)} N per sample in the dwell "
                    f"(ramp allows {allowed.round(1)})")

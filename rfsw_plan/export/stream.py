@@ -46,13 +46,14 @@ DEFAULT_CYCLE = 0.004
 
 
 def samples_of(trajectory: object, seam: FloatArray) -> Samples:
-    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``, ``spindle_rpm``)
+    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``, the spindle)
     and its seam points [m], (N, 3)."""
     tr = trajectory
     return Samples(np.asarray(tr.t), np.asarray(tr.phase).astype(str),  # type: ignore[attr-defined]
                    np.asarray(tr.s), np.asarray(tr.q), np.asarray(tr.wrench),  # type: ignore[attr-defined]
                    np.asarray(seam, dtype=float),
-                   spindle_rpm=np.asarray(tr.spindle_rpm))  # type: ignore[attr-defined]
+                   spindle_rpm=np.asarray(tr.spindle_rpm),  # type: ignore[attr-defined]
+                   spindle_on=np.asarray(tr.spindle_on))  # type: ignore[attr-defined]
 
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
@@ -72,9 +73,9 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
         cols += list(np.degrees(maker_euler(T[:, :3, :3], euler)).T)
     header += conv.column_names()
     cols += list(np.degrees(stream.q).T)
-    if stream.spindle_rpm is not None:
+    if stream.spindle_rpm is not None and stream.spindle_on is not None:
         header += ["spindle_on", "spindle_rpm"]
-        cols += [np.where(stream.spindle_rpm > 0, "1", "0"), stream.spindle_rpm]
+        cols += [np.where(stream.spindle_on, "1", "0"), stream.spindle_rpm]
     p = Path(path)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

@@ -131,7 +131,7 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     cols += [np.where(contact, e_lat * 1e3, np.nan), np.where(contact, margin * 1e3, np.nan)]
     tcp_speed = np.linalg.norm(np.gradient(T[:, :3, 3], tr.t, axis=0), axis=1)
     cols += [tcp_speed * 1e3, tr.pin_speed() * 1e3]
-    cols += [np.where(tr.spindle_rpm > 0, "1", "0"), tr.spindle_rpm]
+    cols += [np.where(tr.spindle_on, "1", "0"), tr.spindle_rpm]
     rows = np.empty((len(tr), len(header)), dtype=object)
     for j, c in enumerate(cols):
         rows[:, j] = c

@@ -241,10 +241,12 @@ class PlanResult:
         npl = task.plate_normal[m]
         tcp = self.model.robot.fk(tr.q[i])[:3, 3]
         commanded = depth - float(np.dot(npl, tcp - task.frames.p[m]))
-        on = np.flatnonzero(tr.spindle_rpm > 0)
-        moving = idx[np.flatnonzero(np.any(np.abs(tr.qd[idx]) > 1e-9, axis=1))]
-        runup = (float(tr.t[moving[0]] - tr.t[on[0] - 1]) if len(on) and len(moving)
-                 and on[0] > 0 else 0.0)
+        on = np.flatnonzero(tr.spindle_on)
+        # From the spindle's start to the plunge's first move (the samples before stand at
+        # the spindle's joint values).
+        moved = (np.flatnonzero(np.any(np.abs(tr.q[idx] - tr.q[on[0]]) > 1e-12, axis=1))
+                 if len(on) else np.zeros(0, dtype=int))
+        runup = float(tr.t[idx[moved[0]] - 1] - tr.t[on[0]]) if len(moved) else 0.0
         return {
             "plunge_end_depth_error_mm": None if sv is None or sv.height is None
             else (float(sv.height[i]) + depth) * 1e3,

@@ -148,7 +148,9 @@ class TimedTrajectory:
             (where the spindle-start hook runs), rising linearly to the weld speed over the
             run-up while the tool stands at the spindle clearance, the weld speed until the
             pin is out of the plate at the end of the retract, then 0 (the spindle is
-            switched off; its run-down is not modelled). The spindle is on where it is > 0.
+            switched off; its run-down is not modelled).
+        spindle_on: The spindle switched on, (N,) bool: from the plunge piece's start to the
+            pin's exit (also for a process without a stated speed, ``rotation_speed_rpm`` 0).
     """
 
     t: FloatArray
@@ -164,6 +166,7 @@ class TimedTrajectory:
     max_weld_speed: float
     s_pin: FloatArray
     spindle_rpm: FloatArray
+    spindle_on: NDArray[np.bool_]
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -656,10 +659,11 @@ def time_parameterise(
     s_all = np.concatenate(ss)
     runup = np.clip((t - t_on) / lim.spindle_runup, 0.0, 1.0) if lim.spindle_runup > 0 \
         else (t >= t_on).astype(float)
-    rpm = np.where((t >= t_on) & (t <= t_off + 1e-9), lim.spindle_rpm * runup, 0.0)
+    on = (t >= t_on) & (t <= t_off + 1e-9)
+    rpm = np.where(on, lim.spindle_rpm * runup, 0.0)
     traj = TimedTrajectory(t, np.concatenate(ph), s_all, Q, qd, qdd, qddd,
                            np.vstack(os_), np.vstack(fs), v, psl.max_speed, s_all.copy(),
-                           rpm)
+                           rpm, on)
     _check_limits(robot, traj)
     return traj
 
