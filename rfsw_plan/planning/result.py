@@ -198,8 +198,8 @@ class PlanResult:
         pin's lowest height above the plate before the plunge [mm]; and the plunge as written:
         the predicted pin's depth error when the plunge ends (+ shallow) [mm], the depth of the
         commanded TCP below the plate surface there (the plunge the robot is commanded, the
-        pin's planned depth plus the robot's give under the axial force) [mm], and the
-        spindle run-up before it [s]."""
+        pin's planned depth plus the robot's give under the axial force) [mm], the spindle
+        run-up before it and the dwell as written [s]."""
         w, sv = self.window, self.samples
         out: dict[str, Any] = {
             "axial_control": self.task.axial_control,
@@ -247,7 +247,9 @@ class PlanResult:
         moved = (np.flatnonzero(np.any(np.abs(tr.q[idx] - tr.q[on[0]]) > 1e-12, axis=1))
                  if len(on) else np.zeros(0, dtype=int))
         runup = float(tr.t[idx[moved[0]] - 1] - tr.t[on[0]]) if len(moved) else 0.0
+        dwell = np.flatnonzero(tr.phase == "dwell")
         return {
+            "dwell_s": float(tr.t[dwell[-1]] - tr.t[i]) if len(dwell) else 0.0,
             "plunge_end_depth_error_mm": None if sv is None or sv.height is None
             else (float(sv.height[i]) + depth) * 1e3,
             "commanded_plunge_mm": commanded * 1e3,

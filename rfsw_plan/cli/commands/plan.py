@@ -229,6 +229,10 @@ def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
              f"({how}), ")
     print(f"plunge: {reach}the TCP commanded {env['commanded_plunge_mm']:.2f} mm below the "
           f"surface there; spindle run-up {env['spindle_runup_s']:.2f} s before it")
+    want, got = problem.process.dwell_time, env["dwell_s"]
+    print(f"dwell: {got:.2f} s, " + ("the problem's" if abs(got - want) <= 0.011 else
+          f"not the problem's {want:g} s: lengthened where the joint limits need it "
+          "between stationary waypoints"))
     if problem.coupling is not None:
         print(f"  not used by the planner: [process.coupling] commanded_depth_mm = "
               f"{problem.coupling.commanded_depth * 1e3:g} (the co-simulation's input; the "
