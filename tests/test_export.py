@@ -288,6 +288,12 @@ def test_stream_at_the_controller_cycle(planned) -> None:
     t_plan = np.array([float(r["t_plan_s"]) for r in rows])
     np.testing.assert_allclose(np.diff(t), 0.004, atol=1e-6)
     assert 0.0 <= t[-1] - t_plan[-1] < 7 * 0.004
+    # The spindle state rides along (issue 38): on through every weld row, off at both ends.
+    on = np.array([r["spindle_on"] == "1" for r in rows])
+    rpm = np.array([float(r["spindle_rpm"]) for r in rows])
+    weld = np.array([r["phase"] == "weld" for r in rows])
+    assert on[weld].all() and not on[0] and not on[-1]
+    assert np.all(rpm[weld] == rpm[weld][0]) and rpm[0] == 0.0
 
 
 def test_check_holds_and_names_a_moved_point(planned, tmp_path: Path,

@@ -80,6 +80,8 @@ def test_point_derivatives_match_finite_differences(robot_name):
         "weld": 1.0,  # weld waypoint: the stiffness-cap row is on
         "depth_on": 1.0,  # in the plate: the depth row is on
         "surface_on": 0.0,
+        "standing": 1.0, "stand_at": -0.275,  # standing in the plate: the standstill row is on
+        "standing_full": 1.0,  # ... at full depth: the standing depth row is on
     })[0]
     assert par.size == n_par(n)
     glob = GLOBALS.pack(1, {

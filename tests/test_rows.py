@@ -58,18 +58,18 @@ def test_built_nlp_has_the_declared_rows_in_order(setup):
     per_point = [label for f in POINT_ROWS for label in f.labels]
     per_link = sum(variable_layout(n).width(v) for v in rows.link_variables())
     # lateral (window, robust, tolerated) and the rest of the weld envelope (depth, surface,
-    # tilt, travel speed): 19 rows per waypoint.
-    assert len(per_point) == 19 and per_link == n + 4
+    # tilt, travel speed) and the standstill (lateral, depth): 21 rows per waypoint.
+    assert len(per_point) == 21 and per_link == n + 4
     names = nlp.constraint_names()
-    assert len(names) == nlp.lbg.size == 19 * K + (n + 4) * (K - 1)
-    assert names[:19] == [f"{c}[0]" for c in per_point]
-    link0 = names[19 * K:19 * K + per_link]
+    assert len(names) == nlp.lbg.size == 21 * K + (n + 4) * (K - 1)
+    assert names[:21] == [f"{c}[0]" for c in per_point]
+    link0 = names[21 * K:21 * K + per_link]
     # The default offset speed never binds here (0.2 mm/mm x 3 mm/s < 10 mm/s): the offset
     # rows are the offset-rate rows, with the bounds they had before the speed was declared.
     assert link0 == [f"joint_step_q{j + 1}[0]" for j in range(n)] + [
         "offset_rate_lat[0]", "offset_rate_norm[0]", "offset_rate_along[0]",
         "tolerated_link[0]"]
-    hi = nlp.ubg[19 * K:].reshape(K - 1, n + 4)
+    hi = nlp.ubg[21 * K:].reshape(K - 1, n + 4)
     o = PlanOptions()
     expected = (o.offset_rate * task.link_travel() * 1e3 + 1e-6)[:, None] + np.abs(steps) * 1e3
     np.testing.assert_array_equal(hi[:, n:n + 3], expected)
@@ -89,12 +89,12 @@ def test_offset_speed_row_bounds_the_offset_change_in_time(setup):
     nlp = build_plan_nlp(model, task, w, mirror.q, mirror.offsets, tight, compile_c=False,
                          load_steps=steps)
     K, n = len(task), model.robot.nq
-    link0 = nlp.constraint_names()[19 * K:19 * K + n + 4]
+    link0 = nlp.constraint_names()[21 * K:21 * K + n + 4]
     assert link0[n:n + 3] == ["offset_speed_lat[0]", "offset_speed_norm[0]",
                               "offset_speed_along[0]"]
     dt = np.diff(task.time)
     bound = (speed * dt * 1e3 + 1e-6)[:, None] + np.abs(steps) * 1e3
-    np.testing.assert_allclose(nlp.ubg[19 * K:].reshape(K - 1, n + 4)[:, n:n + 3], bound,
+    np.testing.assert_allclose(nlp.ubg[21 * K:].reshape(K - 1, n + 4)[:, n:n + 3], bound,
                                rtol=1e-15)
     np.testing.assert_allclose(nlp.links.allowance["offsets"], np.repeat(
         (speed * dt)[:, None], 3, 1), rtol=1e-15)
@@ -149,9 +149,9 @@ def test_a_new_point_row_is_one_declaration(monkeypatch, setup):
                          compile_c=False, load_steps=steps)
     K, n = len(task), model.robot.nq
     names = nlp.constraint_names()
-    assert len(names) == nlp.lbg.size == 20 * K + (n + 4) * (K - 1)
+    assert len(names) == nlp.lbg.size == 22 * K + (n + 4) * (K - 1)
     at = [names.index(f"toy_depth[{k}]") for k in range(K)]
-    assert at == [20 * k + 19 for k in range(K)]
+    assert at == [22 * k + 21 for k in range(K)]
     assert np.all(nlp.lbg[at] == -0.5) and np.all(nlp.ubg[at] == 0.5)
     x = nlp.x0
     g_rows, terms = nlp.point_rows(x)

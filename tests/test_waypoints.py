@@ -22,7 +22,8 @@ from rfsw_plan.robot.kinematics import load_robot
 REQUIRED = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", "x_mm", "y_mm",
             "z_mm", "qw", "qx", "qy", "qz", "J1_deg", "J6_deg", "fx_N", "fy_N", "fz_N",
             "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm", "off_along_mm", "dx_mm",
-            "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s"]
+            "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s", "pin_speed_mm_s",
+            "spindle_on", "spindle_rpm"]
 
 
 def test_maker_euler_conventions():
@@ -157,7 +158,18 @@ def test_worst_waypoint_time_is_on_the_clock_of_waypoints_csv(written):
     i = int(np.argmin(np.abs(t - ww["t_s"])))
     assert abs(t[i] - ww["t_s"]) < 1e-5  # a sample's own time, not another clock's
     assert rows[i]["phase"] == ww["phase"]
-    assert float(rows[i]["e_lat_mm"]) == pytest.approx(ww["e_lat_mm"], abs=2e-6)
+    e = np.array([float(r["e_lat_mm"]) if r["e_lat_mm"] else np.nan for r in rows])
+    if ww["phase"] == "weld":
+        # A travelling waypoint is passed between two samples (the worst one is at s = 0.6 mm
+        # since the pin stands still through the dwell, issue 38): the nearest sample is within
+        # half a sample's travel of it, and the waypoint's error between its neighbours'.
+        s = np.array([float(r["s_mm"]) for r in rows])
+        assert abs(s[i] - ww["s_mm"]) <= 0.5 * float(np.max(np.abs(np.diff(s[i - 1:i + 2])))) \
+            + 1e-6
+        lo, hi = np.min(e[i - 1:i + 2]), np.max(e[i - 1:i + 2])
+        assert lo - 2e-6 <= ww["e_lat_mm"] <= hi + 2e-6
+        return
+    assert e[i] == pytest.approx(ww["e_lat_mm"], abs=2e-6)
     assert float(rows[i]["margin_mm"]) == pytest.approx(ww["margin_mm"], abs=2e-6)
 
 

@@ -17,7 +17,8 @@ every velocity, acceleration and jerk limit checked on the planned times still h
 Columns: ``t_s, t_plan_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the commanded TCP, i.e. the
 fake target, in the controller's base frame: KUKA ROBROOT, FANUC world, ABB base), the maker's
 Euler angles where the robot has them (``A_deg, B_deg, C_deg`` or ``W_deg, P_deg, R_deg``),
-then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...).
+then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...), then the spindle state
+``spindle_on`` (1 on, 0 off) and speed ``spindle_rpm`` (as in ``waypoints.csv``).
 """
 
 from __future__ import annotations
@@ -45,12 +46,14 @@ DEFAULT_CYCLE = 0.004
 
 
 def samples_of(trajectory: object, seam: FloatArray) -> Samples:
-    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``) and its seam points
-    [m], (N, 3)."""
+    """:class:`Samples` of a timed trajectory (``t, phase, s, q, wrench``, the spindle)
+    and its seam points [m], (N, 3)."""
     tr = trajectory
     return Samples(np.asarray(tr.t), np.asarray(tr.phase).astype(str),  # type: ignore[attr-defined]
                    np.asarray(tr.s), np.asarray(tr.q), np.asarray(tr.wrench),  # type: ignore[attr-defined]
-                   np.asarray(seam, dtype=float))
+                   np.asarray(seam, dtype=float),
+                   spindle_rpm=np.asarray(tr.spindle_rpm),  # type: ignore[attr-defined]
+                   spindle_on=np.asarray(tr.spindle_on))  # type: ignore[attr-defined]
 
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
@@ -70,6 +73,9 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
         cols += list(np.degrees(maker_euler(T[:, :3, :3], euler)).T)
     header += conv.column_names()
     cols += list(np.degrees(stream.q).T)
+    if stream.spindle_rpm is not None and stream.spindle_on is not None:
+        header += ["spindle_on", "spindle_rpm"]
+        cols += [np.where(stream.spindle_on, "1", "0"), stream.spindle_rpm]
     p = Path(path)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)

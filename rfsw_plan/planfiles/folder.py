@@ -80,6 +80,9 @@ class PlanSamples:
         q: Controller joint values [rad], (N, n).
         wrench: Process wrench on the tool at the TCP, base frame [N, N m], (N, 6).
         seam: Seam point, base frame [m], (N, 3).
+        spindle_rpm: Commanded spindle speed [rpm], (N,), or None (a plan folder
+            written before ``waypoints.csv`` had the column).
+        spindle_on: The spindle switched on, (N,) bool, or None (likewise).
     """
 
     t: FloatArray
@@ -88,6 +91,8 @@ class PlanSamples:
     q: FloatArray
     wrench: FloatArray
     seam: FloatArray
+    spindle_rpm: FloatArray | None = None
+    spindle_on: NDArray[np.bool_] | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -95,7 +100,9 @@ class PlanSamples:
     def subset(self, idx: NDArray[np.int_]) -> PlanSamples:
         """The samples at indices ``idx``."""
         return PlanSamples(self.t[idx], self.phase[idx], self.s[idx], self.q[idx],
-                           self.wrench[idx], self.seam[idx])
+                           self.wrench[idx], self.seam[idx],
+                           None if self.spindle_rpm is None else self.spindle_rpm[idx],
+                           None if self.spindle_on is None else self.spindle_on[idx])
 
 
 @dataclass(frozen=True)
@@ -311,7 +318,9 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
         _check_limits(p, q, joints, limits)
     return PlanSamples(t, phase, num(["s_mm"])[:, 0] * 1e-3, q,
                        num(["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]),
-                       num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3)
+                       num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3,
+                       num(["spindle_rpm"])[:, 0] if "spindle_rpm" in col else None,
+                       num(["spindle_on"])[:, 0] > 0 if "spindle_on" in col else None)
 
 
 def _cell(text: str) -> float:

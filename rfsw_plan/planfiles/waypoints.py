@@ -32,6 +32,11 @@ without ``[controller]``)
     numeric model at every sample). The weld speed is the pin's: constant during ``weld``; the
     commanded TCP runs ahead of it while the traverse force (and with it the pin's lag) ramps
     up, and at the weld speed where the force is steady.
+``spindle_on, spindle_rpm``
+    The spindle state (1 on, 0 off) and its commanded speed: on from the plunge start (the
+    spindle-start hook, at the spindle clearance above the plate), running up linearly over
+    the process's ``spindle_runup_s`` while the tool stands there, at ``rotation_speed_rpm``
+    until the pin is out of the plate at the end of the retract, then off.
 """
 
 from __future__ import annotations
@@ -121,11 +126,12 @@ def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     cols += list(np.rad2deg(tr.q).T)
     header += ["fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm", "off_lat_mm", "off_norm_mm",
                "off_along_mm", "dx_mm", "dy_mm", "dz_mm", "e_lat_mm", "margin_mm", "tcp_speed_mm_s",
-               "pin_speed_mm_s"]
+               "pin_speed_mm_s", "spindle_on", "spindle_rpm"]
     cols += list(tr.wrench.T) + list((tr.offsets * 1e3).T) + list((dX[:, :3] * 1e3).T)
     cols += [np.where(contact, e_lat * 1e3, np.nan), np.where(contact, margin * 1e3, np.nan)]
     tcp_speed = np.linalg.norm(np.gradient(T[:, :3, 3], tr.t, axis=0), axis=1)
     cols += [tcp_speed * 1e3, tr.pin_speed() * 1e3]
+    cols += [np.where(tr.spindle_on, "1", "0"), tr.spindle_rpm]
     rows = np.empty((len(tr), len(header)), dtype=object)
     for j, c in enumerate(cols):
         rows[:, j] = c

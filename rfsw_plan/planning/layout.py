@@ -118,11 +118,14 @@ def point_layout(n: int) -> Layout:
     along-track) [mm], singularity row (sign, floor, det at q_lin, q_lin [rad], d det / dq),
     weld flag, depth flag (1 where the depth window applies: in the plate under position
     control), surface flag (1 at the plunge start, where the pin must not be below the
-    surface)."""
+    surface), standstill flag (1 where the tool stands with the pin in the plate) and the
+    lateral pin error held there [mm] (the window centre), and the flag of the standing
+    waypoints at full depth (the pin at the planned depth)."""
     return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
                    ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
                    ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1),
-                   ("depth_on", 1), ("surface_on", 1)))
+                   ("depth_on", 1), ("surface_on", 1), ("standing", 1), ("stand_at", 1),
+                   ("standing_full", 1)))
 
 
 #: Global scalars passed to every waypoint: the objective weights, the lateral compliance

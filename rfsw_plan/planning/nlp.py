@@ -49,7 +49,7 @@ step allows).
 Every row family above is declared once, by name, in :mod:`rfsw_plan.planning.rows` (its
 expression, bounds, independent check); the variables and parameters are named by the layouts
 of :mod:`rfsw_plan.planning.layout`. Per waypoint there are
-:func:`~rfsw_plan.planning.rows.point_row_count` rows (19) and n + 5 variables; per link n + 4
+:func:`~rfsw_plan.planning.rows.point_row_count` rows (21) and n + 5 variables; per link n + 4
 rows; x has K (n + 5) + 1 entries.
 
 Objective (weights and priorities in :mod:`rfsw_plan.process.plan_options`):
@@ -111,7 +111,12 @@ from rfsw_plan.planning.rows import (
 )
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
 from rfsw_plan.process.plan_options import PlanOptions
-from rfsw_plan.process.task import PlanTask, offsets3
+from rfsw_plan.process.task import (
+    STANDING_DEPTH_TOL,
+    STANDSTILL_MOTION,
+    PlanTask,
+    offsets3,
+)
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.robot.kinematics import Robot
 
@@ -151,16 +156,16 @@ def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
 class PointFunctions:
     """Per-waypoint CasADi functions (SX, optionally compiled to C).
 
-    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (19, named
+    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (21, named
     by :data:`POINT_CONSTRAINTS`), n_w = n + 5 variables per waypoint
     (:func:`~rfsw_plan.planning.layout.variable_layout`) and the terms of
     :data:`~rfsw_plan.planning.layout.TERMS` (6):
 
     Attributes:
-        info: ``(w, par) -> (g (19,), terms (6,), dX (6,))``.
+        info: ``(w, par) -> (g (21,), terms (6,), dX (6,))``.
         fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
         grad: ``(w, par, glob) -> grad phi (n + 5,)``.
-        jac: ``(w, par) -> dg/dw`` dense (19, n + 5).
+        jac: ``(w, par) -> dg/dw`` dense (21, n + 5).
         hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
             dense upper triangle (n + 5, n + 5).
         skipped: Effects the symbolic model lacks.
@@ -297,7 +302,7 @@ class PlanNLP:
         x0: Initial guess, shape (K (n + 5) + 1,) (:func:`x_layout`: the last entry is c_max,
             the largest lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (19 K + (n + 4)(K - 1),): the rows of
+        lbg, ubg: Constraint bounds, shape (21 K + (n + 4)(K - 1),): the rows of
             :data:`~rfsw_plan.planning.rows.POINT_ROWS` at every waypoint, then the link
             rows of :data:`~rfsw_plan.planning.rows.LINK_ROWS` on every link.
         p: Parameter vector.
@@ -392,7 +397,7 @@ class PlanNLP:
         return np.append(W.reshape(-1), c_max)
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-waypoint (g (K, 19), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
+        """Per-waypoint (g (K, 21), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
         columns of g are :data:`POINT_CONSTRAINTS` (by family: the rows' layout), of
         terms :data:`~rfsw_plan.planning.layout.TERMS`."""
         K = self.n_waypoints
@@ -724,6 +729,8 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "correction": corr * 1e3, **det, "weld": (task.phase == "weld").astype(float),
         "depth_on": (~task.at_surface).astype(float),
         "surface_on": task.at_surface.astype(float),
+        "standing": task.standing.astype(float), "stand_at": window.centre * 1e3,
+        "standing_full": task.standing_full.astype(float),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6
@@ -764,7 +771,8 @@ def _point_bounds(window: WeldWindow, opts: PlanOptions, K: int, task: PlanTask 
     ctx = PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3,
                       (-window.depth_deep + opts.margin) * 1e3,
                       (window.depth_shallow - opts.margin) * 1e3,
-                      float(np.sin(window.tilt_tol)), 0.5 * window.speed_tol * h_min * 1e3)
+                      float(np.sin(window.tilt_tol)), 0.5 * window.speed_tol * h_min * 1e3,
+                      0.4 * STANDSTILL_MOTION * 1e3, 0.4 * STANDING_DEPTH_TOL * 1e3)
     pairs = []
     for f in rows.POINT_ROWS:
         got = f.bounds(ctx)

@@ -204,8 +204,12 @@ class PlanResult:
         """The weld envelope as written (file units): the window of each quantity and its
         range over the written samples (:func:`~rfsw_plan.planning.verify.verify_samples`):
         depth error along the plate normal at full depth (+ shallow) [mm], largest tilt
-        error [deg], pin speed / weld speed - 1 at constant-speed weld samples [%], and the
-        pin's lowest height above the plate before the plunge [mm]."""
+        error [deg], pin speed / weld speed - 1 at constant-speed weld samples [%], the
+        pin's lowest height above the plate before the plunge [mm]; and the plunge as written:
+        the predicted pin's depth error when the plunge ends (+ shallow) [mm], the depth of the
+        commanded TCP below the plate surface there (the plunge the robot is commanded, the
+        pin's planned depth plus the robot's give under the axial force) [mm], the spindle
+        run-up before it and the dwell as written [s]."""
         w, sv = self.window, self.samples
         out: dict[str, Any] = {
             "axial_control": self.task.axial_control,
@@ -230,7 +234,37 @@ class PlanResult:
             "min_height_before_plunge_mm": float(np.min(h[before])) * 1e3
             if h is not None and before.any() else None,
         })
+        out.update(self._plunge_end())
         return out
+
+    def _plunge_end(self) -> dict[str, Any]:
+        """The last plunge sample (the pin at full depth): the pin's depth error there (+
+        shallow) and the commanded TCP's depth below the surface along the plate normal [mm],
+        and the run-up time the spindle had before the plunge moved down [s]."""
+        tr, task, sv = self.trajectory, self.task, self.samples
+        idx = np.flatnonzero(tr.phase == "plunge")
+        if not len(idx) or not task.n_start:
+            return {}
+        i = int(idx[-1])
+        m = task.n_start
+        depth = float(np.max(task.depth))
+        npl = task.plate_normal[m]
+        tcp = self.model.robot.fk(tr.q[i])[:3, 3]
+        commanded = depth - float(np.dot(npl, tcp - task.frames.p[m]))
+        on = np.flatnonzero(tr.spindle_on)
+        # From the spindle's start to the plunge's first move (the samples before stand at
+        # the spindle's joint values).
+        moved = (np.flatnonzero(np.any(np.abs(tr.q[idx] - tr.q[on[0]]) > 1e-12, axis=1))
+                 if len(on) else np.zeros(0, dtype=int))
+        runup = float(tr.t[idx[moved[0]] - 1] - tr.t[on[0]]) if len(moved) else 0.0
+        dwell = np.flatnonzero(tr.phase == "dwell")
+        return {
+            "dwell_s": float(tr.t[dwell[-1]] - tr.t[i]) if len(dwell) else 0.0,
+            "plunge_end_depth_error_mm": None if sv is None or sv.height is None
+            else (float(sv.height[i]) + depth) * 1e3,
+            "commanded_plunge_mm": commanded * 1e3,
+            "spindle_runup_s": runup,
+        }
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready summary in file units (mm, deg, N/mm, s)."""

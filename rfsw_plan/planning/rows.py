@@ -107,6 +107,10 @@ class PointBounds:
         along: Bound of the along-track error that keeps the pin's speed between
             neighbouring weld waypoints within the speed tolerance [mm]:
             speed_tol x shortest weld link / 2.
+        stand: Half the pin's lateral motion allowed while the tool stands in the plate,
+            less a 20 % share for the motion between waypoints [mm].
+        stand_depth: Largest normal pin error while the tool stands at full depth, less a
+            60 % share for the NLP model's residual and the motion between waypoints [mm].
     """
 
     lower: float
@@ -116,6 +120,8 @@ class PointBounds:
     depth_upper: float = INF
     tilt: float = 1.0
     along: float = INF
+    stand: float = INF
+    stand_depth: float = INF
 
 
 @dataclass(frozen=True)
@@ -266,6 +272,22 @@ POINT_ROWS: tuple[PointRows, ...] = (
         "surface", ("surface",),
         lambda s: s.par["surface_on"] * (s.normal_error - SURFACE_LIFT),
         lambda b: ((0.0, b.depth_upper - SURFACE_LIFT),), check="surface"),
+    # While the tool stands with the pin in the plate (plunge, dwell, weld start) the pin does
+    # not move sideways: every standing waypoint's lateral error within half the standstill
+    # motion of one value, the window centre (the dwell's lateral force builds while the tool
+    # stands; without these rows the offsets followed it only roughly and the pin slid
+    # 0.72 mm sideways during the dwell of zk500_table6_seam).
+    PointRows(
+        "standstill", ("standstill",),
+        lambda s: s.par["standing"] * (s.error - s.par["stand_at"]),
+        lambda b: ((-b.stand, b.stand),), check="standstill"),
+    # ... and at full depth (the plunge's end, the dwell, the weld start) the pin is at the
+    # planned depth: the plunge ends there (before these rows it ended 0.40 mm short on
+    # zk500_table6_seam with the full axial force on, and the pin sank during the dwell).
+    PointRows(
+        "standing_depth", ("standing_depth",),
+        lambda s: s.par["standing_full"] * s.normal_error,
+        lambda b: ((-b.stand_depth, b.stand_depth),), check="standing_depth"),
     # Work angle (about t) and travel angle (about l) of the tool axis within the tolerance
     # of the planned tilt: the TCP z axis against n, its components along l and t.
     PointRows(

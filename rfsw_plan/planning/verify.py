@@ -42,7 +42,13 @@ from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
 from rfsw_plan.planning.rows import checks as declared_checks
 from rfsw_plan.process.plan_options import PlanOptions
-from rfsw_plan.process.task import PlanTask, offsets3, plate_normals
+from rfsw_plan.process.task import (
+    STANDING_DEPTH_TOL,
+    STANDSTILL_MOTION,
+    PlanTask,
+    offsets3,
+    plate_normals,
+)
 from rfsw_plan.process.window import WeldWindow
 from rfsw_plan.timing.trajectory import TimedTrajectory
 
@@ -228,7 +234,8 @@ class CheckInput:
         return np.abs(np.diff(self.offsets, axis=0)), np.abs(np.diff(ref, axis=0))
 
 
-#: A named margin series: (check name, margin (K,) (>= 0 holds), unit: "m", "rad" or "").
+#: A named margin series: (check name, margin (K,) (>= 0 holds), unit: "m", "rad", "speed"
+#: (a share of the weld speed), "offset" or "").
 Margins = list[tuple[str, FloatArray, str]]
 #: A check: the margins of its rows, or None when its input is missing (reported as skipped).
 RowCheck = Callable[[CheckInput], "Margins | None"]
@@ -345,14 +352,46 @@ def _check_tilt(c: CheckInput) -> Margins:
 
 
 def _check_travel_speed(c: CheckInput) -> Margins:
-    """Every weld waypoint's pin within speed_tol x h_min / 2 of its seam point along the
-    track, so the pin's travel between neighbours is within speed_tol of the seam's."""
-    travel = c.task.link_travel()[c.task.n_start:]
-    travel = travel[travel > 1e-12]
+    """The predicted pin's travel between neighbouring weld waypoints within ``speed_tol`` of
+    the seam's: | (e_along,k+1 - e_along,k) / h_k | <= speed_tol for every weld link k of
+    travel h_k (the pin's mean speed over the link relative to the weld speed, minus 1).
+
+    The NLP's ``travel_speed`` rows ask for more (every pin within speed_tol x h_min / 2 of its
+    seam point along the track, which implies this); what the process needs is the speed, so
+    that is what is checked. The margin of link k is at its first waypoint (unit ``speed``:
+    a ratio of the weld speed)."""
+    m = c.task.n_start
+    travel = c.task.link_travel()[m:]
+    margin = np.full(len(c.task), np.inf)
     if not len(travel):
         return []
-    bound = 0.5 * c.window.speed_tol * float(np.min(travel))
-    return [("travel_speed", bound - np.abs(c.prediction.e_along), "m")]
+    moving = travel > 1e-12
+    de = np.diff(c.prediction.e_along[m:])
+    ratio = np.abs(de[moving]) / travel[moving]
+    margin[m + np.flatnonzero(moving)] = c.window.speed_tol - ratio
+    return [("travel_speed", margin, "speed")]
+
+
+def _check_standstill(c: CheckInput) -> Margins:
+    """While the tool stands with the pin in the plate (:attr:`PlanTask.standing`), the
+    predicted pin moves at most :data:`~rfsw_plan.process.task.STANDSTILL_MOTION` sideways:
+    max - min of the lateral error over those waypoints, margin at each of them (the NLP's
+    rows hold each one near the window centre, which implies this)."""
+    stand = c.task.standing
+    margin = np.full(len(c.task), np.inf)
+    if stand.sum() >= 2:
+        e = c.prediction.e_lat[stand]
+        margin[stand] = STANDSTILL_MOTION - float(np.max(e) - np.min(e))
+    return [("standstill", margin, "m")]
+
+
+def _check_standing_depth(c: CheckInput) -> Margins:
+    """While the tool stands at full depth (:attr:`PlanTask.standing_full`: the plunge's
+    end, the dwell, the weld start) the predicted pin is at the planned depth along the tool
+    axis within :data:`~rfsw_plan.process.task.STANDING_DEPTH_TOL`."""
+    full = c.task.standing_full
+    m = STANDING_DEPTH_TOL - np.abs(c.prediction.e_norm)
+    return [("standing_depth", np.where(full, m, np.inf), "m")]
 
 
 #: The independent checks, by the name the row declarations use, in the order a plan's
@@ -364,6 +403,8 @@ ROW_CHECKS: dict[str, RowCheck] = {
     "along_track": _check_along,
     "depth": _check_depth,
     "surface": _check_surface,
+    "standstill": _check_standstill,
+    "standing_depth": _check_standing_depth,
     "tilt": _check_tilt,
     "travel_speed": _check_travel_speed,
     "tool_axis": _check_axis,
@@ -480,6 +521,9 @@ def _message(task: PlanTask, k: int, name: str, m: float, unit: str, e: FloatArr
                 f"by {-m * 1e3:.4f} mm more than its bound")
     if unit == "m":
         return f"plan infeasible at {where}: {name} off by {-m * 1e3:.4f} mm"
+    if unit == "speed":
+        return (f"plan infeasible at {where}: {name}: the predicted pin's speed to the next "
+                f"waypoint is off the weld speed by {100 * -m:.3g} % more than its tolerance")
     if unit == "rad":
         return f"plan infeasible at {where}: {name} exceeded by {np.rad2deg(-m):.3f} deg"
     return (f"plan infeasible at {where}: {name}: kappa_f = {pred.kappa[k]:.1f} exceeds the "

@@ -162,6 +162,12 @@ class PhaseTimes:
         return self.approach + self.plunge + self.dwell + self.weld + self.retract
 
 
+#: Default spindle run-up time [s]: ASSUMED. No seed states one (seed 001's electric spindle is
+#: rated 5000 rpm and 55 N m, its acceleration is not given); 2 s brings a motor spindle of
+#: that class to a weld speed of 1200-1500 rpm with room to spare. Set ``spindle_runup_s`` in
+#: ``[process]`` from the spindle's data sheet.
+SPINDLE_RUNUP = 2.0
+
 #: Axial control modes of the weld (``[process] axial_control``).
 AXIAL_CONTROLS = ("position", "force")
 
@@ -180,7 +186,11 @@ class ProcessModel:
         retract_speed: Retract speed [m/s].
         approach_height: Height above the surface where the approach starts [m]; 0 = none.
         approach_speed: Approach speed [m/s].
-        rotation_speed_rpm: Spindle speed [rpm] (informational).
+        rotation_speed_rpm: Spindle speed [rpm] (written with every sample of the plan).
+        spindle_runup: Time the spindle takes from rest to ``rotation_speed_rpm`` [s]: the
+            plan stands at the spindle clearance above the plate for it, after the
+            spindle-start hook and before the plunge moves down (default
+            :data:`SPINDLE_RUNUP`).
         axial_control: ``position`` (seed 001: the robot holds the commanded depth; the
             planner's depth rows apply) or ``force`` (seed 000: the controller's axial force
             loop holds the set force ``forces.axial`` and with it the depth; the program
@@ -200,6 +210,7 @@ class ProcessModel:
     approach_height: float = 0.0
     approach_speed: float = 10.0e-3
     rotation_speed_rpm: float = 0.0
+    spindle_runup: float = SPINDLE_RUNUP
     axial_control: str = "position"
     name: str = ""
     material: str = ""
@@ -217,6 +228,8 @@ class ProcessModel:
         for key, (v, scale) in checks.items():
             if not (np.isfinite(v) and v > 0):
                 raise InputError("process", key, f"got {v * scale:g}", "> 0")
+        if not (np.isfinite(self.spindle_runup) and self.spindle_runup >= 0):
+            raise InputError("process", "spindle_runup_s", f"got {self.spindle_runup:g}", ">= 0")
         if not (np.isfinite(self.dwell_time) and self.dwell_time >= 0):
             raise InputError("process", "dwell_s", f"got {self.dwell_time:g}", ">= 0")
         if self.axial_control not in AXIAL_CONTROLS:

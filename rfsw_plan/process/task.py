@@ -31,6 +31,13 @@ FloatArray = NDArray[np.float64]
 
 #: Sample time of the load schedule a task is built from [s].
 SCHEDULE_DT = 0.05
+#: Largest lateral motion of the predicted pin while the tool stands in the plate (plunge,
+#: dwell, weld start) [m]: the pin stirs one hole; moving it sideways while standing widens it
+#: (issue 38's limit for the dwell).
+STANDSTILL_MOTION = 0.05e-3
+#: Largest depth error of the predicted pin while the tool stands at full depth (the plunge's
+#: end, the dwell, the weld start) [m] (+- along the tool axis).
+STANDING_DEPTH_TOL = 0.05e-3
 #: Default largest number of stationary (plunge, dwell) waypoints of a task.
 MAX_START_WAYPOINTS = 12
 
@@ -94,6 +101,26 @@ class PlanTask:
         """Waypoints at the plunge start (plunge phase, depth 0: the pin touches the surface
         at zero force), (K,)."""
         return np.asarray((self.phase == "plunge") & (self.depth <= 0))
+
+    @property
+    def standing(self) -> NDArray[np.bool_]:
+        """Waypoints where the tool stands at the seam start with the pin in the plate, (K,):
+        the plunge (below the surface) and the dwell, and the first weld waypoint (the weld
+        starts from rest, at the dwell's last force). The pin must not move sideways there
+        (:data:`STANDSTILL_MOTION`)."""
+        stand = np.zeros(len(self), dtype=bool)
+        stand[: self.n_start] = True
+        if self.n_start and len(self) > self.n_start:
+            stand[self.n_start] = True
+        return np.asarray(stand & ~self.at_surface)
+
+    @property
+    def standing_full(self) -> NDArray[np.bool_]:
+        """Standing waypoints at full depth (the plunge's end, the dwell, the weld start), (K,):
+        there the pin is at the planned depth (:data:`STANDING_DEPTH_TOL`), so the plunge
+        ends where it was planned to, not shallower with the rest sinking during the dwell."""
+        full = float(np.max(self.depth)) if len(self) else 0.0
+        return np.asarray(self.standing & (self.depth >= full - 1e-12))
 
     @property
     def s(self) -> FloatArray:
@@ -213,7 +240,9 @@ def task_from_schedule(
     Weld waypoints take the schedule's weld-phase force interpolated at their arc length; where
     that force still ramps up (travel start) extra waypoints are inserted.
     Up to ``max_start`` stationary waypoints sample plunge and dwell (where the force changes
-    most, always including the last dwell sample) so the offsets can follow the force ramp.
+    most, always including the plunge's end at full depth, one more if the even spread missed
+    it) so the offsets can follow the force ramp; the weld's first waypoint is the dwell's end
+    (at its force).
 
     Args:
         frames: Weld waypoints along the seam (k rows).
@@ -225,6 +254,15 @@ def task_from_schedule(
     weld = schedule.mask("weld")
     if not np.any(weld):
         raise InputError("process", "schedule", "has no weld phase", "a weld phase")
+    # The weld starts at the last stationary sample before its first sample (a sample on a
+    # phase boundary belongs to the phase it completes): its force is the weld's at s = 0 (the
+    # profile is continuous there), so the first weld waypoint carries the standstill force,
+    # not the force after one schedule step of travel (which put -125 N of traverse force on
+    # the tool standing at s = 0, zk500_table6_seam).
+    first = int(np.flatnonzero(weld)[0])
+    if first > 0 and schedule.phase[first - 1] in ("plunge", "dwell"):
+        weld = weld.copy()
+        weld[first - 1] = True
     sw = schedule.s[weld]
     order = np.argsort(sw, kind="stable")
     sw = sw[order]
@@ -239,9 +277,17 @@ def task_from_schedule(
     if v <= 0:
         raise InputError("process", "weld", "travel speed is not positive", "> 0")
     stat = np.flatnonzero(np.isin(schedule.phase, ("plunge", "dwell")))
-    stat = stat[schedule.t[stat] < t_weld0 + 1e-12] if len(stat) else stat
+    # The stationary sample at the weld start is the first weld waypoint.
+    stat = stat[schedule.t[stat] < t_weld0 - 1e-12] if len(stat) else stat
     if len(stat) and max_start > 0:
         idx = _pick_ramp_samples(schedule, stat, max_start)
+        # The plunge's end (full depth) is always a waypoint: the timed plunge ends there and
+        # the dwell starts, so the dwell lasts the process's dwell time (without it the timed
+        # plunge ran on to the first dwell waypoint, 0.35 s into the dwell of
+        # fanuc_butt_1700mm, and the dwell came out 4.65 s for 5 s).
+        plunge = stat[schedule.phase[stat] == "plunge"]
+        if len(plunge) and max_start > 1:
+            idx = np.union1d(idx, plunge[-1:])
     else:
         idx = np.zeros(0, dtype=int)
     depth_full = float(np.max(schedule.depth)) if len(schedule) else 0.0

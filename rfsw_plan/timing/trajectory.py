@@ -27,14 +27,16 @@
   speed: Ruckig on the distance along the tool axis, mapped to joints by IK on a grid (cubic
   spline in the distance). The first sample is at the safe height, at zero force and with
   the offsets of the plunge start (the first stationary waypoint, at zero force).
-* Plunge: from ``spindle_clearance`` above the surface (where the spindle-start hook runs)
+* Plunge: from ``spindle_clearance`` above the surface (where the spindle-start hook runs;
+  the tool first stands there for the process's ``spindle_runup`` while the spindle runs up)
   to full depth, Ruckig on the depth, mapped through the planned stationary waypoints by a
   shape-preserving (monotone, Fritsch-Carlson PCHIP) interpolation in depth (the stretch in
   the air, before the first waypoint at the surface, by IK along the tool axis).
-* Retract: in the plate, up the tool axis at the process retract speed, the wrench and the
-  fake-target offsets falling linearly with the depth still in the plate (the process
-  model's retract force, :meth:`~rfsw_plan.process.forces.ProcessModel.profile`), so the
-  offsets keep following the force and the pin leaves along the tool axis; once the pin is
+* Retract: in the plate, up the tool axis at the process retract speed, the wrench falling
+  with the depth still in the plate (the process model's retract force,
+  :meth:`~rfsw_plan.process.forces.ProcessModel.profile`) while it relaxes to the start
+  standstill's (:func:`retract_wrench`: travel has stopped), and the fake-target offsets
+  following it, so the pin leaves along the tool axis; once the pin is
   at the surface, up to the safe height at the approach speed at zero force.
 * Dwell: the planned stationary waypoints in time, in Cartesian space: the commanded TCP on
   the straight line between neighbouring waypoints and the tool turned by their slerp, at rest
@@ -90,6 +92,10 @@ class TimingLimits:
         spindle_clearance: Height of the pin tip above the surface where the approach ends
             and the plunge (spindle started) begins [m].
         retract_speed: Retract speed while the pin is in the plate [m/s].
+        spindle_runup: Time the tool stands at the spindle clearance after the spindle starts,
+            before it moves down, while the spindle runs up [s] (the process's
+            ``spindle_runup``; 0: none).
+        spindle_rpm: Spindle speed of the weld [rpm] (the process's ``rotation_speed_rpm``).
     """
 
     acceleration: float = 0.1
@@ -100,19 +106,23 @@ class TimingLimits:
     dt: float = 0.01
     spindle_clearance: float = 2e-3
     retract_speed: float = 2e-3
+    spindle_runup: float = 0.0
+    spindle_rpm: float = 0.0
 
 
 def timing_limits(options: PlanOptions, process: ProcessModel, dt: float | None = None
                   ) -> TimingLimits:
     """The timing limits of a problem: the planner options' safe height (the process's
     ``approach_height`` when > 0), spindle clearance and approach speed, the process's plunge
-    and retract speeds, and the sample time (``dt`` or the options')."""
+    and retract speeds, spindle run-up and speed, and the sample time (``dt`` or the
+    options')."""
     return TimingLimits(
         clearance=process.approach_height if process.approach_height > 0
         else options.clearance,
         approach_speed=options.approach_speed, plunge_speed=process.plunge_speed,
         dt=options.sample_dt if dt is None else dt,
-        spindle_clearance=options.spindle_clearance, retract_speed=process.retract_speed)
+        spindle_clearance=options.spindle_clearance, retract_speed=process.retract_speed,
+        spindle_runup=process.spindle_runup, spindle_rpm=process.rotation_speed_rpm)
 
 
 @dataclass(frozen=True)
@@ -134,6 +144,13 @@ class TimedTrajectory:
         s_pin: Predicted (loaded) pin arc length along the seam [m], (N,): ``s`` as timed;
             the planner replaces it by the numeric model's evaluation of every sample
             (:func:`rfsw_plan.planning.verify.pin_track`).
+        spindle_rpm: Commanded spindle speed [rpm], (N,): 0 before the plunge piece starts
+            (where the spindle-start hook runs), rising linearly to the weld speed over the
+            run-up while the tool stands at the spindle clearance, the weld speed until the
+            pin is out of the plate at the end of the retract, then 0 (the spindle is
+            switched off; its run-down is not modelled).
+        spindle_on: The spindle switched on, (N,) bool: from the plunge piece's start to the
+            pin's exit (also for a process without a stated speed, ``rotation_speed_rpm`` 0).
     """
 
     t: FloatArray
@@ -148,6 +165,8 @@ class TimedTrajectory:
     weld_speed: float
     max_weld_speed: float
     s_pin: FloatArray
+    spindle_rpm: FloatArray
+    spindle_on: NDArray[np.bool_]
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -204,12 +223,31 @@ def _grid_map(robot: Robot, q_end: FloatArray, n_axis: FloatArray, length: float
 Deflection = Callable[[FloatArray, FloatArray], FloatArray]
 
 
+def retract_wrench(x: FloatArray, length: float, wrench_end: FloatArray,
+                   wrench_stand: FloatArray) -> FloatArray:
+    """The wrench of the retract in the plate at the pin's rise x [m] (N,) of ``length`` [m],
+    (N, 6) [N, N m]:
+
+        W(x) = rho (rho W_end + (1 - rho) W_stand),   rho = 1 - x / length,
+
+    falling with the depth still in the plate (the process model's retract,
+    :meth:`~rfsw_plan.process.forces.ProcessModel.profile`) while it relaxes from the weld's
+    wrench W_end to the start standstill's W_stand (the dwell's end: no traverse force, the
+    dwell's share of the lateral force). ASSUMED: the seeds measure no end stop; travel has
+    stopped, so the forces relax to what they are when the tool stands at the start, and do
+    so as the tool leaves (no step: W(0) = W_end)."""
+    rho = np.clip(1.0 - np.asarray(x, dtype=float) / length, 0.0, 1.0)[:, None]
+    return np.asarray(rho * (rho * wrench_end[None] + (1.0 - rho) * wrench_stand[None]))
+
+
 def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatArray,
                  length: float, wrench_end: FloatArray, deflection: Deflection | None,
-                 rounds: int = 4) -> tuple[CubicSpline, CubicSpline]:
+                 rounds: int = 4, wrench_stand: FloatArray | None = None,
+                 ) -> tuple[CubicSpline, CubicSpline]:
     """Joint values q(x) and offsets o(x) (lateral, normal, along-track) [m] of the retract in
     the plate, x in [0, length] the pin's rise along the tool axis n: the wrench falls as
-    F_end (1 - x / length) and the commanded TCP is where the *predicted* pin is the weld's
+    :func:`retract_wrench` (F_end (1 - x / length) without ``wrench_stand``) and the
+    commanded TCP is where the *predicted* pin is the weld's
     last predicted pin moved by x n (``deflection`` given: a fixed point over IK and the
     deflection model), else the last commanded TCP moved by x n minus the offsets' share
     o (x / length) (linear in the force)."""
@@ -220,7 +258,8 @@ def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatAr
     cmd = x0 + xs[:, None] * n_end[None] - (xs / length)[:, None] * o_vec[None]
     Q = _ik_line(robot, q_end, n_end, xs, -o_vec, length)
     if deflection is not None:
-        W = (1.0 - xs / length)[:, None] * wrench_end[None]
+        W = retract_wrench(xs, length, wrench_end,
+                           wrench_end if wrench_stand is None else wrench_stand)
         pin_end = x0 + deflection(q_end[None], wrench_end[None])[0]
         goal = pin_end + xs[:, None] * n_end[None]
         T0 = robot.fk(q_end)
@@ -495,6 +534,12 @@ def time_parameterise(
     # Depth 0 is the first stationary waypoint (or the first weld waypoint); above it the
     # plunge starts in the air at the spindle clearance.
     q_air = amap(np.array([air]))[0]
+    if m and lim.spindle_runup > 0:
+        # The spindle runs up while the tool stands at the spindle clearance (the plunge
+        # piece starts here, with the spindle-start hook).
+        t = np.linspace(0.0, lim.spindle_runup, max(int(np.ceil(lim.spindle_runup / dt)), 1) + 1)
+        pieces.append(("plunge", t, np.zeros_like(t), np.repeat(q_air[None], len(t), 0),
+                       np.repeat(offsets[:1], len(t), 0), np.tile(zero6, (len(t), 1))))
     if m:
         plunge = np.flatnonzero(task.phase[:m] == "plunge")
         dwell = np.flatnonzero(task.phase[:m] == "dwell")
@@ -556,13 +601,24 @@ def time_parameterise(
     o_end = offsets[-1]
     o_vec = o_end[0] * fr.l[-1] + o_end[1] * fr.n[-1] + o_end[2] * fr.t[-1]
     dplate = max(depth_full / cos1, 1e-6)
+    if deflection is not None and depth_full > 0:
+        # From where the weld's last predicted pin really is (it may end a few micrometres
+        # off the planned depth, inside the depth window): out of the plate exactly when the
+        # in-plate retract ends, where the spindle stops.
+        pin_end = robot.fk(q[-1])[:3, 3] + deflection(q[-1][None], F[-1][None])[0]
+        below = -float(np.dot(nplate[-1], pin_end - (fr.p[-1] + depth_full * nplate[-1])))
+        dplate = max(below / cos1, 1e-6)
     if depth_full > 0:
-        rmap, omap = _retract_map(robot, q[-1], task, o_vec, dplate, F[-1], deflection)
+        # The start standstill's wrench (the weld's first waypoint: the dwell's end) at the
+        # seam's end frame: what the end stop's forces relax to.
+        F_stand = (np.concatenate([fr.rotation()[-1] @ task.force_seam[m], F[-1, 3:]]) if m
+                   else F[-1])
+        rmap, omap = _retract_map(robot, q[-1], task, o_vec, dplate, F[-1], deflection,
+                                  wrench_stand=F_stand)
         t, x, _, _ = profile_1dof(0.0, dplate, 0.0, 0.0, lim.retract_speed, lim.acceleration,
                                   lim.jerk, dt)
-        rest = (1.0 - x / dplate)[:, None]
         pieces.append(("retract", t, np.full_like(t, sw[-1]), rmap(x), omap(x),
-                       rest * F[-1]))
+                       retract_wrench(x, dplate, F[-1], F_stand)))
         q_out = rmap(np.array([dplate]))[0]
     else:
         q_out = q[-1]
@@ -577,7 +633,16 @@ def time_parameterise(
     # Concatenate; drop the first sample of each piece after the first (it repeats the end).
     ts, ph, ss, qs, os_, fs = [], [], [], [], [], []
     t0 = 0.0
+    # The spindle starts with the first plunge piece and stops when the pin is out (the end of
+    # the first retract piece, in the plate; without a plunge depth, of the decelerate piece).
+    t_on = t_off = 0.0
+    names = [p[0] for p in pieces]
+    last_in = names.index("retract") if depth_full > 0 else names.index("decelerate")
     for i, (name, t, s, qq, oo, ff) in enumerate(pieces):
+        if i == 1:
+            t_on = t0
+        if i == last_in:
+            t_off = t0 + float(t[-1])
         sl = slice(1, None) if i else slice(None)
         ts.append(t0 + t[sl])
         ph.append(np.full(len(t[sl]), name))
@@ -592,8 +657,13 @@ def time_parameterise(
     qdd = np.gradient(qd, t, axis=0)
     qddd = np.gradient(qdd, t, axis=0)
     s_all = np.concatenate(ss)
+    runup = np.clip((t - t_on) / lim.spindle_runup, 0.0, 1.0) if lim.spindle_runup > 0 \
+        else (t >= t_on).astype(float)
+    on = (t >= t_on) & (t <= t_off + 1e-9)
+    rpm = np.where(on, lim.spindle_rpm * runup, 0.0)
     traj = TimedTrajectory(t, np.concatenate(ph), s_all, Q, qd, qdd, qddd,
-                           np.vstack(os_), np.vstack(fs), v, psl.max_speed, s_all.copy())
+                           np.vstack(os_), np.vstack(fs), v, psl.max_speed, s_all.copy(),
+                           rpm, on)
     _check_limits(robot, traj)
     return traj
 

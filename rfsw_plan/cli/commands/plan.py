@@ -148,10 +148,38 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
               f"pin speed within {max(abs(x) for x in spd) if spd else 0.0:.2f} % of the weld "
               f"speed (tolerance {env['speed_tol_pct']:g} %); pin "
               f"{env['min_height_before_plunge_mm']:.2f} mm above the plate before the plunge")
+        _print_plunge(problem, env)
     print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); wrote "
           f"{len(written)} files in {out}:")
     for f in written:
         print(f"  {f}")
+
+
+def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
+    """The plunge as written: where the pin is when it ends, the TCP depth commanded for it,
+    the spindle run-up; and a problem's commanded plunge that the planner did not use."""
+    if "commanded_plunge_mm" not in env:
+        return
+    from rfsw_plan.process.task import STANDING_DEPTH_TOL
+
+    err = env.get("plunge_end_depth_error_mm")
+    planned = problem.process.plunge_depth * 1e3
+    tol = STANDING_DEPTH_TOL * 1e3
+    how = (f"within {tol:g} mm" if abs(err or 0.0) <= tol + 1e-9 else
+           f"NOT reached: {abs(err or 0.0):.3f} mm {'short' if (err or 0.0) > 0 else 'deep'}")
+    reach = ("" if err is None else
+             f"the pin at {planned - err:.2f} mm of the planned {planned:.2f} mm when it ends "
+             f"({how}), ")
+    print(f"plunge: {reach}the TCP commanded {env['commanded_plunge_mm']:.2f} mm below the "
+          f"surface there; spindle run-up {env['spindle_runup_s']:.2f} s before it")
+    want, got = problem.process.dwell_time, env["dwell_s"]
+    print(f"dwell: {got:.2f} s, " + ("the problem's" if abs(got - want) <= 0.011 else
+          f"not the problem's {want:g} s: lengthened where the joint limits need it "
+          "between stationary waypoints"))
+    if problem.coupling is not None:
+        print(f"  not used by the planner: [process.coupling] commanded_depth_mm = "
+              f"{problem.coupling.commanded_depth * 1e3:g} (the co-simulation's input; the "
+              f"plan commands {env['commanded_plunge_mm']:.2f} mm for the planned depth)")
 
 
 def _print_table(result: Any) -> None:
