@@ -107,7 +107,12 @@ def read_tp(ls: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarra
             pts[m.group(1)] = (W @ _frame(u[:3], _zyx(u[5], u[4], u[3])))[:3, 3]
         out: list[tuple[str, float, str]] = []
         mn = t.split("/MN", 1)[1].split("/POS", 1)[0]
+        regs: dict[str, str] = {}
         for line in mn.splitlines():
+            if (r := re.match(rf"^\s*\d+:\s*R\[(\d+)\]=({_N})\s*;", line)) is not None:
+                regs[r.group(1)] = r.group(2)
+                continue
+            line = re.sub(r"R\[(\d+)\]mm/sec", lambda r: f"{regs[r.group(1)]}mm/sec", line)
             if (m := re.match(rf"^\s*\d+:([JL]) P\[(\d+)\] ({_N})(mm/sec|msec|sec|%) ", line)):
                 val = float(m.group(3))
                 kind = {"mm/sec": "lin_v", "msec": "lin_t", "sec": "lin_t", "%": "ptp"}[m.group(4)]
