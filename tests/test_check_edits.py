@@ -114,18 +114,23 @@ def test_a_posture_or_turn_change_names_the_point_and_line(zk500: Path, capsys,
 
 
 def test_a_tp_turn_number_change_is_caught(zk500: Path, capsys) -> None:
+    """A weld point's J6 turn number changed: named with its /MN line (the pendant's)."""
     ls = _file(zk500, ".ls")
     text = ls.read_text()
-    m = re.search(r"P\[30\]\{\s*GP1:[^}]*CONFIG : '([NF] [UD] [TB]), (-?\d+), (-?\d+), (-?\d+)'",
-                  text)
+    weld = text.index("phase: weld")
+    mv = re.compile(r"^\s*(\d+):L P\[(\d+)\] ", re.M)
+    first = mv.search(text, weld)
+    assert first is not None
+    mn_line, k = mv.search(text, first.end()).groups()  # the second weld move
+    m = re.search(rf"P\[{k}\]\{{\s*GP1:[^}}]*CONFIG : '([NF] [UD] [TB]), (-?\d+), (-?\d+), "
+                  r"(-?\d+)'", text)
     assert m is not None
     turn = int(m.group(4))
     ls.write_text(text[:m.start(4)] + str(turn + (1 if turn <= 0 else -1)) + text[m.end(4):])
     code, out = _check(capsys, ls)
     assert code == 3, out
-    assert out.startswith(f"{ls.name}: P[30] (weld") and "posture" in out, out
-    n = _line_of(ls, r":L P\[30\] ")
-    assert f"line {n}" in out
+    assert out.startswith(f"{ls.name}: P[{k}] (weld") and "posture" in out, out
+    assert f"line {mn_line})" in out, out
 
 
 def test_a_program_of_another_plan_is_refused_by_its_plan_id(zk500: Path, capsys) -> None:
@@ -236,7 +241,8 @@ def test_a_base_shifted_down_by_the_pin_depth_fails_with_depth_first(zk500: Path
     src = _file(zk500, ".src")
     _set_base(src, Z=-4.8)
     code, out = _check(capsys, src)
-    assert code == 3 and out.splitlines()[0].startswith("depth"), out
+    first = out.splitlines()[0]
+    assert code == 3 and ": depth " in first and "timing" not in first, out
 
 
 def test_a_base_retaught_on_the_surface_holds(zk500: Path, capsys) -> None:
@@ -264,7 +270,7 @@ def test_a_spindle_stop_two_motions_earlier_fails(zk500: Path, capsys) -> None:
     lines[moves[-2]:moves[-2]] = block
     src.write_text("\n".join(lines) + "\n")
     code, out = _check(capsys, src)
-    assert code == 3 and out.startswith("hook fails first") and "spindle stops" in out, out
+    assert code == 3 and "hook: the spindle stops with the pin tip" in out.splitlines()[0], out
 
 
 def test_deleted_weld_points_hold_and_are_listed(zk500: Path, capsys) -> None:

@@ -90,12 +90,12 @@ def read_krl(src: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndar
 def read_tp(ls: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarray]]:
     """Events and points [mm] of a .ls (called programs followed)."""
     text = ls.read_text()
-    fr = {}
-    for what in ("X", "W"):
-        m = re.search(rf"! UFRAME\[\d+\] {what} ({_N}) \w ({_N}) \w ({_N}) ;", text)
+    uf = {}
+    for what in "XYZWPR":  # one remark per value, within the pendant's 32 characters
+        m = re.search(rf"! UFRAME\[\d+\] {what} ({_N}) ;", text)
         assert m is not None, "the UFRAME remarks"
-        fr[what] = [float(x) for x in m.groups()]
-    W = _frame(fr["X"], _zyx(fr["W"][2], fr["W"][1], fr["W"][0]))
+        uf[what] = float(m.group(1))
+    W = _frame([uf["X"], uf["Y"], uf["Z"]], _zyx(uf["R"], uf["P"], uf["W"]))
 
     def walk(path: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarray]]:
         t = path.read_text()

@@ -12,7 +12,8 @@ forces, the joint limits) on the path the controller will run:
   not refused for differing from the bytes ``plan.json`` vouches for: the result says it was
   edited and re-verifies it.
 * **Points to samples.** Each program point is matched, in order, to the plan sample at its
-  position (samples within 0.2 um of the nearest, the pin at rest, are told apart by the
+  position (samples within 3 um of the nearest, the pin at rest or a base re-taught to the
+  pendant's precision, are told apart by the
   program's own clock). Deleted or added motions need no special case: the remaining points
   are matched where they are.
 * **Path.** Between two program points the controller runs the straight line (LIN, L,
@@ -67,8 +68,9 @@ TIMING_TOL = 0.02
 #: Largest difference of a point's joint value from its plan sample's [rad] (a turn or branch
 #: change is 2 pi or a large angle; an edit of millimetres moves the joints by far less).
 POSTURE_TOL = math.radians(5.0)
-#: Program points are told apart from plan samples at the same place below this [m].
-TIE = 2e-7
+#: Program points are told apart from plan samples at the same place below this [m] (the pin
+#: at rest; a base re-taught to the pendant's precision moves every point by about 1 um).
+TIE = 3e-6
 #: Newton steps of the batched inverse kinematics from the planned joints.
 NEWTON_STEPS = 4
 #: A point moved farther than this from its plan sample is listed as an edit [m] (the round
@@ -150,10 +152,8 @@ class CheckResult:
                 f"{'s' if len(self.failures) > 2 else ''})" if len(self.failures) > 1 else "")
         where = f"line {self.line_no}" + (f" of {self.file}" if self.file and
                                            self.file != self.program.name else "")
-        head = f"{self.quantity or self.failure} fails first: "
-        at = head + ((f"{self.program.name}: {self.point} ({self.phase}, s = "
-                      f"{self.s * 1e3:.1f} mm, {where})") if self.point
-                     else f"{self.program.name}:")
+        at = (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} mm, "
+              f"{where})") if self.point else f"{self.program.name}:"
         lo, hi = (w * 1e3 for w in self.window)
         if self.failure == "window":
             return (f"{at} leaves the weld window: lateral error "

@@ -166,7 +166,7 @@ def _speed(speed: float, duration: float, register: int) -> tuple[list[str], str
         return [], f"{round(v)}mm/sec"
     if v <= 0:  # a move that takes no time (never written: such a segment is a wait)
         return [], f"{max(round(duration * 1e3), 1)}msec"
-    return [f"R[{register}]={number(v, 4)}"], f"R[{register}]mm/sec"
+    return [f"R[{register}]={number(v, 6)}"], f"R[{register}]mm/sec"
 
 
 class FanucTpFormat(ControllerFormat):
@@ -404,6 +404,10 @@ def _mn(program: Program) -> tuple[list[str], list[str]]:
     body: list[str] = []
     marks = program.phase_changes()
     reg = program.options.speed_register
+    # the speed over the chord as written (/POS in 0.1 um), so a segment of a few um keeps the
+    # plan's time as the controller computes it (length / speed)
+    xyz = np.round(program.poses[:, :3, 3] * 1e3, 4)
+    last = 0
     for i, m in enumerate(program.motions):
         if i in marks:
             body.append(f"! ---- phase: {marks[i]}")
@@ -420,8 +424,12 @@ def _mn(program: Program) -> tuple[list[str], list[str]]:
         else:
             term = f"CR{cr[m.point]}" if m.point in cr else "FINE"
             body += remarks(speed_note(m, short=True)) if m.pin_speed is not None else []
-            pre, speed = _speed(m.speed, m.duration, reg)
+            v = float(np.linalg.norm(xyz[m.point] - xyz[last])) * 1e-3 / m.duration \
+                if m.duration > 0 else m.speed
+            pre, speed = _speed(v, m.duration, reg)
             body += [*pre, f"L {p} {speed} {term}"]
+        if m.kind in ("joint", "lin"):
+            last = m.point
     return head, body
 
 
