@@ -114,18 +114,23 @@ def test_a_posture_or_turn_change_names_the_point_and_line(zk500: Path, capsys,
 
 
 def test_a_tp_turn_number_change_is_caught(zk500: Path, capsys) -> None:
+    """A weld point's J6 turn number changed: named with its /MN line (the pendant's)."""
     ls = _file(zk500, ".ls")
     text = ls.read_text()
-    m = re.search(r"P\[30\]\{\s*GP1:[^}]*CONFIG : '([NF] [UD] [TB]), (-?\d+), (-?\d+), (-?\d+)'",
-                  text)
+    weld = text.index("phase: weld")
+    mv = re.compile(r"^\s*(\d+):L P\[(\d+)\] ", re.M)
+    first = mv.search(text, weld)
+    assert first is not None
+    mn_line, k = mv.search(text, first.end()).groups()  # the second weld move
+    m = re.search(rf"P\[{k}\]\{{\s*GP1:[^}}]*CONFIG : '([NF] [UD] [TB]), (-?\d+), (-?\d+), "
+                  r"(-?\d+)'", text)
     assert m is not None
     turn = int(m.group(4))
     ls.write_text(text[:m.start(4)] + str(turn + (1 if turn <= 0 else -1)) + text[m.end(4):])
     code, out = _check(capsys, ls)
     assert code == 3, out
-    assert out.startswith(f"{ls.name}: P[30] (weld") and "posture" in out, out
-    n = _line_of(ls, r":L P\[30\] ")
-    assert f"line {n}" in out
+    assert out.startswith(f"{ls.name}: P[{k}] (weld") and "posture" in out, out
+    assert f"line {mn_line})" in out, out
 
 
 def test_a_program_of_another_plan_is_refused_by_its_plan_id(zk500: Path, capsys) -> None:
@@ -211,3 +216,93 @@ def test_an_added_motion_fails_with_its_point_and_line(zk500: Path, capsys) -> N
     assert code == 3, out
     n = _line_of(src, r"^\s*LIN XP900\b")
     assert out.startswith(f"{src.name}: XP900 (weld") and f"line {n}" in out, out
+
+
+# --------------------------------------------------------------------------------------------
+# Issue 39: the base is the plate, hooks by the pin, edits listed, TP lines as the pendant's
+
+
+def _set_base(src: Path, **change: float) -> None:
+    text = src.read_text()
+    m = re.search(r"^(\s*\$BASE = )\{([^}]*)\}", text, re.M)
+    assert m is not None
+    vals = dict(item.split() for item in m.group(2).split(","))
+    for k, dv in change.items():
+        vals[k] = f"{float(vals[k]) + dv:.6f}"
+    body = ",".join(f"{k} {v}" for k, v in vals.items())
+    src.write_text(text[:m.start(2)] + body + text[m.end(2):])
+
+
+def test_a_base_shifted_down_by_the_pin_depth_fails_with_depth_first(zk500: Path,
+                                                                     capsys) -> None:
+    """The old base sat at pin depth: a base 4.8 mm lower is what the programmer got by
+    teaching the plate. Now the base is the plate, and a base 4.8 mm too low fails, the
+    depth named first (was: "XP2 timing")."""
+    src = _file(zk500, ".src")
+    _set_base(src, Z=-4.8)
+    code, out = _check(capsys, src)
+    first = out.splitlines()[0]
+    assert code == 3 and ": depth " in first and "timing" not in first, out
+
+
+def test_a_base_retaught_on_the_surface_holds(zk500: Path, capsys) -> None:
+    """The 3-point method on the plate gives back the exported base (up to the pendant's
+    rounding, here 0.001 mm and 0.0001 deg): it holds as it is."""
+    src = _file(zk500, ".src")
+    _set_base(src, X=0.001, Y=-0.001, Z=0.001, A=0.0001)
+    code, out = _check(capsys, src)
+    assert code == 0 and "holds" in out, out
+
+
+def test_a_spindle_stop_two_motions_earlier_fails(zk500: Path, capsys) -> None:
+    """The spindle-stop hook moved up past two retract moves: the pin is not yet clear of the
+    surface by the spindle clearance there, so check fails on the hook."""
+    src = _file(zk500, ".src")
+    lines = src.read_text().splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.strip() == "; hook spindle_stop")
+    j = i + 1
+    while j < len(lines) and lines[j].strip().startswith(";") and "hook " not in lines[j] \
+            and "phase:" not in lines[j]:
+        j += 1
+    block = lines[i:j]
+    del lines[i:j]
+    moves = [k for k, ln in enumerate(lines[:i]) if re.match(r"^\s*LIN ", ln)]
+    lines[moves[-2]:moves[-2]] = block
+    src.write_text("\n".join(lines) + "\n")
+    code, out = _check(capsys, src)
+    assert code == 3 and "hook: the spindle stops with the pin tip" in out.splitlines()[0], out
+
+
+def test_deleted_weld_points_hold_and_are_listed(zk500: Path, capsys) -> None:
+    """Five weld points of a straight stretch deleted: the path is the same line, so it holds,
+    and --json lists the edit under "edited"."""
+    import json
+
+    src = _file(zk500, ".src")
+    lines = src.read_text().splitlines()
+    weld = next(k for k, ln in enumerate(lines) if "phase: weld" in ln)
+    moves = [k for k, ln in enumerate(lines) if k > weld and re.match(r"^\s*LIN ", ln)]
+    gone = set(moves[25:30])
+    src.write_text("\n".join(ln for k, ln in enumerate(lines) if k not in gone) + "\n")
+    capsys.readouterr()
+    assert main(["check", str(src), "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    assert rec["holds"] and any("5 points deleted" in e for e in rec["edited"]), rec["edited"]
+
+
+def test_tp_lines_are_the_pendants(zk500: Path, capsys) -> None:
+    """A TP point moved 2 mm is reported at its /MN line number (what the pendant shows), not
+    the file's line."""
+    ls = _file(zk500, ".ls")
+    text = ls.read_text()
+    mn = text.split("/MN", 1)[1]
+    m = re.search(r"^\s*(\d+):L P\[(\d+)\]", mn.split("phase: weld", 1)[1], re.M)
+    assert m is not None
+    k = int(m.group(2))
+    moved = re.sub(rf"(P\[{k}\]\{{[^}}]*?Y =\s*)(-?[\d.]+)",
+                   lambda x: x.group(1) + f"{float(x.group(2)) + 2.0:.4f}", text, flags=re.S)
+    ls.write_text(moved)
+    file_line = _line_of(ls, rf"^\s*{m.group(1)}:L P\[{k}\]")
+    assert file_line != int(m.group(1))
+    code, out = _check(capsys, ls)
+    assert code == 3 and f"P[{k}]" in out and f"line {m.group(1)})" in out, out

@@ -165,7 +165,8 @@ _CART_P = re.compile(r"P\[\d+(?::[^\]]*)?\]\{\s*GP1:\s*UF : \d+, UT : \d+,\s*CON
                      + r",\s*".join(rf"{k} =\s*{_NUM}  ?{u}" for k, u in
                                     (("X", "mm"), ("Y", "mm"), ("Z", "mm"), ("W", "deg"),
                                      ("P", "deg"), ("R", "deg"))) + r"\s*\};")
-_MN_LINE = re.compile(r"^\s*(\d+):(?:[JL] P\[\d+\] (?:\d+%|\d+mm/sec|\d+msec|\d*\.\d+sec) "
+_MN_LINE = re.compile(r"^\s*(\d+):(?:[JL] P\[\d+\] "
+                      r"(?:\d+%|(?:\d+|R\[\d+\])mm/sec|\d+msec|\d*\.\d+sec) "
                       r"(?:FINE|CNT\d+|CR\d+)|  .*) ;$")
 
 
@@ -243,6 +244,7 @@ def test_programs_follow_the_sourced_syntax_facts(plan_with_programs, problem) -
     lo, hi = (int(x) for x in facts[("FANUC", "cr_range_mm")].split())
     cr_line = facts[("FANUC", "cr_listing")]
     listing = re.compile(r"^([JL]) P\[\d+\] (\S+?)(mm/sec|msec|%) (FINE|CR(\d+)|CNT\d+) ;$")
+    # a speed register (R[n]mm/sec) is the public listing form too (R[171:L_SPEED]mm/sec)
     assert listing.match(re.sub(r"PR\[1:foo\]", "P[1]", cr_line))  # the public listing form
     terms = []
     for line in tp.splitlines():

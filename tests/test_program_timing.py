@@ -90,12 +90,12 @@ def read_krl(src: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndar
 def read_tp(ls: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarray]]:
     """Events and points [mm] of a .ls (called programs followed)."""
     text = ls.read_text()
-    fr = {}
-    for what in ("X", "W"):
-        m = re.search(rf"! UFRAME\[\d+\] {what} ({_N}) \w ({_N}) \w ({_N}) ;", text)
+    uf = {}
+    for what in "XYZWPR":  # one remark per value, within the pendant's 32 characters
+        m = re.search(rf"! UFRAME\[\d+\] {what} ({_N}) ;", text)
         assert m is not None, "the UFRAME remarks"
-        fr[what] = [float(x) for x in m.groups()]
-    W = _frame(fr["X"], _zyx(fr["W"][2], fr["W"][1], fr["W"][0]))
+        uf[what] = float(m.group(1))
+    W = _frame([uf["X"], uf["Y"], uf["Z"]], _zyx(uf["R"], uf["P"], uf["W"]))
 
     def walk(path: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarray]]:
         t = path.read_text()
@@ -107,7 +107,12 @@ def read_tp(ls: Path) -> tuple[list[tuple[str, float, str]], dict[str, np.ndarra
             pts[m.group(1)] = (W @ _frame(u[:3], _zyx(u[5], u[4], u[3])))[:3, 3]
         out: list[tuple[str, float, str]] = []
         mn = t.split("/MN", 1)[1].split("/POS", 1)[0]
+        regs: dict[str, str] = {}
         for line in mn.splitlines():
+            if (r := re.match(rf"^\s*\d+:\s*R\[(\d+)\]=({_N})\s*;", line)) is not None:
+                regs[r.group(1)] = r.group(2)
+                continue
+            line = re.sub(r"R\[(\d+)\]mm/sec", lambda r: f"{regs[r.group(1)]}mm/sec", line)
             if (m := re.match(rf"^\s*\d+:([JL]) P\[(\d+)\] ({_N})(mm/sec|msec|sec|%) ", line)):
                 val = float(m.group(3))
                 kind = {"mm/sec": "lin_v", "msec": "lin_t", "sec": "lin_t", "%": "ptp"}[m.group(4)]

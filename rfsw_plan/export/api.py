@@ -104,6 +104,14 @@ def plan_spacing(record: Mapping[str, Any]) -> float:
 
 
 def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None, str]:
+    """The plate's surface normal at the first weld sample and why it is not known
+    (:func:`plate_surface`)."""
+    normal, _, _, why = plate_surface(problem_file, samples)
+    return normal, why
+
+
+def plate_surface(problem_file: str, samples: Samples
+                  ) -> tuple[np.ndarray | None, float, str, str]:
     """The plate's surface normal at the first weld sample (base frame, (3,)), from the plan's
     problem: the seam's *declared* surface normal there (``surface_normal``, interpolated
     along the seam as :class:`~rfsw_plan.process.seam.Seam` does), not made normal to the
@@ -111,24 +119,30 @@ def plate_normal(problem_file: str, samples: Samples) -> tuple[np.ndarray | None
     work object's z 0.454 deg off the plate). The work object's x is then the seam direction
     projected onto the plate (:func:`~rfsw_plan.export.program.plate_frame`). None, with the
     reason, when the problem cannot be read or its seam is not the one the samples follow
-    (> 0.01 mm apart)."""
+    (> 0.01 mm apart).
+
+    Returns:
+        (normal, plunge depth [m] (0 when unknown), the seam reference (``taught`` or
+        ``absolute``), the reason the normal is unknown or "").
+    """
     from rfsw_plan.exceptions import RfswError
     from rfsw_plan.process.problem import load_problem
 
     if not problem_file:
-        return None, "the plan names no problem file"
+        return None, 0.0, "taught", "the plan names no problem file"
     try:
-        seam = load_problem(problem_file).seam
+        problem = load_problem(problem_file)
     except (RfswError, OSError) as exc:
-        return None, f"problem {problem_file} not readable ({exc})"
+        return None, 0.0, "taught", f"problem {problem_file} not readable ({exc})"
+    seam, depth, ref = problem.seam, problem.process.plunge_depth, problem.seam_reference
     weld = np.flatnonzero(np.isin(samples.phase, ("accelerate", "weld", "decelerate")))
     if weld.size == 0:
-        return None, "no weld samples"
+        return None, depth, ref, "no weld samples"
     fr = seam.frames_at(np.array([samples.s[weld[0]]]))
     if np.linalg.norm(fr.p[0] - samples.seam[weld[0]]) > 1e-5:
-        return None, f"problem {Path(problem_file).name} has another seam than the plan"
+        return None, 0.0, ref, f"problem {Path(problem_file).name} has another seam than the plan"
     ns = seam.surface_normal_at(np.array([samples.s[weld[0]]]))[0]
-    return np.asarray(ns / np.linalg.norm(ns)), ""
+    return np.asarray(ns / np.linalg.norm(ns)), depth, ref, ""
 
 
 def export_programs(
@@ -136,6 +150,7 @@ def export_programs(
     plan_sha256: str, spacing: float | None = None, path_tol: float = 1e-5,
     check: SampleCheck | None = None, stream: Samples | None = None, cycle: float = 0.0,
     options: ProgramOptions | None = None, normal: np.ndarray | None = None,
+    depth: float | None = None, reference: str | None = None,
 ) -> ExportResult:
     """Write the programs of a plan (see the module docstring).
 
@@ -154,12 +169,28 @@ def export_programs(
         cycle: The stream's cycle [s] (with ``stream``).
         options: Tool/base numbers and hooks.
         normal: The plate's surface normal, base frame, (3,) (None: see :func:`build_program`).
+        depth: The pin's plunge depth [m] (the work object's origin is this far above the
+            seam, on the plate surface), and ``reference`` the seam reference of the
+            predicted pin's deflection; None: from the record's problem file
+            (:func:`plate_surface`).
     """
     problem = str(record.get("problem", "plan"))
     spacing = plan_spacing(record) if spacing is None else spacing
     if not spacing > 0:
         raise InputError("--export-spacing-mm", "", f"got {spacing * 1e3:g}", "> 0")
     robot_file, robot_sha256 = _robot_file(robot)
+    if depth is None or reference is None:
+        n2, d2, r2, _ = plate_surface(str(record.get("problem_file") or ""), samples)
+        normal = n2 if normal is None else normal
+        depth = d2 if depth is None else depth
+        reference = r2 if reference is None else reference
+    model = ElastostaticModel(robot)
+    ref: Any = reference
+    deflection = np.asarray(model.process_deflection(samples.q, samples.wrench, ref))
+    pin = robot.batch_fk_jacobian(samples.q)[0][:, :3, 3] + deflection[:, :3]
+    envelope = record.get("envelope") or {}
+    set_force = _number(envelope.get("set_force_N")) \
+        if envelope.get("axial_control") == "force" else 0.0
     header = ProgramHeader(
         name=f"rfsw_{problem}", plan_id=f"{problem}-{plan_sha256[:12]}",
         problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
@@ -167,11 +198,14 @@ def export_programs(
         tolerated_uncertainty=tolerated_from_record(dict(record)),
         requested_uncertainty=_number(record.get("force_uncertainty_requested",
                                                  record.get("force_uncertainty", 0.0))),
-        window_mm=_window(record), path_tol=path_tol, spacing=spacing)
+        window_mm=_window(record), path_tol=path_tol, spacing=spacing, set_force=set_force,
+        notes=() if depth > 0 else ("PLUNGE DEPTH UNKNOWN (problem file not readable): the "
+                                    "base origin is on the seam point, not on the plate "
+                                    "surface",))
     with Stages("export", ("points", *fmts)) as stages:
         program = build_program(robot, samples, header, path_tol, normal=normal,
-                                payload=ElastostaticModel(robot).tool_payload(), options=options,
-                                stream=stream, cycle=cycle)
+                                payload=model.tool_payload(), options=options,
+                                stream=stream, cycle=cycle, depth=depth, pin=pin)
         deviation = 0.0
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
             dev = get_format(name).path_deviation(program)
@@ -267,7 +301,7 @@ def export_plan_folder(
 
     folder = Path(folder)
     plan, robot = PlanFolder.open_with_robot(folder)
-    normal, why = plate_normal(plan.problem_file, plan.samples)
+    normal, depth, reference, why = plate_surface(plan.problem_file, plan.samples)
     target = folder if out is None else Path(out)
     inside = target.resolve() == folder.resolve()
     record = plan.record
@@ -279,7 +313,8 @@ def export_plan_folder(
         plan.write_record(record)
     res = export_programs(robot, plan.samples, plan.record, fmts, target,
                           plan_sha256=plan.waypoints_sha256, spacing=spacing,
-                          path_tol=path_tol, options=options, normal=normal)
+                          path_tol=path_tol, options=options, normal=normal, depth=depth,
+                          reference=reference)
     if why:
         res = replace(res, notes=(*res.notes, f"plate normal not known: {why}"))
     summary = {"status": "exported", "plan": str(folder), **res.to_dict()}

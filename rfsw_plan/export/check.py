@@ -12,7 +12,8 @@ forces, the joint limits) on the path the controller will run:
   not refused for differing from the bytes ``plan.json`` vouches for: the result says it was
   edited and re-verifies it.
 * **Points to samples.** Each program point is matched, in order, to the plan sample at its
-  position (samples within 0.2 um of the nearest, the pin at rest, are told apart by the
+  position (samples within 3 um of the nearest, the pin at rest or a base re-taught to the
+  pendant's precision, are told apart by the
   program's own clock). Deleted or added motions need no special case: the remaining points
   are matched where they are.
 * **Path.** Between two program points the controller runs the straight line (LIN, L,
@@ -67,10 +68,19 @@ TIMING_TOL = 0.02
 #: Largest difference of a point's joint value from its plan sample's [rad] (a turn or branch
 #: change is 2 pi or a large angle; an edit of millimetres moves the joints by far less).
 POSTURE_TOL = math.radians(5.0)
-#: Program points are told apart from plan samples at the same place below this [m].
-TIE = 2e-7
+#: Program points are told apart from plan samples at the same place below this [m] (the pin
+#: at rest; a base re-taught to the pendant's precision moves every point by about 1 um).
+TIE = 3e-6
 #: Newton steps of the batched inverse kinematics from the planned joints.
 NEWTON_STEPS = 4
+#: A point moved farther than this from its plan sample is listed as an edit [m] (the round
+#: trip's tolerance).
+EDIT_TOL = 1e-5
+#: The order in which failures are named: the physical quantities of the weld first, then
+#: the hooks, the postures, the timing and any other check.
+ORDER = ("depth", "lateral", "clearance", "tilt", "speed", "hook", "posture", "timing")
+#: A hook's rule holds within this [m] (a few plan samples at the plunge speed).
+HOOK_TOL = 1e-4
 
 
 @dataclass(frozen=True)
@@ -98,6 +108,11 @@ class CheckResult:
         failures: Every failure, one line each.
         edited: The program's files that differ from the bytes ``plan.json`` vouches for.
         detail: The failure's text when it is not a window or a bound.
+        edits: Every edit found against the plan, one line each: a point moved by more than
+            :data:`EDIT_TOL` (name, line, mm), points deleted or added against the export
+            (the count ``plan.json`` recorded), listed even when the program holds.
+        quantity: The physical quantity of the first failure (``depth``, ``lateral``,
+            ``clearance``, ``tilt``, ``speed``, ``hook``), or the check's name.
     """
 
     program: Path
@@ -119,11 +134,16 @@ class CheckResult:
     failures: tuple[str, ...] = ()
     edited: tuple[str, ...] = ()
     detail: str = ""
+    edits: tuple[str, ...] = ()
+    quantity: str = ""
 
     def line(self) -> str:
         """One line for the terminal."""
         edited = (f"; edited against the export: {', '.join(self.edited)}"
                   if self.edited else "")
+        if self.edits:
+            edited += f"; edits: {'; '.join(self.edits[:3])}" + (
+                f" (+{len(self.edits) - 3} more)" if len(self.edits) > 3 else "")
         if self.holds:
             return (f"{self.program.name}: holds ({self.n_points} points, {self.n_samples} "
                     f"samples; smallest window margin {self.min_margin * 1e3:.3f} mm; largest "
@@ -153,7 +173,10 @@ class CheckResult:
                 "window_mm": [w * 1e3 for w in self.window], "failure": self.failure,
                 "min_margin_mm": self.min_margin * 1e3, "line_no": self.line_no,
                 "file": self.file, "failures": list(self.failures),
-                "edited": list(self.edited), "line": self.line()}
+                "edited": [*(f"{f}: changed since the export" for f in self.edited),
+                           *self.edits],
+                "edited_files": list(self.edited), "quantity": self.quantity,
+                "line": self.line()}
 
 
 @dataclass(frozen=True)
@@ -218,22 +241,25 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
     lines = _motion_lines(read.files, run.names)
     res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
                       window=(window.lower, window.upper), min_margin=ver.min_margin,
-                      edited=edited)
-    texts: list[tuple[int, str, str, int, Any]] = []  # (point, check, text, sample, failure)
-    for f in run.findings:
-        texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None))
+                      edited=edited, edits=_edits(run, lines, plan.record, fmt.name))
+    # (point, check, text, sample, failure, quantity)
+    texts: list[tuple[int, str, str, int, Any, str]] = []
+    for f in [*run.findings, *_hook_findings(read.files, run, model, plan)]:
+        texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None,
+                      "hook" if f.check.startswith("hook") else f.check))
     for f in _reported(ver):
         k = _named_point(f.index, run.idx, ver.e_lat, window, run.edits) \
             if f.check == "window" else _nearest_point(f.index, run.idx)
         texts.append((k, f.check, f"{f.check} {f.value:.3f} {f.unit} beyond {f.bound:.3f} "
-                      f"{f.unit}", f.index, f))
+                      f"{f.unit}", f.index, f, f.quantity))
     if not texts:
         return res
-    texts.sort(key=lambda x: (x[3], x[0]))
-    k, check, text, sample, f = texts[0]
+    # the weld's physical quantities first (depth, lateral, clearance...), then by sample
+    texts.sort(key=lambda x: (ORDER.index(x[5]) if x[5] in ORDER else len(ORDER), x[3], x[0]))
+    k, check, text, sample, f, quantity = texts[0]
     file, line_no = lines.get(run.names[k], ("", 0))
     every = tuple(f"{run.names[p]} ({lines.get(run.names[p], ('', 0))[0]}:"
-                  f"{lines.get(run.names[p], ('', 0))[1]}): {t}" for p, _, t, _, _ in texts)
+                  f"{lines.get(run.names[p], ('', 0))[1]}): {t}" for p, _, t, _, _, _ in texts)
     if check == "window":  # the worst sample beside the named point (a tent, a chord)
         lo_i, hi_i = int(run.idx[max(k - 1, 0)]), int(run.idx[min(k + 1, len(run.idx) - 1)])
         span = ver.e_lat[lo_i:hi_i + 1]
@@ -244,7 +270,7 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
     return replace(res, holds=False, point=run.names[k], phase=str(run.samples.phase[run.idx[k]]),
                    s=float(run.samples.s[run.idx[k]]), lateral_error=e, failure=check,
                    value=(f.value, f.bound, f.unit) if f is not None else (0.0, 0.0, ""),
-                   line_no=line_no, file=file, failures=every,
+                   line_no=line_no, file=file, failures=every, quantity=quantity,
                    detail="" if f is not None else text)
 
 
@@ -278,7 +304,8 @@ def _stated_plan_id(path: Path) -> str | None:
 
 
 def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[str, int]]:
-    """Point name -> (file name, 1-based line) of the motion that moves to it."""
+    """Point name -> (file name, 1-based line) of the motion that moves to it (a TP line as
+    the pendant numbers it: the ``/MN`` line number, not the file's)."""
     import re
 
     want = set(names)
@@ -292,12 +319,98 @@ def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[
             m = move.match(line)
             if m is None:
                 continue
+            if (tp := re.match(r"^\s*(\d+):", line)) is not None:
+                n = int(tp.group(1))  # a TP line as the pendant numbers it (/MN)
             name = m.group(1)
             if name.upper() in {x.upper() for x in want} and name not in out:
                 key = next(x for x in want if x.upper() == name.upper())
                 out.setdefault(key, (f.name, n))
             elif line.strip().startswith("MoveAbsJ"):
                 out.setdefault("jStart", (f.name, n))
+    return out
+
+
+def _edits(run: ControllerRun, lines: dict[str, tuple[str, int]], record: Any,
+           fmt: str) -> tuple[str, ...]:
+    """Every edit against the plan, one line each: points moved by more than
+    :data:`EDIT_TOL` (the first 20 named) and the points deleted or added against the count
+    the export recorded in ``plan.json``."""
+    out = []
+    moved = [k for k in range(len(run.names)) if run.edits[k] > EDIT_TOL]
+    for k in moved[:20]:
+        f, n = lines.get(run.names[k], ("", 0))
+        out.append(f"{run.names[k]} ({f}:{n}) moved {run.edits[k] * 1e3:.3f} mm")
+    if len(moved) > 20:
+        out.append(f"+{len(moved) - 20} more points moved")
+    exp = record.get("export") if hasattr(record, "get") else None
+    wrote = (exp.get("points_per_format") or {}).get(fmt) if isinstance(exp, dict) else None
+    if isinstance(wrote, int) and wrote != len(run.names):
+        d = wrote - len(run.names)
+        out.append(f"{abs(d)} point{'s' if abs(d) > 1 else ''} "
+                   f"{'deleted' if d > 0 else 'added'} ({len(run.names)} of the {wrote} "
+                   "exported)")
+    return tuple(out)
+
+
+def _hook_positions(files: tuple[Path, ...]) -> dict[str, int]:
+    """Hook name -> index of the program point moved to before it (the writers mark every
+    hook with a ``hook <name>`` comment line), in the order the reader follows the files."""
+    import re
+
+    move = re.compile(r"^\s*(?:\d+:)?\s*(?:LIN|PTP|CIRC|[JLC]\s|Move\w*)\s*(\w+(?:\[\d+\])?)")
+    mark = re.compile(r"^\s*(?:\d+:)?\s*[;!]\s*hook (\w+)\s*;?\s*$")
+    out: dict[str, int] = {}
+    k = -1
+    for f in files:
+        if f.suffix.lower() == ".dat":
+            continue
+        for line in f.read_text(encoding="utf-8", errors="replace").splitlines():
+            if move.match(line):
+                k += 1
+            elif (m := mark.match(line)) is not None and k >= 0:
+                out.setdefault(m.group(1), k)
+    return out
+
+
+def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
+                   plan: Any) -> list[_Finding]:
+    """Hooks the program places where the predicted pin (the controller's run, deflected by
+    the process wrench) breaks their rule: the spindle starts with the tip above the
+    surface and stops with it clear by the spindle clearance; force control goes on at or
+    below the surface and off with the pin still in
+    (:func:`rfsw_plan.export.program.pin_heights`)."""
+    from rfsw_plan.export.api import plate_surface
+    from rfsw_plan.export.program import pin_heights, spindle_clearance
+
+    pos = _hook_positions(files)
+    normal, depth, ref, _ = plate_surface(plan.problem_file, plan.samples)
+    if not pos or normal is None:
+        return []
+
+    def heights(samples: Samples) -> FloatArray:
+        pin = (model.robot.batch_fk_jacobian(samples.q)[0][:, :3, 3]
+               + model.process_deflection(samples.q, samples.wrench, ref)[:, :3])
+        return pin_heights(samples, pin, normal, depth)
+
+    h_run = heights(run.samples)
+    clear = spindle_clearance(plan.samples, heights(plan.samples))
+    rules = {"spindle_start": (lambda h: h > 0.0, "the spindle starts with the pin tip "
+                               "{h} from the surface (it must be above it)"),
+             "spindle_stop": (lambda h: h >= clear - HOOK_TOL, "the spindle stops with the "
+                              "pin tip {h} from the surface (it must be clear by the spindle "
+                              f"clearance, {clear * 1e3:.2f} mm)"),
+             "force_on": (lambda h: h <= HOOK_TOL, "force control goes on with the pin tip "
+                          "{h} from the surface (on at contact)"),
+             "force_off": (lambda h: h < 0.0, "force control goes off with the pin tip {h} "
+                           "from the surface (off before the pin leaves)")}
+    out = []
+    for hook, k in sorted(pos.items(), key=lambda kv: kv[1]):
+        if hook in rules and k < len(run.idx):
+            h = float(h_run[run.idx[k]])
+            ok, text = rules[hook]
+            if not ok(h):
+                out.append(_Finding(k, f"hook_{hook}", "hook: " + text.format(
+                    h=f"{h * 1e3:+.2f} mm")))
     return out
 
 

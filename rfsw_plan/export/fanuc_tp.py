@@ -34,9 +34,11 @@ R-30iA post-processor writes): the sections ``/PROG name``, ``/ATTR`` (``OWNER``
   FALSE``: Corner Distance and Corner Region exclude each other). Without the option,
   replace every ``CRn`` by ``FINE``. The bound (:func:`corner_regions`, checked at export by
   :meth:`FanucTpFormat.path_deviation`) is the vendor-neutral blend model with that distance.
-* ``L P[n] v mm/sec`` when the speed is a whole mm/s, else the motion time ``t msec`` (whole
-  milliseconds: ``sec`` takes two decimals, too coarse for short plunge segments);
-  ``WAIT t(sec)``; remarks ``! text``.
+* ``L P[n] v mm/sec`` when the speed is a whole mm/s, else ``R[n]=v`` and ``L P[k]
+  R[n]mm/sec`` (the speed register ``n``: :attr:`ProgramOptions.speed_register`), never a
+  motion time (the controller stretches a timed move it cannot run); ``WAIT t(sec)``;
+  remarks ``! text`` within :data:`REMARK_LEN` characters, plain ASCII (:func:`remarks`).
+  ``FINE`` only at the phase ends: a corner inside a phase that no region fits is ``CR0``.
 
 W, P, R (R = Rz(R) Ry(P) Rx(W), deg) are unwrapped along the program: each angle is moved by
 whole turns to be within 180 deg of the previous point's.
@@ -64,7 +66,7 @@ from rfsw_plan.export.config import fanuc_config
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import unwrap_angles
 from rfsw_plan.export.program import (
-    WELD_PHASES,
+    BLEND_GROUPS,
     Program,
     Samples,
     controller_name,
@@ -72,6 +74,7 @@ from rfsw_plan.export.program import (
     path_deviation,
     payload_assumed,
     sample_poses,
+    speed_note,
 )
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
@@ -95,8 +98,8 @@ DEFAULT_HOOKS = {
     "home_end": ("HOME: back to the cell's home,", " e.g. J PR[1:HOME] 10% FINE"),
     "spindle_start": ("SPINDLE START: spindle on and wait at speed,",
                       " e.g. DO[1]=ON and WAIT DI[1]=ON"),
-    "force_on": ("FORCE CONTROL ON here if used",),
-    "force_off": ("FORCE CONTROL OFF here if used",),
+    "force_on": ("FORCE CONTROL: none (the plan is verified in position control)",),
+    "force_off": ("FORCE CONTROL: none (position control)",),
     "spindle_stop": ("SPINDLE STOP: the pin has left the material,", " e.g. DO[1]=OFF"),
 }
 
@@ -128,13 +131,43 @@ def tp_name(name: str) -> str:
     return controller_name(name, max_len=36, prefix="P", upper=True)
 
 
-def _speed(speed: float, duration: float) -> str:
-    """``v mm/sec`` when the speed is a whole mm/s (within 0.1 %), else the motion time in
-    whole milliseconds (``t msec``; the controller rounds it to its 8 ms interpolation period)."""
+#: Longest remark text (after ``!``) [characters]: the pendant's limit for a comment line.
+REMARK_LEN = 32
+
+
+def remarks(text: str) -> list[str]:
+    """``text`` as remark lines (``! ...``) in plain ASCII, each within :data:`REMARK_LEN`
+    characters (cut at spaces where possible; nothing is lost)."""
+    import unicodedata
+
+    text = text.replace("\u00a7", "sec. ")
+    text = unicodedata.normalize("NFKD", text).encode("ascii", "ignore").decode("ascii")
+    text = " ".join(text.replace(";", ",").split())
+    out = []
+    while len(text) > REMARK_LEN:
+        cut = text.rfind(" ", 8, REMARK_LEN + 1)
+        cut = REMARK_LEN if cut < 0 else cut
+        out.append("! " + text[:cut].rstrip())
+        text = text[cut:].lstrip()
+    return [*out, "! " + text] if text or not out else out
+
+
+def _speed(speed: float, duration: float, register: int) -> tuple[list[str], str]:
+    """The speed of a linear move: ``v mm/sec`` when it is a whole mm/s (within 0.1 %; the
+    pendant takes 1 to 2000 mm/sec in whole numbers), else ``R[n]mm/sec`` after ``R[n]=v``
+    (a numeric register holds a real; the speed register ``n`` is an export option). Never a
+    motion time (``msec``): the controller stretches a timed move it cannot run, so the
+    verified timing would not hold and the pendant would hide the real speed.
+
+    Returns:
+        (lines before the move, the speed text).
+    """
     v = speed * 1e3
     if v >= 1.0 and abs(v - round(v)) <= 1e-3 * v and round(v) <= 2000:
-        return f"{round(v)}mm/sec"
-    return f"{max(round(duration * 1e3), 1)}msec"
+        return [], f"{round(v)}mm/sec"
+    if v <= 0:  # a move that takes no time (never written: such a segment is a wait)
+        return [], f"{max(round(duration * 1e3), 1)}msec"
+    return [f"R[{register}]={number(v, 6)}"], f"R[{register}]mm/sec"
 
 
 class FanucTpFormat(ControllerFormat):
@@ -191,8 +224,10 @@ def tp_program(program: Program) -> Program:
         new: set[int] = set()
         for m in prog.motions:
             c = m.point
-            if (m.kind == "lin" and m.blend > 0 and m.phase in WELD_PHASES and c not in cr
-                    and 0 < c < len(idx) - 1):
+            if (m.kind == "lin" and m.phase in BLEND_GROUPS and cr.get(c, 0) == 0
+                    and 0 < c < len(idx) - 1
+                    and BLEND_GROUPS.get(str(prog.samples.phase[c + 1]))
+                    == BLEND_GROUPS[m.phase]):
                 for a, b in ((idx[c - 1], idx[c]), (idx[c], idx[c + 1])):
                     if b - a >= 2:
                         new.add(int((a + b) // 2))
@@ -221,9 +256,10 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
     plunge, the dwell or the weld) gets the largest whole y (1 mm at least, 1000 at most)
     whose ``d`` keeps the samples within the path tolerance:
     ``d <= 2 (tol - dev) / sin(theta)``, dev the two chords' own largest sample distance; a
-    point where even ``min(1 mm, max(L0, L1) / 2)`` does not is ``FINE``, and so is, one
-    by one, the larger of two regions whose bounds add up beyond the tolerance on the segment
-    between them.
+    point inside a phase where even ``min(1 mm, max(L0, L1) / 2)`` does not is ``CR0`` (the
+    corner region 0 mm: the corner path starts and ends at the point, no rounding),
+    and so is, one by one, the larger of two regions whose bounds add up beyond the
+    tolerance on the segment between them. ``FINE`` is left for the phase ends.
     """
     tol = program.header.path_tol
     pts = program.poses[:, :3, 3]
@@ -231,9 +267,14 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
     P = sample_poses(program)
     cr: dict[int, int] = {}
     blends: dict[int, float] = {}
+    phase = program.samples.phase
     for m in program.motions:
         c = m.point
-        if m.kind != "lin" or m.blend <= 0 or not 0 < c < len(pts) - 1:
+        if (m.kind != "lin" or not 0 < c < len(pts) - 1 or m.phase not in BLEND_GROUPS
+                or BLEND_GROUPS.get(str(phase[c + 1])) != BLEND_GROUPS[m.phase]):
+            continue
+        cr[c] = 0  # inside a phase: CR0 unless a rounding fits (below)
+        if m.blend <= 0:
             continue
         a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
         la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
@@ -254,7 +295,8 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
         k = np.clip(np.searchsorted(idx, over), 1, len(idx) - 1)
         near = {int(c) for c in np.concatenate([k - 1, k]) if int(c) in blends}
         c = max(near or blends, key=lambda c: blends[c])
-        del cr[c], blends[c]
+        cr[c] = 0
+        del blends[c]
 
 
 def _chord(P: FloatArray, i: int, j: int) -> FloatArray:
@@ -267,15 +309,15 @@ def _chord(P: FloatArray, i: int, j: int) -> FloatArray:
 
 
 def _frame_remarks(program: Program) -> list[str]:
-    """The frame values to enter on the controller, two remark lines per frame (read back by
-    :func:`read_tp` when the program does not write the frames)."""
+    """The frame values to enter on the controller, one remark line per value, each within
+    :data:`REMARK_LEN` (read back by :func:`read_tp` when the program does not write the
+    frames)."""
     o = program.options
     out = []
     for what, n, T in (("UFRAME", o.base_number, program.work),
                        ("UTOOL", o.tool_number, program.tool)):
         v = frame_to_xyzwpr(T)
-        out += [f"! {what}[{n}] X {number(v[0], 4)} Y {number(v[1], 4)} Z {number(v[2], 4)}",
-                f"! {what}[{n}] W {number(v[3], 4)} P {number(v[4], 4)} R {number(v[5], 4)}"]
+        out += [f"! {what}[{n}] {k} {number(x, 4)}" for k, x in zip("XYZWPR", v, strict=True)]
     return out
 
 
@@ -311,8 +353,9 @@ def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
                 "the values of the UFRAME/UTOOL remarks below there and select the payload "
                 "schedule before running")
         teach = "enter it in the UFRAME remarks"
-    out = [*program.maker_note("FANUC"), data, "SET ON THE CONTROLLER: the spindle I/O in "
-           "the hook remarks"]
+    out = [*program.maker_note("FANUC"), data, *program.hook_notes("fanuc_tp"),
+           f"SPEED REGISTER R[{o.speed_register}]: set before each move whose speed is not a "
+           "whole mm/sec (export option speed_register)"]
     pl = program.payload
     if pl is not None:
         com = (np.linalg.inv(program.robot.description.convention.flange)
@@ -328,34 +371,65 @@ def _header_extra(program: Program, cr: dict[int, int]) -> list[str]:
     out += ["UFRAME = the plate: origin on the first weld point, +X along the seam, +Y on "
             f"the plate. To use a frame taught on the plate (3-point), {teach} and run "
             "rfsw-plan check on this file",
-            f"Termination: CR (corner region, mm) at {n_cr} points inside the plunge, dwell "
-            "and weld, FINE at the phase ends; CRy keeps the corner path within y mm of "
+            f"Termination: CR (corner region, mm) at {n_cr} points inside the plunge, dwell, "
+            "weld and retract, FINE at the phase ends; CRy keeps the corner path within y mm of "
             "the point (half the segment at most): it needs the Advanced Constant Path "
             "option (without it replace CRn by FINE)"]
     return out
 
 
+def hook_lines(program: Program, hook: str) -> tuple[str, ...]:
+    """The default text of ``hook`` (remarks): for a force-controlled plan the force-control
+    hooks carry the set force and the ramp (no public FANUC source gives the TP instruction
+    of the Force Sensor option for a constant axial force along a path, so the hook says so)."""
+    f, ramp = program.force_ramp()
+    if f > 0 and hook == "force_on":
+        return (f"FORCE CONTROL ON at contact: axial set force {f:.0f} N along tool +Z, "
+                f"ramp 0 to {f:.0f} N over the plunge ({ramp:.2f} s), held through dwell "
+                "and weld. No public FANUC source gives the Force Sensor TP instruction: "
+                "write your cell's force schedule call here",)
+    if f > 0 and hook == "force_off":
+        return ("FORCE CONTROL OFF: the weld has ended, pin still in, retract follows. "
+                "Write your cell's force schedule end here",)
+    return DEFAULT_HOOKS[hook]
+
+
 def _mn(program: Program) -> tuple[list[str], list[str]]:
-    """The ``/MN`` lines: (header, frames and payload; the motions with their hooks)."""
+    """The ``/MN`` lines: (header, frames and payload; the motions with their hooks). Every
+    remark is ASCII and within :data:`REMARK_LEN` characters (:func:`remarks`)."""
     cr, _ = corner_regions(program)
-    head = program.header.comments("! ", max_len=60, extra=_header_extra(program, cr))
+    head = [r for line in program.header.comments("", extra=_header_extra(program, cr))
+            for r in remarks(line)]
     head += _frames(program)
     body: list[str] = []
     marks = program.phase_changes()
+    reg = program.options.speed_register
+    # the speed over the chord as written (/POS in 0.1 um), so a segment of a few um keeps the
+    # plan's time as the controller computes it (length / speed)
+    xyz = np.round(program.poses[:, :3, 3] * 1e3, 4)
+    last = 0
     for i, m in enumerate(program.motions):
         if i in marks:
             body.append(f"! ---- phase: {marks[i]}")
         p = f"P[{m.point + 1}]"
         if m.kind == "hook":
-            body += program.options.hooks.render(m.hook, "fanuc_tp", DEFAULT_HOOKS[m.hook], "",
-                                                 "!")
+            user = program.options.hooks.get(m.hook, "fanuc_tp")
+            body.append(f"! hook {m.hook}")  # rfsw-plan check finds the hook by it
+            body += list(user) if user is not None else \
+                [r for t in hook_lines(program, m.hook) for r in remarks(t)]
         elif m.kind == "joint":
             body.append(f"J {p} {J_PERCENT}% FINE")
         elif m.kind == "wait":
             body.append(f"WAIT {max(m.duration, 0.01):.2f}(sec)")
         else:
             term = f"CR{cr[m.point]}" if m.point in cr else "FINE"
-            body.append(f"L {p} {_speed(m.speed, m.duration)} {term}")
+            body += remarks(speed_note(m, short=True)) if m.pin_speed is not None else []
+            v = float(np.linalg.norm(xyz[m.point] - xyz[last])) * 1e-3 / m.duration \
+                if m.duration > 0 else m.speed
+            pre, speed = _speed(v, m.duration, reg)
+            body += [*pre, f"L {p} {speed} {term}"]
+        if m.kind in ("joint", "lin"):
+            last = m.point
     return head, body
 
 
@@ -459,12 +533,17 @@ _MOT = re.compile(r"^\s*\d+:([JL])\s+P\[(\d+)\]\s+(\S+)\s+(FINE|CNT\d+|CR\d+)\s*
 _WAIT = re.compile(rf"^\s*\d+:\s*WAIT\s+({_NUM})\(sec\)\s*;\s*$")
 _PR = re.compile(rf"^\s*\d+:\s*PR\[(\d+),(\d)\]=({_NUM})\s*;\s*$")
 _CALL = re.compile(r"^\s*\d+:\s*CALL\s+(\w+)\s*;\s*$")
+_REG = re.compile(rf"^\s*\d+:\s*R\[(\d+)\]=({_NUM})\s*;\s*$")
 _SET = re.compile(r"^\s*\d+:\s*(UFRAME|UTOOL)\[(\d+)\]=PR\[(\d+)\]\s*;\s*$")
 
 
-def _speed_of(text: str) -> tuple[float, float]:
-    """``3mm/sec`` -> (0.003 m/s, 0); ``1250msec`` or ``1.25sec`` -> (0, 1.25 s); ``10%`` ->
-    (0, 0)."""
+def _speed_of(text: str, regs: dict[int, float] | None = None) -> tuple[float, float]:
+    """``3mm/sec`` -> (0.003 m/s, 0); ``R[20]mm/sec`` -> the register's value (``regs``: the
+    values the program assigned so far); ``1250msec`` or ``1.25sec`` -> (0, 1.25 s); ``10%``
+    -> (0, 0)."""
+    r = re.match(r"^R\[(\d+)\]mm/sec$", text)
+    if r is not None:
+        return (regs or {}).get(int(r.group(1)), 0.0) * 1e-3, 0.0
     if text.endswith("mm/sec"):
         return float(text[:-6]) * 1e-3, 0.0
     if text.endswith("msec"):
@@ -505,8 +584,7 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
     return text, mn
 
 
-_REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XW])\s+({_NUM})\s+([YP])\s+"
-                     rf"({_NUM})\s+([ZR])\s+({_NUM})\s*;\s*$")
+_REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XYZWPR])\s+({_NUM})\s*;\s*$")
 
 
 def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
@@ -526,25 +604,29 @@ def _tp_frames(p: Path, mn: list[str]) -> dict[str, FloatArray]:
             frames[s.group(1)] = xyzwpr_to_frame(regs[int(s.group(3))])
         elif (m := _REMARK.match(line)) is not None:
             v = remarks.setdefault(m.group(1), np.full(6, np.nan))
-            off = 0 if m.group(3) == "X" else 3
-            v[off:off + 3] = [float(m.group(4)), float(m.group(6)), float(m.group(8))]
+            v["XYZWPR".index(m.group(3))] = float(m.group(4))
     for what, v in remarks.items():
         if what not in frames and np.all(np.isfinite(v)):
             frames[what] = xyzwpr_to_frame(v)
     if set(frames) != {"UFRAME", "UTOOL"}:
         raise InputError(p, "UFRAME/UTOOL", "not both stated",
-                         "the '! UFRAME[n] X .. Y .. Z ..' and 'W .. P .. R ..' remarks (or "
-                         "the frames set through PR[] with `cell_data`)")
+                         "the '! UFRAME[n] X ..' ... '! UFRAME[n] R ..' remarks (or the "
+                         "frames set through PR[] with `cell_data`)")
     return frames
 
 
-def _tp_motions(p: Path, text: str, mn: list[str], files: list[Path]) -> list[ReadPoint]:
+def _tp_motions(p: Path, text: str, mn: list[str], files: list[Path],
+                regs: dict[int, float] | None = None) -> list[ReadPoint]:
     """Every motion and wait of /MN with its /POS target, a called program's in its place
     (``files``: the files read so far; a program calling itself again is refused)."""
     cart = {int(m.group(1)): m.groups() for m in _POS.finditer(text)}
     joint = {int(m.group(1)): m.groups() for m in _JPOS.finditer(text)}
     motions: list[ReadPoint] = []
+    regs = {} if regs is None else regs
     for line in mn:
+        if (r := _REG.match(line)) is not None:
+            regs[int(r.group(1))] = float(r.group(2))
+            continue
         if (c := _CALL.match(line)) is not None:
             sub = p.with_name(f"{c.group(1)}.ls")
             if sub in files:
@@ -552,7 +634,7 @@ def _tp_motions(p: Path, text: str, mn: list[str], files: list[Path]) -> list[Re
                                  "each called program once")
             files.append(sub)
             sub_text, sub_mn = _read_ls(sub)
-            motions += _tp_motions(sub, sub_text, sub_mn, files)
+            motions += _tp_motions(sub, sub_text, sub_mn, files, regs)
             continue
         if (w := _WAIT.match(line)) is not None:
             motions.append(ReadPoint("WAIT", kind="wait", duration=float(w.group(1))))
@@ -561,7 +643,7 @@ def _tp_motions(p: Path, text: str, mn: list[str], files: list[Path]) -> list[Re
         if not m:
             continue
         k = int(m.group(2))
-        speed, duration = _speed_of(m.group(3))
+        speed, duration = _speed_of(m.group(3), regs)
         if k in joint:
             motions.append(ReadPoint(f"P[{k}]", q=np.radians([float(x) for x in joint[k][3:9]]),
                                      kind="joint"))

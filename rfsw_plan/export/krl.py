@@ -41,6 +41,7 @@ from rfsw_plan.export.program import (
     controller_name,
     number,
     payload_assumed,
+    speed_note,
 )
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
@@ -64,8 +65,8 @@ DEFAULT_HOOKS = {
     "home_end": ("HOME: back to the cell's home position here, e.g. PTP XHOME",),
     "spindle_start": ("SPINDLE START: switch the spindle on and wait until it runs at the",
                       "process speed, e.g. $OUT[1] = TRUE and WAIT FOR $IN[1]"),
-    "force_on": ("FORCE CONTROL ON (if used): activate it here, before the plunge",),
-    "force_off": ("FORCE CONTROL OFF (if used): the weld has ended, the retract follows",),
+    "force_on": ("FORCE CONTROL: none (the plan is verified in position control)",),
+    "force_off": ("FORCE CONTROL: none (position control)",),
     "spindle_stop": ("SPINDLE STOP: the pin has left the material (move above), e.g.",
                      "$OUT[1] = FALSE"),
 }
@@ -149,11 +150,28 @@ def _header_extra(program: Program) -> list[str]:
     return [
         *program.maker_note("KUKA"),
         data,
-        "SET ON THE CONTROLLER: the spindle I/O in the hook comments",
+        *program.hook_notes("krl"),
         "BASE = the plate: origin on the first weld point, +X along the seam, +Y on the "
         f"plate, Z out of it. To use a base taught on the plate (3-point method), {teach} "
         "and run rfsw-plan check on this file: the pin depth then follows the taught plate",
     ]
+
+
+def hook_lines(program: Program, hook: str) -> tuple[str, ...]:
+    """The default comment of ``hook``: for a force-controlled plan the force-control hooks
+    carry the set force and the ramp; no public KUKA source gives the KRL of the
+    KUKA.ForceTorqueControl option for a constant axial force along a path, so they say so."""
+    f, ramp = program.force_ramp()
+    if f > 0 and hook == "force_on":
+        return (f"FORCE CONTROL ON at contact (KUKA.ForceTorqueControl): axial set force "
+                f"{f:.0f} N along the tool's +Z,",
+                f"ramped 0 -> {f:.0f} N over the rest of the plunge ({ramp:.2f} s), held "
+                "through the dwell and the weld.",
+                "No public KUKA source gives the KRL call: write your cell's here")
+    if f > 0 and hook == "force_off":
+        return ("FORCE CONTROL OFF: the weld has ended, the pin is still in the plate and the "
+                "retract follows;", "write your cell's force-control end here")
+    return DEFAULT_HOOKS[hook]
 
 
 def _load(program: Program) -> str:
@@ -209,13 +227,15 @@ def _motion_lines(program: Program, span: range, state: dict[str, float]) -> lis
             out.append(f"  ; ---- phase: {marks[i]}")
         p = f"XP{m.point + 1}"
         if m.kind == "hook":
-            out += program.options.hooks.render(m.hook, "krl", DEFAULT_HOOKS[m.hook], "  ",
-                                                ";")
+            out += program.options.hooks.render(m.hook, "krl", hook_lines(program, m.hook),
+                                                "  ", ";")
         elif m.kind == "joint":
             out.append(f"  PTP {p}  ; joint target (approach point)")
         elif m.kind == "wait":
             out.append(f"  WAIT SEC {m.duration:.3f}  ; hold {p} ({m.phase})")
         else:
+            if m.pin_speed is not None:
+                out.append(f"  ; {speed_note(m)}")
             speed = round(float(m.speed), 7)
             if speed != state.get("vel"):
                 out.append(f"  $VEL.CP = {max(speed, 1e-7):.7f}  ; m/s")

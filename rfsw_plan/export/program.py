@@ -39,17 +39,22 @@ dwell and at the end of the weld (the retract starts from the planned spot).
 
 Frames: the tool is the planned TCP in the controller's flange frame (KUKA FLANGE, FANUC
 faceplate, ABB tool0); the work object (KUKA BASE, FANUC user frame, ABB wobjdata) is the
-*plate's* frame in the controller's base frame: origin at the first weld sample's seam point,
-x along the seam (towards its farthest weld point), z the surface normal there (out of the
-plate), y = z x x. The tool's tilt is in the points, so a base taught with three points on
-the plate (origin, +x along the seam, +y on the plate) reproduces this frame and the depth of
-the pin along the whole seam.
+*plate's* frame in the controller's base frame: origin on the plate's top surface, the plunge
+depth above the first weld sample's seam point (the seam is the pin tip's path), x along the
+seam (towards its farthest weld point), z the surface normal there (out of the plate),
+y = z x x. Every point's Z is its height above the surface (the pin sits at -depth in the
+weld). The tool's tilt is in the points, so a base taught with three points on the plate
+(origin, +x along the seam, +y on the plate) is this frame, and the depth of the pin along
+the whole seam follows it.
 
-Process hooks (:class:`Hooks`): lines inserted at the phase boundaries: ``home_start`` before
-the first move, ``spindle_start`` and ``force_on`` before the plunge, ``force_off`` after the
-last weld move, ``spindle_stop`` after the retract move that takes the pin out of the
-material, ``home_end`` at the end (the cell's home position is not known to the plan). By
-default they are comments that say what belongs there.
+Process hooks (:class:`Hooks`), placed by the *predicted pin* (the commanded TCP plus the
+model's process deflection, :func:`pin_heights`), never by the commanded TCP: ``home_start``
+before the first move, ``spindle_start`` before the plunge (the tip the spindle clearance
+above the surface), ``force_on`` at contact, ``force_off`` after the last weld move (the pin
+still in), ``spindle_stop`` after the first retract move whose target has the tip clear of the
+surface by the spindle clearance, ``home_end`` at the end (the cell's home position is not
+known to the plan). By default they are comments that say what belongs there; each starts
+with a ``hook <name>`` marker comment (``rfsw-plan check`` finds it by that).
 """
 
 from __future__ import annotations
@@ -82,7 +87,7 @@ Samples = PlanSamples
 WELD_PHASES = ("accelerate", "weld", "decelerate")
 #: Phases inside which blending is allowed (between two segments of the same group).
 BLEND_GROUPS = {"plunge": "plunge", "dwell": "dwell", "accelerate": "weld", "weld": "weld",
-                "decelerate": "weld"}
+                "decelerate": "weld", "retract": "retract"}
 #: Phase names in program order.
 PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
 #: Below these a segment does not move [m], [rad]: it is a wait.
@@ -92,8 +97,9 @@ STILL_ANG = math.radians(1e-3)
 BLEND_SHARE = 0.4
 #: Hook names in the order they occur.
 HOOKS = ("home_start", "spindle_start", "force_on", "force_off", "spindle_stop", "home_end")
-#: The pin has left the material when the TCP is this far above the plate [m].
-OUT_OF_MATERIAL = 1e-4
+#: A commanded TCP speed that differs from the predicted pin's by more than this share gets a
+#: comment saying why (deflection compensation), so no programmer "fixes" it.
+SPEED_NOTE = 0.05
 
 
 @dataclass(frozen=True)
@@ -112,12 +118,14 @@ class Hooks:
 
     def render(self, hook: str, fmt: str, default: tuple[str, ...], indent: str,
                comment: str) -> list[str]:
-        """The program lines of ``hook``: the user's lines, indented, or else the format's
-        default text as comment lines (``indent + comment + " " + text``)."""
+        """The program lines of ``hook``: a marker comment ``hook <name>`` (``rfsw-plan check``
+        finds the hook by it), then the user's lines, indented, or else the format's default
+        text as comment lines (``indent + comment + " " + text``)."""
         user = self.get(hook, fmt)
+        mark = f"{indent}{comment} hook {hook}"
         if user is not None:
-            return [indent + x for x in user]
-        return [f"{indent}{comment} {x}" for x in default]
+            return [mark, *(indent + x for x in user)]
+        return [mark, *(f"{indent}{comment} {x}" for x in default)]
 
 
 def read_hooks(path: str | Path) -> Hooks:
@@ -166,12 +174,15 @@ class ProgramOptions:
         base_number: Base number (KUKA BASE_DATA[n], FANUC UFRAME n; RAPID a named wobjdata).
         hooks: The process hooks.
         cell_data: Write the tool, base and load into the cell's numbered data (above).
+        speed_register: FANUC numeric register the TP sets before a move whose speed is not
+            a whole mm/sec (``R[n]=v`` then ``L P[k] R[n]mm/sec``).
     """
 
     tool_number: int = 1
     base_number: int = 1
     hooks: Hooks = field(default_factory=Hooks)
     cell_data: bool = False
+    speed_register: int = 20
 
 
 @dataclass(frozen=True)
@@ -193,6 +204,8 @@ class ProgramHeader:
         path_tol: Path tolerance of the program [m].
         spacing: Point spacing along the seam [m].
         notes: Extra lines: what the tool cannot know and the programmer must check.
+        set_force: The axial set force of a force-controlled plan [N] (``plan.json``
+            ``envelope.set_force_N``); 0: the plan is in position control.
     """
 
     name: str
@@ -208,6 +221,7 @@ class ProgramHeader:
     path_tol: float
     spacing: float
     notes: tuple[str, ...] = ()
+    set_force: float = 0.0
 
     def lines(self) -> list[str]:
         """Header lines (without comment markers), the same for every vendor."""
@@ -227,6 +241,11 @@ class ProgramHeader:
             f"points: plan samples every {self.spacing * 1e3:.3g} mm of seam",
             f"path within {self.path_tol * 1e3:.3g} mm of every verified sample",
             "lengths mm, angles deg, joints = controller axes",
+            "Z of every point is its height above the plate surface (the pin tip sits at "
+            "-depth in the weld)",
+            ("axial control: FORCE, set force "
+             f"{self.set_force:.0f} N along the tool axis (force-control hooks)"
+             if self.set_force > 0 else "axial control: position (no force control)"),
             *self.notes,
         ]
 
@@ -282,6 +301,9 @@ class Motion:
         duration: Planned duration of the segment or wait [s].
         blend: Blend distance at the target [m] (0: exact stop).
         hook: The hook's name (``kind == "hook"``).
+        pin_speed: The predicted pin's speed over the segment [m/s] when it differs from
+            the commanded ``speed`` by more than :data:`SPEED_NOTE` (the writers then say
+            why before the motion: :func:`speed_note`), else None.
     """
 
     kind: str
@@ -291,6 +313,7 @@ class Motion:
     duration: float = 0.0
     blend: float = 0.0
     hook: str = ""
+    pin_speed: float | None = None
 
 
 @dataclass(frozen=True)
@@ -313,6 +336,8 @@ class Program:
         cycle: The stream's controller cycle [s].
         build_args: The arguments of :func:`build_program` that made it (for
             :meth:`rebuilt`).
+        pin_height: The predicted pin tip's height above the plate surface at every plan
+            sample [m], (N,) (:func:`pin_heights`; the hooks are placed by it).
     """
 
     header: ProgramHeader
@@ -329,6 +354,7 @@ class Program:
     stream: Samples | None = field(default=None, repr=False)
     cycle: float = 0.0
     build_args: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    pin_height: FloatArray | None = field(default=None, repr=False, compare=False)
 
     def rebuilt(self, extra: frozenset[int]) -> Program:
         """The same program with the samples ``extra`` as points too (the same frames and
@@ -359,6 +385,37 @@ class Program:
         conv = self.robot.description.convention
         return np.asarray(conv.base @ self.work @ pose_work)
 
+    def force_ramp(self) -> tuple[float, float]:
+        """The axial set force [N] (0: position control) and the time [s] over which the
+        force-control hook ramps it from 0, from contact to the end of the plunge (the
+        plunge is a force ramp under force control)."""
+        f = self.header.set_force
+        h, ph, t = self.pin_height, self.all_samples.phase, self.all_samples.t
+        plunge = np.flatnonzero(ph == "plunge")
+        if f <= 0 or h is None or plunge.size == 0:
+            return f, 0.0
+        touch = plunge[h[plunge] <= 0.0]
+        start = int(touch[0]) if touch.size else int(plunge[0])
+        return f, float(t[plunge[-1]] - t[start])
+
+    def hook_notes(self, fmt: str) -> list[str]:
+        """Header lines that say where the spindle I/O and the force control are set for the
+        format ``fmt``: in this program (the user's hooks) or still to be written at the hook
+        comments."""
+        h = self.options.hooks
+        spindle = all(h.get(k, fmt) for k in ("spindle_start", "spindle_stop"))
+        out = ["SPINDLE I/O: set in this program (hooks file)" if spindle else
+               "SPINDLE I/O: NOT in this program: write it in the comments of the spindle "
+               "start and stop hooks"]
+        f, ramp = self.force_ramp()
+        if f > 0:
+            force = all(h.get(k, fmt) for k in ("force_on", "force_off"))
+            out.append(f"FORCE CONTROL ({f:.0f} N axial, ramp {ramp:.2f} s over the plunge): "
+                       + ("set in this program (hooks file)" if force else
+                          "NOT in this program: write it at the force-control on and off "
+                          "hook comments"))
+        return out
+
     def maker_note(self, maker: str) -> list[str]:
         """One warning line when the robot's maker is not ``maker`` (empty otherwise)."""
         own = self.robot.description.convention.maker
@@ -378,6 +435,7 @@ def build_program(
     angle_tol: float = math.radians(0.01), normal: FloatArray | None = None,
     payload: Payload | None = None, options: ProgramOptions | None = None,
     stream: Samples | None = None, cycle: float = 0.0, extra: frozenset[int] = frozenset(),
+    depth: float = 0.0, pin: FloatArray | None = None,
 ) -> Program:
     """Select points, motions, blending and hooks from verified samples (module docstring).
 
@@ -396,24 +454,32 @@ def build_program(
         cycle: Stream cycle [s] (default: the samples' step).
         extra: Sample indices that are points too (a format that needs shorter segments:
             :func:`rfsw_plan.export.fanuc_tp.tp_program`).
+        depth: The pin's plunge depth [m]: the seam points lie this far below the plate
+            surface, so the work object's origin is this far above the first weld sample's
+            seam point, on the surface.
+        pin: The predicted (loaded) pin tip of every sample, base frame [m], (N, 3): the
+            TCP plus the model's process deflection (``waypoints.csv`` x + dx). None: the
+            TCP (no deflection known). The hooks are placed by it (:func:`_with_hooks`).
     """
     args = dict(robot=robot, samples=samples, header=header, path_tol=path_tol,
                 angle_tol=angle_tol, normal=normal, payload=payload, options=options,
-                stream=stream, cycle=cycle)
+                stream=stream, cycle=cycle, depth=depth, pin=pin)
     if header.spacing <= 0:
         raise InputError("--export-spacing-mm", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = robot.batch_fk_jacobian(samples.q)[0]
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool
-    work, notes = _work_frame(samples, T, conv.base, normal)
+    work, notes = _work_frame(samples, T, conv.base, normal, depth)
     to_work = np.linalg.inv(conv.base @ work)
     P = to_work[None] @ T  # TCP in the work frame, (N, 4, 4)
+    h = pin_heights(samples, T[:, :3, 3] if pin is None else pin, (conv.base @ work)[:3, 2],
+                    depth)
 
-    keep = _anchor_points(samples, header.spacing) | {int(i) for i in extra}
-    keep = _refine(P, keep, 0.5 * path_tol, angle_tol)
-    idx = np.array(sorted(keep), dtype=int)
-    motions = _motions(samples, P, idx, path_tol)
-    motions = _with_hooks(motions, P[idx, 2, 3])
+    keep = _anchor_points(samples, header.spacing) | _hook_points(samples, h)
+    keep = _refine(P, keep | {int(i) for i in extra}, 0.5 * path_tol, angle_tol)
+    idx = _without_stops(samples, P, np.array(sorted(keep), dtype=int))
+    motions = _motions(samples, P, idx, path_tol, T[:, :3, 3] if pin is None else pin)
+    motions = _with_hooks(motions, idx, h, samples)
     if payload is None:
         notes.append("PAYLOAD UNKNOWN: the robot file has no [payload] table and no "
                      "payload_gravity effect; enter the spindle's load on the controller")
@@ -430,7 +496,7 @@ def build_program(
         cycle = cycle or float(np.median(np.diff(samples.t)))
     return Program(header, robot, idx, samples.subset(idx), tool, work, P[idx],
                    tuple(motions), samples, payload, options or ProgramOptions(), stream,
-                   cycle, args)
+                   cycle, args, h)
 
 
 def payload_assumed(payload: Payload) -> bool:
@@ -460,8 +526,9 @@ def plate_frame(origin: FloatArray, toward: FloatArray, normal: FloatArray) -> F
 
 
 def _work_frame(samples: Samples, T: FloatArray, base: FloatArray,
-                normal: FloatArray | None) -> tuple[FloatArray, list[str]]:
-    """The plate frame in the controller's base frame, and notes for the header."""
+                normal: FloatArray | None, depth: float = 0.0) -> tuple[FloatArray, list[str]]:
+    """The plate frame in the controller's base frame (origin on the surface, ``depth``
+    above the first weld sample's seam point along the normal), and notes for the header."""
     weld = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
     contact = np.flatnonzero(np.isin(samples.phase, CONTACT_PHASES))
     if weld.size == 0 or contact.size == 0:
@@ -482,7 +549,9 @@ def _work_frame(samples: Samples, T: FloatArray, base: FloatArray,
         normal = -normal
     if np.linalg.norm(far - o) < 1e-9:
         far = o + T[contact[0], :3, 0]
-    return np.asarray(np.linalg.inv(base) @ plate_frame(o, far, normal)), notes
+    n = normal / np.linalg.norm(normal)
+    return np.asarray(np.linalg.inv(base) @ plate_frame(o + depth * n, far + depth * n,
+                                                      normal)), notes
 
 
 def _fitted_normal(points: FloatArray) -> FloatArray | None:
@@ -595,8 +664,29 @@ def blend_distance(d0: FloatArray, d1: FloatArray, tol: float, dev: float) -> fl
     return cap if sin_t < 1e-12 else min(cap, 2.0 * (tol - dev) / sin_t)
 
 
+def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> NDArray[np.int_]:
+    """The points without those a blend group holds still at (the pose of the point before,
+    the next point in the same group): the controller then runs the pause into the next
+    move at the speed that keeps the plan's time, instead of an exact stop and a wait in the
+    material. A phase's last point stays."""
+    out = [int(idx[0])]
+    for k in range(1, len(idx)):
+        i, j = out[-1], int(idx[k])
+        nxt = int(idx[k + 1]) if k + 1 < len(idx) else -1
+        group = BLEND_GROUPS.get(str(samples.phase[j]))
+        still = (np.linalg.norm(P[j, :3, 3] - P[i, :3, 3]) < STILL_POS
+                 and (Rotation.from_matrix(P[i, :3, :3]).inv()
+                      * Rotation.from_matrix(P[j, :3, :3])).magnitude() < STILL_ANG)
+        if (still and nxt >= 0 and group is not None
+                and BLEND_GROUPS.get(str(samples.phase[nxt])) == group
+                and BLEND_GROUPS.get(str(samples.phase[i])) == group):
+            continue
+        out.append(j)
+    return np.array(out, dtype=int)
+
+
 def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
-             tol: float) -> list[Motion]:
+             tol: float, pin: FloatArray) -> list[Motion]:
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -618,35 +708,109 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
         blend = 0.0
         group = BLEND_GROUPS.get(phase)
         if (k + 1 < len(idx) and group is not None
-                and BLEND_GROUPS.get(str(samples.phase[i])) == group
                 and BLEND_GROUPS.get(str(samples.phase[idx[k + 1]])) == group):
             blend = blend_distance(pts[k] - pts[k - 1], pts[k + 1] - pts[k], tol,
                                    max(dev[k - 1], dev[k]))
-        motions.append(Motion("lin", k, phase, speed=speed, duration=dt, blend=blend))
+        vp = None
+        if phase in CONTACT_PHASES and dt > 0:
+            vp = _pin_speed(speed, float(np.linalg.norm(pin[j] - pin[i])) / dt)
+        motions.append(Motion("lin", k, phase, speed=speed, duration=dt, blend=blend,
+                              pin_speed=vp))
     return motions
 
 
-def _with_hooks(motions: list[Motion], z_work: FloatArray) -> list[Motion]:
-    """Insert the hooks: the cell's home before the first move, spindle start and force on
-    before the first plunge motion, force off after the last weld motion, spindle stop after
-    the first retract move whose target is out of the material (TCP above the plate:
-    z > :data:`OUT_OF_MATERIAL` in the plate frame), the cell's home at the end."""
+def pin_heights(samples: Samples, pin: FloatArray, normal: FloatArray,
+                depth: float) -> FloatArray:
+    """Height of the predicted pin tip above the plate surface at every sample [m], (N,).
+
+    ``h = (pin - seam) . n - depth``: the seam point of a sample lies ``depth`` below the
+    surface along the plate normal ``n`` (base frame, (3,)), so ``h`` is -depth with the pin
+    plunged and 0 with its tip on the surface.
+    """
+    n = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    return np.asarray((np.asarray(pin) - samples.seam) @ n - depth)
+
+
+def spindle_clearance(samples: Samples, h: FloatArray) -> float:
+    """The spindle clearance [m]: the pin tip's height where the plunge starts (the end of
+    the approach, where the spindle starts; ``spindle_clearance`` of the plan options)."""
+    plunge = np.flatnonzero(samples.phase == "plunge")
+    return float(h[max(int(plunge[0]) - 1, 0)]) if plunge.size else 0.0
+
+
+def _hook_points(samples: Samples, h: FloatArray) -> set[int]:
+    """The samples the hooks need as points: contact (the first plunge sample with the
+    predicted tip at or below the surface) and clear (the first retract sample with the tip
+    the spindle clearance above it)."""
+    out: set[int] = set()
+    ph = samples.phase
+    contact = np.flatnonzero((ph == "plunge") & (h <= 0.0))
+    if contact.size:
+        out.add(int(contact[0]))
+    clear = np.flatnonzero((ph == "retract") & (h >= spindle_clearance(samples, h) - 1e-9))
+    if clear.size:
+        out.add(int(clear[0]))
+    return out
+
+
+def speed_note(m: Motion, short: bool = False) -> str:
+    """The comment before a motion whose commanded TCP speed differs from the predicted
+    pin's (:attr:`Motion.pin_speed`), "" for the others: the speed is the deflection
+    compensation's, so nobody "fixes" it. ``short``: within 32 characters (FANUC remarks)."""
+    if m.pin_speed is None:
+        return ""
+    v, p = m.speed * 1e3, m.pin_speed * 1e3
+    if short:
+        return f"TCP {v:.2f}/pin {p:.2f}mm/s:defl.comp"
+    return (f"TCP {v:.2f} mm/s, pin {p:.2f} mm/s: deflection compensation, keep this "
+            "speed")
+
+
+def _pin_speed(commanded: float, pin: float) -> float | None:
+    """``pin`` when it differs from ``commanded`` [m/s] by more than :data:`SPEED_NOTE` and
+    0.1 mm/s."""
+    if abs(commanded - pin) <= max(SPEED_NOTE * pin, 1e-4):
+        return None
+    return pin
+
+
+def _with_hooks(motions: list[Motion], idx: NDArray[np.int_], h: FloatArray,
+                samples: Samples) -> list[Motion]:
+    """Insert the hooks by the predicted pin tip (height ``h`` above the surface per sample):
+
+    * ``home_start`` before the first move;
+    * ``spindle_start`` before the first plunge motion: the robot waits at the end of the
+      approach, the tip the spindle clearance above the surface;
+    * ``force_on`` at contact: after the motion to the first plunge point whose tip is at or
+      below the surface (a point of its own, :func:`_hook_points`);
+    * ``force_off`` after the last weld motion, before the retract: the pin is still in;
+    * ``spindle_stop`` after the first retract motion whose target has the tip clear of the
+      surface by the spindle clearance (never while the pin is in the material);
+    * ``home_end`` at the end.
+    """
+    hp = h[idx]
+    clear = spindle_clearance(samples, h) - 1e-9
     out: list[Motion] = [Motion("hook", 0, motions[0].phase, hook="home_start")]
     placed: set[str] = set()
     for k, m in enumerate(motions):
         if m.phase == "plunge" and "spindle_start" not in placed:
-            out += [Motion("hook", m.point, "plunge", hook="spindle_start"),
-                    Motion("hook", m.point, "plunge", hook="force_on")]
-            placed |= {"spindle_start", "force_on"}
+            out.append(Motion("hook", m.point, "plunge", hook="spindle_start"))
+            placed.add("spindle_start")
+        if (m.kind == "lin" and "force_on" not in placed and k > 0
+                and m.phase in ("plunge", "dwell") and hp[motions[k - 1].point] <= 0.0):
+            out.append(Motion("hook", motions[k - 1].point, m.phase, hook="force_on"))
+            placed.add("force_on")
         if m.phase == "retract" and "force_off" not in placed:
             out.append(Motion("hook", m.point, "retract", hook="force_off"))
             placed.add("force_off")
-        out.append(m)
-        last = k == len(motions) - 1
-        if (m.phase == "retract" and "spindle_stop" not in placed and m.kind != "hook"
-                and (z_work[m.point] > OUT_OF_MATERIAL or last)):
-            out.append(Motion("hook", m.point, "retract", hook="spindle_stop"))
+        if m.kind == "lin" and m.phase == "retract" and "spindle_stop" not in placed \
+                and hp[m.point] >= clear:
+            out += [m, Motion("hook", m.point, "retract", hook="spindle_stop")]
             placed.add("spindle_stop")
+            continue
+        out.append(m)
+    if "spindle_stop" not in placed:
+        out.append(Motion("hook", motions[-1].point, motions[-1].phase, hook="spindle_stop"))
     out.append(Motion("hook", motions[-1].point, motions[-1].phase, hook="home_end"))
     return out
 

@@ -41,7 +41,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import abb_confdata
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import chunks
-from rfsw_plan.export.program import Program, controller_name, number
+from rfsw_plan.export.program import Program, controller_name, number, speed_note
 from rfsw_plan.files import write_text
 from rfsw_plan.robot.kinematics import Robot
 
@@ -59,8 +59,8 @@ DEFAULT_HOOKS = {
                  "e.g. MoveAbsJ jHome,v100,fine,tFSW;"),
     "spindle_start": ("SPINDLE START: spindle on and wait at speed, e.g. SetDO doSpindle, 1;",
                       "WaitDI diSpindleAtSpeed, 1;"),
-    "force_on": ("FORCE CONTROL ON here if used (e.g. FCAct)",),
-    "force_off": ("FORCE CONTROL OFF here if used (e.g. FCDeact)",),
+    "force_on": ("FORCE CONTROL: none (the plan is verified in position control)",),
+    "force_off": ("FORCE CONTROL: none (position control)",),
     "spindle_stop": ("SPINDLE STOP: the pin has left the material, e.g. SetDO doSpindle, 0;",),
 }
 
@@ -145,12 +145,30 @@ def _tooldata(program: Program) -> str:
 
 
 def _header_extra(program: Program) -> list[str]:
-    return [*program.maker_note("ABB"),
-            "SET ON THE CONTROLLER: the spindle I/O in the hook comments; tFSW and wPlate "
-            "are this module's own (LOCAL) data",
+    return [*program.maker_note("ABB"), *program.hook_notes("rapid"),
+            "tFSW and wPlate are this module's own (LOCAL) data",
             "wPlate = the plate: origin on the first weld point, +X along the seam, +Y on "
             "the plate. To use a work object taught on the plate, enter its user frame in "
             "wPlate and run rfsw-plan check on this file"]
+
+
+def hook_lines(program: Program, hook: str) -> tuple[str, ...]:
+    """The default comment of ``hook``: for a force-controlled plan the force-control hooks
+    carry the set force, the ramp and the Force Control option's instructions (``FCAct``,
+    ``FCRefForce``, ``FCRefStart``, ``FCDeact``: ABB Application manual Force Control; they
+    stay comments, so the module loads on a controller without the option)."""
+    f, ramp = program.force_ramp()
+    rate = f / ramp if ramp > 0 else f
+    if f > 0 and hook == "force_on":
+        return (f"FORCE CONTROL ON at contact: axial set force {f:.0f} N along tool +Z, "
+                f"ramped 0 -> {f:.0f} N",
+                f"over the rest of the plunge ({ramp:.2f} s, {rate:.0f} N/s), held through "
+                "the dwell and the weld (option Force Control), e.g.",
+                f"FCAct tFSW; FCRefForce \\Fz:={f:.0f}; FCRefStart;")
+    if f > 0 and hook == "force_off":
+        return ("FORCE CONTROL OFF: the weld has ended, the pin is still in, the retract "
+                "follows, e.g. FCRefStop; FCDeact;",)
+    return DEFAULT_HOOKS[hook]
 
 
 def _motion_lines(program: Program, span: range, zones: dict[float, str]) -> list[str]:
@@ -162,13 +180,15 @@ def _motion_lines(program: Program, span: range, zones: dict[float, str]) -> lis
             out.append(f"    ! ---- phase: {marks[i]}")
         p = f"p{m.point + 1}"
         if m.kind == "hook":
-            out += program.options.hooks.render(m.hook, "rapid", DEFAULT_HOOKS[m.hook], "    ",
-                                                "!")
+            out += program.options.hooks.render(m.hook, "rapid", hook_lines(program, m.hook),
+                                                "    ", "!")
         elif m.kind == "joint":
             out.append(f"    MoveAbsJ jStart,{MOVEJ_SPEED},fine,tFSW\\WObj:=wPlate;")
         elif m.kind == "wait":
             out.append(f"    WaitTime\\InPos,{m.duration:.3f};")
         else:
+            if m.pin_speed is not None:
+                out.append(f"    ! {speed_note(m)}")
             z = zone_mm(m.blend)
             zname = zones[z] if z > 0 else "fine"
             out.append(f"    MoveL {p},v100\\V:={max(m.speed * 1e3, 1e-4):.4f},{zname},"

@@ -102,7 +102,7 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
     """
     if args.export is None:
         return None
-    from rfsw_plan.export.api import export_programs, plate_normal
+    from rfsw_plan.export.api import export_programs, plate_surface
     from rfsw_plan.export.format import parse_formats
     from rfsw_plan.files import sha256_file
     from rfsw_plan.planfiles.folder import read_plan_samples
@@ -114,11 +114,13 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
     d = result.model.robot.description
     samples = read_plan_samples(out / "waypoints.csv", d.convention.column_names(),
                                 (d.lower, d.upper))
-    normal, _ = plate_normal(str(record.get("problem_file") or args.problem), samples)
+    normal, depth, reference, _ = plate_surface(str(record.get("problem_file") or args.problem),
+                                                samples)
     res = export_programs(result.model.robot, samples, record, formats, out,
                           plan_sha256=sha256_file(out / "waypoints.csv"), spacing=spacing,
                           path_tol=tol, check=_plan_check(result), stream=stream,
-                          cycle=cycle, options=_options(args), normal=normal)
+                          cycle=cycle, options=_options(args), normal=normal, depth=depth,
+                          reference=reference)
     for note in res.notes:
         if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT")):
             print(f"rfsw-plan plan: note: {note}", file=sys.stderr)
