@@ -273,22 +273,7 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
     except UnicodeDecodeError as exc:
         raise InputError(p, f"byte {exc.start}", "not UTF-8 text", "waypoints.csv") from None
     rows = list(csv.reader(io.StringIO(text, newline="")))
-    if len(rows) < 3:
-        raise InputError(p, "", f"{max(len(rows) - 1, 0)} samples",
-                         "a waypoints.csv written by rfsw-plan plan")
-    header, body = rows[0], rows[1:]
-    col = {h: i for i, h in enumerate(header)}
-    joints = joint_columns or _joint_columns(header)
-    need = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", *joints,
-            "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
-    missing = [c for c in need if c not in col]
-    if missing or not joints:
-        raise InputError(p, "header", f"missing column {missing[0] if missing else 'q1_deg'}",
-                         "the columns of waypoints.csv" + (f" ({', '.join(joints)})"
-                                                           if joints else ""))
-    for k, r in enumerate(body):
-        if len(r) != len(header):
-            raise InputError(p, f"row {k + 2}", f"{len(r)} cells", f"{len(header)} cells")
+    body, col, joints = _table_shape(p, rows, joint_columns)
 
     def num(names: list[str]) -> FloatArray:
         idx = [col[c] for c in names]
@@ -321,6 +306,29 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
                        num(["seam_x_mm", "seam_y_mm", "seam_z_mm"]) * 1e-3,
                        num(["spindle_rpm"])[:, 0] if "spindle_rpm" in col else None,
                        num(["spindle_on"])[:, 0] > 0 if "spindle_on" in col else None)
+
+
+def _table_shape(p: Path, rows: list[list[str]], joint_columns: list[str] | None
+                 ) -> tuple[list[list[str]], dict[str, int], list[str]]:
+    """Body rows, column index and joint columns of a ``waypoints.csv`` whose
+    header has every needed column and whose rows have as many cells as the header."""
+    if len(rows) < 3:
+        raise InputError(p, "", f"{max(len(rows) - 1, 0)} samples",
+                         "a waypoints.csv written by rfsw-plan plan")
+    header, body = rows[0], rows[1:]
+    col = {h: i for i, h in enumerate(header)}
+    joints = joint_columns or _joint_columns(header)
+    need = ["t_s", "s_mm", "phase", "seam_x_mm", "seam_y_mm", "seam_z_mm", *joints,
+            "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm"]
+    missing = [c for c in need if c not in col]
+    if missing or not joints:
+        raise InputError(p, "header", f"missing column {missing[0] if missing else 'q1_deg'}",
+                         "the columns of waypoints.csv" + (f" ({', '.join(joints)})"
+                                                           if joints else ""))
+    for k, r in enumerate(body):
+        if len(r) != len(header):
+            raise InputError(p, f"row {k + 2}", f"{len(r)} cells", f"{len(header)} cells")
+    return body, col, joints
 
 
 def _cell(text: str) -> float:

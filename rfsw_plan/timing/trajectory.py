@@ -458,6 +458,64 @@ def _dwell_piece(robot: Robot, tk: FloatArray, qk: FloatArray, ok: FloatArray, F
     return t, qq, follow(np.asarray(ok, float)), follow(np.asarray(Fk, float))
 
 
+Piece = tuple[str, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+"""(phase, t relative to the piece start [s], s [m], q [rad], offsets [m], wrench)."""
+
+
+def _stationary_pieces(robot: Robot, task: PlanTask, q: FloatArray, offsets: FloatArray,
+                       lim: TimingLimits, q_air: FloatArray, start_depth: float) -> list[Piece]:
+    """The spindle run-up, the plunge and the dwell (the task's stationary waypoints), from
+    ``q_air`` at the spindle clearance (depth ``start_depth`` [m], negative: in the air)."""
+    m = task.n_start
+    dt = lim.dt
+    F = task.wrench_base
+    zero6 = np.zeros(6)
+    depth_full = float(np.max(task.depth)) if len(task.depth) else 0.0
+    pieces: list[Piece] = []
+    if m and lim.spindle_runup > 0:
+        # The spindle runs up while the tool stands at the spindle clearance (the plunge
+        # piece starts here, with the spindle-start hook).
+        t = np.linspace(0.0, lim.spindle_runup, max(int(np.ceil(lim.spindle_runup / dt)), 1) + 1)
+        pieces.append(("plunge", t, np.zeros_like(t), np.repeat(q_air[None], len(t), 0),
+                       np.repeat(offsets[:1], len(t), 0), np.tile(zero6, (len(t), 1))))
+    if m:
+        plunge = np.flatnonzero(task.phase[:m] == "plunge")
+        dwell = np.flatnonzero(task.phase[:m] == "dwell")
+        # Plunge: Ruckig on the depth, through the planned plunge waypoints (the piece ends
+        # at the last waypoint at full depth; the dwell starts there).
+        idx = plunge
+        if not len(idx) or task.depth[idx[-1]] < depth_full - 1e-9:
+            idx = np.append(idx, dwell[0] if len(dwell) else m)
+            dwell = dwell[1:]
+        dep = task.depth[idx]
+        keep = np.append(np.diff(dep) > 1e-9, True)  # of equal depths keep the last
+        idx, dep = idx[keep], dep[keep]
+        end = int(idx[-1])
+        if len(idx) >= 1:
+            # Shape-preserving in depth: every plunge sample between its neighbouring
+            # waypoints (Ruckig starts and ends the depth at rest), from the spindle clearance
+            # (depth -air, in the air, at zero force).
+            t, x, _, _ = profile_1dof(start_depth, dep[-1], 0.0, 0.0, lim.plunge_speed,
+                                      lim.acceleration, lim.jerk, dt)
+            pieces.append(("plunge", t, np.zeros_like(t),
+                           monotone_interp(np.append(start_depth, dep),
+                                           np.vstack([q_air, q[idx]]), x),
+                           monotone_interp(np.append(start_depth, dep),
+                                           np.vstack([offsets[idx[:1]], offsets[idx]]), x),
+                           monotone_interp(np.append(start_depth, dep),
+                                           np.vstack([zero6, F[idx]]), x)))
+        # Dwell: the planned stationary waypoints in time, up to the first weld waypoint.
+        idx = np.concatenate([[end], dwell[dwell > end], [m]]).astype(int)
+        idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
+        tt = task.time[idx] - task.time[idx[0]]
+        keep = np.append(np.diff(tt) > 1e-9, True)
+        idx, tt = idx[keep], tt[keep]
+        if len(idx) >= 2:
+            t, qq, oo, ff = _dwell_piece(robot, tt, q[idx], offsets[idx], F[idx], dt)
+            pieces.append(("dwell", t, np.zeros_like(t), qq, oo, ff))
+    return pieces
+
+
 def time_parameterise(
     robot: Robot, task: PlanTask, q: FloatArray, offsets: FloatArray,
     limits: TimingLimits | None = None, deflection: Deflection | None = None,
@@ -503,8 +561,7 @@ def time_parameterise(
             "(TOPPRA)", waypoint=int(m + np.argmin(np.abs(sw - psl.s_at))),
             constraint="weld_speed", margin=psl.max_speed - v)
 
-    pieces: list[tuple[str, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]] = []
-    # (phase, t, s, q, offsets, wrench) with t relative to the piece start.
+    pieces: list[Piece] = []
     zero6 = np.zeros(6)
     n0 = task.frames.n[0]
     q_first = q[0]
@@ -534,47 +591,7 @@ def time_parameterise(
     # Depth 0 is the first stationary waypoint (or the first weld waypoint); above it the
     # plunge starts in the air at the spindle clearance.
     q_air = amap(np.array([air]))[0]
-    if m and lim.spindle_runup > 0:
-        # The spindle runs up while the tool stands at the spindle clearance (the plunge
-        # piece starts here, with the spindle-start hook).
-        t = np.linspace(0.0, lim.spindle_runup, max(int(np.ceil(lim.spindle_runup / dt)), 1) + 1)
-        pieces.append(("plunge", t, np.zeros_like(t), np.repeat(q_air[None], len(t), 0),
-                       np.repeat(offsets[:1], len(t), 0), np.tile(zero6, (len(t), 1))))
-    if m:
-        plunge = np.flatnonzero(task.phase[:m] == "plunge")
-        dwell = np.flatnonzero(task.phase[:m] == "dwell")
-        # Plunge: Ruckig on the depth, through the planned plunge waypoints (the piece ends
-        # at the last waypoint at full depth; the dwell starts there).
-        idx = plunge
-        if not len(idx) or task.depth[idx[-1]] < depth_full - 1e-9:
-            idx = np.append(idx, dwell[0] if len(dwell) else m)
-            dwell = dwell[1:]
-        dep = task.depth[idx]
-        keep = np.append(np.diff(dep) > 1e-9, True)  # of equal depths keep the last
-        idx, dep = idx[keep], dep[keep]
-        end = int(idx[-1])
-        if len(idx) >= 1:
-            # Shape-preserving in depth: every plunge sample between its neighbouring
-            # waypoints (Ruckig starts and ends the depth at rest), from the spindle clearance
-            # (depth -air, in the air, at zero force).
-            t, x, _, _ = profile_1dof(d0 - air, dep[-1], 0.0, 0.0, lim.plunge_speed,
-                                      lim.acceleration, lim.jerk, dt)
-            pieces.append(("plunge", t, np.zeros_like(t),
-                           monotone_interp(np.append(d0 - air, dep),
-                                           np.vstack([q_air, q[idx]]), x),
-                           monotone_interp(np.append(d0 - air, dep),
-                                           np.vstack([offsets[idx[:1]], offsets[idx]]), x),
-                           monotone_interp(np.append(d0 - air, dep),
-                                           np.vstack([zero6, F[idx]]), x)))
-        # Dwell: the planned stationary waypoints in time, up to the first weld waypoint.
-        idx = np.concatenate([[end], dwell[dwell > end], [m]]).astype(int)
-        idx = idx[np.concatenate([[True], np.diff(idx) > 0])]
-        tt = task.time[idx] - task.time[idx[0]]
-        keep = np.append(np.diff(tt) > 1e-9, True)
-        idx, tt = idx[keep], tt[keep]
-        if len(idx) >= 2:
-            t, qq, oo, ff = _dwell_piece(robot, tt, q[idx], offsets[idx], F[idx], dt)
-            pieces.append(("dwell", t, np.zeros_like(t), qq, oo, ff))
+    pieces += _stationary_pieces(robot, task, q, offsets, lim, q_air, d0 - air)
     # Weld: ramp up, constant speed, ramp down (Ruckig velocity interface) on the pin's arc
     # length s.
     t_a, x_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, lim.acceleration, lim.jerk, dt)
