@@ -737,10 +737,9 @@ class RobustClaim:
         """The claim over both point sets: per quantity the smaller level (ties: this one)."""
         limits = {q: (other.limits[q] if other.limits[q].level < lim.level else lim)
                   for q, lim in self.limits.items()}
-        fc = np.nanmin([self.axial_force_control, other.axial_force_control]) if not (
-            np.isnan(self.axial_force_control) and np.isnan(other.axial_force_control)
-        ) else float("nan")
-        return RobustClaim(limits, float(fc), self.linear and other.linear,
+        # Both from one task: both NaN (axial force control) or both levels.
+        fc = min(self.axial_force_control, other.axial_force_control)
+        return RobustClaim(limits, fc, self.linear and other.linear,
                            np.concatenate([self.lateral_per_unit, other.lateral_per_unit]))
 
 
