@@ -23,6 +23,9 @@ Every row family the NLP declares (:mod:`rfsw_plan.planning.rows`) names its che
 planner constraint cannot go without its independent check.
 
 :func:`pin_track` evaluates the timed trajectory the same way at every sample.
+:func:`verify_samples` checks every written sample, and :func:`robust_claim` gives how much
+force uncertainty each weld quantity (lateral error, depth, tilt, pin speed) holds at the
+vertices of the force box, on the model itself (the plan's claim and the verdict's).
 """
 
 from __future__ import annotations
