@@ -34,7 +34,9 @@ def test_zk500_plan_keeps_every_weld_waypoint_in_the_window(tmp_path, capsys):
     # Under +-20 % force the worst case cannot stay inside this window anywhere (it spreads
     # ~1.2 mm > half the window), but the NLP leaves it by less than the mirror fake targets.
     margins = {b["strategy"]: b["worst_case_window_margin_mm"] for b in summary["baselines"]}
-    assert margins["nlp"] > margins["mirror"] > margins["none"]
+    # The written plan is never below the mirror (on zk500 it is the mirror: the depth limits,
+    # docs/guide/verdict.md).
+    assert margins["nlp"] >= margins["mirror"] > margins["none"]
     # The loaded pin sits on every seam point along the track too (the along-track offset), to
     # the outer correction's tolerance (outer_tol 1e-6 m: zk500_seed001 has a non-linear effect).
     assert summary["max_abs_along_track_error_mm"] < 1e-3

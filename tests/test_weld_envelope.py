@@ -206,12 +206,15 @@ def test_no_two_bundled_problems_give_identical_waypoints_without_a_reason(writt
         assert any(grp <= e for e in explained), sorted(grp)
 
 
-def test_kr600_curved_seam_is_go_with_its_depth_held(written, planned_result):
+def test_kr600_curved_seam_holds_its_depth_and_names_it_limiting(written, planned_result):
     """Issue 32: GO on kr600_curved_seam lost 2.82 mm of penetration over s = 379-468 mm; now
-    it is GO only with the depth in its window at every weld sample (from the CSV)."""
+    the depth is in its window at every weld sample (from the CSV). Issue 38: its robustness
+    limits the claim in position control, so the verdict is HOLDS NOMINALLY, depth first."""
     phase, cols, toml, problem = written("kr600_curved_seam")
     res = planned_result("kr600_curved_seam")
-    assert res.verdict().word == "GO"
+    v = res.verdict()
+    assert v.word == "HOLDS NOMINALLY" and v.claim is not None
+    assert v.claim.limiting.quantity == "depth" and v.line.split(": ")[2].startswith("depth")
     g = _geometry(cols, phase, toml)
     depth = problem.process.plunge_depth * 1e3
     w = phase == "weld"
@@ -220,7 +223,7 @@ def test_kr600_curved_seam_is_go_with_its_depth_held(written, planned_result):
 
 
 def test_a_failing_depth_is_named_first_with_where_how_much_and_its_levers(planned_result):
-    """The written zk500 plan checked against a depth window narrower than its samples: the
+    """The written kr600 plan checked against a depth window narrower than its samples: the
     sample check's first envelope failure is the depth, with sample, time, phase, arc length,
     value, bound, and the depth's levers; the planner's error (the NO verdict) starts with it."""
     from dataclasses import replace as dc_replace
@@ -228,7 +231,7 @@ def test_a_failing_depth_is_named_first_with_where_how_much_and_its_levers(plann
     from rfsw_plan.exceptions import InfeasibleError
     from rfsw_plan.planning.verify import verify_samples
 
-    res = planned_result("zk500_table6_seam")
+    res = planned_result("kr600_curved_seam")
     narrow = dc_replace(res.window, depth_shallow=0.05e-3)
     sv = verify_samples(res.model, res.task, narrow, res.trajectory, res.options.margin, res.q)
     f = sv.envelope_failure

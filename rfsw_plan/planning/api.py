@@ -455,7 +455,7 @@ def written_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
 
 def dominant(model: ElastostaticModel, task: PlanTask, window: WeldWindow, opts: PlanOptions,
              plan: Written, mirror: BaselinePlan, mirror_tolerated: float,
-             timing: TimingLimits | None) -> Written:
+             timing: TimingLimits | None) -> tuple[Written, BaselineMetrics | None]:
     """The plan, or the mirror baseline written as the plan when that tolerates more.
 
     Robust first (:mod:`rfsw_plan.planning.robustness`), the written plan must tolerate at
@@ -463,21 +463,25 @@ def dominant(model: ElastostaticModel, task: PlanTask, window: WeldWindow, opts:
     :data:`~rfsw_plan.planning.robustness.DOMINANCE_TOL`. If the NLP's plan does not (a local
     optimum), the mirror fixed point is verified, timed and sample-checked like the plan and
     written instead when it tolerates more.
+
+    Returns:
+        The plan to write, and the mirror's metrics over its own written samples when it was
+        sample-checked (the same computation as the plan's: waypoints and samples), else None.
     """
     if (not opts.robust_first
             or plan.metrics.tolerated >= mirror_tolerated - DOMINANCE_TOL):
-        return plan
+        return plan, None
     try:
         alt = written_plan(model, task, window, opts, mirror.q, mirror.offsets, timing, "mirror",
                            reference_offsets=mirror.offsets)
     except InfeasibleError as exc:
         log.info("the mirror baseline tolerates more but cannot be written: %s", exc)
-        return plan
+        return plan, None
     better = alt.metrics.tolerated > plan.metrics.tolerated
     log.info("the NLP plan tolerates %.4g, the mirror written and sample-checked %.4g "
              "(%.4g on its waypoints): writing the %s", plan.metrics.tolerated,
              alt.metrics.tolerated, mirror_tolerated, "mirror" if better else "NLP plan")
-    return alt if better else plan
+    return (alt if better else plan), replace(alt.metrics, name="mirror")
 
 
 def _plan_task(
@@ -505,7 +509,9 @@ def _plan_task(
     out = written_plan(model, task, window, opts, sol.q, sol.offsets, timing, "nlp",
                        "" if sol.success else f" (IPOPT: {sol.status})", stages,
                        reference_offsets=base.warm.offsets)
-    out = dominant(model, task, window, opts, out, base.mirror, m_mirror.tolerated, timing)
+    out, sampled = dominant(model, task, window, opts, out, base.mirror, m_mirror.tolerated,
+                            timing)
+    m_mirror = sampled or m_mirror
     verify_time = time.perf_counter() - t0 - out.timing_time
     held = out.metrics.tolerated >= opts.force_uncertainty * (1 - 1e-9)
     if opts.robust_hard and not held:

@@ -1,6 +1,9 @@
 """How much force uncertainty a plan tolerates, and the options the NLP pursues it with.
 
-The tolerated force uncertainty of joint values q on a task is the largest uniform u for which
+The plan's claim covers the whole weld envelope (lateral error, depth, tilt, pin speed at the
+vertices of the force box: :func:`rfsw_plan.planning.verify.robust_claim`); the NLP pursues the
+lateral error's part of it, below. The lateral error's tolerated force uncertainty of joint
+values q on a task is the largest uniform u for which
 the worst case of the lateral pin error over the force box |delta f_i| <= u |f_i| (seam-frame
 components) stays in the weld window: e_k +- u R_k with R_k = sum_i |f_i| |l^T C_tt b_i|
 (deflection linear in F; seed 000 eq. 11), so u = min_k dist_k / R_k, dist_k the distance of

@@ -23,6 +23,9 @@ Every row family the NLP declares (:mod:`rfsw_plan.planning.rows`) names its che
 planner constraint cannot go without its independent check.
 
 :func:`pin_track` evaluates the timed trajectory the same way at every sample.
+:func:`verify_samples` checks every written sample, and :func:`robust_claim` gives how much
+force uncertainty each weld quantity (lateral error, depth, tilt, pin speed) holds at the
+vertices of the force box, on the model itself (the plan's claim and the verdict's).
 """
 
 from __future__ import annotations
@@ -781,10 +784,9 @@ class RobustClaim:
         """The claim over both point sets: per quantity the smaller level (ties: this one)."""
         limits = {q: (other.limits[q] if other.limits[q].level < lim.level else lim)
                   for q, lim in self.limits.items()}
-        fc = np.nanmin([self.axial_force_control, other.axial_force_control]) if not (
-            np.isnan(self.axial_force_control) and np.isnan(other.axial_force_control)
-        ) else float("nan")
-        return RobustClaim(limits, float(fc), self.linear and other.linear,
+        # Both from one task: both NaN (axial force control) or both levels.
+        fc = min(self.axial_force_control, other.axial_force_control)
+        return RobustClaim(limits, fc, self.linear and other.linear,
                            np.concatenate([self.lateral_per_unit, other.lateral_per_unit]))
 
 
