@@ -110,7 +110,10 @@ class CandidateResult:
             requested uncertainty is not held), or ``infeasible``/``unreachable``/``error``.
         message: Why it failed (empty when planned).
         tolerated_uncertainty: Of the verified plan (relative; the planner's own figure over
-            waypoints and written samples), NaN if not planned.
+            waypoints and written samples, every weld quantity), NaN if not planned.
+        tolerated_lateral: The lateral error's own level at the waypoints (relative): what
+            the placement's lateral stiffness decides; it breaks ties of the whole claim
+            (a depth that limits every placement alike), NaN if not planned.
         max_abs_lateral: Largest |e_lat| of the plan [m].
         min_lateral_stiffness: Smallest lateral stiffness along the weld [N/m].
         plan_time: Wall time of the planner [s] (machine-dependent; not part of the choice).
@@ -134,6 +137,7 @@ class CandidateResult:
     joint_shares: dict[str, float] = field(default_factory=dict)
     q_start: FloatArray | None = None
     sample_margin: float = float("nan")
+    tolerated_lateral: float = float("nan")
 
     @property
     def planned(self) -> bool:
@@ -178,9 +182,10 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
                                plan_time=time.perf_counter() - t0)
     dt = time.perf_counter() - t0
     model = res.model
-    u, k = tolerated_uncertainty(model, res.task, res.q, res.window)
+    u_lat, k = tolerated_uncertainty(model, res.task, res.q, res.window)
+    u = u_lat
     u_plan = float(getattr(res, "tolerated_force_uncertainty", np.nan))
-    if np.isfinite(u_plan):  # the planner's figure also covers the written samples
+    if np.isfinite(u_plan):  # the planner's figure covers every quantity and written sample
         u = min(u, u_plan)
     sl = res.task.weld
     pred = res.verification.prediction
@@ -201,20 +206,24 @@ def evaluate_candidate(problem: Any, options: PlanOptions, label: str,
     return CandidateResult(
         label, placement, status, msg, u, float(np.max(np.abs(pred.e_lat[sl]))),
         float(np.min(pred.lateral_stiffness[sl])), dt, k, shares, res.q[0].copy(),
-        sample_margin)
+        sample_margin, u_lat)
 
 
 def _run(args: tuple[Any, PlanOptions, str, Placement]) -> CandidateResult:
     return evaluate_candidate(*args)
 
 
-def choice_key(r: CandidateResult, requested: float, order: int) -> tuple[float, float, int]:
-    """Sort key (ascending = better): capped tolerated uncertainty, then stiffness, then the
-    screening order. Rounded so that solver noise below 1e-6 / 1 N/mm does not decide."""
+def choice_key(r: CandidateResult, requested: float,
+               order: int) -> tuple[float, float, float, int]:
+    """Sort key (ascending = better): the capped tolerated uncertainty of the whole claim (to
+    0.1 percentage point), then the capped lateral level (what a placement's stiffness
+    moves when the depth limits every placement alike), then the lateral stiffness, then the
+    screening order. Rounded so that solver noise does not decide."""
     if not r.planned:
-        return (np.inf, np.inf, order)
+        return (np.inf, np.inf, np.inf, order)
     u = min(r.tolerated_uncertainty, requested)
-    return (-round(u, 6), -round(r.min_lateral_stiffness * 1e-3, 0), order)
+    u_lat = min(r.tolerated_lateral, requested)
+    return (-round(u, 3), -round(u_lat, 6), -round(r.min_lateral_stiffness * 1e-3, 0), order)
 
 
 def pick_candidates(m: PlacementMap, requested: float, n: int) -> list[Candidate]:
