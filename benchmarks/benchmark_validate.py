@@ -11,6 +11,13 @@ two paths are printed side by side; they must be the same. Asserts nothing.
 
 Run: ``.venv/bin/python benchmarks/benchmark_validate.py [--sizes 10000,100000,1000000]
 [--cases one,two,add] [--old-max 10000] [--folds 5]``
+
+``--real [--vs OTHER_CHECKOUT]`` instead times the commands of issue 40 as a user runs them
+(wall time of the whole command, imports included, in a fresh process): ``calibrate`` on the
+FANUC R-2000iC/165F set, ``calibrate`` on UR10 Series A + B (all poses), and ``validate`` on the
+guide's 320-row campaign (docs/guide/validate.md), with the figure each prints; with ``--vs``
+the same commands also run on another checkout (e.g. ``git worktree add /tmp/base main``), before
+and after side by side. The shared data sets live in ``../shared/data`` (``--data-dir``).
 """
 
 from __future__ import annotations
@@ -112,8 +119,77 @@ def run_child(samples: int, case: str, folds: int, old: bool) -> dict[str, Any]:
     return dict(json.loads(out.stdout.strip().splitlines()[-1]))
 
 
+#: name -> (title, command after ``rfsw-plan``, JSON key of the figure, its label); {data} is
+#: the shared data folder, {tmp} a scratch folder.
+REAL: dict[str, tuple[str, list[str], str, str]] = {
+    "fanuc": ("FANUC calibrate (240 readings, 3 reflectors)",
+              ["calibrate", "--robot", "fanuc_r2000ic_165f", "--data",
+               "{data}/fanuc_r2000ic_165f/calibration_dataset.mat", "--columns",
+               "examples/fanuc_r2000ic_165f/columns.toml", "--frame", "device", "--json"],
+              "heldout_rms_mm", "held out (LOPO) mm"),
+    "ur10": ("UR10 A + B calibrate (13,405 poses)",
+             ["calibrate", "--robot", "ur10", "--data",
+              "{data}/ur10_ipa/Series_A/measurements_grid.csv", "--data",
+              "{data}/ur10_ipa/Series_B/measurements_joint_configurations.csv", "--columns",
+              "examples/ur10_ipa/columns.toml", "--frame", "device", "--json"],
+             "heldout_rms_mm", "held out (10 folds) mm"),
+    "guide": ("validate, the guide's 320-row campaign",
+              ["validate", "--robot", "zk500", "--data", "{tmp}/campaign.csv", "--json",
+               "--no-report"], "verdict", "verdict"),
+}
+
+
+def _real(root: str, name: str, data: str, tmp: str, timeout: float) -> tuple[float, str]:
+    """Wall time [s] of one command on the checkout ``root`` and the figure it printed."""
+    import os
+
+    _, cmd, key, _ = REAL[name]
+    env = dict(os.environ, PYTHONPATH=root)
+    args = [a.format(data=data, tmp=tmp) for a in cmd]
+    t0 = time.perf_counter()
+    try:
+        out = subprocess.run([sys.executable, "-m", "rfsw_plan.cli.main", *args], cwd=root,
+                             env=env, capture_output=True, text=True, timeout=timeout,
+                             check=False)
+    except subprocess.TimeoutExpired:
+        return time.perf_counter() - t0, f"not finished in {timeout:.0f} s"
+    wall = time.perf_counter() - t0
+    if out.returncode:
+        return wall, "failed: " + (out.stderr.strip().splitlines() or ["?"])[-1]
+    j = json.loads(out.stdout)
+    value = j.get(key, j.get("diagnosis", {}).get(key))
+    shown = f"{value:.3f}" if isinstance(value, float) else str(value)
+    return wall, shown
+
+
+def real(names: list[str], roots: list[str], data: str, timeout: float) -> None:
+    """Print the wall time and figure of each real command on each checkout."""
+    import os
+
+    with tempfile.TemporaryDirectory() as tmp:
+        subprocess.run([sys.executable, "-m", "rfsw_plan.cli.main", "simulate-campaign",
+                        "--robot", "zk500", "--hidden", "payload_gravity=m:150,m_rz:-37.5",
+                        "--hidden", "joint_backlash:j2", "--poses", "40", "--loads-per-pose",
+                        "8", "--noise-mm", "0.01", "--seed", "1", "-o", f"{tmp}/campaign.csv"],
+                       cwd=roots[0], env=dict(os.environ, PYTHONPATH=roots[0]), check=True,
+                       capture_output=True)
+        print(f"{'command':<44} {'checkout':<28} {'wall s':>8}  figure")
+        for name in names:
+            title, _, _, label = REAL[name]
+            for root in roots:
+                wall, shown = _real(root, name, data, tmp, timeout)
+                print(f"{title:<44} {root:<28} {wall:>8.1f}  {label}: {shown}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("--real", nargs="?", const="fanuc,ur10,guide", default=None,
+                        help="time the real commands instead (of fanuc, ur10, guide)")
+    parser.add_argument("--vs", default=None, help="another checkout to time too (--real)")
+    parser.add_argument("--data-dir", default=None,
+                        help="shared data folder (default ../shared/data of this checkout)")
+    parser.add_argument("--timeout", type=float, default=3600.0,
+                        help="seconds before a real command is given up (--real)")
     parser.add_argument("--sizes", default="10000,100000,1000000",
                         help="comma-separated numbers of samples")
     parser.add_argument("--cases", default="one,two,add", help=f"of {', '.join(CASES)}")
@@ -125,6 +201,14 @@ def main() -> None:
     args = parser.parse_args()
     if args.child is not None:
         print(json.dumps(child(args.child, args.cases, args.folds, args.old)))
+        return
+    if args.real is not None:
+        from pathlib import Path
+
+        here = str(Path(__file__).resolve().parents[1])
+        data = args.data_dir or str(Path(here).parent / "shared" / "data")
+        roots = [here] + ([str(Path(args.vs).resolve())] if args.vs else [])
+        real(args.real.split(","), roots, data, args.timeout)
         return
     print(f"zk500, 4 loads per pose up to {MAX_POSES} poses, {args.folds} folds; validate = "
           "cross-validation, residual analysis and diagnosis; report = plots, HTML, JSON; "

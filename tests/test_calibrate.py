@@ -256,17 +256,18 @@ def test_calibrate_refuses_a_file_given_twice(tmp_path: Path,
     assert len(err.splitlines()) == 1 and "a file given twice" in err
 
 
-@pytest.mark.slow
 @pytest.mark.skipif(not FANUC.is_file(), reason="shared/data/fanuc_r2000ic_165f absent")
 def test_fanuc_leave_one_pose_out_beats_the_published_in_sample_figure(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The FANUC R-2000iC/165F set: 0.53 mm is upstream's in-sample RMS after geometric
-    calibration; ours is held out (each pose group left out of the whole fit)."""
+    calibration; ours is held out (each pose group left out of the whole fit). In the default
+    run since the fits are done in blocks (about 6 s of CPU); it was 0.381 mm with the stacked
+    fits, and the faster path must not be worse (0.382: the last digit's rounding)."""
     assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(FANUC),
                  "--columns", str(FANUC_COLUMNS), "--frame", "device", "--json"]) == 0
     j = json.loads(capsys.readouterr().out)
     assert j["heldout_scheme"] == "leave-one-pose-group-out" and j["heldout_pose_groups"] == 24
-    assert j["heldout_rms_mm"] <= 0.53
+    assert j["heldout_rms_mm"] <= 0.382
     assert j["repeatability_mm"] is not None and j["iso9283"]["repeated_groups"] == 24
     assert j["effects"][:2] == ["kinematic_offsets", "link_errors"]
 

@@ -41,7 +41,7 @@ from rfsw_plan.elastostatics.registration import DeviceSetup, prepare_device_set
 from rfsw_plan.io.measurements import read_measurements
 from rfsw_plan.validation.calibrate import CalibrationRequest, choose_effects
 from rfsw_plan.validation.engine.diagnosis import make_folds
-from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot
+from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot, validate
 
 HERE = Path(__file__).resolve().parent
 COLUMNS = HERE / "columns.toml"
@@ -68,12 +68,11 @@ def choose_model(model: ElastostaticModel, train: MeasurementSet) -> ValidationR
     setup = prepare_device_setup(model, train)
     request = CalibrationRequest(robot=ROBOT, data=(train.source,), geometry=GEOMETRY,
                                  max_effects=MAX_EFFECTS)
-    res, _, steps = choose_effects(model, train, setup, request)
+    _, chosen, steps = choose_effects(model, train, setup, request)
     for k, step in enumerate(steps):
         label = step.added if k == 0 else f"+ {step.added}"
-        print(f"  {label:<50} training CV {step.cv_rms * 1e3:6.3f} mm/axis, "
-              f"fit {step.fit_rms * 1e3:6.3f} mm/axis")
-    return res
+        print(f"  {label:<50} training CV {step.cv_rms * 1e3:6.3f} mm/axis")
+    return validate(model, train, add=chosen, setup=setup)
 
 
 def _shown(value: float, std: float, unit: str) -> str:

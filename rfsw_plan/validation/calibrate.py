@@ -39,14 +39,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.effects.base import FloatArray
-from rfsw_plan.elastostatics.identification import identify
+from rfsw_plan.elastostatics.identification import IdentificationResult
+from rfsw_plan.elastostatics.identification_blocks import identify_blocks, predicted_positions
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.elastostatics.registration import DeviceSetup, estimate_device_frame
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import DeviceFrame
+from rfsw_plan.validation.engine.crossval import (
+    CrossValidation,
+    cross_validate,
+    make_folds,
+)
+from rfsw_plan.validation.engine.crossval import single_thread_numpy_blas as _single_thread
+from rfsw_plan.validation.engine.diagnosis import Skipped
+from rfsw_plan.validation.engine.residuals import estimate_noise_floor
 from rfsw_plan.validation.sanity import check_data
-from rfsw_plan.validation.workbench import ValidationResult, device_frame_json, validate
+from rfsw_plan.validation.workbench import check_effect_labels, device_frame_json
 
 #: The geometry of a real arm, always fitted (not put to a vote): joint zeros and the links'
 #: own errors (6 per link, FIGAROH's ``full_params``).
@@ -360,36 +369,79 @@ def _common_setup(model: ElastostaticModel, marker: FloatArray) -> DeviceSetup:
                        True, True, model.robot)
 
 
+@dataclass(frozen=True)
+class Choice:
+    """The model :func:`choose_effects` chose, identified on all training samples.
+
+    Attributes:
+        identification: The chosen form identified on every sample (registration included).
+        cv: Its cross-validation by pose group on the training files.
+        not_added: Effects asked for (the geometry) that the data could not identify, why.
+        setup: The device set-up the data was registered with (None: base frame).
+    """
+
+    identification: IdentificationResult = field(repr=False)
+    cv: CrossValidation = field(repr=False)
+    not_added: tuple[Skipped, ...] = ()
+    setup: DeviceSetup | None = field(default=None, repr=False)
+
+
 def choose_effects(model: ElastostaticModel, data: MeasurementSet, setup: DeviceSetup | None,
-                   request: CalibrationRequest) -> tuple[ValidationResult, list[str],
-                                                          list[SelectionStep]]:
+                   request: CalibrationRequest, labels: Sequence[str] | None = None
+                   ) -> tuple[Choice, list[str], list[SelectionStep]]:
     """The geometry, then the diagnosis's best significant effect at a time, on the training
     data only, while the training cross-validation improves.
 
-    The ranking and the significance test are the workbench diagnosis's
-    (:func:`~rfsw_plan.validation.workbench.validate`); this loop only adds its best
-    candidate and stops when nothing significant is left, nothing is gained, or
-    ``request.max_effects`` are added.
+    The geometry (``request.geometry``, or ``labels`` when given) is added as ``validate
+    --add`` adds it (what the data cannot identify is left out, with why). Each round scores
+    every library candidate on the current model with the workbench's engine
+    (:func:`~rfsw_plan.validation.engine.diagnosis.evaluate_candidates`: held-out F test on
+    folds by pose group, Bonferroni over the candidates, the same ranking as ``validate``'s
+    first step); the best significant one is added and everything is re-identified from the
+    robot file's model; the loop stops when nothing significant is left, the cross-validated
+    error does not fall, or ``request.max_effects`` are added. With ``labels`` given nothing is
+    selected: the form is refitted.
     """
-    added = [g for g in request.geometry if not model.has(g)]
-    res = validate(model, data, add=added, setup=setup, folds=request.folds, seed=request.seed)
-    if res.add is not None:
-        added = list(res.add.added)
+    from rfsw_plan.validation.engine.diagnosis import candidate_labels, evaluate_candidates
+    from rfsw_plan.validation.workbench import _add_effects
+    from rfsw_plan.validation.workbench import _registered as registered_form
+
+    form, d = registered_form(model, data, setup)
+    wanted = list(request.geometry if labels is None else labels)
+    wanted = check_effect_labels(form, [g for g in wanted if not model.has(g)])
+    batch = form.batch_of(d)
+    pred = predicted_positions(form, batch, d.wrench)
+    residual0 = np.where(d.measured, d.position - pred, np.nan)
+    r0 = residual0[np.isfinite(residual0)]
+    rms0 = float(np.sqrt(np.mean(r0**2))) if r0.size else math.nan
+    fold = make_folds(d, request.folds, request.seed)
+    before = cross_validate(form, d, fold, batch)
+
+    def fitted(with_: list[str]) -> tuple[CrossValidation, list[str], tuple[Skipped, ...]]:
+        if not with_:
+            return before, [], ()
+        add = _add_effects(form, d, fold, batch, with_, before, rms0)
+        return add.after, list(add.added), add.not_added
+
+    cv, added, not_added = fitted(wanted)
     steps = [SelectionStep(" + ".join(["registration", *added]) if setup else " + ".join(added),
-                           res.diagnosis.heldout_rms, res.rms)]
+                           cv.heldout_rms, cv.fit.rms_after)]
+    if labels is not None or request.max_effects == 0:
+        return Choice(cv.fit, cv, not_added, setup), added, steps
+    noise = estimate_noise_floor(d, residual0, model=form, batch=batch)
+    evaluate = _single_thread(evaluate_candidates)
     for _ in range(request.max_effects):
-        best = next((c for c in res.diagnosis.candidates if c.significant), None)
+        current = cv.fit.model
+        scored, _ = evaluate(current, d, fold, cv, candidate_labels(current), batch, noise)
+        best = next((c for c, _ in scored if c.significant), None)
         if best is None:
             break
-        step = validate(model, data, add=[*added, best.label], setup=setup,
-                        folds=request.folds, seed=request.seed)
-        if (step.add is None or best.label not in step.add.added
-                or step.diagnosis.heldout_rms >= res.diagnosis.heldout_rms):
+        nxt, got, dropped = fitted([*added, best.label])
+        if best.label not in got or nxt.heldout_rms >= cv.heldout_rms:
             break
-        added.append(best.label)
-        res = step
-        steps.append(SelectionStep(best.label, res.diagnosis.heldout_rms, res.rms))
-    return res, added, steps
+        cv, added, not_added = nxt, got, dropped
+        steps.append(SelectionStep(best.label, cv.heldout_rms, cv.fit.rms_after))
+    return Choice(cv.fit, cv, not_added, setup), added, steps
 
 
 def _form(model: ElastostaticModel, labels: Sequence[str], setup: DeviceSetup | None
@@ -441,14 +493,17 @@ def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray
     """Marker errors of every sample when its fold is left out of the fit (the registration
     and every effect of ``form`` refitted on the other folds), shape (m, k, 3) [m]."""
     from rfsw_plan.files import check_interrupt
+    from rfsw_plan.progress import progress
 
     k_markers = 1 if data.markers is None else data.markers.shape[1]
     out = np.full((len(data), k_markers, 3), np.nan)
-    for f in np.unique(folds):
+    names = np.unique(folds)
+    for f in progress(names, desc="calibrate: held out", total=len(names), unit="fold"):
         check_interrupt()
         test = folds == f
         train = data.subset(~test)
-        fit = identify(form, train)
+        fit = _single_thread(identify_blocks)(form, train, form.batch_of(train),
+                                              np.zeros(len(train), dtype=np.int_)).result
         out[test] = marker_errors(fit.model, train, data.subset(test))
     return out
 
@@ -487,7 +542,7 @@ def iso9283(measured: FloatArray, err: FloatArray, groups: NDArray[np.int_]) -> 
     )
 
 
-def _parameters(res: ValidationResult) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
+def _parameters(res: Choice) -> tuple[list[dict[str, Any]], list[dict[str, str]]]:
     """Identified robot parameters (engineering units) and what could not be identified."""
     effects = {e.label: e for e in res.identification.model.effects}
     params: list[dict[str, Any]] = []
@@ -504,15 +559,14 @@ def _parameters(res: ValidationResult) -> tuple[list[dict[str, Any]], list[dict[
         std = None if not np.isfinite(e.std_error) else e.std_error * scale
         params.append({"effect": e.effect, "name": e.name, "value": e.value * scale,
                        "std_error": std, "unit": shown, "note": e.note})
-    if res.add is not None:
-        missing += [{"label": s.label, "reason": s.reason} for s in res.add.not_added]
+    missing += [{"label": s.label, "reason": s.reason} for s in res.not_added]
     return params, missing
 
 
 def _fit_rounds(model: ElastostaticModel, sets: list[MeasurementSet],
                 frames: list[DeviceFrame | None], labels: list[str] | None,
                 request: CalibrationRequest
-                ) -> tuple[ValidationResult, list[str], list[SelectionStep],
+                ) -> tuple[Choice, list[str], list[SelectionStep],
                            MeasurementSet, DeviceSetup | None]:
     """Choose (``labels`` None) or refit the model on the files registered with ``frames``."""
     device = frames[0] is not None
@@ -520,12 +574,7 @@ def _fit_rounds(model: ElastostaticModel, sets: list[MeasurementSet],
     setup = _common_setup(model, marker) if marker is not None else None
     data = _concat([_registered(d, f) for d, f in zip(sets, frames, strict=True)],
                    ", ".join(request.data))
-    if labels is None:
-        res, chosen, steps = choose_effects(model, data, setup, request)
-    else:
-        res = validate(model, data, add=labels, setup=setup, folds=request.folds,
-                       seed=request.seed)
-        chosen, steps = list(res.add.added) if res.add else [], []
+    res, chosen, steps = choose_effects(model, data, setup, request, labels)
     return res, chosen, steps, data, setup
 
 
@@ -616,7 +665,9 @@ def converge_frames(model: ElastostaticModel, labels: Sequence[str],
         marker = np.mean([f.marker for f in frames if f is not None], axis=0)
         setup = _common_setup(model, marker)
         data = _concat([_registered(d, f) for d, f in zip(sets, frames, strict=True)], "")
-        fit = identify(_form(model, labels, setup), data)
+        form = _form(model, labels, setup)
+        fit = _single_thread(identify_blocks)(form, data, form.batch_of(data),
+                                              np.zeros(len(data), dtype=np.int_)).result
         fitted, correction = setup.fold(fit.model, fit.estimates)
         new = [_register(fitted, d, correction.marker) for d in sets]
         moved = max(_frame_change(f, g) for f, g in zip(frames, new, strict=True)
@@ -656,7 +707,7 @@ def _nominal_rms(model: ElastostaticModel, sets: list[MeasurementSet],
     return _rms3d(np.concatenate(errs))
 
 
-def _refold(res: ValidationResult, setup: DeviceSetup | None,
+def _refold(res: Choice, setup: DeviceSetup | None,
             frames: list[DeviceFrame | None]
             ) -> tuple[ElastostaticModel, list[DeviceFrame | None]]:
     """The fitted robot model and each file's registration (the common correction folded
@@ -679,7 +730,7 @@ def _file_scores(sets: list[MeasurementSet], frames: list[DeviceFrame | None],
     return tuple(out)
 
 
-def _save(request: CalibrationRequest, res: ValidationResult, fitted: ElastostaticModel,
+def _save(request: CalibrationRequest, res: Choice, fitted: ElastostaticModel,
           frame: DeviceFrame | None, parent: ElastostaticModel) -> Path:
     from rfsw_plan.validation.derived_robot import save_derived_robot
 
@@ -702,6 +753,7 @@ __all__ = [
     "GEOMETRY",
     "CalibrationRequest",
     "CalibrationResult",
+    "Choice",
     "FileScore",
     "Iso9283",
     "choose_effects",

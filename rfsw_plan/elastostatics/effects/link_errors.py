@@ -9,6 +9,11 @@ import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import FloatArray, GeometricEffect, PoseBatch, cross3
 
+#: Key of the regressor in a batch's cache (it depends on the poses only).
+_REGRESSOR_KEY = "link_errors_regressor"
+#: Larger regressors are not kept (a whole 10^6-sample batch outside the fit's blocks).
+_CACHE_MAX_BYTES = 32 * 2**20
+
 #: Translation error of a link beyond this [m] is not a calibration (a wrong drawing or a
 #: stand-in for another effect).
 PLAUSIBLE_M = 5e-3
@@ -67,6 +72,17 @@ class LinkErrors(GeometricEffect):
         return dict(zip(self.param_names(), v.reshape(-1).tolist(), strict=True))
 
     def offset_regressor(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        """d(offset)/d(theta), shape (m, 6, 6 n): the chain's frames only (the first-order
+        model does not depend on theta), kept in ``batch.cache`` for the passes of one fit."""
+        got: FloatArray | None = batch.cache.get(_REGRESSOR_KEY)
+        if got is not None and got.shape == (len(batch), 6, 6 * self.robot.nq):
+            return got
+        out = self._regressor(batch)
+        if out.nbytes <= _CACHE_MAX_BYTES:
+            batch.cache[_REGRESSOR_KEY] = out
+        return out
+
+    def _regressor(self, batch: PoseBatch) -> FloatArray:
         m, n = len(batch), self.robot.nq
         R = batch.frames[:, :, :3, :3]  # (m, n, 3, 3)
         origin = batch.frames[:, :, :3, 3].copy()  # (m, n, 3)

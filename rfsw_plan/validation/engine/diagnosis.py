@@ -476,6 +476,8 @@ def _simpler(
     labels = [s.label for s in steps]
     changed = False
     for i, own in enumerate(list(labels)):
+        if _n_params(model, own) <= 1:
+            continue  # a candidate scored has at least one parameter: none is simpler
         m = model
         for lab in labels[:i] + labels[i + 1:]:
             m = m.with_effect(lab)
