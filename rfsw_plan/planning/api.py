@@ -496,8 +496,6 @@ def _plan_task(
     choice = choose_branch(model, task, np.asarray(q_seed, float), nopts, window)
     stages.start("baselines")
     base = _baselines(model, task, choice, opts)
-    m_none = metrics("none", model, task, base.taught.q, window, opts.force_uncertainty)
-    m_mirror = metrics("mirror", model, task, base.mirror.q, window, opts.force_uncertainty)
     stages.start("NLP (first run compiles C)")
     t0 = time.perf_counter()
     sol = _solver_call(solve_plan, model, task, window, base.warm, nopts, compile_c)
@@ -509,6 +507,13 @@ def _plan_task(
     out = written_plan(model, task, window, opts, sol.q, sol.offsets, timing, "nlp",
                        "" if sol.success else f" (IPOPT: {sol.status})", stages,
                        reference_offsets=base.warm.offsets)
+    # The baselines judged as the plan: the pin speed where the written weld runs at constant
+    # speed (not while the tool accelerates and the traverse force ramps).
+    steady = out.samples.constant_speed
+    m_none = metrics("none", model, task, base.taught.q, window, opts.force_uncertainty,
+                     constant_speed=steady)
+    m_mirror = metrics("mirror", model, task, base.mirror.q, window, opts.force_uncertainty,
+                       constant_speed=steady)
     out, sampled = dominant(model, task, window, opts, out, base.mirror, m_mirror.tolerated,
                             timing)
     m_mirror = sampled or m_mirror

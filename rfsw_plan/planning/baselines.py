@@ -403,6 +403,7 @@ class BaselineMetrics:
 def metrics(
     name: str, model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
     uncertainty: float, samples: SampleVerification | None = None,
+    constant_speed: tuple[float, float] | None = None,
 ) -> BaselineMetrics:
     """Metrics of joint values q (K, n) [rad] at the task's waypoints (all in the material),
     and with ``samples`` (the plan's :func:`~rfsw_plan.planning.verify.verify_samples`) at
@@ -411,7 +412,9 @@ def metrics(
     At each point e is the lateral pin error and R the worst case per unit force uncertainty,
     R = sum_i |f_i| |l^T C_tt b_i| (seed 000 eq. 11); the worst case at the requested u is
     e +- u R. The tolerated uncertainty is the whole envelope's
-    (:func:`~rfsw_plan.planning.verify.robust_claim` at the waypoints, and at the samples).
+    (:func:`~rfsw_plan.planning.verify.robust_claim` at the waypoints, and at the samples),
+    the pin speed judged within ``constant_speed`` (first, last arc length [m] of the
+    constant-speed weld samples; by default the samples' own).
     """
     pred = predict(model, task, q, 1.0)
     e, R = pred.e_lat, pred.worst
@@ -426,7 +429,9 @@ def metrics(
     sl = task.weld
     inside = (e[sl] >= window.lower) & (e[sl] <= window.upper)
     robust = np.minimum(e_all - r - window.lower, window.upper - (e_all + r))
-    claim = waypoint_claim(model, task, window, q)
+    if samples is not None and constant_speed is None:
+        constant_speed = samples.constant_speed
+    claim = waypoint_claim(model, task, window, q, constant_speed)
     if samples is not None and samples.claim is not None:
         claim = samples.claim.combined(claim)
     return BaselineMetrics(name, float(np.max(np.abs(e_all))), float(np.sqrt(np.mean(e ** 2))),

@@ -1071,18 +1071,25 @@ def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
 
 
 def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
-                   q: FloatArray) -> RobustClaim:
+                   q: FloatArray, constant_speed: tuple[float, float] | None = None
+                   ) -> RobustClaim:
     """:func:`robust_claim` of joint values q (K, n) [rad] at the task's waypoints (every one in
     the material but the plunge start; the pin speed as d sigma / d s over the weld
-    waypoints): how a baseline without written samples (the mirror) is judged, and the
-    plan's waypoints beside its samples."""
+    waypoints, only those within ``constant_speed`` (first, last arc length [m] of the
+    constant-speed weld samples) where given: as the samples, the speed tolerance is not
+    judged while the tool accelerates and the traverse force ramps): how a baseline without
+    written samples (the mirror) is judged, and the plan's waypoints beside its samples."""
     batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
     W = task.wrench_base
     dX = model.process_deflection_batch(batch, W, task.reference)
     fr = task.frames
+    travel = task.phase == "weld"
+    if constant_speed is not None:
+        tol = 1e-9
+        travel = travel & (task.s >= constant_speed[0] - tol) & (task.s <= constant_speed[1] + tol)
     c = ClaimInput(task.time, task.phase, task.s, batch, W, dX, fr.p, fr.t, fr.l, fr.n,
                    task.plate_normal, ~task.at_surface, np.isin(task.phase, FULL_DEPTH_PHASES),
-                   task.phase == "weld", task.s, 1.0)
+                   travel, task.s, 1.0)
     return robust_claim(model, task, window, c, "waypoint")
 
 
@@ -1117,6 +1124,8 @@ class SampleVerification:
         height: Predicted pin tip height above the plate surface along the plate normal [m],
             (N,) (negative in the plate).
         claim: The tolerated force uncertainty per weld quantity (:func:`robust_claim`).
+        constant_speed: Arc lengths [m] (first, last) of the constant-speed weld samples,
+            where the pin speed is judged (None without such samples).
     """
 
     ok: bool
@@ -1133,6 +1142,7 @@ class SampleVerification:
     speed_ratio: FloatArray | None = None
     height: FloatArray | None = None
     claim: RobustClaim | None = None
+    constant_speed: tuple[float, float] | None = None
 
     @property
     def first_failure(self) -> SampleFailure | None:
@@ -1359,8 +1369,10 @@ def verify_samples(
                 val[rows] = o * scale
                 first(bad, check, val, tol * scale, unit)
     fails.sort(key=lambda f: (f.index, f.check))
+    steady = s[phase == "weld"]
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
-                              tuple(fails), derr, tilt_err, speed_ratio, height, claim)
+                              tuple(fails), derr, tilt_err, speed_ratio, height, claim,
+                              (float(steady[0]), float(steady[-1])) if len(steady) else None)
 
 
 def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,
