@@ -84,8 +84,13 @@ def _validate(robot: str, csv: Path, capsys: pytest.CaptureFixture[str],
 
 def _claim_holds(robot: str, csv: Path, js: dict, capsys: pytest.CaptureFixture[str]) -> str:
     """The verdict is "unexplained"/"partly explained", or "missing X" and adding X (``--add``)
-    brings the held-out RMS to <= FLOOR_RATIO x the floor. Returns a line for the log."""
+    brings the held-out RMS to <= FLOOR_RATIO x the floor, or "adequate" with the held-out RMS
+    within FLOOR_RATIO x the floor (an effect too small to see). Returns a line for the log."""
     dg = js["diagnosis"]
+    if js["verdict"] == "adequate":  # the hidden effect is below what this campaign sees
+        ratio = js["heldout_rms_mm"] / js["noise_floor_mm"]
+        assert ratio <= FLOOR_RATIO, js["message"]
+        return f"adequate at {ratio:.2f} x the floor (the effect is not visible)"
     if js["verdict"] == "missing":
         added = _validate(robot, csv, capsys,
                           *(a for x in dg["named"] for a in ("--add", x)))
@@ -122,7 +127,9 @@ def test_twenty_campaigns_outside_the_library_keep_the_claim(
     """20 lab campaigns (fixed seed) with an effect outside the library each give
     "unexplained"/"partly explained", or "missing X" where adding X reaches the floor ratio."""
     rng = np.random.default_rng(40)
-    lines = []
+    lines: list[str] = []
+    failed: list[str] = []
+    seen = 0
     for i in range(20):
         robot = ("zk500", "kuka_kr600_r2830")[i % 2]
         hidden = HIDDEN_OUTSIDE[int(rng.integers(len(HIDDEN_OUTSIDE)))]
@@ -131,6 +138,14 @@ def test_twenty_campaigns_outside_the_library_keep_the_claim(
                             skip_zero=float(rng.uniform(0, 0.3)), tau_ref=4000.0,
                             seed=int(rng.integers(1_000_000)))
         js = _validate(robot, camp.path, capsys)
-        lines.append(f"{robot} {'+'.join(hidden)}: {_claim_holds(robot, camp.path, js, capsys)}")
+        line = f"{robot} {'+'.join(hidden)}: {js['message'][:100]}"
+        try:
+            line = f"{robot} {'+'.join(hidden)}: {_claim_holds(robot, camp.path, js, capsys)}"
+        except AssertionError:
+            failed.append(line)
+        lines.append(line)
+        seen += js["verdict"] != "adequate"
     with capsys.disabled():
-        print("\n".join(lines))
+        print("\n" + "\n".join(lines) + f"\n{seen} of 20 campaigns show their hidden effect")
+    assert not failed, failed
+    assert seen >= 10, lines
