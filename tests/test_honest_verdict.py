@@ -92,7 +92,7 @@ def _claim_holds(robot: str, csv: Path, js: dict, capsys: pytest.CaptureFixture[
         # "adequate" keeps its own test (not significantly above the floor, or <= 1.1 x it):
         # on 10-pose KR600 campaigns with a harmonic error it is said at 1.6 x the floor.
         ratio = js["heldout_rms_mm"] / js["noise_floor_mm"]
-        assert js["above_noise"] is False, js["message"]
+        assert dg["above_noise"] is False, js["message"]
         return f"adequate at {ratio:.2f} x the floor (not significantly above it)"
     if js["verdict"] == "missing":
         added = _validate(robot, csv, capsys,
