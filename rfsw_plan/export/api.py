@@ -145,6 +145,29 @@ def plate_surface(problem_file: str, samples: Samples
     return np.asarray(ns / np.linalg.norm(ns)), depth, ref, ""
 
 
+
+def _program_header(robot: Robot, record: Mapping[str, Any], problem: str, plan_sha256: str,
+                    path_tol: float, spacing: float, depth: float) -> ProgramHeader:
+    """The program's header from the plan's record (set force under axial force control,
+    tolerated and requested uncertainty, window) and the export's settings [m]."""
+    robot_file, robot_sha256 = _robot_file(robot)
+    envelope = record.get("envelope") or {}
+    set_force = _number(envelope.get("set_force_N")) \
+        if envelope.get("axial_control") == "force" else 0.0
+    header = ProgramHeader(
+        name=f"rfsw_{problem}", plan_id=f"{problem}-{plan_sha256[:12]}",
+        problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
+        version=__version__,
+        tolerated_uncertainty=tolerated_from_record(dict(record)),
+        requested_uncertainty=_number(record.get("force_uncertainty_requested",
+                                                 record.get("force_uncertainty", 0.0))),
+        window_mm=_window(record), path_tol=path_tol, spacing=spacing, set_force=set_force,
+        notes=() if depth > 0 else ("PLUNGE DEPTH UNKNOWN (problem file not readable): the "
+                                    "base origin is on the seam point, not on the plate "
+                                    "surface",))
+    return header
+
+
 def export_programs(
     robot: Robot, samples: Samples, record: Mapping[str, Any], fmts: Sequence[str], out: Path, *,
     plan_sha256: str, spacing: float | None = None, path_tol: float = 1e-5,
@@ -178,7 +201,6 @@ def export_programs(
     spacing = plan_spacing(record) if spacing is None else spacing
     if not spacing > 0:
         raise InputError("--export-spacing-mm", "", f"got {spacing * 1e3:g}", "> 0")
-    robot_file, robot_sha256 = _robot_file(robot)
     if depth is None or reference is None:
         n2, d2, r2, _ = plate_surface(str(record.get("problem_file") or ""), samples)
         normal = n2 if normal is None else normal
@@ -188,20 +210,7 @@ def export_programs(
     ref: Any = reference
     deflection = np.asarray(model.process_deflection(samples.q, samples.wrench, ref))
     pin = robot.batch_fk_jacobian(samples.q)[0][:, :3, 3] + deflection[:, :3]
-    envelope = record.get("envelope") or {}
-    set_force = _number(envelope.get("set_force_N")) \
-        if envelope.get("axial_control") == "force" else 0.0
-    header = ProgramHeader(
-        name=f"rfsw_{problem}", plan_id=f"{problem}-{plan_sha256[:12]}",
-        problem=problem, robot=robot.name, robot_file=robot_file, robot_sha256=robot_sha256,
-        version=__version__,
-        tolerated_uncertainty=tolerated_from_record(dict(record)),
-        requested_uncertainty=_number(record.get("force_uncertainty_requested",
-                                                 record.get("force_uncertainty", 0.0))),
-        window_mm=_window(record), path_tol=path_tol, spacing=spacing, set_force=set_force,
-        notes=() if depth > 0 else ("PLUNGE DEPTH UNKNOWN (problem file not readable): the "
-                                    "base origin is on the seam point, not on the plate "
-                                    "surface",))
+    header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", *fmts)) as stages:
         program = build_program(robot, samples, header, path_tol, normal=normal,
                                 payload=model.tool_payload(), options=options,

@@ -892,6 +892,34 @@ def _closed_form(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArra
     return float(u[k]), (k if np.isfinite(u[k]) else -1)
 
 
+def _component_steps(task: PlanTask, c: ClaimInput) -> list[FloatArray]:
+    """The wrench change (N, 6) of each seam-frame force component (traverse, lateral,
+    axial) at u = 1: w_i f_i b_i (w = :attr:`PlanTask.spread_weights`)."""
+    W = c.wrench
+    dW = []
+    for b, w in zip((c.t_dir, c.l_dir, c.n_dir), task.spread_weights, strict=True):
+        d = np.zeros_like(W)
+        d[:, :3] = (w * np.einsum("ki,ki->k", W[:, :3], b))[:, None] * b
+        dW.append(d)
+    return dW
+
+
+def _component_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
+                           dW: list[FloatArray]) -> tuple[bool, list[FloatArray]]:
+    """Whether the model is wrench-linear, and the deflection change D_i [m] (N, 6) per unit
+    of each force component's change dW_i (see :func:`robust_claim`)."""
+    phys = model.physical()
+    if not phys.linear_compliance(c.batch.rows(slice(0, 1)))[1]:
+        # dX = C F + const (the taught reference's load-independent part cancels): the
+        # Cartesian compliance gives every D_i at once.
+        C = phys.cartesian_compliance(c.batch)[:, :, :3]
+        return True, [np.einsum("kij,kj->ki", C, d[:, :3]) for d in dW]
+    h = LINEARISATION_STEP
+    return False, [(model.process_deflection_batch(c.batch, c.wrench + h * d, task.reference)
+                    - c.deflection) / h if np.any(d) else np.zeros_like(c.deflection)
+                   for d in dW]
+
+
 def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                  c: ClaimInput, kind: str = "sample") -> RobustClaim:
     """The largest uniform relative force uncertainty u each weld quantity holds.
@@ -928,25 +956,9 @@ def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     hold with the axial force exact (w_n = 0; linearised at the nominal force for a model
     that is not wrench-linear): the measured gain of the force-control lever.
     """
-    W = c.wrench
-    dirs = (c.t_dir, c.l_dir, c.n_dir)
-    dW = []
-    for b, w in zip(dirs, task.spread_weights, strict=True):
-        d = np.zeros_like(W)
-        d[:, :3] = (w * np.einsum("ki,ki->k", W[:, :3], b))[:, None] * b
-        dW.append(d)
-    phys = model.physical()
-    linear = not phys.linear_compliance(c.batch.rows(slice(0, 1)))[1]
+    dW = _component_steps(task, c)
+    linear, D = _component_deflections(model, task, c, dW)
     base = _quantities(c, window, c.deflection)
-    if linear:
-        # dX = C F + const (the taught reference's load-independent part cancels): the
-        # Cartesian compliance gives every D_i at once.
-        C = phys.cartesian_compliance(c.batch)[:, :, :3]
-        D = [np.einsum("kij,kj->ki", C, d[:, :3]) for d in dW]
-    else:
-        h = LINEARISATION_STEP
-        D = [(model.process_deflection_batch(c.batch, W + h * d, task.reference)
-              - c.deflection) / h if np.any(d) else np.zeros_like(c.deflection) for d in dW]
     gains = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
              for Di in D]
     force = task.axial_control == "force"

@@ -682,6 +682,22 @@ def _verdict(
 
 
 @single_thread_numpy_blas
+def _after_chain(model: ElastostaticModel, data: MeasurementSet, sel: Selection,
+                 feats: Any) -> tuple[Any, str]:
+    """What the residual left by the selection correlates with, and the experiment that
+    would tell its effects apart (nothing without a chain)."""
+    if not sel.steps:
+        return (), ""
+    return (correlations(sel.cv.heldout_residual, feats),
+            _experiment(model, data, list(sel.steps)))
+
+
+def _excess_explained(base: CrossValidation, chain: list[ChainStep], last_rms: float,
+                      noise: NoiseFloor) -> float:
+    """Share of the held-out excess over the noise floor the chain explains (NaN without)."""
+    return excess_share(base.heldout_rms, last_rms, noise) if chain else float("nan")
+
+
 def diagnose(
     model: ElastostaticModel,
     data: MeasurementSet,
@@ -730,8 +746,7 @@ def diagnose(
                                            (), model, base))
     chain, at_noise = list(sel.steps), sel.at_noise
     last_skipped = sel.skipped if sel.steps else tuple(skipped)
-    rest = correlations(sel.cv.heldout_residual, feats) if chain else ()
-    experiment = _experiment(model, data, chain) if chain else ""
+    rest, experiment = _after_chain(model, data, sel, feats)
     verdict, message = _verdict(base, noise, candidates, chain, corr, at_noise0, at_noise,
                                 rest, experiment)
     last_rms = chain[-1].rms_after if chain else base.heldout_rms
@@ -761,8 +776,7 @@ def diagnose(
         stop=sel.stop,
         advice=tuple(advice_for(sel.model, batch, data, last_skipped,
                                 [st.label for st in chain], at_noise)),
-        excess_explained=(excess_share(base.heldout_rms, last_rms, noise) if chain
-                          else float("nan")),
+        excess_explained=_excess_explained(base, chain, last_rms, noise),
         floor_ratio=(last_rms / noise.sigma if noise.sigma else float("nan")),
         experiment=experiment if verdict == "unexplained" else "",
     )
