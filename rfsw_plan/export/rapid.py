@@ -65,11 +65,19 @@ DEFAULT_HOOKS = {
 }
 
 
+#: A quaternion component smaller than this is not used to choose the sign of q (of q and -q,
+#: the same rotation): far above rounding noise (a tool pointing straight down has w = 0, and
+#: its -1e-13 or +1e-13 must not flip the whole quaternion), far below what is written (1e-9).
+SIGN_TOL = 1e-6
+
+
 def quat_wxyz(R: FloatArray) -> FloatArray:
-    """Rotation matrix -> unit quaternion (w, x, y, z), w >= 0."""
+    """Rotation matrix -> unit quaternion (w, x, y, z), the first component (in that order)
+    larger than :data:`SIGN_TOL` in size positive (w >= 0 unless w is about 0)."""
     x, y, z, w = Rotation.from_matrix(R).as_quat()
     q = np.array([w, x, y, z])
-    return q if w >= 0 else -q
+    lead = q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]]
+    return q if lead >= 0 else -q
 
 
 def _pose(T: FloatArray) -> str:
