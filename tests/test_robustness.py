@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import rfsw_plan.planning.api as api
@@ -31,8 +32,17 @@ BUNDLED = sorted(p.stem for p in (Path(__file__).resolve().parents[1] / "problem
 REQUESTED = (0.1, 0.2)
 
 
-def plan_at(name: str | Path, u: float, **overrides: object) -> api.PlanResult:
+def plan_at(name: str | Path, u: float, lateral_only: bool = False,
+            **overrides: object) -> api.PlanResult:
+    """Plan a bundled problem at +-u; ``lateral_only`` opens the depth, tilt and speed
+    tolerances wide, so that the lateral error alone decides the claim (on zk500 the depth
+    limits the NLP's plan and the mirror alike at about +-2 %, and the lateral trade these
+    tests are about would not show)."""
     pb = load_problem(name)
+    if lateral_only:
+        pb = dataclasses.replace(pb, window=dataclasses.replace(
+            pb.window, depth_shallow=5e-3, depth_deep=5e-3, speed_tol=0.5,
+            tilt_tol=float(np.deg2rad(5))))
     return api.plan(pb, dataclasses.replace(pb.planning, force_uncertainty=u, **overrides))
 
 
@@ -66,7 +76,7 @@ def test_trading_robustness_for_stiffness_is_explicit_and_said() -> None:
     """robust_first=false is the old planner: it holds the requested +-10 % at the waypoints
     and spends the rest of the window, ending below the mirror (the issue's +-9.68 %); the
     verdict says so."""
-    res = plan_at("zk500_table6_seam", 0.1, robust_first=False)
+    res = plan_at("zk500_table6_seam", 0.1, lateral_only=True, robust_first=False)
     tol = res.tolerated_by_strategy
     assert tol["nlp"] < tol["mirror"] - DOMINANCE_TOL
     v = res.verdict()
@@ -86,7 +96,7 @@ def test_a_plan_less_robust_than_the_mirror_falls_back_to_the_mirror(monkeypatch
     """If the NLP ends below the mirror (here: made to pursue only the request), the mirror
     fixed point is verified, timed and written instead, and says so."""
     monkeypatch.setattr(api, "nlp_options", lambda o: o)
-    res = plan_at("zk500_table6_seam", 0.02)
+    res = plan_at("zk500_table6_seam", 0.02, lateral_only=True)
     assert res.source == "mirror" and "mirror baseline" in res.solver_status
     assert_dominates(res)
     assert res.samples is not None and res.samples.ok
