@@ -56,7 +56,7 @@ def test_plan_html_is_committed_in_plan_json(plan_dir: Path) -> None:
     rec = json.loads((plan_dir / "plan.json").read_text())
     page = plan_dir / "plan.html"
     assert rec["sha256"]["plan.html"] == hashlib.sha256(page.read_bytes()).hexdigest()
-    assert str(page) in rec["files"]
+    assert "plan.html" in rec["files"]  # named inside the folder, wherever it is
     PlanFolder.open(plan_dir)  # every vouched file, the page included, is whole
     assert page.stat().st_size < 5e6
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pytest
 
+from rfsw_plan.planfiles.job import PlanRequest
 from rfsw_plan.planfiles.waypoints import write_waypoints_csv
 from rfsw_plan.planning import api
 from rfsw_plan.planning import nlp as nlp_module
@@ -42,6 +43,26 @@ def test_a_plan_with_warm_caches_is_the_plan_with_empty_ones(tmp_path, monkeypat
     cold = _csv(tmp_path, "cold")
     assert all(len(getattr(nlp_module, c)) for c in CACHES)  # rebuilt by the cold plan
     assert warm == again == cold
+
+
+def _folder(folder: Path) -> dict[str, bytes]:
+    PlanRequest(PROBLEM).run().write(folder)
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_the_same_problem_writes_the_same_bytes_in_another_folder(tmp_path, monkeypatch) -> None:
+    """Every file of the plan folder (``plan.json`` with its file list and provenance, the
+    CSV, the page and the plots) is the same bytes when the same problem is planned again into
+    another folder with the in-memory caches emptied: nothing in it depends on where or when it
+    was written (no wall times, no absolute paths of the folder or of a bundled file)."""
+    first = _folder(tmp_path / "a")
+    for cache in CACHES:
+        monkeypatch.setattr(nlp_module, cache, OrderedDict())
+    second = _folder(tmp_path / "elsewhere" / "b")
+    assert "plan.json" in first and "waypoints.csv" in first
+    assert sorted(first) == sorted(second)
+    assert [n for n in first if first[n] != second[n]] == []
+    assert str(tmp_path) not in first["plan.json"].decode()
 
 
 @pytest.mark.slow

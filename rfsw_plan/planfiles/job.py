@@ -217,7 +217,7 @@ class PlanRun:
                 # committed: a plot that fails or is killed never costs the waypoints or the
                 # programs.
                 path, failed = commit_plan(out, summary, written, result)
-        files = [Path(f) for f in summary.get("files", [])] + [path]
+        files = [out / f for f in summary.get("files", [])] + [path]
         return PlanWritten(out, summary, files, failed)
 
 

@@ -444,7 +444,7 @@ def rebuild_plan_page(folder: str | Path, output: str | Path | None = None) -> V
             files = record.get("files")
             if isinstance(files, list) and not any(Path(str(f)).name == "plan.html"
                                                    for f in files):
-                record["files"] = [*files, str(target)]
+                record["files"] = [*files, target.name]
             write_json(record_path, record)
     return ViewResult(target, changed, len(data))
 

@@ -258,7 +258,8 @@ class PlanRecord(Mapping[str, Any]):
 
 
 def provenance_keys(problem: Any, log: Any = None, check: Any = None) -> dict[str, Any]:
-    """Entries of ``plan.json`` that say where the problem and robot came from (read back by
+    """Entries of ``plan.json`` that say where the problem and robot came from (a bundled file
+    by its name, any other by its absolute path; read back by
     :meth:`~rfsw_plan.planfiles.folder.PlanFolder.rebuild`), and, for a plan made from a force
     log (:mod:`rfsw_plan.planning.force_log`), the ``force_log`` block and the measured force
     uncertainty beside the tolerated one.
@@ -269,11 +270,14 @@ def provenance_keys(problem: Any, log: Any = None, check: Any = None) -> dict[st
         check: The plan's check under the measured force box, or None.
     """
     from rfsw_plan.planning.force_log import force_log_json
+    from rfsw_plan.process.problem import BUNDLED_PROBLEMS_DIR
+    from rfsw_plan.robot.bundled import bundled_ref
+    from rfsw_plan.robot.description import BUNDLED_ROBOTS_DIR
 
     robot_path = getattr(problem.robot, "path", None)
-    out: dict[str, Any] = {
-        "problem_file": str(Path(problem.path).resolve()) if problem.path else None,
-        "robot_file": str(Path(robot_path).resolve()) if robot_path else None,
+    out: dict[str, Any] = {  # a bundled file by its name: the same bytes on any machine
+        "problem_file": bundled_ref(BUNDLED_PROBLEMS_DIR, problem.path) if problem.path else None,
+        "robot_file": bundled_ref(BUNDLED_ROBOTS_DIR, robot_path) if robot_path else None,
     }
     if log is not None:
         out["force_log"] = force_log_json(log, check)

@@ -258,17 +258,27 @@ def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Pa
 
     out = Path(folder)
     record = summary
-    record["files"] = [str(p) for p in data_files]
+    record["files"] = [_in_folder(out, p) for p in data_files]
     record["plots"] = {"pending": list(PLAN_PLOTS)}
     path = write_plan_json(out / "plan.json", record, vouches_for=data_files)
     lock = OutputLock.held(out)
     if lock is not None:  # committed: an interruption from here on keeps the data files
         lock.on_abort(None)
     plots, failed = write_plan_plots(out, result)
-    record["files"] = [str(p) for p in [*data_files, *plots]]
+    record["files"] = [_in_folder(out, p) for p in [*data_files, *plots]]
     record["plots"] = {"written": [p.name for p in plots], "failed": failed}
     write_plan_json(path, record, vouches_for=[*data_files, *plots])
     return path, failed
+
+
+def _in_folder(folder: Path, path: str | Path) -> str:
+    """``path`` as ``plan.json`` lists it: relative to the plan folder (POSIX separators) when
+    it lies inside, so the same plan has the same bytes wherever its folder is."""
+    p = Path(path)
+    try:
+        return p.resolve().relative_to(folder.resolve()).as_posix()
+    except ValueError:
+        return str(p)
 
 
 def write_plan_folder(folder: str | Path, result: PlanResult,

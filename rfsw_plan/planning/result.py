@@ -309,10 +309,6 @@ class PlanResult:
                           "min_lateral_stiffness_N_mm": b.min_lateral_stiffness * 1e-3,
                           "max_worst_case_mm": b.max_worst_case * 1e3, "note": b.note}
                          for b in self.branches],
-            "solve_time_s": self.solve_time,
-            "verify_time_s": self.verify_time,
-            "timing_time_s": self.timing_time,
-            "total_time_s": self.total_time,
             "n_waypoints": len(self.task),
             "n_start_waypoints": self.task.n_start,
             "window_mm": [self.window.lower * 1e3, self.window.upper * 1e3],

@@ -12,6 +12,15 @@ def bundled_names(folder: Path) -> list[str]:
     return sorted(p.stem for p in folder.glob("*.toml"))
 
 
+def bundled_ref(folder: Path, path: str | Path) -> str:
+    """How a record names the file at ``path``: its bare stem when it is the bundled
+    ``folder/<stem>.toml`` (which :func:`resolve_bundled` reads back on any machine), else its
+    absolute path."""
+    p = Path(path).resolve()
+    bundled = (folder / f"{p.stem}.toml").resolve()
+    return p.stem if p.suffix == ".toml" and p == bundled else str(p)
+
+
 def resolve_bundled(kind: str, folder: Path, name_or_path: str | Path) -> Path:
     """An existing file, or the bundled ``folder/<stem>.toml`` for a bare stem.
 
