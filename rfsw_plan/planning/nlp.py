@@ -551,6 +551,19 @@ def _build_eval(pf: PointFunctions, K: int, n: int) -> ca.Function:
 MUMPS_OPTIONS: dict[str, Any] = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_strategy": "monotone"}
 
 
+#: How IPOPT starts from x0 (the mirror baseline, or the previous outer iteration's solution):
+#: IPOPT's own start, not its warm start. The primal point x0 is used either way; the warm
+#: start (``warm_start_init_point``, zero multipliers, x0 pushed 1e-6 off its bounds) begins
+#: with the slack, sigma and c_max variables 1e-6 from their bounds while the mirror baseline
+#: violates the standstill and depth rows by up to 0.9 mm: the first ~30 steps were 1e-7..1e-4
+#: of the Newton step. IPOPT's start (bound_push 0.01, least-squares multipliers) took the
+#: coarse solves of zk500_table6_seam at 1000 weld waypoints from 80 + 27 (+ 26) to 29 + 24
+#: (+ 18) iterations, to the same objective (10 digits); the written plans moved by at most
+#: 0.1 um (the solves end within IPOPT's tolerance elsewhere). The full NLP's first solve at
+#: 1000 weld waypoints: 102 -> 25 iterations.
+START_OPTIONS: dict[str, Any] = {"ipopt.warm_start_init_point": "no", "ipopt.mu_init": 1e-4}
+
+
 def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.Function:
     nw, ng = variable_layout(n).size, point_row_count()
     ex = _expressions(pf, K, n)
@@ -592,12 +605,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
         "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
         "ipopt.tol": opts.tol, "ipopt.constr_viol_tol": 1e-7, "ipopt.max_iter": opts.max_iter,
         "ipopt.linear_solver": "mumps", "ipopt.hessian_approximation": "exact",
-        **MUMPS_OPTIONS, "ipopt.warm_start_init_point": "yes",
-        # Push the warm start 1e-6 off its bounds: at 1e-9 (the warm start's sigma, slack and
-        # c_max rows sit exactly on their bounds) the first steps were ~1e-8 long and IPOPT
-        # needed about twice the iterations (34 instead of 18 at 1000 waypoints).
-        "ipopt.warm_start_bound_push": 1e-6, "ipopt.warm_start_mult_bound_push": 1e-6,
-        "ipopt.mu_init": 1e-4,
+        **MUMPS_OPTIONS, **START_OPTIONS,
         "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess, "calc_lam_p": False,
     }
     nlp_dict: dict[str, Any] = {"x": X, "p": P, "f": f, "g": g}
