@@ -871,9 +871,27 @@ def _link_reference(var: str, K1: int, width: int, load_steps: FloatArray | None
     return zero, zero
 
 
+#: The last few det linearisations (robot, Q, length scale, result): the second stage and the
+#: coarse-to-fine solve build NLPs linearised at the same warm start (13 batch Jacobians each).
+_DET_CACHE: list[tuple[Robot, FloatArray, float, tuple[FloatArray, FloatArray]]] = []
+
+
+def _det_linearisation_cached(robot: Robot, Q: FloatArray, length_scale: float
+                              ) -> tuple[FloatArray, FloatArray]:
+    """:func:`_det_linearisation`, reused when the same robot object, Q and scale recur."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    for r, q, ls, out in _DET_CACHE:
+        if r is robot and ls == length_scale and q.shape == Q.shape and np.array_equal(q, Q):
+            return out[0].copy(), out[1].copy()
+    out = _det_linearisation(robot, Q, length_scale)
+    _DET_CACHE.insert(0, (robot, Q.copy(), length_scale, (out[0].copy(), out[1].copy())))
+    del _DET_CACHE[4:]
+    return out
+
+
 def _det_parameters(robot: Robot, Q: FloatArray, opts: PlanOptions) -> dict[str, FloatArray]:
     """The singularity row's parameters linearised at Q (K, n) [rad], by name."""
-    d0, dd = _det_linearisation(robot, Q, opts.length_scale)
+    d0, dd = _det_linearisation_cached(robot, Q, opts.length_scale)
     return {"det_sign": np.where(d0 >= 0, 1.0, -1.0), "det_floor": opts.det_fraction * np.abs(d0),
             "det_value": d0, "q_lin": np.asarray(Q, dtype=float), "det_grad": dd}
 
