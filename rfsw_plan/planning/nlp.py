@@ -371,7 +371,8 @@ class PlanNLP:
         declared label and the waypoint (or, for link rows, the link's first waypoint); a link
         row shared by several families on one variable is named by the one that binds there."""
         K = self.n_waypoints
-        names = [f"{c}[{k}]" for k in range(K) for c in point_labels()]
+        labels = point_labels()
+        names = [f"{c}[{k}]" for k in range(K) for c in labels]
         return names + self.links.names(self.n_joints)
 
     def variables(self, x: FloatArray) -> dict[str, FloatArray]:
@@ -436,8 +437,11 @@ class PlanNLP:
         mm, rad, 1)."""
         _, g = self.evaluate(x)
         v = np.maximum(self.lbg - g, g - self.ubg)
+        bad = np.flatnonzero(v > tol)
+        if not len(bad):  # the names (one string per row) only for a violated row
+            return []
         names = self.constraint_names()
-        return [(names[i], float(v[i])) for i in np.flatnonzero(v > tol)]
+        return [(names[i], float(v[i])) for i in bad]
 
 
 _INFO_MAPS: OrderedDict[tuple[int, int], ca.Function] = OrderedDict()
