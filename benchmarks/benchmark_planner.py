@@ -11,7 +11,8 @@ runs in its own process, so the peak memory (``ru_maxrss``) is that size's. Prin
   fine projection), the minimum over ``--repeats`` runs after one warm-up;
 * ``mirror s``: the mirror baseline pipeline on the same task in the same process, run
   alternately with the plan (taught path, mirror fixed point, verification, timing), minimum
-  over the same repeats, and ``ratio`` = plan / mirror;
+  over the same repeats, and ``ratio`` = plan / mirror (the 1000 line adds both as CPU time of
+  the process, minimum over the repeats: on a shared machine the wall time measures the load);
 * ``peak MB``: peak resident memory of that process;
 * ``gap %``: the objective of the plan on the fine NLP against the optimum of the full NLP
   (``solver = "full"``, the NLP on every waypoint), solved in a separate process;
@@ -101,19 +102,23 @@ def one_size(problem_name: str, n: int, solver: str, repeats: int) -> dict[str, 
     # Warm-up (loads or compiles the C functions); its plan is the one compared with the other
     # solver's.
     res = api.plan(problem, opts, spacing=spacing)
-    t_plan, t_mirror = [], []
+    t_plan, t_mirror, c_plan, c_mirror = [], [], [], []
     for _ in range(repeats if solver == "coarse" else 0):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         api.plan(problem, opts, spacing=spacing)
         t_plan.append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
+        c_plan.append(time.process_time() - c0)
+        t0, c0 = time.perf_counter(), time.process_time()
         mirror_pipeline(problem, spacing)
         t_mirror.append(time.perf_counter() - t0)
+        c_mirror.append(time.process_time() - c0)
     last = solved[-1]
     return {
         "n": n, "K": len(last.q), "objective": last.objective, "method": last.method,
         "plan_s": min(t_plan) if t_plan else math.nan,
         "mirror_s": min(t_mirror) if t_mirror else math.nan,
+        "plan_cpu_s": min(c_plan) if c_plan else math.nan,
+        "mirror_cpu_s": min(c_mirror) if c_mirror else math.nan,
         "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "iterations": last.iterations,
         "e_lat_mm": (res.e_lat * 1e3).tolist(),
@@ -210,7 +215,9 @@ def main() -> None:
     if at_1000:
         r = at_1000[0]
         print(f"plan() at 1000 weld waypoints: {r['plan_s']:.3f} s (target <= 0.5 s idle), "
-              f"mirror {r['mirror_s']:.3f} s, ratio {r['plan_s'] / r['mirror_s']:.2f}")
+              f"mirror {r['mirror_s']:.3f} s, ratio {r['plan_s'] / r['mirror_s']:.2f}; CPU "
+              f"time (process): plan {r['plan_cpu_s']:.3f} s, mirror {r['mirror_cpu_s']:.3f} s, "
+              f"ratio {r['plan_cpu_s'] / r['mirror_cpu_s']:.2f}")
     if not args.no_cli:
         cli, mirror = cli_wall(args.problem, args.repeats)
         print(f"CLI plan {args.problem}: {cli:.2f} s wall (target <= 1.5 s idle), mirror "

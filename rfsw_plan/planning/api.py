@@ -559,7 +559,8 @@ def _second_stage(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
         return first
     stage2 = replace(opts, force_uncertainty=x * (1 - SECOND_STAGE_SLACK), robust_hard=False)
     try:
-        sol = _solver_call(solve_plan, model, task, window, warm, stage2, compile_c)
+        sol = _solver_call(solve_plan, model, task, window, warm, stage2, compile_c,
+                           first.coarse_correction)
     except InfeasibleError:
         return first
     return sol if sol.success else first
@@ -595,6 +596,8 @@ class Solved:
             ``coarse+full`` (the projection failed a row; the full NLP was solved).
         nlp: The NLP on the whole task (with its final outer correction).
         x: Its variable vector at the solution.
+        coarse_correction: The coarse NLP's last outer correction [m] (M, 3), or None
+            (the full NLP was solved).
     """
 
     q: FloatArray
@@ -608,16 +611,24 @@ class Solved:
     method: str
     nlp: PlanNLP
     x: FloatArray
+    coarse_correction: FloatArray | None = None
 
 
 def _solve_outer(model: ElastostaticModel, nlp: PlanNLP, opts: PlanOptions,
-                 x0: FloatArray | None = None) -> tuple[Any, PlanNLP, FloatArray, int, int]:
+                 x0: FloatArray | None = None, correction: FloatArray | None = None
+                 ) -> tuple[Any, PlanNLP, FloatArray, int, int]:
     """IPOPT with the outer correction loop (effects the symbolic model lacks) and the
     re-linearisation of the singularity row; returns (solution, NLP with the last
-    correction, correction [m] (K, 3), IPOPT iterations, outer iterations)."""
+    correction, correction [m] (K, 3), IPOPT iterations, outer iterations).
+
+    ``correction`` [m] (K, 3): the loop's first correction (a converged one of the same task,
+    e.g. the first stage's: the loop then usually ends after one solve), else zero."""
     task = nlp.task
     x = nlp.x0 if x0 is None else x0
     corr = np.zeros((len(task), 3))
+    if correction is not None and correction.shape == corr.shape:
+        corr = np.asarray(correction, dtype=float)
+        nlp = update_parameters(nlp, correction=corr)
     iters = 0
     sol = None
     outer = 0
@@ -641,9 +652,13 @@ def _solve_outer(model: ElastostaticModel, nlp: PlanNLP, opts: PlanOptions,
 
 
 def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
-               warm: BaselinePlan, opts: PlanOptions, compile_c: bool | None = None) -> Solved:
+               warm: BaselinePlan, opts: PlanOptions, compile_c: bool | None = None,
+               coarse_correction: FloatArray | None = None) -> Solved:
     """The NLP on the whole task: coarse-to-fine (:mod:`rfsw_plan.planning.coarse`) or the
-    full NLP (``solver = "full"``, small tasks, or when the fine projection fails a row)."""
+    full NLP (``solver = "full"``, small tasks, or when the fine projection fails a row).
+
+    ``coarse_correction`` [m]: the coarse NLP's first outer correction (an earlier solve's
+    :attr:`Solved.coarse_correction` on the same task, see :func:`_solve_outer`)."""
     if compile_c is None:
         compile_c = len(task) >= 200 or (*_model_key(model.physical()), True) in _POINT_CACHE
     load_steps = np.diff(warm.offsets, axis=0)
@@ -655,14 +670,15 @@ def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     if opts.solver == "coarse" and len(sub) < len(task) and model.robot.nq == 6:
         cnlp = build_plan_nlp(model, sub, window, warm.q[idx], warm.offsets[idx], opts,
                               compile_c=compile_c, offset_reference=warm.offsets[idx])
-        csol, cnlp, ccorr, iters, outer = _solve_outer(model, cnlp, opts)
+        csol, cnlp, ccorr, iters, outer = _solve_outer(model, cnlp, opts,
+                                                       correction=coarse_correction)
         proj = project_fine(model, fine, idx, csol.q, csol.offsets, warm.q, warm.offsets,
                             ccorr)
         if proj.feasible and csol.success:
             return Solved(proj.q, proj.offsets, True,
                           f"{csol.status} (coarse NLP on {len(sub)} waypoints, exact fine "
                           f"projection on {len(task)})", iters, outer, fine.skipped,
-                          proj.objective, "coarse", proj.nlp, proj.x)
+                          proj.objective, "coarse", proj.nlp, proj.x, ccorr)
         log.info("coarse-to-fine: %s; solving the full NLP",
                  "coarse NLP " + csol.status if not csol.success else
                  f"fine row {proj.violations[0][0]} violated by {proj.violations[0][1]:.3g}")

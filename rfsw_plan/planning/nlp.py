@@ -371,7 +371,8 @@ class PlanNLP:
         declared label and the waypoint (or, for link rows, the link's first waypoint); a link
         row shared by several families on one variable is named by the one that binds there."""
         K = self.n_waypoints
-        names = [f"{c}[{k}]" for k in range(K) for c in point_labels()]
+        labels = point_labels()
+        names = [f"{c}[{k}]" for k in range(K) for c in labels]
         return names + self.links.names(self.n_joints)
 
     def variables(self, x: FloatArray) -> dict[str, FloatArray]:
@@ -436,8 +437,11 @@ class PlanNLP:
         mm, rad, 1)."""
         _, g = self.evaluate(x)
         v = np.maximum(self.lbg - g, g - self.ubg)
+        bad = np.flatnonzero(v > tol)
+        if not len(bad):  # the names (one string per row) only for a violated row
+            return []
         names = self.constraint_names()
-        return [(names[i], float(v[i])) for i in np.flatnonzero(v > tol)]
+        return [(names[i], float(v[i])) for i in bad]
 
 
 _INFO_MAPS: OrderedDict[tuple[int, int], ca.Function] = OrderedDict()
@@ -551,6 +555,19 @@ def _build_eval(pf: PointFunctions, K: int, n: int) -> ca.Function:
 MUMPS_OPTIONS: dict[str, Any] = {"ipopt.mumps_pivot_order": 0, "ipopt.mu_strategy": "monotone"}
 
 
+#: How IPOPT starts from x0 (the mirror baseline, or the previous outer iteration's solution):
+#: IPOPT's own start, not its warm start. The primal point x0 is used either way; the warm
+#: start (``warm_start_init_point``, zero multipliers, x0 pushed 1e-6 off its bounds) begins
+#: with the slack, sigma and c_max variables 1e-6 from their bounds while the mirror baseline
+#: violates the standstill and depth rows by up to 0.9 mm: the first ~30 steps were 1e-7..1e-4
+#: of the Newton step. IPOPT's start (bound_push 0.01, least-squares multipliers) took the
+#: coarse solves of zk500_table6_seam at 1000 weld waypoints from 80 + 27 (+ 26) to 29 + 24
+#: (+ 18) iterations, to the same objective (10 digits); the written plans moved by at most
+#: 0.1 um (the solves end within IPOPT's tolerance elsewhere). The full NLP's first solve at
+#: 1000 weld waypoints: 102 -> 25 iterations.
+START_OPTIONS: dict[str, Any] = {"ipopt.warm_start_init_point": "no", "ipopt.mu_init": 1e-4}
+
+
 def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.Function:
     nw, ng = variable_layout(n).size, point_row_count()
     ex = _expressions(pf, K, n)
@@ -592,12 +609,7 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
         "ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
         "ipopt.tol": opts.tol, "ipopt.constr_viol_tol": 1e-7, "ipopt.max_iter": opts.max_iter,
         "ipopt.linear_solver": "mumps", "ipopt.hessian_approximation": "exact",
-        **MUMPS_OPTIONS, "ipopt.warm_start_init_point": "yes",
-        # Push the warm start 1e-6 off its bounds: at 1e-9 (the warm start's sigma, slack and
-        # c_max rows sit exactly on their bounds) the first steps were ~1e-8 long and IPOPT
-        # needed about twice the iterations (34 instead of 18 at 1000 waypoints).
-        "ipopt.warm_start_bound_push": 1e-6, "ipopt.warm_start_mult_bound_push": 1e-6,
-        "ipopt.mu_init": 1e-4,
+        **MUMPS_OPTIONS, **START_OPTIONS,
         "grad_f": grad_f, "jac_g": jac_g, "hess_lag": hess, "calc_lam_p": False,
     }
     nlp_dict: dict[str, Any] = {"x": X, "p": P, "f": f, "g": g}
@@ -863,9 +875,27 @@ def _link_reference(var: str, K1: int, width: int, load_steps: FloatArray | None
     return zero, zero
 
 
+#: The last few det linearisations (robot, Q, length scale, result): the second stage and the
+#: coarse-to-fine solve build NLPs linearised at the same warm start (13 batch Jacobians each).
+_DET_CACHE: list[tuple[Robot, FloatArray, float, tuple[FloatArray, FloatArray]]] = []
+
+
+def _det_linearisation_cached(robot: Robot, Q: FloatArray, length_scale: float
+                              ) -> tuple[FloatArray, FloatArray]:
+    """:func:`_det_linearisation`, reused when the same robot object, Q and scale recur."""
+    Q = np.atleast_2d(np.asarray(Q, dtype=float))
+    for r, q, ls, out in _DET_CACHE:
+        if r is robot and ls == length_scale and q.shape == Q.shape and np.array_equal(q, Q):
+            return out[0].copy(), out[1].copy()
+    out = _det_linearisation(robot, Q, length_scale)
+    _DET_CACHE.insert(0, (robot, Q.copy(), length_scale, (out[0].copy(), out[1].copy())))
+    del _DET_CACHE[4:]
+    return out
+
+
 def _det_parameters(robot: Robot, Q: FloatArray, opts: PlanOptions) -> dict[str, FloatArray]:
     """The singularity row's parameters linearised at Q (K, n) [rad], by name."""
-    d0, dd = _det_linearisation(robot, Q, opts.length_scale)
+    d0, dd = _det_linearisation_cached(robot, Q, opts.length_scale)
     return {"det_sign": np.where(d0 >= 0, 1.0, -1.0), "det_floor": opts.det_fraction * np.abs(d0),
             "det_value": d0, "q_lin": np.asarray(Q, dtype=float), "det_grad": dd}
 
