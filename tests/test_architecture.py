@@ -665,6 +665,35 @@ def test_the_import_check_sees_casadi():
     assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
 
 
+def test_timing_and_the_plan_plots_never_import_pyplot():
+    """TOPPRA imports ``matplotlib.pyplot`` at module level (about a second of a start): the
+    adapter keeps it out, and the plan's plots draw with the object API (issue 41). After the
+    timing and a plot, ``matplotlib.pyplot`` is not loaded; toppra's ``plt`` still reaches the
+    real pyplot on use, and an import of it afterwards is the real module."""
+    code = (
+        "import sys, tempfile, numpy as np\n"
+        "from pathlib import Path\n"
+        "from matplotlib.figure import Figure\n"
+        "from rfsw_plan.files import write_figure\n"
+        "from rfsw_plan.timing.toppra_ import max_path_speed\n"
+        "s = np.linspace(0.0, 0.2, 6)\n"
+        "max_path_speed(s, np.column_stack([s, -s]), np.ones(2), np.full(2, 5.0), n_grid=20)\n"
+        "fig = Figure(); fig.subplots().plot([0, 1])\n"
+        "write_figure(Path(tempfile.mkdtemp()) / 'a.png', fig)\n"
+        "print('pyplot' if 'matplotlib.pyplot' in sys.modules else 'none')\n"
+        "import toppra.algorithm.algorithm as a, matplotlib.pyplot as plt\n"
+        "print(a.plt.plot is plt.plot, type(plt).__name__)\n")
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120).stdout.split()
+    assert out == ["none", "True", "module"]
+    # the plan's plot modules name no pyplot
+    for rel in ("planfiles/waypoints.py", "planfiles/tradeoff_plot.py"):
+        assert "pyplot" not in (PACKAGE / rel).read_text(), rel
+
+
 #: The plan folder's write transaction and the planner itself: a command reaches them through
 #: a library job (``PlanRequest.run()``, ``PlanRun.write(folder)``), never by itself.
 TRANSACTION_NAMES = frozenset({
