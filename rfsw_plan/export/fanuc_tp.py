@@ -579,11 +579,13 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
         raise InputError(p, "sections", f"got {heads}", "/PROG /ATTR /MN /POS /END in order")
     mn = text.split("/MN", 1)[1].split("/POS", 1)[0].strip().splitlines()
     for n, line in enumerate(mn, start=1):
-        if not re.match(rf"^\s*{n}:.*;\s*$", line):
+        m = _NUMBERED.match(line)
+        if m is None or m.group(1) != str(n):
             raise InputError(p, f"/MN line {n}", f"got {line.strip()[:40]!r}", f"'{n:4d}: ... ;'")
     return text, mn
 
 
+_NUMBERED = re.compile(r"^\s*(\d+):.*;\s*$")  # an /MN line: its number (one pattern for all)
 _REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XYZWPR])\s+({_NUM})\s*;\s*$")
 
 
