@@ -458,9 +458,9 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
         main = [*head, f"! motions in {len(subs)} called programs (a TP program holds "
                        f"{max_lines} lines)", *(f"CALL {n}" for n in subs)]
         if len(main) > max_lines:
-            raise InputError("--format", "fanuc_tp", f"{len(main)} lines of calls, a TP "
+            raise InputError("format", "fanuc_tp", f"{len(main)} lines of calls, a TP "
                              f"program holds {max_lines}",
-                             "a larger --export-spacing-mm or --path-tol-mm")
+                             "a larger `export_spacing` or `path_tol`")
         parts = [(name, main), *((n, [f"! part {k + 1} of {name}, called by it", *c])
                                  for k, (n, c) in enumerate(zip(subs, chunks, strict=True)))]
     when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
