@@ -696,6 +696,25 @@ def test_export_and_check_never_import_the_planner():
     assert not loaded & set(PLAN_READER_FORBIDDEN), sorted(loaded & set(PLAN_READER_FORBIDDEN))
 
 
+def test_plan_readers_never_import_the_timing_or_scipy_interpolate():
+    """``export`` and ``check`` need SciPy's rotations, not its splines: the timing
+    (``rfsw_plan.timing``, TOPPRA's and Ruckig's adapters, ``scipy.interpolate``) and SciPy's
+    optimisation stay out of their imports (issue 41; a spline seam imports
+    ``scipy.interpolate`` when it is built)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "import rfsw_plan.cli.commands.export, rfsw_plan.cli.commands.check\n"
+            "import rfsw_plan.export, rfsw_plan.export.check, rfsw_plan.planfiles\n"
+            "import rfsw_plan.process, rfsw_plan.process.problem, rfsw_plan.planning.result\n"
+            "print(' '.join(sorted(m for m in sys.modules if m.startswith(('rfsw_plan.timing',"
+            " 'scipy.interpolate', 'scipy.optimize')))))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120).stdout.split()
+    assert out == [], out
+
+
 def test_the_import_check_sees_casadi():
     """The same check on the planner's NLP module finds CasADi (the check can fail)."""
     assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
