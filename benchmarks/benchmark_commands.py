@@ -24,12 +24,21 @@ same commands run with that tree on ``PYTHONPATH`` (the same interpreter), inter
 run (this tree, the other, this tree, ...) so both see the same machine load, and the table adds
 the other's median and the median of the pairwise ratios this/other: before and after a change
 in one run. Timings depend on the machine and its load; they are never part of the tests.
+
+Bytecode: each tree's commands run with Python's bytecode cache (``PYTHONPYCACHEPREFIX`` in the
+scratch folder, filled by the warm-up), as an installed package runs (pip compiles it at
+install), even where the environment sets ``PYTHONDONTWRITEBYTECODE`` (then every start
+compiles the package's sources again, which no installed package does). ``--no-bytecode`` keeps
+the environment's setting. The table gives the median CPU time (user + system, from the
+operating system's accounting of the finished child) next to the wall time: on a busy machine
+the CPU time is the steadier figure.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -75,10 +84,14 @@ COMMANDS = (
 class Tree:
     """A checkout the commands run from (on ``PYTHONPATH``), with its own scratch folder."""
 
-    def __init__(self, root: Path, scratch: Path, tag: str) -> None:
+    def __init__(self, root: Path, scratch: Path, tag: str, bytecode: bool = True) -> None:
         self.root, self.tag = root, tag
         self.scratch = scratch / tag
         self.scratch.mkdir()
+        self.env = {**os.environ, "PYTHONPATH": str(root)}
+        if bytecode:  # as installed: sources compiled once (by the warm-up), then read
+            self.env.pop("PYTHONDONTWRITEBYTECODE", None)
+            self.env["PYTHONPYCACHEPREFIX"] = str(self.scratch / "pycache")
         self.plan = self.scratch / "plan"
         self.runs = 0
 
@@ -89,20 +102,22 @@ class Tree:
                 "{src}": str(self.plan / "programs" / f"rfsw_{PLAN}.src")}
         return [sys.executable, *(subs.get(a, a) for a in cmd.args)]
 
-    def run(self, cmd: Command) -> float:
-        """Wall time of one run [s]; a failed command stops the benchmark with its output."""
-        env = {**os.environ, "PYTHONPATH": str(self.root)}
+    def run(self, cmd: Command) -> tuple[float, float]:
+        """Wall and CPU (user + system) time of one run [s]; a failed command stops the
+        benchmark with its output."""
         argv = self.argv(cmd)
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        p = subprocess.run(argv, cwd=self.scratch, env=env, capture_output=True, text=True)
+        p = subprocess.run(argv, cwd=self.scratch, env=self.env, capture_output=True, text=True)
         wall = time.perf_counter() - t0
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if p.returncode != 0:
             sys.exit(f"{self.tag}: {cmd.label} exited {p.returncode}:\n{p.stderr[-2000:]}")
-        return wall
+        return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
     def prepare(self) -> None:
         """The plan and the programs ``export`` and ``check`` read (not timed)."""
-        env = {**os.environ, "PYTHONPATH": str(self.root)}
+        env = self.env
         for args in (["plan", PLAN, "-q", "-o", str(self.plan)],
                      ["export", str(self.plan), "-q", "-o", str(self.plan / "programs"),
                       "--format", "krl"]):
@@ -113,31 +128,39 @@ class Tree:
                          f"{p.stderr[-2000:]}")
 
 
-def measure(trees: list[Tree], commands: list[Command], runs: int) -> dict[str, list[list[float]]]:
-    """Wall times per command: one list per tree, interleaved run by run across the trees."""
+def measure(trees: list[Tree], commands: list[Command], runs: int
+            ) -> tuple[dict[str, list[list[float]]], dict[str, list[list[float]]]]:
+    """Wall and CPU times per command: one list per tree, interleaved run by run across the
+    trees."""
     times: dict[str, list[list[float]]] = {}
+    cpus: dict[str, list[list[float]]] = {}
     for cmd in commands:
         for tree in trees:  # warm-up
             tree.run(cmd)
         got: list[list[float]] = [[] for _ in trees]
+        cpu: list[list[float]] = [[] for _ in trees]
         for _ in range(runs):
             for k, tree in enumerate(trees):
-                got[k].append(tree.run(cmd))
-        times[cmd.name] = got
+                wall, used = tree.run(cmd)
+                got[k].append(wall)
+                cpu[k].append(used)
+        times[cmd.name], cpus[cmd.name] = got, cpu
         print(f"  {cmd.name}: " + "; ".join(
             f"{t.tag} {statistics.median(g):.2f} s" for t, g in zip(trees, got, strict=True)),
             file=sys.stderr, flush=True)
-    return times
+    return times, cpus
 
 
 def table(trees: list[Tree], commands: list[Command], times: dict[str, list[list[float]]],
-          runs: int) -> str:
+          runs: int, cpus: dict[str, list[list[float]]] | None = None) -> str:
     """The figures: per command the median wall time (min-max), its ratio to the import
     floor, and with a second tree that tree's median and the median pairwise ratio."""
     floor = times.get("import floor")
     head = f"{'command':<22}{'median s':>10}{'min-max s':>14}{'x floor':>9}"
     if len(trees) == 2:
         head += f"{'other s':>10}{'x floor':>9}{'this/other':>12}"
+    if cpus is not None:
+        head += f"{'cpu s':>8}" + (f"{'other cpu':>10}" if len(trees) == 2 else "")
     lines = [f"median wall time of {runs} runs each (after a warm-up), "
              f"{os.cpu_count()} cores; this = {trees[0].root}"
              + (f", other = {trees[1].root}" if len(trees) == 2 else ""), head]
@@ -154,6 +177,9 @@ def table(trees: list[Tree], commands: list[Command], times: dict[str, list[list
         if len(trees) == 2:
             pairs = [a / b for a, b in zip(got[0], got[1], strict=True)]
             row += f"{statistics.median(pairs):>12.2f}"
+        if cpus is not None:
+            row += "".join(f"{statistics.median(c):>{8 if k == 0 else 10}.2f}"
+                           for k, c in enumerate(cpus[cmd.name]))
         lines.append(row)
     lines.append("commands:")
     lines += [f"  {c.name:<22}{c.label}" for c in commands]
@@ -165,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=5, help="counted runs per command (5)")
     ap.add_argument("--vs", type=Path, default=None, metavar="CHECKOUT",
                     help="a second checkout to run the same commands with, interleaved")
+    ap.add_argument("--no-bytecode", action="store_true",
+                    help="keep the environment's PYTHONDONTWRITEBYTECODE (see the docstring)")
     ap.add_argument("--only", nargs="+", default=None, metavar="NAME",
                     choices=[c.name for c in COMMANDS], help="these commands only")
     args = ap.parse_args(argv)
@@ -175,13 +203,13 @@ def main(argv: list[str] | None = None) -> int:
     commands = [c for c in COMMANDS if args.only is None or c.name in args.only]
     scratch = Path(tempfile.mkdtemp(prefix="rfsw-bench-"))
     try:
-        trees = [Tree(ROOT, scratch, "this")]
+        trees = [Tree(ROOT, scratch, "this", not args.no_bytecode)]
         if args.vs is not None:
-            trees.append(Tree(args.vs.resolve(), scratch, "other"))
+            trees.append(Tree(args.vs.resolve(), scratch, "other", not args.no_bytecode))
         for tree in trees:
             tree.prepare()
-        times = measure(trees, commands, args.runs)
-        print(table(trees, commands, times, args.runs))
+        times, cpus = measure(trees, commands, args.runs)
+        print(table(trees, commands, times, args.runs, cpus))
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     return 0

@@ -554,22 +554,11 @@ def test_the_cli_write_check_sees_a_writer_in_a_fixture(tmp_path):
 #: A command-line flag in a string (``--noise-mm``), not a negative number or ``--``.
 _FLAG = re.compile(r"(?<![\w-])--[a-z][a-z0-9]*(-[a-z0-9]+)*")
 
-#: Library modules whose strings still name command-line flags, scheduled to go (their errors
-#: are to name parameters, mapped to flags by ``cli/params.py``). This list only shrinks: a
-#: module that names a flag and is not here fails the test, and so does an entry that no longer
-#: names one. Kept for the merge: ``validation/`` and ``io/measurements.py`` are being edited
-#: in parallel (issue 34); ``export/`` (issue 32); ``planning/verdict.py`` prints the command
-#: ``plan --forces`` as a lever.
-KNOWN_FLAG_MODULES: frozenset[str] = frozenset({
-    "export/api.py", "export/fanuc_tp.py", "export/program.py",
-    "planning/verdict.py", "validation/campaign/simulation.py",
-    "validation/engine/candidates.py", "validation/commands.py", "validation/engine/crossval.py",
-    "validation/engine/diagnosis.py", "validation/report/validate.py",
-    "validation/engine/residuals.py", "validation/sanity.py", "validation/weld/workbench.py",
-    "validation/weld/add.py", "validation/weld/diagnosis.py", "validation/report/validate_weld.py",
-    "validation/workbench.py",
-    # the calibrate job landed in the same session as this check (issue 34), still naming flags
-    "validation/calibrate.py"})
+#: Library modules whose strings still name command-line flags. Empty since issue 41: errors
+#: name parameters and ``cli/params.py`` maps them to flags. This list only shrinks: a module
+#: that names a flag and is not here fails the test, and so does an entry that no longer names
+#: one.
+KNOWN_FLAG_MODULES: frozenset[str] = frozenset()
 
 
 def _docstring_nodes(tree: ast.AST) -> set[int]:
@@ -582,22 +571,52 @@ def _docstring_nodes(tree: ast.AST) -> set[int]:
     return out
 
 
+def _command_names(root: Path) -> set[str]:
+    """The CLI's command names (``plan``, ``validate-weld``), from ``cli/commands``."""
+    return {f.stem.replace("_", "-") for f in (root / "cli" / "commands").glob("*.py")
+            if not f.stem.startswith("_")}
+
+
+def _command_line_strings(tree: ast.AST) -> set[int]:
+    """Strings of a function that writes a command line (one of its strings holds
+    ``rfsw-plan ``, as ``next_command`` builds ``rfsw-plan validate ... --add E``), outside its
+    ``raise`` statements: parts of the command line it prints, not errors."""
+    out: set[int] = set()
+    for fn in ast.walk(tree):
+        if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        raised = {id(n) for r in ast.walk(fn) if isinstance(r, ast.Raise) for n in ast.walk(r)}
+        consts = [n for n in ast.walk(fn) if isinstance(n, ast.Constant)
+                  and isinstance(n.value, str) and id(n) not in raised]
+        if any("rfsw-plan " in n.value for n in consts):
+            out |= {id(n) for n in consts}
+    return out
+
+
 def flag_names_in_library(root: Path = PACKAGE) -> dict[str, list[str]]:
     """Library module (path relative to the package) -> the flags its strings name (outside
-    docstrings and comments, and outside a printed ``rfsw-plan ...`` command line)."""
+    docstrings and comments, and outside a printed command line: a string with
+    ``rfsw-plan ``, the strings of a function that writes one (not those it raises), and a
+    flag right after a command's name, ``plan --forces``; an error never names a flag)."""
+    commands = _command_names(root)
+    after_command = re.compile(rf"(?:^|[\s(`])(?:{'|'.join(map(re.escape, sorted(commands)))}) $")
     found: dict[str, list[str]] = {}
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root)
         if rel.parts[0] == "cli":
             continue
         tree = ast.parse(path.read_text())
-        docs = _docstring_nodes(tree)
+        skip = _docstring_nodes(tree) | _command_line_strings(tree)
+        raised = {id(n) for r in ast.walk(tree) if isinstance(r, ast.Raise) for n in ast.walk(r)}
         for node in ast.walk(tree):
             if (isinstance(node, ast.Constant) and isinstance(node.value, str)
-                    and id(node) not in docs and "rfsw-plan " not in node.value):
-                m = _FLAG.search(node.value)
-                if m:
+                    and id(node) not in skip and "rfsw-plan " not in node.value):
+                for m in _FLAG.finditer(node.value):
+                    if commands and id(node) not in raised and after_command.search(
+                            node.value[:m.start()]):
+                        continue
                     found.setdefault(rel.as_posix(), []).append(f"{node.lineno} {m.group(0)}")
+                    break
     return found
 
 
@@ -625,6 +644,23 @@ def test_the_flag_check_sees_a_flag_in_a_fixture(tmp_path):
         "    return dt - -1, 'dt', '--'\n")
     (root / "cli" / "main.py").write_text("FLAG = '--dt'\n")
     assert flag_names_in_library(root) == {"process/job.py": ["4 --dt"]}
+    # a command line a function writes, and a flag after a command's name, are not errors;
+    # the same flag in what that function raises is
+    (root / "cli" / "commands").mkdir()
+    (root / "cli" / "commands" / "plan.py").write_text("")
+    (root / "process" / "job.py").write_text(
+        "def next_command(argv, labels):\n"
+        "    extra = [x for lab in labels for x in ('--add', lab)]\n"
+        "    if not argv:\n"
+        "        raise ValueError('no command line: give --add')\n"
+        "    return 'rfsw-plan ' + ' '.join([*argv, *extra])\n"
+        "LEVER = 'a calibrated force model (plan --forces LOG.csv)'\n"
+        "def check(x):\n"
+        "    if x:\n"
+        "        raise ValueError('x: run plan --forces again')\n"
+        "    return 'see --forces'\n")
+    assert sorted(flag_names_in_library(root)["process/job.py"]) == [
+        "10 --forces", "4 --add", "9 --forces"]
 
 
 #: Engines a command that reads a written plan (``export``, ``check``, ``view``) never loads: the
@@ -660,9 +696,57 @@ def test_export_and_check_never_import_the_planner():
     assert not loaded & set(PLAN_READER_FORBIDDEN), sorted(loaded & set(PLAN_READER_FORBIDDEN))
 
 
+def test_plan_readers_never_import_the_timing_or_scipy_interpolate():
+    """``export`` and ``check`` need SciPy's rotations, not its splines: the timing
+    (``rfsw_plan.timing``, TOPPRA's and Ruckig's adapters, ``scipy.interpolate``) and SciPy's
+    optimisation stay out of their imports (issue 41; a spline seam imports
+    ``scipy.interpolate`` when it is built)."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "import rfsw_plan.cli.commands.export, rfsw_plan.cli.commands.check\n"
+            "import rfsw_plan.export, rfsw_plan.export.check, rfsw_plan.planfiles\n"
+            "import rfsw_plan.process, rfsw_plan.process.problem, rfsw_plan.planning.result\n"
+            "print(' '.join(sorted(m for m in sys.modules if m.startswith(('rfsw_plan.timing',"
+            " 'scipy.interpolate', 'scipy.optimize')))))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120).stdout.split()
+    assert out == [], out
+
+
 def test_the_import_check_sees_casadi():
     """The same check on the planner's NLP module finds CasADi (the check can fail)."""
     assert "casadi" in modules_loaded_by(["rfsw_plan.planning.nlp"])
+
+
+def test_timing_and_the_plan_plots_never_import_pyplot():
+    """TOPPRA imports ``matplotlib.pyplot`` at module level (about a second of a start): the
+    adapter keeps it out, and the plan's plots draw with the object API (issue 41). After the
+    timing and a plot, ``matplotlib.pyplot`` is not loaded; toppra's ``plt`` still reaches the
+    real pyplot on use, and an import of it afterwards is the real module."""
+    code = (
+        "import sys, tempfile, numpy as np\n"
+        "from pathlib import Path\n"
+        "from matplotlib.figure import Figure\n"
+        "from rfsw_plan.files import write_figure\n"
+        "from rfsw_plan.timing.toppra_ import max_path_speed\n"
+        "s = np.linspace(0.0, 0.2, 6)\n"
+        "max_path_speed(s, np.column_stack([s, -s]), np.ones(2), np.full(2, 5.0), n_grid=20)\n"
+        "fig = Figure(); fig.subplots().plot([0, 1])\n"
+        "write_figure(Path(tempfile.mkdtemp()) / 'a.png', fig)\n"
+        "print('pyplot' if 'matplotlib.pyplot' in sys.modules else 'none')\n"
+        "import toppra.algorithm.algorithm as a, matplotlib.pyplot as plt\n"
+        "print(a.plt.plot is plt.plot, type(plt).__name__)\n")
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120).stdout.split()
+    assert out == ["none", "True", "module"]
+    # the plan's plot modules name no pyplot
+    for rel in ("planfiles/waypoints.py", "planfiles/tradeoff_plot.py"):
+        assert "pyplot" not in (PACKAGE / rel).read_text(), rel
 
 
 #: The plan folder's write transaction and the planner itself: a command reaches them through

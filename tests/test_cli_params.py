@@ -39,3 +39,33 @@ def test_every_flag_of_the_table_is_an_option_of_some_command() -> None:
                     for act in sub._actions for a in act.option_strings)
     missing = [f for f in PARAMETER_FLAGS.values() if f not in text.split()]
     assert not missing, missing
+
+
+def test_a_parameter_in_another_error_becomes_the_flag_too() -> None:
+    """Errors other than InputError (here the fold split's IdentificationError) name the
+    parameter in backquotes; the CLI shows the flag, keeping the class, exit code and
+    attributes; a message without one is the error itself."""
+    from rfsw_plan.exceptions import IdentificationError, InfeasibleError
+
+    exc = IdentificationError("m.csv: 2 distinct poses cannot be split into 3 folds (use "
+                              "`folds` 2 or measure more poses)")
+    shown = as_flag_error(exc)
+    assert type(shown) is IdentificationError and shown.exit_code == exc.exit_code
+    assert str(shown) == ("m.csv: 2 distinct poses cannot be split into 3 folds (use --folds 2 "
+                          "or measure more poses)")
+    inf = InfeasibleError("`add` j2: outside", 4, "range", -1.0)
+    out = as_flag_error(inf)
+    assert (str(out), out.exit_code, out.waypoint, out.margin) == ("--add j2: outside", 3, 4,
+                                                                   -1.0)
+    plain = IdentificationError("too few samples")
+    assert as_flag_error(plain) is plain
+
+
+def test_a_calibrate_error_names_the_parameter_and_the_cli_the_flag(capsys) -> None:
+    from rfsw_plan.validation.calibrate import CalibrationRequest
+
+    with pytest.raises(InputError) as err:
+        CalibrationRequest("zk500", data=()).check()
+    assert str(err.value) == "data: no training file (expected one or more in `data`)"
+    assert str(as_flag_error(err.value)) == \
+        "--data: no training file (expected one or more in --data)"

@@ -112,6 +112,10 @@ def test_view_restores_a_lost_page_and_refuses_a_damaged_folder(
     err = capsys.readouterr().err
     assert "waypoints.csv" in err and "changed" in err and len(err.strip().splitlines()) == 1
     assert main(["view", str(tmp_path / "nothing")]) == 2
+    # ... and into a new -o folder nothing is left behind: not the page, not the folders
+    target = tmp_path / "new" / "deeper" / "plan.html"
+    assert main(["view", str(folder), "-o", str(target)]) == 2
+    assert not (tmp_path / "new").exists()
 
 
 def test_page_is_self_contained(plan_dir: Path) -> None:

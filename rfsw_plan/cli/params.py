@@ -50,6 +50,26 @@ PARAMETER_FLAGS: dict[str, str] = {
     "sensor_pose": "--sensor-pose",
     # a saved robot file (rfsw_plan.robot.description.derived_description)
     "name": "--name",
+    # export (rfsw_plan.export.api.export_programs, ProgramHeader; fanuc_tp.write_tp)
+    "export_spacing": "--export-spacing-mm",
+    "path_tol": "--path-tol-mm",
+    # calibrate (rfsw_plan.validation.calibrate.CalibrateRequest)
+    "data": "--data",
+    "score": "--score",
+    "max_effects": "--max-effects",
+    "folds": "--folds",
+    "heldout_folds": "--heldout-folds",
+    "every": "--every",
+    # simulate-campaign (rfsw_plan.validation.campaign.simulation)
+    "hidden": "--hidden",
+    "loads_per_pose": "--loads-per-pose",
+    "noise_mm": "--noise-mm",
+    # validate, validate-weld (rfsw_plan.validation: commands, engine, weld)
+    "noise_m": "--noise-mm",
+    "force_noise_n": "--force-noise-N",
+    "add": "--add",
+    "save_robot": "--save-robot",
+    "blocks": "--blocks",
 }
 
 
@@ -61,9 +81,17 @@ def flag_of(parameter: str) -> str:
 def as_flag_error(exc: RfswError) -> RfswError:
     """``exc`` as the CLI shows it: an :class:`InputError` whose source is a parameter of the
     table gets the flag as its source, and every parameter its source or text names in
-    backquotes (```region```) becomes the flag; any other error is ``exc`` itself."""
+    backquotes (```region```) becomes the flag; another error whose message names a parameter
+    in backquotes (``use `folds` 3``) gets the flag there; any other error is ``exc`` itself."""
     if not isinstance(exc, InputError):
-        return exc
+        text = str(exc)
+        flagged = _flags_in(text)
+        if flagged == text:
+            return exc
+        other = exc.__class__.__new__(exc.__class__)  # same class, exit code and attributes
+        other.__dict__.update(exc.__dict__)
+        other.args = (flagged,)
+        return other
     source = PARAMETER_FLAGS.get(exc.source) or _flags_in(exc.source)
     problem, expected = _flags_in(exc.problem), _flags_in(exc.expected)
     if (source, problem, expected) == (exc.source, exc.problem, exc.expected):

@@ -200,7 +200,7 @@ def export_programs(
     problem = str(record.get("problem", "plan"))
     spacing = plan_spacing(record) if spacing is None else spacing
     if not spacing > 0:
-        raise InputError("--export-spacing-mm", "", f"got {spacing * 1e3:g}", "> 0")
+        raise InputError("export_spacing", "", f"got {spacing * 1e3:g}", "> 0")
     if depth is None or reference is None:
         n2, d2, r2, _ = plate_surface(str(record.get("problem_file") or ""), samples)
         normal = n2 if normal is None else normal

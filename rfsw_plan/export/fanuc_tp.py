@@ -458,9 +458,9 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
         main = [*head, f"! motions in {len(subs)} called programs (a TP program holds "
                        f"{max_lines} lines)", *(f"CALL {n}" for n in subs)]
         if len(main) > max_lines:
-            raise InputError("--format", "fanuc_tp", f"{len(main)} lines of calls, a TP "
+            raise InputError("format", "fanuc_tp", f"{len(main)} lines of calls, a TP "
                              f"program holds {max_lines}",
-                             "a larger --export-spacing-mm or --path-tol-mm")
+                             "a larger `export_spacing` or `path_tol`")
         parts = [(name, main), *((n, [f"! part {k + 1} of {name}, called by it", *c])
                                  for k, (n, c) in enumerate(zip(subs, chunks, strict=True)))]
     when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
@@ -579,11 +579,13 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
         raise InputError(p, "sections", f"got {heads}", "/PROG /ATTR /MN /POS /END in order")
     mn = text.split("/MN", 1)[1].split("/POS", 1)[0].strip().splitlines()
     for n, line in enumerate(mn, start=1):
-        if not re.match(rf"^\s*{n}:.*;\s*$", line):
+        m = _NUMBERED.match(line)
+        if m is None or m.group(1) != str(n):
             raise InputError(p, f"/MN line {n}", f"got {line.strip()[:40]!r}", f"'{n:4d}: ... ;'")
     return text, mn
 
 
+_NUMBERED = re.compile(r"^\s*(\d+):.*;\s*$")  # an /MN line: its number (one pattern for all)
 _REMARK = re.compile(rf"^\s*\d+:\s*!\s*(UFRAME|UTOOL)\[(\d+)\]\s+([XYZWPR])\s+({_NUM})\s*;\s*$")
 
 

@@ -465,7 +465,7 @@ def build_program(
                 angle_tol=angle_tol, normal=normal, payload=payload, options=options,
                 stream=stream, cycle=cycle, depth=depth, pin=pin)
     if header.spacing <= 0:
-        raise InputError("--export-spacing-mm", "", f"got {header.spacing * 1e3:g}", "> 0")
+        raise InputError("export_spacing", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = robot.batch_fk_jacobian(samples.q)[0]
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool

@@ -27,6 +27,7 @@ import csv
 import re
 from collections.abc import Hashable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -36,7 +37,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
 from rfsw_plan.export.program import Program, Samples
 from rfsw_plan.files import atomic_path
-from rfsw_plan.numfmt import fixed
+from rfsw_plan.numfmt import fixed_many
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -76,13 +77,28 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
     if stream.spindle_rpm is not None and stream.spindle_on is not None:
         header += ["spindle_on", "spindle_rpm"]
         cols += [np.where(stream.spindle_on, "1", "0"), stream.spindle_rpm]
+    text = [_column_text(c) for c in cols]  # the same text as fixed(x, 6), column by column
     p = Path(path)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        for k in range(len(stream)):
-            w.writerow([c[k] if isinstance(c[k], str) else fixed(c[k], 6) for c in cols])
+        w.writerows(zip(*text, strict=True))
     return p
+
+
+def _column_text(column: Any) -> list[str]:
+    """A stream column as its cells: text as it is, numbers as
+    :func:`~rfsw_plan.numfmt.fixed` (6 decimals).
+
+    Raises:
+        ValueError: A number is NaN or infinite (as :func:`~rfsw_plan.numfmt.fixed`).
+    """
+    a = np.asarray(column)
+    if a.dtype.kind in "USO":
+        return [str(v) for v in a.tolist()]
+    if not np.isfinite(a).all():
+        raise ValueError(f"cannot write the non-finite number {a[~np.isfinite(a)][0]!r} as text")
+    return fixed_many(a, 6)
 
 
 class StreamFormat(ControllerFormat):

@@ -28,15 +28,13 @@ STYLE = {"plan": ("o", "tab:blue", "plan (written)"), "mirror": ("s", "tab:orang
 def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     """Draw ``tradeoff.png`` (1000 x 650 px) atomically; points with an infinite tolerated
     uncertainty (no lateral force) are left out and said so in the title."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API; Agg draws it when saved
 
     pts = result.tradeoff()
     by = {p.name: p for p in pts}
     plan = by["plan"]
-    fig, ax = plt.subplots(figsize=(10, 6.5), dpi=100)
+    fig = Figure(figsize=(10, 6.5), dpi=100)
+    ax = fig.subplots()
     finite = [p for p in pts if np.isfinite(p.tolerated) and np.isfinite(
         p.min_lateral_stiffness)]
     ks = [p.min_lateral_stiffness * 1e-3 for p in finite]
@@ -67,7 +65,6 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     fig.tight_layout()
     out = Path(path)
     write_figure(out, fig, dpi=100)
-    plt.close(fig)
     return out
 
 

@@ -385,10 +385,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     ``waypoints.csv`` (the start panel on the samples' clock). The legend sits below the
     panels, outside the data.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API; Agg draws it when saved
 
     task = result.task
     m = task.n_start
@@ -399,7 +396,7 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     r = result.verification.prediction.worst
     sv = result.samples
     tr = result.trajectory
-    fig = plt.figure(figsize=(15, 6.5), dpi=100)
+    fig = Figure(figsize=(15, 6.5), dpi=100)
     if m:
         gs = fig.add_gridspec(1, 2, width_ratios=(1, 3.2), wspace=0.04)
         a0 = fig.add_subplot(gs[0])
@@ -463,7 +460,6 @@ def plot_lateral_error(path: str | Path, result: PlanResult) -> Path:
     fig.subplots_adjust(left=0.06, right=0.99, bottom=0.2, top=0.86)
     p = Path(path)
     write_figure(p, fig, dpi=100)
-    plt.close(fig)
     return p
 
 
@@ -528,10 +524,7 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     against time for every written sample (what ``waypoints.csv`` contains, verified sample
     by sample), with the phases shaded, the window band, the required margin and the worst
     case under the requested force uncertainty; 1400 x 800 px, legend outside the data."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API; Agg draws it when saved
 
     tr = result.trajectory
     sv = result.samples
@@ -544,7 +537,8 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     e = np.where(c, sv.e_lat, np.nan) * 1e3
     marg = np.where(c, sv.margin, np.nan) * 1e3
     r = np.where(c, u * sv.worst_per_unit, np.nan) * 1e3
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(14, 8), sharex=True, dpi=100)
+    fig = Figure(figsize=(14, 8), dpi=100)
+    a1, a2 = fig.subplots(2, 1, sharex=True)
     for ax in (a1, a2):
         start = 0
         ph = tr.phase
@@ -591,5 +585,4 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     fig.tight_layout(rect=(0, 0, 1, 0.97))
     p = Path(path)
     write_figure(p, fig, dpi=100)
-    plt.close(fig)
     return p

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +15,9 @@ from rfsw_plan.planning.verify import SampleVerification, Verification
 from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import PlanTask
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.timing.trajectory import TimedTrajectory
+
+if TYPE_CHECKING:  # the timing (SciPy's splines) is not on the path of a plan reader
+    from rfsw_plan.timing.trajectory import TimedTrajectory
 
 FloatArray = NDArray[np.float64]
 

@@ -33,7 +33,7 @@ from __future__ import annotations
 import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,7 +53,9 @@ from rfsw_plan.process.task import (
     plate_normals,
 )
 from rfsw_plan.process.window import WeldWindow
-from rfsw_plan.timing.trajectory import TimedTrajectory
+
+if TYPE_CHECKING:  # the timing (SciPy's splines) is not on the path of a plan reader
+    from rfsw_plan.timing.trajectory import TimedTrajectory
 
 FloatArray = NDArray[np.float64]
 

@@ -8,30 +8,82 @@ into joint values; :func:`predict_deviation` says how far the loaded robot misse
 places the robot along; :func:`task_for` is that recipe for a problem, shared by every caller.
 """
 
-from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
-from rfsw_plan.process.deviation import DeviationResult, predict_deviation, problem_deviation
-from rfsw_plan.process.force_fit import ForceFit, fit_process_forces
-from rfsw_plan.process.forces import ProcessForces, ProcessModel
-from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orientation
-from rfsw_plan.process.presets import PROCESS_PRESETS, process_preset
-from rfsw_plan.process.problem import (
-    Coupling,
-    Problem,
-    bundled_problem_names,
-    load_problem,
-    resolve_problem_path,
-)
-from rfsw_plan.process.seam import Seam, interpolate_frames
-from rfsw_plan.process.task import (
-    PlanTask,
-    offsets3,
-    schedule_for,
-    task_constant_force,
-    task_for,
-    task_from_schedule,
-)
-from rfsw_plan.process.taught import joints_at, taught_path, taught_poses
-from rfsw_plan.process.window import WeldWindow
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
+    from rfsw_plan.process.deviation import DeviationResult, predict_deviation, problem_deviation
+    from rfsw_plan.process.force_fit import ForceFit, fit_process_forces
+    from rfsw_plan.process.forces import ProcessForces, ProcessModel
+    from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orientation
+    from rfsw_plan.process.presets import PROCESS_PRESETS, process_preset
+    from rfsw_plan.process.problem import (
+        Coupling,
+        Problem,
+        bundled_problem_names,
+        load_problem,
+        resolve_problem_path,
+    )
+    from rfsw_plan.process.seam import Seam, interpolate_frames
+    from rfsw_plan.process.task import (
+        PlanTask,
+        offsets3,
+        schedule_for,
+        task_constant_force,
+        task_for,
+        task_from_schedule,
+    )
+    from rfsw_plan.process.taught import joints_at, taught_path, taught_poses
+    from rfsw_plan.process.window import WeldWindow
+
+#: Where each name of the package lives: imported on first use (PEP 562), so that importing
+#: one submodule (``rfsw_plan.process.forces``) does not import them all, SciPy's
+#: interpolation with the seam among them (issue 41: every command at its import floor).
+_WHERE = {
+    "CosimResult": "cosim",
+    "PenetrationLaw": "cosim",
+    "cosimulate": "cosim",
+    "DeviationResult": "deviation",
+    "predict_deviation": "deviation",
+    "problem_deviation": "deviation",
+    "ForceFit": "force_fit",
+    "fit_process_forces": "force_fit",
+    "ProcessForces": "forces",
+    "ProcessModel": "forces",
+    "PHASES": "frames",
+    "LoadSchedule": "frames",
+    "SeamFrames": "frames",
+    "tcp_orientation": "frames",
+    "PROCESS_PRESETS": "presets",
+    "process_preset": "presets",
+    "Coupling": "problem",
+    "Problem": "problem",
+    "bundled_problem_names": "problem",
+    "load_problem": "problem",
+    "resolve_problem_path": "problem",
+    "Seam": "seam",
+    "interpolate_frames": "seam",
+    "PlanTask": "task",
+    "offsets3": "task",
+    "schedule_for": "task",
+    "task_constant_force": "task",
+    "task_for": "task",
+    "task_from_schedule": "task",
+    "joints_at": "taught",
+    "taught_path": "taught",
+    "taught_poses": "taught",
+    "WeldWindow": "window",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "PHASES",

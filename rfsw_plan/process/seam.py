@@ -29,13 +29,15 @@ velocity omega = -w n_s; the tool surface velocity omega x r at r = R (n_s x t_s
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.frames import FloatArray, SeamFrames
+
+if TYPE_CHECKING:
+    from scipy.interpolate import CubicSpline
 
 #: Largest tool tilt accepted [deg] (FSW tools are tilted 0-5 deg; 15 deg is a sanity bound).
 MAX_TILT_DEG = 15.0
@@ -139,6 +141,8 @@ class Seam:
         object.__setattr__(self, "_nrm", nrm)
         object.__setattr__(self, "_u", u)
         if self.interpolation == "spline" and pts.shape[0] >= 3:
+            from scipy.interpolate import CubicSpline  # a spline seam's only use of SciPy's
+
             spl = CubicSpline(u, pts, axis=0, bc_type="not-a-knot")
         else:
             spl = None

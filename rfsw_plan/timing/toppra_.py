@@ -7,11 +7,20 @@ along the path is the highest speed the path can be driven at.
 
 Like the rest of the library this module never configures logging (no handlers, no levels):
 the application does (the CLI quietens the ``toppra`` logger in ``rfsw_plan.cli.main``).
+
+``toppra`` imports ``matplotlib.pyplot`` at module level (``toppra.algorithm.algorithm`` and
+``toppra.parametrizer``, for its debugging plots), about a second of every start that times a
+path; :func:`_import_toppra` keeps it out (issue 41).
 """
 
 from __future__ import annotations
 
+import sys
+import types
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,9 +57,8 @@ def max_path_speed(
         acc: Joint acceleration limits [rad/s^2], (n,).
         n_grid: Grid points of the reachability analysis.
     """
-    import toppra as ta
-    import toppra.algorithm as algo
-    import toppra.constraint as constraint
+    ta = _import_toppra()
+    algo, constraint = ta.algorithm, ta.constraint
 
     path = ta.SplineInterpolator(np.asarray(s, float), np.asarray(q, float))
     pc_vel = constraint.JointVelocityConstraint(np.column_stack([-vel, vel]))
@@ -65,3 +73,46 @@ def max_path_speed(
     sd = np.sqrt(xmax)
     i = int(np.argmin(sd))
     return PathSpeedLimit(float(sd[i]), float(grid[i]), sd, grid)
+
+
+class _PyplotOnFirstUse(types.ModuleType):
+    """What ``toppra`` binds as ``plt``: the real ``matplotlib.pyplot``, imported when one of
+    toppra's debugging plots first uses it (never, in this package)."""
+
+    def __getattr__(self, name: str) -> Any:
+        import matplotlib.pyplot
+
+        return getattr(matplotlib.pyplot, name)
+
+
+@contextmanager
+def _pyplot_deferred() -> Iterator[None]:
+    """While it lasts, ``import matplotlib.pyplot`` binds a :class:`_PyplotOnFirstUse` (and,
+    if ``matplotlib`` is not imported yet, a stand-in parent that holds it); afterwards
+    ``sys.modules`` is as before, so every other import of matplotlib gets the real one."""
+    if "matplotlib.pyplot" in sys.modules:
+        yield
+        return
+    stand_ins: dict[str, types.ModuleType] = {
+        "matplotlib.pyplot": _PyplotOnFirstUse("matplotlib.pyplot")}
+    if "matplotlib" not in sys.modules:
+        parent = types.ModuleType("matplotlib")
+        parent.pyplot = stand_ins["matplotlib.pyplot"]  # type: ignore[attr-defined]
+        stand_ins["matplotlib"] = parent
+    sys.modules.update(stand_ins)
+    try:
+        yield
+    finally:
+        for name, module in stand_ins.items():
+            if sys.modules.get(name) is module:
+                del sys.modules[name]
+
+
+def _import_toppra() -> Any:
+    """The ``toppra`` package with ``algorithm`` and ``constraint``, imported without
+    ``matplotlib.pyplot`` (see :func:`_pyplot_deferred`)."""
+    with _pyplot_deferred():
+        import toppra
+        import toppra.algorithm
+        import toppra.constraint
+    return toppra

@@ -118,21 +118,21 @@ class CalibrationRequest:
     def check(self) -> None:
         """Refuse impossible options (one line each)."""
         if not self.data:
-            raise InputError("--data", "", "no training file", "--data FILE (repeatable)")
+            raise InputError("data", "", "no training file", "one or more in `data`")
         if len(set(self.data)) != len(self.data):
-            raise InputError("--data", "", "a file given twice", "each training file once")
+            raise InputError("data", "", "a file given twice", "each training file once")
         both = sorted(set(self.data) & set(self.score))
         if both:
-            raise InputError("--score", both[0], "is a training file too",
-                             "files not given to --data (held out)")
+            raise InputError("score", both[0], "is a training file too",
+                             "files not given in `data` (held out)")
         if not 0 <= self.max_effects <= 10:
-            raise InputError("--max-effects", "", f"{self.max_effects}", "0 .. 10")
+            raise InputError("max_effects", "", f"{self.max_effects}", "0 .. 10")
         if self.folds < 2:
-            raise InputError("--folds", "", f"{self.folds}", "at least 2")
+            raise InputError("folds", "", f"{self.folds}", "at least 2")
         if self.heldout_folds is not None and self.heldout_folds < 2:
-            raise InputError("--heldout-folds", "", f"{self.heldout_folds}", "at least 2")
+            raise InputError("heldout_folds", "", f"{self.heldout_folds}", "at least 2")
         if self.every < 1:
-            raise InputError("--every", "", f"{self.every}", "1 or more")
+            raise InputError("every", "", f"{self.every}", "1 or more")
 
 
 @dataclass(frozen=True)
@@ -319,7 +319,7 @@ def read_training(request: CalibrationRequest, model: ElastostaticModel
         out.append(data)
     frames = {d.frame for d in out}
     if len(frames) > 1:
-        raise InputError("--data", "", "some files are in the base frame, some in a device "
+        raise InputError("data", "", "some files are in the base frame, some in a device "
                          "frame", "one frame for every training file")
     return out
 

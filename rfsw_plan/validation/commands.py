@@ -92,7 +92,7 @@ def run_validate(
         IdentificationError: Too few samples or poses (says how many).
     """
     if noise_m is not None and not noise_m > 0:
-        raise InputError("--noise-mm", "", f"{noise_m * 1e3:g}", "a positive noise in mm")
+        raise InputError("noise_m", "", f"{noise_m * 1e3:g}", "a positive noise in mm")
     setup = prepare_data(model, data, held, marker)
     on_stage("diagnosis")
     result = validate(model, data, noise_m=noise_m, add=add, folds=folds, seed=seed,
@@ -156,11 +156,11 @@ def run_validate_weld(
     from rfsw_plan.robot.kinematics import load_robot
 
     if save_robot is not None and not add:
-        raise InputError("--save-robot", str(save_robot), "given without --add",
-                         "--add EFFECT --save-robot NEW.toml (the weld re-identifies only what "
-                         "you add)")
+        raise InputError("save_robot", str(save_robot), "given without `add`",
+                         "`add` EFFECT with `save_robot` NEW.toml (the weld re-identifies only "
+                         "what you add)")
     if forces_frame and not forces:
-        raise InputError("--forces-frame", "", "given without --forces", "--forces LOG.csv")
+        raise InputError("forces_frame", "", "given without `forces`", "`forces` LOG.csv")
     record = PlanFolder.open(plan_dir).rebuild(problem)
     measured = read_weld_track(track)
     series = read_force_series(forces, forces_frame) if forces else None

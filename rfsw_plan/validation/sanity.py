@@ -69,7 +69,7 @@ def check_joints(model: ElastostaticModel, data: MeasurementSet) -> None:
             data.source, f"sample {r + 1}, column {names[j]}",
             f"joint {j + 1} at {q[r, j] * scale:.4g} {unit} is outside robot {robot.name}'s "
             f"limits [{desc.lower[j] * scale:.4g}, {desc.upper[j] * scale:.4g}] {unit}{hint}",
-            "the data of this robot (check --robot, the joint order and the units)")
+            "the data of this robot (check the robot, the joint order and the units)")
 
 
 def check_forces(data: MeasurementSet) -> None:
@@ -117,7 +117,7 @@ def check_positions(model: ElastostaticModel, data: MeasurementSet) -> None:
                          "metres in *_m columns")
     raise InputError(data.source, "positions",
                      f"residual {rms:.3g} m RMS against the nominal model: wrong robot or "
-                     "frame, try --frame device", f"positions of robot {model.robot.name}'s "
+                     "frame, try `frame` device", f"positions of robot {model.robot.name}'s "
                      "TCP in its base frame")
 
 

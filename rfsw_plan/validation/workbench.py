@@ -192,10 +192,10 @@ def check_effect_labels(model: ElastostaticModel, labels: Sequence[str]) -> list
         cls, joint = parse_effect_label(raw, model.robot.nq)
         label = cls.name if joint is None else f"{cls.name}:j{joint + 1}"
         if model.has(label):
-            raise InputError("--add", label, "effect is already in the model",
+            raise InputError("add", label, "effect is already in the model",
                              f"one of the effects it lacks (it has {', '.join(model.labels)})")
         if label in out:
-            raise InputError("--add", label, "given more than once")
+            raise InputError("add", label, "given more than once")
         out.append(label)
     return out
 

@@ -93,7 +93,7 @@ class CampaignResult:
 _PARAM = re.compile(r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*:\s*([^,:]+?)\s*$")
 
 
-def parse_hidden(spec: str, n_joints: int, source: str = "--hidden") -> HiddenSpec:
+def parse_hidden(spec: str, n_joints: int, source: str = "hidden") -> HiddenSpec:
     """Parse ``EFFECT[:jN][=name:value,name:value]`` into (label, params or None).
 
     Values are in the effect's SI units (rad, m, kg, N, N m, kg m); ``thermal_drift`` takes
@@ -126,7 +126,7 @@ def parse_hidden(spec: str, n_joints: int, source: str = "--hidden") -> HiddenSp
     return label, params
 
 
-def check_hidden_label(label: str, n_joints: int, source: str = "--hidden") -> None:
+def check_hidden_label(label: str, n_joints: int, source: str = "hidden") -> None:
     """Validate a hidden-effect label (library effect with joint, or ``thermal_drift``)."""
     if label == THERMAL_DRIFT:
         return
@@ -301,11 +301,11 @@ def run_campaign(
 
 def _check_counts(poses: int, loads_per_pose: int, noise_mm: float) -> None:
     if poses < 1:
-        raise InputError("--poses", "", f"{poses}", "at least 1 pose")
+        raise InputError("poses", "", f"{poses}", "at least 1 pose")
     if loads_per_pose < 1:
-        raise InputError("--loads-per-pose", "", f"{loads_per_pose}", "at least 1 sample")
+        raise InputError("loads_per_pose", "", f"{loads_per_pose}", "at least 1 sample")
     if not np.isfinite(noise_mm) or noise_mm < 0:
-        raise InputError("--noise-mm", "", f"{noise_mm}", "a noise >= 0 mm")
+        raise InputError("noise_mm", "", f"{noise_mm}", "a noise >= 0 mm")
 
 
 def _truth_and_hidden(
@@ -323,9 +323,9 @@ def _truth_and_hidden(
     for lab, _ in specs:
         check_hidden_label(lab, robot.nq)
         if labels.count(lab) > 1:
-            raise InputError("--hidden", lab, "effect hidden more than once")
+            raise InputError("hidden", lab, "effect hidden more than once")
         if truth.has(lab):
-            raise InputError("--hidden", lab, f"already in the model of robot {robot.name}",
+            raise InputError("hidden", lab, f"already in the model of robot {robot.name}",
                              f"an effect the robot file does not contain (it has "
                              f"{', '.join(truth.labels)})")
     return truth, specs
@@ -382,12 +382,12 @@ def _drift_params(params: Mapping[str, float] | None, rng: np.random.Generator
     out.update(zip(THERMAL_DRIFT_PARAMS[1:], u.tolist(), strict=True))
     for k, v in (params or {}).items():
         if k not in THERMAL_DRIFT_PARAMS:
-            raise InputError("--hidden", f"{THERMAL_DRIFT}.{k}", "unknown parameter",
+            raise InputError("hidden", f"{THERMAL_DRIFT}.{k}", "unknown parameter",
                              ", ".join(THERMAL_DRIFT_PARAMS))
         out[k] = float(v)
     u = np.array([out["dir_x"], out["dir_y"], out["dir_z"]])
     if np.linalg.norm(u) == 0:
-        raise InputError("--hidden", f"{THERMAL_DRIFT}.dir", "direction is zero")
+        raise InputError("hidden", f"{THERMAL_DRIFT}.dir", "direction is zero")
     out.update(zip(THERMAL_DRIFT_PARAMS[1:], (u / np.linalg.norm(u)).tolist(), strict=True))
     return out
 

@@ -177,7 +177,7 @@ def joint_form(forms: Sequence[CandidateForm]) -> CandidateForm:
     """
     labels = [f.label for f in forms]
     if len(set(labels)) != len(labels):
-        raise InputError("--add", ", ".join(labels), "duplicated", "each effect once")
+        raise InputError("add", ", ".join(labels), "duplicated", "each effect once")
 
     def apply(m: ElastostaticModel, theta: FloatArray) -> ElastostaticModel:
         for f, part in zip(forms, parts_of(forms, theta), strict=True):
@@ -200,7 +200,7 @@ def parts_of(forms: Sequence[CandidateForm], theta: FloatArray) -> list[FloatArr
     return [theta[a:b] for a, b in pairwise(sizes)]
 
 
-def candidate_form(model: ElastostaticModel, label: str, option: str = "--add"
+def candidate_form(model: ElastostaticModel, label: str, option: str = "add"
                    ) -> CandidateForm:
     """The candidate ``label`` of ``model`` (module docstring).
 

@@ -150,7 +150,7 @@ def make_folds(data: MeasurementSet, k: int, seed: int = 0) -> NDArray[np.int_]:
         IdentificationError: Fewer distinct poses than folds.
     """
     if k < 2:
-        raise InputError("--folds", "", f"{k}", "at least 2 folds")
+        raise InputError("folds", "", f"{k}", "at least 2 folds")
     if data.pose_id is not None:
         _, groups = np.unique(data.pose_id, return_inverse=True)
     else:
@@ -160,7 +160,7 @@ def make_folds(data: MeasurementSet, k: int, seed: int = 0) -> NDArray[np.int_]:
     if n_groups < k:
         raise IdentificationError(
             f"{data.source}: {n_groups} distinct poses cannot be split into {k} folds; need at "
-            f"least {k} poses (use --folds {max(n_groups, 2)} or measure more poses)"
+            f"least {k} poses (use `folds` {max(n_groups, 2)} or measure more poses)"
         )
     order = np.random.default_rng(seed).permutation(n_groups)
     fold_of_group = np.empty(n_groups, dtype=np.int_)

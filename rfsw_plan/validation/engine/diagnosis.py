@@ -81,9 +81,9 @@ Verdict = Literal["adequate", "missing", "unexplained", "undetermined"]
 
 #: What a campaign without a noise floor should add next time.
 NO_FLOOR = (
-    "no repeats and no --noise-mm: the floor is unknown; for the next campaign, measure some "
-    "poses twice in a row at the same load (repeats) or give the measuring device's noise "
-    "with --noise-mm"
+    "no repeats and no measuring noise given: the floor is unknown; for the next campaign, "
+    "measure some poses twice in a row at the same load (repeats) or give the measuring "
+    "device's noise (rfsw-plan validate --noise-mm)"
 )
 
 
@@ -616,10 +616,10 @@ def _experiment(model: ElastostaticModel, data: MeasurementSet,
     f = float(np.max(np.linalg.norm(data.wrench[:, :3], axis=1), initial=0.0))
     n_poses = len(set(data.pose_id)) if data.pose_id is not None else len(data)
     cmd = (f"rfsw-plan design-campaign --robot {model.robot.name} --poses {max(n_poses, 6)} "
-           f"--effects {','.join(labels)}")
+           f"--effects {','.join(labels)} --load-N")
     if f <= 0:
-        return f"{cmd} --load-N 0"
-    return (f"{cmd} --load-N {f:.0f}, and again with --load-N {f / 2:.0f} (a residual that "
+        return f"{cmd} 0"
+    return (f"{cmd} {f:.0f}, and again with --load-N {f / 2:.0f} (a residual that "
             "depends on the load shows between the two levels)")
 
 

@@ -376,9 +376,9 @@ def estimate_noise_floor(
         InputError: noise_m or force_noise_n not positive.
     """
     if noise_m is not None and not (np.isfinite(noise_m) and noise_m > 0):
-        raise InputError("--noise-mm", "", f"{noise_m * 1e3:g} mm", "a positive noise level")
+        raise InputError("noise_m", "", f"{noise_m * 1e3:g} mm", "a positive noise level")
     if force_noise_n is not None and not (np.isfinite(force_noise_n) and force_noise_n >= 0):
-        raise InputError("--force-noise-N", "", f"{force_noise_n:g} N", "a noise >= 0 N")
+        raise InputError("force_noise_n", "", f"{force_noise_n:g} N", "a noise >= 0 N")
     fn: float | None
     if force_noise_n is not None:
         fn, fsrc = float(force_noise_n), "given"

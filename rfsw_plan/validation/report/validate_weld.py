@@ -57,7 +57,7 @@ def make_weld_plots(result: WeldValidation, out: Path) -> dict[str, Path]:
             label=f"predicted, current model ({', '.join(result.model.labels)})")
     if result.predicted_after is not None and result.add is not None:
         ax.plot(s, result.predicted_after * mm, "--", color="tab:red",
-                label=f"predicted after --add {', '.join(result.add.labels)}")
+                label=f"predicted after adding {', '.join(result.add.labels)}")
     ax.set_xlabel("arc length s from the seam start [mm]")
     ax.set_ylabel("lateral offset of the weld [mm] (+ advancing side)")
     ax.set_title(f"{result.plan.problem.name}: measured vs predicted lateral offset "
@@ -80,7 +80,7 @@ def make_weld_plots(result: WeldValidation, out: Path) -> dict[str, Path]:
                     label="normal residual")
         if result.predicted_after is not None:
             ax.plot(x, (result.predicted_after - result.predicted_lat) * mm, "-",
-                    color="tab:red", label="fitted correction (--add)")
+                    color="tab:red", label="fitted correction (the added effects)")
         ax.set_xlabel(lab)
         ax.set_ylabel("residual [mm]")
         ax.grid(alpha=0.3)
@@ -156,7 +156,7 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
     ]
     if result.add is not None:
         a = result.add
-        parts += ["<h2>Re-identified (--add)</h2>", table(
+        parts += ["<h2>Re-identified (the added effects)</h2>", table(
             ["quantity", "value"],
             [["added", ", ".join(a.labels)],
              ["RMS before / after [mm]", f"{_mm(a.rms_before)} / {_mm(a.rms_after)}"],

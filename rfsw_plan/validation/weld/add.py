@@ -66,7 +66,7 @@ def add_and_identify(
     for f, theta in zip(forms, parts, strict=True):
         if not f.admissible(theta):
             raise IdentificationError(
-                f"--add {f.label}: the weld fits a value outside its physical range "
+                f"`add` {f.label}: the weld fits a value outside its physical range "
                 f"({f.implausible(theta)}); this effect does not explain the weld")
     params = {f.label: f.split(theta) for f, theta in zip(forms, parts, strict=True)}
     return WeldAddResult(tuple(labels), joint.build(fit.theta), params, rms(r0),

@@ -187,7 +187,7 @@ def diagnose_weld(
         InputError: Fewer than 2 blocks or fewer points than 4 per block.
     """
     if blocks < 2:
-        raise InputError("--blocks", "", f"{blocks}", "at least 2")
+        raise InputError("blocks", "", f"{blocks}", "at least 2")
     if track.s.size < 4 * blocks:
         raise InputError("track", "", f"{track.s.size} points on the seam",
                          f"at least {4 * blocks} for {blocks} blocks of s")
