@@ -111,8 +111,9 @@ def _claim_holds(robot: str, csv: Path, js: dict, capsys: pytest.CaptureFixture[
     log."""
     dg = js["diagnosis"]
     if js["verdict"] == "adequate":  # the hidden effect is below what this campaign sees
-        # "adequate" keeps its own test (not significantly above the floor, or <= 1.1 x it):
-        # on 10-pose KR600 campaigns with a harmonic error it is said at 1.6 x the floor.
+        # "adequate" beyond FLOOR_RATIO x the floor only when the residual is not significantly
+        # above it and the selection found no significant library effect (10-pose KR600
+        # campaigns with a harmonic error: 1.56 and 1.62 x the floor).
         ratio = js["heldout_rms_mm"] / js["noise_floor_mm"]
         assert dg["above_noise"] is False, js["message"]
         return f"adequate at {ratio:.2f} x the floor (not significantly above it)"
