@@ -15,9 +15,10 @@ Run: ``.venv/bin/python benchmarks/benchmark_validate.py [--sizes 10000,100000,1
 ``--real [--vs OTHER_CHECKOUT]`` instead times the commands of issue 40 as a user runs them
 (wall and user CPU time of the whole command, imports included, in a fresh process):
 ``calibrate`` on the FANUC R-2000iC/165F set, ``calibrate`` on UR10 Series A + B (all poses),
-and ``validate`` on the guide's 320-row campaign (docs/guide/validate.md), with the figure each prints; with ``--vs``
-the same commands also run on another checkout (e.g. ``git worktree add /tmp/base main``), before
-and after side by side. The shared data sets live in ``../shared/data`` (``--data-dir``).
+and ``validate`` on the guide's 320-row campaign (docs/guide/validate.md), with the figure each
+prints; with ``--vs`` the same commands also run on another checkout (e.g.
+``git worktree add /tmp/base main``), before and after side by side. The shared data sets
+live in ``../shared/data`` (``--data-dir``).
 """
 
 from __future__ import annotations
