@@ -128,11 +128,14 @@ class MeasurementSet:
     def load_histories(self) -> FloatArray:
         """The earlier loads at the same pose of every sample [N, N m], shape
         (m, HISTORY_DEPTH, 6): the stored ones, else from ``t`` or the row order of these
-        samples."""
+        samples; shape (m, 0, 6) when no sample logs a force (no load to remember, and
+        HISTORY_DEPTH x 48 bytes a sample saved on large position-only sets)."""
         from rfsw_plan.elastostatics.approach import load_history
 
         if self.load_history is not None:
             return self.load_history
+        if not np.any(self.wrench):
+            return np.zeros((len(self), 0, 6))
         return load_history(self.q, self.wrench, self.t)
 
     def approach_directions(self) -> FloatArray:

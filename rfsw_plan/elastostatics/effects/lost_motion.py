@@ -19,28 +19,34 @@ TAU_ROUND_NM = 1e-6
 #: Most friction levels :meth:`LostMotion.profile` tries.
 PROFILE_LEVELS = 256
 
+
 class LostMotion(JointPlay):
     """Joint N sits on one flank of its gear play, +b/2 or -b/2 from where its encoder says.
 
         dq_N = (b / 2) s,   dX = J_N dq_N   (base frame [m, rad]),
 
-        s = sign(tau_N)       where |tau_N| > tau_th = K_SIGMA sigma_F l_N,
+        s = sign(tau_N)       where |tau_N| > tau_th = max(K_SIGMA sigma_F l_N, tau_f),
         s = sign(tau_h,N)     elsewhere, tau_h the torque of the most recent earlier load
-                              at the same pose that was clear (:attr:`PoseBatch.load_history`),
+                              at the same pose above tau_th (:attr:`PoseBatch.load_history`),
         s = -a_N              elsewhere,
 
     with tau_N = (J^T F + tau_g)_N the load torque on the joint [N m] (tau_g the links' own
     weight when the robot description gives link masses), l_N = |J_v,N| the lever arm from
     joint N to the TCP [m] (a force error dF moves tau_N by at most l_N |dF|), sigma_F the
     logged force's noise per axis [N] (:attr:`PoseBatch.force_noise`: given, or from the
-    zero-load readings) and a_N the joint's approach direction (+1 when it last moved up;
-    :mod:`rfsw_plan.elastostatics.approach`). A clear load presses the output against the
-    flank it pushes towards; without one, the motor's last motion left the output lagging
-    behind by half the play (a motor-side encoder reads q + b/2 when moving up), unless a
-    clear load at this pose pushed it to a flank since: friction holds it there once the load
-    is taken off. Without
-    force readings (sigma_F = inf: a motion-capture session) the side is the approach
-    direction's everywhere; a planned path (no history, sigma_F = 0) takes the torque's sign.
+    zero-load readings), tau_f the friction torque the output needs to leave its flank [N m]
+    and a_N the joint's approach direction (+1 when it last moved up;
+    :mod:`rfsw_plan.elastostatics.approach`). A load above the threshold presses the output
+    against the flank it pushes towards; without one, the motor's last motion left the output
+    lagging behind by half the play (a motor-side encoder reads q + b/2 when moving up), unless
+    a load above the threshold at this pose pushed it to a flank since: friction holds it there
+    once the load is taken off (the joint keeps the side it was last pushed to). K_SIGMA is 4,
+    not 3: a jack campaign has hundreds of near-zero torques (radial and vertical loads), and
+    at 3 sigma noise alone flipped the side in 2 of the 20 campaigns of
+    tests/test_lost_motion_lab.py, a side that friction then held. tau_f has no regressor:
+    :meth:`profile` sets it before each fit. Without force readings (sigma_F = inf: a
+    motion-capture session) the side is the approach direction's everywhere; a planned path
+    (no history, sigma_F = 0) takes the torque's sign.
 
     Linear in b. :meth:`identifiable` counts the samples on each side of each mechanism; with
     none in the approach regime it is joint_backlash's torque model and says so.
