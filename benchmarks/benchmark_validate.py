@@ -13,11 +13,12 @@ Run: ``.venv/bin/python benchmarks/benchmark_validate.py [--sizes 10000,100000,1
 [--cases one,two,add] [--old-max 10000] [--folds 5]``
 
 ``--real [--vs OTHER_CHECKOUT]`` instead times the commands of issue 40 as a user runs them
-(wall time of the whole command, imports included, in a fresh process): ``calibrate`` on the
-FANUC R-2000iC/165F set, ``calibrate`` on UR10 Series A + B (all poses), and ``validate`` on the
-guide's 320-row campaign (docs/guide/validate.md), with the figure each prints; with ``--vs``
-the same commands also run on another checkout (e.g. ``git worktree add /tmp/base main``), before
-and after side by side. The shared data sets live in ``../shared/data`` (``--data-dir``).
+(wall and user CPU time of the whole command, imports included, in a fresh process):
+``calibrate`` on the FANUC R-2000iC/165F set, ``calibrate`` on UR10 Series A + B (all poses),
+and ``validate`` on the guide's 320-row campaign (docs/guide/validate.md), with the figure each
+prints; with ``--vs`` the same commands also run on another checkout (e.g.
+``git worktree add /tmp/base main``), before and after side by side. The shared data sets
+live in ``../shared/data`` (``--data-dir``).
 """
 
 from __future__ import annotations
@@ -139,27 +140,32 @@ REAL: dict[str, tuple[str, list[str], str, str]] = {
 }
 
 
-def _real(root: str, name: str, data: str, tmp: str, timeout: float) -> tuple[float, str]:
-    """Wall time [s] of one command on the checkout ``root`` and the figure it printed."""
+def _real(root: str, name: str, data: str, tmp: str, timeout: float
+          ) -> tuple[float, float, str]:
+    """Wall time and user CPU time [s] of one command on the checkout ``root`` and the figure
+    it printed."""
     import os
+    import resource
 
     _, cmd, key, _ = REAL[name]
     env = dict(os.environ, PYTHONPATH=root)
     args = [a.format(data=data, tmp=tmp) for a in cmd]
     t0 = time.perf_counter()
+    u0 = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
     try:
         out = subprocess.run([sys.executable, "-m", "rfsw_plan.cli.main", *args], cwd=root,
                              env=env, capture_output=True, text=True, timeout=timeout,
                              check=False)
     except subprocess.TimeoutExpired:
-        return time.perf_counter() - t0, f"not finished in {timeout:.0f} s"
+        return time.perf_counter() - t0, float("nan"), f"not finished in {timeout:.0f} s"
     wall = time.perf_counter() - t0
+    user = resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime - u0
     if out.returncode:
-        return wall, "failed: " + (out.stderr.strip().splitlines() or ["?"])[-1]
+        return wall, user, "failed: " + (out.stderr.strip().splitlines() or ["?"])[-1]
     j = json.loads(out.stdout)
     value = j.get(key, j.get("diagnosis", {}).get(key))
     shown = f"{value:.3f}" if isinstance(value, float) else str(value)
-    return wall, shown
+    return wall, user, shown
 
 
 def real(names: list[str], roots: list[str], data: str, timeout: float) -> None:
@@ -173,12 +179,13 @@ def real(names: list[str], roots: list[str], data: str, timeout: float) -> None:
                         "8", "--noise-mm", "0.01", "--seed", "1", "-o", f"{tmp}/campaign.csv"],
                        cwd=roots[0], env=dict(os.environ, PYTHONPATH=roots[0]), check=True,
                        capture_output=True)
-        print(f"{'command':<44} {'checkout':<28} {'wall s':>8}  figure")
+        print(f"{'command':<44} {'checkout':<28} {'wall s':>8} {'user s':>8}  figure")
         for name in names:
             title, _, _, label = REAL[name]
             for root in roots:
-                wall, shown = _real(root, name, data, tmp, timeout)
-                print(f"{title:<44} {root:<28} {wall:>8.1f}  {label}: {shown}", flush=True)
+                wall, user, shown = _real(root, name, data, tmp, timeout)
+                print(f"{title:<44} {root:<28} {wall:>8.1f} {user:>8.2f}  {label}: {shown}",
+                      flush=True)
 
 
 def main() -> None:

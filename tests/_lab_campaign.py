@@ -8,8 +8,9 @@ reverse), then without load again. Gear play in joint N puts the joint's output 
 off its encoder:
 
 * under a clear load, on the flank the load torque presses it to: dq_N = +b/2 sign(tau_N);
-* without one, on the flank its last motion left it on (the output lags the motor):
-  dq_N = -b/2 a_N, a_N the sign of the joint's last move.
+* without one, on the flank the last clear load at this pose pressed it to (friction holds
+  it there, issue 40), or before any, the flank its last motion left it on (the output lags
+  the motor): dq_N = -b/2 a_N, a_N the sign of the joint's last move.
 
 The TCP position is the exact forward kinematics at q + C J^T F + dq (joint compliance
 C = diag(1/k) of the robot file), plus the tracker's Gaussian noise. The CSV is written with
@@ -120,14 +121,16 @@ def lab_campaign(
             d = qv - here
             last = np.where(np.abs(d) > 1e-9, np.sign(d), last)
             here = qv.copy()
+            held = 0.0  # the flank the last clear load at this visit pushed the output to
             for F3 in [np.zeros(3), np.zeros(3), *pulls, np.zeros(3)]:
                 W = np.concatenate([F3, np.zeros(3)])
                 _, J = fk_jac(qv)
                 tau = J.T @ W
                 dq = tau / k + (np.asarray(offsets_rad) if len(offsets_rad) else 0.0)
                 # A clear load (50 N m) presses the output to a flank; else the last move.
-                side = (np.sign(tau[play_joint]) if abs(tau[play_joint]) > 50.0
-                        else -last[play_joint])
+                if abs(tau[play_joint]) > 50.0:
+                    held = float(np.sign(tau[play_joint]))
+                side = held if held else -last[play_joint]
                 dq_play = np.zeros(n)
                 dq_play[play_joint] = 0.5 * play_rad * side
                 pin.framesForwardKinematics(model, data, G @ (qv + dq + dq_play))

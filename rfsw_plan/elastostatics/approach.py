@@ -96,6 +96,42 @@ def load_changes(q: FloatArray, wrench: FloatArray, t: FloatArray | None = None,
     return out
 
 
+#: Earlier loads at the same pose kept per sample (:func:`load_history`).
+HISTORY_DEPTH = 24
+
+
+def load_history(q: FloatArray, wrench: FloatArray, t: FloatArray | None = None,
+                 depth: int = HISTORY_DEPTH) -> FloatArray:
+    """The loads logged before each sample at the same pose, most recent first [N, N m].
+
+    For sample i (in time order) at the same joint values as the samples before it (within
+    MOVE_TOL), the wrenches of those earlier samples back to the arrival at the pose, at most
+    ``depth``, zero-padded (a new pose has none). What friction in a joint with play holds
+    after the load is taken off: the flank the last load clear enough to move it pushed it to.
+
+    Args:
+        q: Joint values, shape (m, n), rows in file order.
+        wrench: Logged wrench, base frame [N, N m], shape (m, 6).
+        t: Time of each sample [s], shape (m,), or None (row order).
+        depth: Loads kept per sample.
+
+    Returns:
+        Earlier loads per sample, shape (m, depth, 6), in the rows' order.
+    """
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    F = np.asarray(wrench, dtype=float).reshape(-1, 6)
+    order = np.arange(Q.shape[0]) if t is None else np.argsort(np.asarray(t), kind="stable")
+    out = np.zeros((Q.shape[0], depth, 6))
+    hist: list[FloatArray] = []
+    for prev, i in itertools.pairwise(order):
+        if np.any(np.abs(Q[i] - Q[prev]) > MOVE_TOL):
+            hist = []  # a new pose: no load history yet
+            continue
+        hist = [F[prev], *hist[:depth - 1]]
+        out[i, :len(hist)] = hist
+    return out
+
+
 def change_tolerance(force_noise: float | None) -> float:
     """Force change [N] that counts as a load change: 3 sigma of the difference of two
     readings, 3 sqrt(2) sigma_F (0 when the noise is unknown)."""

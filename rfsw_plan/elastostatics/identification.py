@@ -294,6 +294,17 @@ def mark_invisible(
         )
 
 
+def keep_profiled(effects: Sequence[Effect], free: np.ndarray, notes: list[str]) -> None:
+    """The effects' :attr:`~rfsw_plan.elastostatics.effects.base.Effect.profiled_params` (set
+    by :meth:`~rfsw_plan.elastostatics.effects.base.Effect.profile`, no regressor) stay fixed,
+    without a note. ``free`` and ``notes`` (one per parameter, in the effects' order) are
+    updated in place."""
+    flags = [n in e.profiled_params for e in effects for n in e.param_names()]
+    for k in np.flatnonzero(flags):
+        free[k] = False
+        notes[k] = ""
+
+
 def mark_collinear(
     names: Sequence[tuple[str, str]], free: np.ndarray, notes: list[str], setup: np.ndarray,
     A0: FloatArray, first: np.ndarray | None = None,
@@ -493,6 +504,7 @@ def build_identification(
                       for lab, _ in prob.names], dtype=bool)
     mark_collinear(prob.names, prob.free, prob.notes, setup, A0,
                    Plausibility.of(prob.effects).regularised)
+    keep_profiled(prob.effects, prob.free, prob.notes)
     return prob
 
 

@@ -36,6 +36,7 @@ from rfsw_plan.elastostatics.identification import (
     Plausibility,
     build_result,
     implausible,
+    keep_profiled,
     mark_collinear,
     mark_invisible,
     position_jacobian,
@@ -283,6 +284,7 @@ def identify_blocks(
     mark_invisible(names, free, notes, scale, R0[:, :P], n_obs)
     bounds = Plausibility.of(effects)
     mark_collinear(names, free, notes, setup, R0[:, :P], bounds.regularised)
+    keep_profiled(effects, free, notes)
 
     ff = ff0
     weights = np.zeros(P)  # prior rows of the regularised parameters (none on the first pass)

@@ -54,6 +54,9 @@ class MeasurementSet:
         load_change: The last change of the logged wrench at the same pose before the sample
             [N, N m], base frame, shape (m, 6) (:func:`rfsw_plan.elastostatics.approach.
             load_changes`), computed on the whole recording like ``approach``, or None.
+        load_history: The loads logged before the sample at the same pose, most recent first
+            [N, N m], shape (m, HISTORY_DEPTH, 6) (:func:`rfsw_plan.elastostatics.approach.
+            load_history`), computed on the whole recording like ``approach``, or None.
         markers: Every marker of a sample measured with several (a laser tracker's three
             reflectors), in ``frame`` [m], shape (m, k, 3), or None; ``position`` is then
             their centroid.
@@ -74,6 +77,7 @@ class MeasurementSet:
     columns: dict[str, str] = field(default_factory=dict)
     approach: FloatArray | None = None
     load_change: FloatArray | None = None
+    load_history: FloatArray | None = None
     markers: FloatArray | None = None
 
     def __len__(self) -> int:
@@ -107,6 +111,7 @@ class MeasurementSet:
             columns=self.columns,
             approach=None if self.approach is None else self.approach[idx],
             load_change=None if self.load_change is None else self.load_change[idx],
+            load_history=None if self.load_history is None else self.load_history[idx],
             markers=None if self.markers is None else self.markers[idx],
         )
 
@@ -119,6 +124,19 @@ class MeasurementSet:
             return self.load_change
         tol = change_tolerance(self.zero_load_force_noise())
         return load_changes(self.q, self.wrench, self.t, tol)
+
+    def load_histories(self) -> FloatArray:
+        """The earlier loads at the same pose of every sample [N, N m], shape
+        (m, HISTORY_DEPTH, 6): the stored ones, else from ``t`` or the row order of these
+        samples; shape (m, 0, 6) when no sample logs a force (no load to remember, and
+        HISTORY_DEPTH x 48 bytes a sample saved on large position-only sets)."""
+        from rfsw_plan.elastostatics.approach import load_history
+
+        if self.load_history is not None:
+            return self.load_history
+        if not np.any(self.wrench):
+            return np.zeros((len(self), 0, 6))
+        return load_history(self.q, self.wrench, self.t)
 
     def approach_directions(self) -> FloatArray:
         """The approach direction of every joint at every sample, shape (m, n) (see

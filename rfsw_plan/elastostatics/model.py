@@ -185,7 +185,7 @@ class ElastostaticModel:
             fn = data.zero_load_force_noise() or 0.0
         b = self.batch(data.q)
         return replace(b, approach=data.approach_directions(), force_noise=fn,
-                       load_change=data.load_changes())
+                       load_change=data.load_changes(), load_history=data.load_histories())
 
     def true_wrench(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
         """Logged wrench corrected by the wrench effects [N, N m], base frame, shape (m, 6)."""

@@ -330,7 +330,7 @@ def read_measurements(
         load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
         markers=markers,
     )
-    return replace(data, load_change=data.load_changes())
+    return replace(data, load_change=data.load_changes(), load_history=data.load_histories())
 
 
 def _approach(tab: Table, extra: dict[str, FloatArray], q: FloatArray,

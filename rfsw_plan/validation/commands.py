@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
@@ -20,10 +21,12 @@ from rfsw_plan.files import OutputLock
 from rfsw_plan.robot.description import DeviceFrame
 from rfsw_plan.validation.derived_robot import save_derived_robot
 from rfsw_plan.validation.report.validate import ReportFiles, write_report
-from rfsw_plan.validation.report.validate_weld import WeldReportFiles, write_weld_report
 from rfsw_plan.validation.sanity import prepare_data
-from rfsw_plan.validation.weld.workbench import WeldValidation, next_command, validate_weld
 from rfsw_plan.validation.workbench import ValidationResult, save_extended_robot, validate
+
+if TYPE_CHECKING:  # validate-weld's modules (the process package) load when it runs
+    from rfsw_plan.validation.report.validate_weld import WeldReportFiles
+    from rfsw_plan.validation.weld.workbench import WeldValidation
 
 #: Called with the name of each stage as it starts (the CLI's progress line).
 OnStage = Callable[[str], None]
@@ -154,6 +157,8 @@ def run_validate_weld(
     from rfsw_plan.io.weld_track import read_weld_track
     from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.robot.kinematics import load_robot
+    from rfsw_plan.validation.report.validate_weld import write_weld_report
+    from rfsw_plan.validation.weld.workbench import next_command, validate_weld
 
     if save_robot is not None and not add:
         raise InputError("save_robot", str(save_robot), "given without `add`",

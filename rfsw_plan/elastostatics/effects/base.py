@@ -87,6 +87,8 @@ class PoseBatch:
             See :mod:`rfsw_plan.elastostatics.approach`.
         load_change: The last change of the logged wrench at the same pose before each
             sample [N, N m], base frame, shape (m, 6), or None (no history).
+        load_history: The loads logged before each sample at the same pose, most recent
+            first [N, N m], base frame, shape (m, depth, 6), or None (no history).
         force_noise: 1-sigma noise of the logged force per axis [N] that the wrench of
             these samples carries: 0 for a modelled wrench (planning) or an unknown noise,
             ``inf`` for measured data without force readings (no force sensor: the load on
@@ -106,23 +108,26 @@ class PoseBatch:
     approach: FloatArray | None = None
     force_noise: float = 0.0
     load_change: FloatArray | None = None
+    load_history: FloatArray | None = None
     cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_q(cls, robot: Robot, q: FloatArray, approach: FloatArray | None = None,
-               force_noise: float = 0.0, load_change: FloatArray | None = None) -> PoseBatch:
+               force_noise: float = 0.0, load_change: FloatArray | None = None,
+               load_history: FloatArray | None = None) -> PoseBatch:
         """Evaluate kinematics for joint values [rad], shape (m, n) or (n,), with the
         samples' history and force noise [N] (see the attributes)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
         T, J, frames = robot.batch_fk_jacobian_frames(Q)
-        return cls(robot, Q, T, J, frames, approach, force_noise, load_change)
+        return cls(robot, Q, T, J, frames, approach, force_noise, load_change, load_history)
 
     def rows(self, s: slice) -> PoseBatch:
         """The samples ``s`` as a new batch (its own, empty cache)."""
         return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
                          None if self.approach is None else self.approach[s],
                          self.force_noise,
-                         None if self.load_change is None else self.load_change[s])
+                         None if self.load_change is None else self.load_change[s],
+                         None if self.load_history is None else self.load_history[s])
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -191,6 +196,9 @@ class Effect(abc.ABC):
     #: Seen from one side only, the effect is a constant offset of its joint: a campaign
     #: design must tell it from the joint's zero offset (a play, a hysteresis loop).
     offset_like: ClassVar[bool] = False
+    #: Parameters no regressor moves continuously (a threshold): :meth:`profile` sets them
+    #: from the residual before a fit, which keeps them fixed.
+    profiled_params: ClassVar[tuple[str, ...]] = ()
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -272,6 +280,12 @@ class Effect(abc.ABC):
     @abc.abstractmethod
     def prior(self) -> FloatArray:
         """Prior (default) parameter values [SI], shape (p,)."""
+
+    def profile(self, batch: PoseBatch, wrench: FloatArray, residual: FloatArray) -> None:
+        """Set the :attr:`profiled_params` from ``residual``, the measured minus predicted
+        TCP position without this effect [m], shape (m, 3), 0 where not measured, under the
+        true wrench ``wrench`` [N, N m] (none by default)."""
+        return
 
     @abc.abstractmethod
     def plausible_params(

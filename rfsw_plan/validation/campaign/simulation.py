@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.approach import approach_directions, load_changes
+from rfsw_plan.elastostatics.approach import approach_directions, load_changes, load_history
 from rfsw_plan.elastostatics.effects import EFFECTS, PoseBatch, parse_effect_label
 from rfsw_plan.elastostatics.effects.base import FloatArray
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
@@ -268,7 +268,8 @@ def run_campaign(
     # The samples in time order: the robot moves pose to pose, so each joint's approach
     # direction is in the order (lost motion needs it).
     approach = approach_directions(q, t)
-    batch = PoseBatch.from_q(robot, q, approach, load_change=load_changes(q, wrench, t))
+    batch = PoseBatch.from_q(robot, q, approach, load_change=load_changes(q, wrench, t),
+                             load_history=load_history(q, wrench, t))
     visible_mm = max(VISIBILITY_FACTOR * noise_mm, MIN_VISIBLE_MM)
     truth, used = _hide(truth, specs, batch, wrench, rng, visible_mm)
 
@@ -294,7 +295,7 @@ def run_campaign(
     data = MeasurementSet(
         q=q, wrench=wrench, position=position, t=t, pose_id=pose_id,
         extra={"temperature_C": temperature}, source="<simulated campaign>",
-        approach=approach, load_change=batch.load_change,
+        approach=approach, load_change=batch.load_change, load_history=batch.load_history,
     )
     return CampaignResult(data=data, truth=truth, hidden=used, contribution_rms_mm=contrib)
 

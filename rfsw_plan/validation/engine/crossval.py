@@ -200,6 +200,25 @@ class CrossValidation:
         return self._cache["r"]
 
 
+def profiled(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch
+             ) -> ElastostaticModel:
+    """``model`` with the effects' profiled parameters (a friction threshold: no regressor)
+    set from the residual of the model without each such effect
+    (:meth:`~rfsw_plan.elastostatics.effects.base.Effect.profile`); ``model`` itself when it
+    has none. The other parameters are then fitted as usual."""
+    if not any(e.profiled_params for e in model.effects):
+        return model
+    out = model.copy()
+    F = out.true_wrench(batch, data.wrench)
+    mask = data.measured
+    for e in out.effects:
+        if e.profiled_params:
+            without = ElastostaticModel(out.robot, [x for x in out.effects if x is not e])
+            pred = batch.T[:, :3, 3] + without.deflection_batch(batch, data.wrench)[:, :3]
+            e.profile(batch, F, np.where(mask, data.position - pred, 0.0))
+    return out
+
+
 def min_samples(n_params: int, data: MeasurementSet, k: int) -> int:
     """Samples needed so that every training fold has more observations than parameters."""
     per_sample = max(float(data.measured.sum()) / max(len(data), 1), 1.0)
@@ -242,6 +261,7 @@ def cross_validate(
         )
     if batch is None:
         batch = model.batch_of(data)
+    model = profiled(model, data, batch)
     if data.rotation is not None:
         return _cross_validate_stacked(model, data, folds, batch, min_train)
     try:

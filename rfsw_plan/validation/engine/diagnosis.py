@@ -11,7 +11,10 @@ ties and the named candidate are the workbench's one scoring
 The residual is *at the noise floor* when SSE_0 / sigma^2 is not above chi^2(n) (sigma given)
 or F(n, dof) (sigma from repeats) at level ALPHA, or RMS_0 <= NOISE_TOLERANCE sigma.
 
-Verdict: ``adequate`` when the current model's held-out residual is at the noise floor;
+Verdict: ``adequate`` when the current model's held-out residual is at the noise floor and
+within FLOOR_RATIO times it, or at the floor (not significantly above it) but beyond FLOOR_RATIO
+times it and no library effect is significant (the selection is run to find out: the same 1.5x
+rule as "missing");
 ``missing`` when the named candidate (and, greedily, at most MAX_CHAIN - 1 more, each round
 re-testing every remaining candidate on the extended model) brings the held-out RMS to within
 FLOOR_RATIO times the noise floor, checked on the selection's own cross-validation before the
@@ -442,7 +445,7 @@ def forward_select(
     current, cv = model, base
     steps: list[ChainStep] = []
     skipped: list[Skipped] = []
-    if at_noise:
+    if at_noise and within_ratio(base.heldout_rms, noise):
         return Selection((), True, "the starting model is at the noise floor", (), model, base)
     stop = f"{max_steps} effects added (the most the selection adds)"
     while len(steps) < max_steps:
@@ -481,7 +484,9 @@ def forward_select(
 
 
 def _n_params(model: ElastostaticModel, label: str) -> int:
-    return int(make_effect(model.robot, label).params.size)
+    """Parameters of the effect ``label`` the fit identifies (not its profiled ones)."""
+    e = make_effect(model.robot, label)
+    return sum(n not in e.profiled_params for n in e.param_names())
 
 
 def _simpler(
@@ -591,6 +596,12 @@ def reaches_floor(rms: float, noise: NoiseFloor, at_noise: bool) -> bool:
     return bool(rms <= FLOOR_RATIO * noise.sigma)
 
 
+def within_ratio(rms: float, noise: NoiseFloor) -> bool:
+    """True if a held-out RMS ``rms`` [m] is within FLOOR_RATIO x the noise floor (or the
+    floor is unknown): "adequate" without testing the library's effects."""
+    return noise.sigma is None or bool(rms <= FLOOR_RATIO * noise.sigma)
+
+
 def excess_share(rms0: float, rms1: float, noise: NoiseFloor) -> float:
     """Share of the excess over the noise floor that a model explains:
     (MSE_0 - MSE_1) / (MSE_0 - sigma^2) with MSE = RMS^2 of the held-out residual (sigma = 0
@@ -642,10 +653,17 @@ def _verdict(
             f"undetermined: held-out RMS {base.heldout_rms * mm:.4g} mm and no tested feature "
             "explains it, but without a noise floor that does not make the model adequate"
         )
-    if at_noise0:
+    if at_noise0 and not chain:
+        if within_ratio(base.heldout_rms, noise):
+            return "adequate", (
+                f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm is at the noise floor "
+                f"({floor}); no effect is missing"
+            )
+        assert noise.sigma is not None
         return "adequate", (
-            f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm is at the noise floor "
-            f"({floor}); no effect is missing"
+            f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm, "
+            f"{base.heldout_rms / noise.sigma:.2f} x the noise floor ({floor}), is not "
+            "significantly above it and no library effect is significant"
         )
     if chain and reaches_floor(chain[-1].rms_after, noise, at_noise):
         first, last = chain[0], chain[-1]
@@ -740,10 +758,12 @@ def diagnose(
     )
     candidates = tuple(c for c, _ in scored)
 
+    # Not significantly above the floor but more than FLOOR_RATIO x it: adequate only if no
+    # library effect is significant either (the selection finds none).
     sel = (forward_select(model, data, fold, base, noise, feats, batch,
                           first=(scored, skipped))
-           if not at_noise0 else Selection((), True, "the model is at the noise floor",
-                                           (), model, base))
+           if not (at_noise0 and within_ratio(base.heldout_rms, noise))
+           else Selection((), True, "the model is at the noise floor", (), model, base))
     chain, at_noise = list(sel.steps), sel.at_noise
     last_skipped = sel.skipped if sel.steps else tuple(skipped)
     rest, experiment = _after_chain(model, data, sel, feats)
