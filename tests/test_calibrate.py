@@ -256,20 +256,46 @@ def test_calibrate_refuses_a_file_given_twice(tmp_path: Path,
     assert len(err.splitlines()) == 1 and "a file given twice" in err
 
 
+#: Issue 40's target for the FANUC set, held out (it was 0.381 mm when the fit used the
+#: reflectors' centroid only and left the tool's rotation free).
+FANUC_TARGET_MM = 0.35
+
+
+def _fanuc(capsys: pytest.CaptureFixture[str], *extra: str) -> dict[str, object]:
+    assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(FANUC),
+                 "--columns", str(FANUC_COLUMNS), "--frame", "device", "--json",
+                 *extra]) == 0
+    j: dict[str, object] = json.loads(capsys.readouterr().out)
+    assert j["heldout_scheme"] == "leave-one-pose-group-out" and j["heldout_pose_groups"] == 24
+    assert j["markers_per_pose"] == 3
+    return j
+
+
 @pytest.mark.skipif(not FANUC.is_file(), reason="shared/data/fanuc_r2000ic_165f absent")
 def test_fanuc_leave_one_pose_out_beats_the_published_in_sample_figure(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        capsys: pytest.CaptureFixture[str]) -> None:
     """The FANUC R-2000iC/165F set: 0.53 mm is upstream's in-sample RMS after geometric
-    calibration; ours is held out (each pose group left out of the whole fit). In the default
-    run since the fits are done in blocks (about 6 s of CPU); it was 0.381 mm with the stacked
-    fits, and the faster path must not be worse (0.382: the last digit's rounding)."""
-    assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(FANUC),
-                 "--columns", str(FANUC_COLUMNS), "--frame", "device", "--json"]) == 0
-    j = json.loads(capsys.readouterr().out)
-    assert j["heldout_scheme"] == "leave-one-pose-group-out" and j["heldout_pose_groups"] == 24
-    assert j["heldout_rms_mm"] <= 0.382
-    assert j["repeatability_mm"] is not None and j["iso9283"]["repeated_groups"] == 24
-    assert j["effects"][:2] == ["kinematic_offsets", "link_errors"]
+    calibration; ours is held out (each pose group left out of the whole fit). The geometry
+    alone (a few seconds: the default run), fitted on every reflector so that the tool's
+    rotation is fitted too, is within issue 40's 0.35 mm."""
+    j = _fanuc(capsys, "--max-effects", "0")
+    assert j["effects"] == ["kinematic_offsets", "link_errors"]
+    assert isinstance(j["heldout_rms_mm"], float) and j["heldout_rms_mm"] <= FANUC_TARGET_MM
+    assert j["repeatability_mm"] is not None
+    iso = j["iso9283"]
+    assert isinstance(iso, dict) and iso["repeated_groups"] == 24
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not FANUC.is_file(), reason="shared/data/fanuc_r2000ic_165f absent")
+def test_fanuc_default_selection_through_forward_select(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The documented command (the workbench's forward selection after the geometry, about
+    280 s of CPU): still within 0.35 mm held out, and the geometry comes first."""
+    j = _fanuc(capsys)
+    effects = j["effects"]
+    assert isinstance(effects, list) and effects[:2] == ["kinematic_offsets", "link_errors"]
+    assert isinstance(j["heldout_rms_mm"], float) and j["heldout_rms_mm"] <= FANUC_TARGET_MM
 
 
 # -- bundled robots against their public sources ------------------------------------------
