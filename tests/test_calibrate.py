@@ -256,20 +256,46 @@ def test_calibrate_refuses_a_file_given_twice(tmp_path: Path,
     assert len(err.splitlines()) == 1 and "a file given twice" in err
 
 
+#: Issue 40's target for the FANUC set, held out (it was 0.381 mm when the fit used the
+#: reflectors' centroid only and left the tool's rotation free).
+FANUC_TARGET_MM = 0.35
+
+
+def _fanuc(capsys: pytest.CaptureFixture[str], *extra: str) -> dict[str, object]:
+    assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(FANUC),
+                 "--columns", str(FANUC_COLUMNS), "--frame", "device", "--json",
+                 *extra]) == 0
+    j: dict[str, object] = json.loads(capsys.readouterr().out)
+    assert j["heldout_scheme"] == "leave-one-pose-group-out" and j["heldout_pose_groups"] == 24
+    assert j["markers_per_pose"] == 3
+    return j
+
+
 @pytest.mark.skipif(not FANUC.is_file(), reason="shared/data/fanuc_r2000ic_165f absent")
 def test_fanuc_leave_one_pose_out_beats_the_published_in_sample_figure(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        capsys: pytest.CaptureFixture[str]) -> None:
     """The FANUC R-2000iC/165F set: 0.53 mm is upstream's in-sample RMS after geometric
-    calibration; ours is held out (each pose group left out of the whole fit). In the default
-    run since the fits are done in blocks (about 6 s of CPU); it was 0.381 mm with the stacked
-    fits, and the faster path must not be worse (0.382: the last digit's rounding)."""
-    assert main(["calibrate", "--robot", "fanuc_r2000ic_165f", "--data", str(FANUC),
-                 "--columns", str(FANUC_COLUMNS), "--frame", "device", "--json"]) == 0
-    j = json.loads(capsys.readouterr().out)
-    assert j["heldout_scheme"] == "leave-one-pose-group-out" and j["heldout_pose_groups"] == 24
-    assert j["heldout_rms_mm"] <= 0.382
-    assert j["repeatability_mm"] is not None and j["iso9283"]["repeated_groups"] == 24
-    assert j["effects"][:2] == ["kinematic_offsets", "link_errors"]
+    calibration; ours is held out (each pose group left out of the whole fit). The geometry
+    alone (a few seconds: the default run), fitted on every reflector so that the tool's
+    rotation is fitted too, is within issue 40's 0.35 mm."""
+    j = _fanuc(capsys, "--max-effects", "0")
+    assert j["effects"] == ["kinematic_offsets", "link_errors"]
+    assert isinstance(j["heldout_rms_mm"], float) and j["heldout_rms_mm"] <= FANUC_TARGET_MM
+    assert j["repeatability_mm"] is not None
+    iso = j["iso9283"]
+    assert isinstance(iso, dict) and iso["repeated_groups"] == 24
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not FANUC.is_file(), reason="shared/data/fanuc_r2000ic_165f absent")
+def test_fanuc_default_selection_through_forward_select(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The documented command (the workbench's forward selection after the geometry, about
+    280 s of CPU): still within 0.35 mm held out, and the geometry comes first."""
+    j = _fanuc(capsys)
+    effects = j["effects"]
+    assert isinstance(effects, list) and effects[:2] == ["kinematic_offsets", "link_errors"]
+    assert isinstance(j["heldout_rms_mm"], float) and j["heldout_rms_mm"] <= FANUC_TARGET_MM
 
 
 # -- bundled robots against their public sources ------------------------------------------
@@ -346,3 +372,45 @@ def test_pose_groups_and_iso9283_by_hand() -> None:
     assert iso.groups == 2 and iso.repeated_groups == 2
     # Deviations from the barycentres: five of 1, 1, 1, 2, 2 mm.
     assert iso.repeat_rms_3d == pytest.approx(math.sqrt((3 * 1 + 2 * 4) / 5) * 1e-3, rel=1e-3)
+
+
+def test_marker_rows_are_the_kinematics_of_each_marker() -> None:
+    """Every marker as a sample of its own (what calibrate fits, the same quantity its held-out
+    figure scores): the expanded pose, Jacobian and measured position of marker k are those of
+    the robot whose tool point is the marker (Pinocchio's FK with the tool moved to it), the
+    logged moment is taken about the marker, and the markers of a pose stay in its group."""
+    from dataclasses import replace
+
+    from rfsw_plan.elastostatics.measurement_set import MeasurementSet
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.elastostatics.registration import with_tool_point
+    from rfsw_plan.validation.calibrate import marker_layout, marker_rows, pose_groups
+
+    robot = load_robot("fanuc_r2000ic_165f")
+    centre = REFLECTORS.mean(axis=0)
+    model = ElastostaticModel(with_tool_point(robot, centre))  # tracked point: the centroid
+    rng = np.random.default_rng(4)
+    q = np.repeat(rng.uniform(-0.8, 0.8, (5, 6)), 2, axis=0)
+    T = robot.batch_fk_jacobian(q)[0]
+    markers = T[:, None, :3, 3] + np.einsum("mab,kb->mka", T[:, :3, :3], REFLECTORS)
+    data = MeasurementSet(q=q, wrench=np.zeros((len(q), 6)), position=markers.mean(axis=1),
+                          markers=markers)
+    assert np.allclose(marker_layout(model, data), REFLECTORS - centre, atol=1e-12)
+    rows, batch = marker_rows(model, data, model.batch_of(data))
+    assert len(rows) == 3 * len(q) and rows.markers is None
+    Tc = model.batch_of(data).T
+    force = rng.normal(0.0, 100.0, (len(q), 3))
+    loaded, lb = marker_rows(model, replace(data, wrench=np.column_stack(
+        [force, np.zeros((len(q), 3))])), model.batch_of(data))
+    for k in range(3):
+        sl = slice(k * len(q), (k + 1) * len(q))
+        Tk, Jk = with_tool_point(robot, REFLECTORS[k]).batch_fk_jacobian(q)
+        assert np.allclose(rows.position[sl], markers[:, k], atol=1e-12)
+        assert np.allclose(batch.T[sl], Tk, atol=1e-12)
+        assert np.allclose(batch.J[sl], Jk, atol=1e-9)
+        # The moment about the marker: M_k = M + r_k x F, r_k from the tracked point.
+        arm = lb.T[sl][:, :3, 3] - Tc[:, :3, 3]
+        assert np.allclose(loaded.wrench[sl, 3:], np.cross(arm, force), atol=1e-9)
+    assert np.array_equal(pose_groups(rows.q), np.tile(pose_groups(q), 3))
+    same, _ = marker_rows(model, replace(data, markers=None), model.batch_of(data))
+    assert len(same) == len(q)

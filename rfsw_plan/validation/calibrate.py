@@ -9,13 +9,15 @@ One job for any robot and any laser-tracker or motion-capture campaign (issue 34
    :func:`~rfsw_plan.elastostatics.registration.estimate_device_frame`): a tracker set up anew
    for each series has its own frame, the marker on the tool is the same for all files.
 3. **Choose the model on the training files only**: the geometry every real arm has (joint
-   zero offsets, the links' own errors), then the workbench's diagnosis ranks every other
-   library effect by cross-validation by pose group (poses with equal joint values form one
-   group, so repeats never sit on both sides of a split); the best significant one is added
-   and everything is re-identified, until nothing significant is left
-   (:func:`choose_effects`). With several files, each file's registration is estimated again
-   with the chosen model (marker held) and the model refitted, :data:`REGISTRATION_ROUNDS`
-   times.
+   zero offsets, the links' own errors), then the workbench's forward selection
+   (:func:`~rfsw_plan.validation.engine.diagnosis.forward_select`, the engine of ``validate``)
+   adds effects under cross-validation by pose group (poses with equal joint values form one
+   group, so repeats never sit on both sides of a split) until the held-out residual is at the
+   noise floor or nothing significant is left (:func:`choose_effects`). With several markers
+   per pose every marker is a row of the fit (:func:`marker_rows`), so the tool's rotation
+   is fitted and selection, fit and score use the same quantity. With several files, each
+   file's registration is estimated again with the chosen model (marker held) and the model
+   refitted, :data:`REGISTRATION_ROUNDS` times.
 4. **Score it held out**: leave one pose group out (``k``-fold by pose group beyond
    :data:`MAX_LOGO_GROUPS` groups), the whole fit (registration included) redone without the
    group; the error is the 3-D distance of every marker (the markers' positions on the tool
@@ -38,7 +40,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from rfsw_plan.elastostatics.effects.base import FloatArray
+from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
 from rfsw_plan.elastostatics.identification import IdentificationResult
 from rfsw_plan.elastostatics.identification_blocks import identify_blocks, predicted_positions
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
@@ -189,11 +191,11 @@ class SelectionStep:
 
     added: str
     cv_rms: float
-    fit_rms: float
+    fit_rms: float | None
 
     def to_json(self) -> dict[str, Any]:
         return {"added": self.added, "training_cv_rms_mm": self.cv_rms * 1e3,
-                "fit_rms_mm": self.fit_rms * 1e3}
+                "fit_rms_mm": None if self.fit_rms is None else self.fit_rms * 1e3}
 
 
 @dataclass(frozen=True)
@@ -386,61 +388,127 @@ class Choice:
     setup: DeviceSetup | None = field(default=None, repr=False)
 
 
+def marker_layout(model: ElastostaticModel, data: MeasurementSet) -> FloatArray:
+    """Where each marker sits on the tool, relative to the tracked point, in the tool frame
+    [m], shape (k, 3): the mean over ``data`` of the measured markers seen from the predicted
+    tool pose, l_k = mean_i R_i^T (y_ik - p_i), less their mean, so that the tracked point is
+    the markers' centroid (sum_k l_k = 0: the centroid's rows and the rotation's rows of the
+    marker rows are then orthogonal)."""
+    assert data.markers is not None
+    p, R = _tool_poses(model, data)
+    local = np.einsum("mba,mkb->mka", R, data.markers - p[:, None, :]).mean(axis=0)
+    out: FloatArray = local - local.mean(axis=0)
+    return out
+
+
+def marker_rows(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch
+                ) -> tuple[MeasurementSet, PoseBatch]:
+    """Every marker of every pose as a sample of its own, so that a fit of position rows fits
+    what :func:`marker_errors` scores: the markers, which constrain the tool's rotation as well
+    as its position (the rotation rows of a pose measured by k >= 2 markers).
+
+    Sample (i, k) is pose i with the model's TCP moved by the layout l_k
+    (:func:`marker_layout`, fitted closed-form on ``data`` with ``model``): T_ik = T_i Trans(l_k)
+    and the point's Jacobian J_p,ik = J_p,i + J_w,i x (R_i l_k) (rigid body), the logged moment
+    taken about the marker, M_ik = M_i + (R_i l_k) x F_i, so that every effect's regressor,
+    which works from T, J and the joint frames, acts on the marker. Its measured position is
+    marker k. With y_ik = p_i + R_i l_k + e_ik and sum_k l_k = 0,
+    sum_k |e_ik|^2 = k |e_centroid|^2 + sum_k |dw x R_i l_k|^2: the position rows of the
+    centroid plus rotation rows weighted by the layout's spread.
+
+    Rows are marker-major (all poses of marker 0, then of marker 1...), each marker's samples
+    keeping the file's order (the approach directions and load changes of the file are kept),
+    and the time of marker k shifted by k times the recording's span plus 1 s, so that the
+    repeats of a pose (consecutive samples of one marker) are never pooled across markers. The
+    joint values are those of the pose: folds by pose group keep a pose's markers together.
+    Data without markers is returned as it is.
+    """
+    if data.markers is None:
+        return data, batch
+    layout = marker_layout(model, data)
+    k, m = layout.shape[0], len(data)
+    R = batch.T[:, :3, :3]
+    arms = np.einsum("mab,kb->kma", R, layout)  # (k, m, 3): R_i l_k [m]
+    T = np.repeat(batch.T[None], k, axis=0)
+    T[:, :, :3, 3] += arms
+    J = np.repeat(batch.J[None], k, axis=0)
+    J[:, :, :3, :] += np.cross(np.moveaxis(batch.J[:, 3:, :], 2, 1)[None],
+                               arms[:, :, None, :]).transpose(0, 1, 3, 2)
+    wrench = np.repeat(data.wrench[None], k, axis=0)
+    wrench[:, :, 3:] += np.cross(arms, data.wrench[None, :, :3])
+
+    def tile(a: Any) -> Any:
+        return None if a is None else np.concatenate([a] * k)
+
+    t = None if data.t is None else np.concatenate(
+        [data.t + j * (float(np.ptp(data.t)) + 1.0) for j in range(k)])
+    approach, changes = data.approach_directions(), data.load_changes()
+    out = replace(
+        data, q=tile(data.q), wrench=wrench.reshape(k * m, 6),
+        position=np.moveaxis(data.markers, 1, 0).reshape(k * m, 3), t=t,
+        pose_id=tile(data.pose_id), sigma=tile(data.sigma),
+        extra={key: tile(v) for key, v in data.extra.items()}, rotation=None,
+        load_step=tile(data.load_step), approach=tile(approach), load_change=tile(changes),
+        markers=None)
+    xb = PoseBatch(batch.robot, tile(batch.q), T.reshape(k * m, 4, 4),
+                   J.reshape(k * m, *batch.J.shape[1:]), tile(batch.frames),
+                   tile(batch.approach), batch.force_noise, tile(batch.load_change))
+    return out, xb
+
+
 def choose_effects(model: ElastostaticModel, data: MeasurementSet, setup: DeviceSetup | None,
                    request: CalibrationRequest, labels: Sequence[str] | None = None
                    ) -> tuple[Choice, list[str], list[SelectionStep]]:
-    """The geometry, then the diagnosis's best significant effect at a time, on the training
-    data only, while the training cross-validation improves.
+    """The geometry, then the workbench's forward selection, on the training data only.
 
     The geometry (``request.geometry``, or ``labels`` when given) is added as ``validate
-    --add`` adds it (what the data cannot identify is left out, with why). Each round scores
-    every library candidate on the current model with the workbench's engine
-    (:func:`~rfsw_plan.validation.engine.diagnosis.evaluate_candidates`: held-out F test on
-    folds by pose group, Bonferroni over the candidates, the same ranking as ``validate``'s
-    first step); the best significant one is added and everything is re-identified from the
-    robot file's model; the loop stops when nothing significant is left, the cross-validated
-    error does not fall, or ``request.max_effects`` are added. With ``labels`` given nothing is
-    selected: the form is refitted.
+    --add`` adds it (what the data cannot identify is left out, with why). Then the
+    workbench's :func:`~rfsw_plan.validation.engine.diagnosis.forward_select` adds effects
+    (held-out F test on folds by pose group, Bonferroni over the candidates, the simplest of
+    those the data cannot tell apart) until the held-out residual is at the noise floor,
+    nothing significant is left, or ``request.max_effects`` are added. With markers the fit
+    and the selection work on every marker (:func:`marker_rows`): the same quantity as the
+    held-out score. With ``labels`` given nothing is selected: the form is refitted.
     """
-    from rfsw_plan.validation.engine.diagnosis import candidate_labels, evaluate_candidates
+    from rfsw_plan.validation.engine.diagnosis import forward_select
+    from rfsw_plan.validation.engine.residuals import residual_features
     from rfsw_plan.validation.workbench import _add_effects
     from rfsw_plan.validation.workbench import _registered as registered_form
 
     form, d = registered_form(model, data, setup)
+    if data.markers is not None and d.markers is None:  # registered with the set-up too
+        shape = data.markers.shape
+        d = replace(d, markers=data.markers if setup is None else setup.frame.to_base(
+            data.markers.reshape(-1, 3)).reshape(shape))
     wanted = list(request.geometry if labels is None else labels)
     wanted = check_effect_labels(form, [g for g in wanted if not model.has(g)])
-    batch = form.batch_of(d)
+    d, batch = marker_rows(form, d, form.batch_of(d))
     pred = predicted_positions(form, batch, d.wrench)
     residual0 = np.where(d.measured, d.position - pred, np.nan)
     r0 = residual0[np.isfinite(residual0)]
     rms0 = float(np.sqrt(np.mean(r0**2))) if r0.size else math.nan
     fold = make_folds(d, request.folds, request.seed)
     before = cross_validate(form, d, fold, batch)
-
-    def fitted(with_: list[str]) -> tuple[CrossValidation, list[str], tuple[Skipped, ...]]:
-        if not with_:
-            return before, [], ()
-        add = _add_effects(form, d, fold, batch, with_, before, rms0)
-        return add.after, list(add.added), add.not_added
-
-    cv, added, not_added = fitted(wanted)
+    if wanted:
+        add = _add_effects(form, d, fold, batch, wanted, before, rms0)
+        cv, added, not_added = add.after, list(add.added), add.not_added
+    else:
+        cv, added, not_added = before, [], ()
     steps = [SelectionStep(" + ".join(["registration", *added]) if setup else " + ".join(added),
                            cv.heldout_rms, cv.fit.rms_after)]
     if labels is not None or request.max_effects == 0:
         return Choice(cv.fit, cv, not_added, setup), added, steps
     noise = estimate_noise_floor(d, residual0, model=form, batch=batch)
-    evaluate = _single_thread(evaluate_candidates)
-    for _ in range(request.max_effects):
-        current = cv.fit.model
-        scored, _ = evaluate(current, d, fold, cv, candidate_labels(current), batch, noise)
-        best = next((c for c, _ in scored if c.significant), None)
-        if best is None:
-            break
-        nxt, got, dropped = fitted([*added, best.label])
-        if best.label not in got or nxt.heldout_rms >= cv.heldout_rms:
-            break
-        cv, added, not_added = nxt, got, dropped
-        steps.append(SelectionStep(best.label, cv.heldout_rms, cv.fit.rms_after))
+    tau = np.einsum("mak,ma->mk", batch.J, d.wrench)
+    feats = residual_features(d, batch.T[:, :3, 3], tau)
+    sel = _single_thread(forward_select)(cv.fit.model, d, fold, cv, noise, feats, batch,
+                                         max_steps=request.max_effects)
+    if sel.steps:
+        cv = sel.cv
+        for s in sel.steps:
+            added.append(s.label)
+            steps.append(SelectionStep(s.label, s.rms_after, None))
+        steps[-1] = replace(steps[-1], fit_rms=cv.fit.rms_after)
     return Choice(cv.fit, cv, not_added, setup), added, steps
 
 
@@ -502,8 +570,9 @@ def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray
         check_interrupt()
         test = folds == f
         train = data.subset(~test)
-        fit = _single_thread(identify_blocks)(form, train, form.batch_of(train),
-                                              np.zeros(len(train), dtype=np.int_)).result
+        rows, batch = marker_rows(form, train, form.batch_of(train))
+        fit = _single_thread(identify_blocks)(form, rows, batch,
+                                              np.zeros(len(rows), dtype=np.int_)).result
         out[test] = marker_errors(fit.model, train, data.subset(test))
     return out
 
@@ -666,8 +735,9 @@ def converge_frames(model: ElastostaticModel, labels: Sequence[str],
         setup = _common_setup(model, marker)
         data = _concat([_registered(d, f) for d, f in zip(sets, frames, strict=True)], "")
         form = _form(model, labels, setup)
-        fit = _single_thread(identify_blocks)(form, data, form.batch_of(data),
-                                              np.zeros(len(data), dtype=np.int_)).result
+        rows, batch = marker_rows(form, data, form.batch_of(data))
+        fit = _single_thread(identify_blocks)(form, rows, batch,
+                                              np.zeros(len(rows), dtype=np.int_)).result
         fitted, correction = setup.fold(fit.model, fit.estimates)
         new = [_register(fitted, d, correction.marker) for d in sets]
         moved = max(_frame_change(f, g) for f, g in zip(frames, new, strict=True)
