@@ -32,8 +32,10 @@ $(DEV_STAMP): $(STAMP)
 demo: $(STAMP)
 	$(BIN)/rfsw-plan plan $(PROBLEM) -o $(OUT)
 
+# The tests start the CLI in subprocesses: with bytecode written (as an installed package has
+# it), each start does not compile rfsw_plan's sources again when PYTHONDONTWRITEBYTECODE is set.
 test: $(DEV_STAMP)
-	$(BIN)/python -m pytest
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest
 
 lint: $(DEV_STAMP)
 	$(BIN)/ruff check rfsw_plan tests examples benchmarks
