@@ -12,7 +12,12 @@ NOMINALLY) the lateral error and the depth are evaluated at the vertices of the 
 * other robot models (zk500_seed001: joint 2's torque-dependent stiffness): the robot model
   through its public API (``rfsw_plan.load_model(...).process_deflection``) at all 8 vertices
   of the box of seam-frame force components (traverse, lateral, tool axis; the tool axis
-  exact under axial force control).
+  exact under axial force control);
+* a claim on the coupled axial law (``plan.json`` ``claim_force_model``: the problem's
+  ``[process.coupling]`` under position control, k_p checked against the public
+  ``rfsw_plan.process.problem_penetration_law``): the robot model at the 8 vertices, the axial
+  force solved per sample from the material's response (1 +- u) (f0 + k_p dp) with this
+  check's own Newton iteration, not the planner's.
 
 The lateral direction is rebuilt from the seam points and the surface normal (its sign from the
 written e_lat_mm), the depth is the plate normal's component of the pin's position from the
@@ -319,8 +324,7 @@ def test_the_coupled_axial_law_is_the_claims_where_the_problem_declares_it(plann
     fits); kr600 declares none: the force box. The model matters:
     at the coupled claim's depth level the force box (the axial force itself spread) puts the
     pin out of its depth window, and the coupled check does not."""
-    from rfsw_plan.process.deviation import problem_penetration_law
-    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.process import load_problem, problem_penetration_law  # the public API
 
     rec, toml, rows = planned["zk500_table6_seam"]
     law = problem_penetration_law(load_problem("zk500_table6_seam"))

@@ -1366,8 +1366,9 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
     if ok is not None:
         u, m, k = ok
         # Regula falsi on the worst margin between the holding and the failing level.
-        for _ in range(REFINE_STEPS if bad is not None else 0):
-            assert bad is not None
+        for _ in range(REFINE_STEPS):
+            if bad is None:
+                break
             u_try = u + 0.999 * (bad[0] - u) * m / (m - bad[1])
             if not u < u_try < bad[0]:
                 break

@@ -9,7 +9,12 @@ places the robot along; :func:`task_for` is that recipe for a problem, shared by
 """
 
 from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
-from rfsw_plan.process.deviation import DeviationResult, predict_deviation, problem_deviation
+from rfsw_plan.process.deviation import (
+    DeviationResult,
+    predict_deviation,
+    problem_deviation,
+    problem_penetration_law,
+)
 from rfsw_plan.process.force_fit import ForceFit, fit_process_forces
 from rfsw_plan.process.forces import ProcessForces, ProcessModel
 from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orientation
@@ -58,6 +63,7 @@ __all__ = [
     "offsets3",
     "predict_deviation",
     "problem_deviation",
+    "problem_penetration_law",
     "process_preset",
     "resolve_problem_path",
     "schedule_for",
