@@ -1359,8 +1359,10 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
             break
         # The vertices' own change per unit u predicts the level (secant through u = 0): down
         # from a failing level, up from a holding one (the coupled change is not linear in u).
-        lv = min(float(np.min(level)), 1.0)
-        if ok is not None and lv <= u * (1 + 1e-4):
+        # Up only to CANDIDATE_FACTOR u0: the points left out have their linearised level
+        # above it.
+        lv = min(float(np.min(level)), CANDIDATE_FACTOR * u0, 1.0)
+        if ok is not None and (lv <= u * (1 + 1e-4) or not np.isfinite(np.min(level))):
             break
         u = lv if ok is not None else min(lv, 0.999 * u)
     if ok is not None:
