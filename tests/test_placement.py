@@ -217,7 +217,11 @@ def test_optimiser_finds_the_known_best_yaw_on_a_robot_with_a_soft_base_joint():
     # at a few per cent), so the depth, tilt and speed tolerances are opened wide.
     wide = replace(pr.window, depth_shallow=5e-3, depth_deep=5e-3, speed_tol=0.5,
                    tilt_tol=float(np.deg2rad(5)))
-    soft = replace(pr, robot=pr.robot.with_stiffness(k, "test: soft joint 1"), window=wide)
+    # On the force box (no [process.coupling]): the coupled axial law relaxes the given
+    # placement's other quantities so that its lateral level (+-17 %) decides it, above the
+    # tangential candidates' other limit (+-12.6 %); this test is about the lateral error.
+    soft = replace(pr, robot=pr.robot.with_stiffness(k, "test: soft joint 1"), window=wide,
+                   coupling=None)
     opts = options_from_problem(soft, {"rotation_starts": 2})
     s = map_problem(soft, MapRequest(shape=(5, 5, 8, 1), max_weld=20), opts)
     m = s.map

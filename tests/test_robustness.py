@@ -61,12 +61,14 @@ def test_zk500_plan_dominates_mirror_at_10_and_20_percent_and_is_monotone() -> N
         assert_dominates(res)
         lv = res.tolerated_by_quantity
         assert res.tolerated_force_uncertainty == min(lv.values())
-        # Position control: the depth limits (0.2 mm of the depth window's deep side over the
-        # axial deflection's change, 8.9 mm per unit with joint 2's torque-dependent
-        # stiffness); the lateral error would hold about +-11 % on the same model.
-        assert min(lv, key=lambda q: lv[q]) == "depth"
-        assert lv["depth"] == pytest.approx(0.0214, abs=2e-3)
-        assert lv["lateral"] > 5 * lv["depth"]
+        # Position control with the coupled axial law ([process.coupling]): the material's
+        # response is spread, and the axial force changes about 1 / (1 + k_p c) = 1 / 2.8 of
+        # it, so the depth holds about +-5.9 % where the force box gave +-2.1 %; the pin speed
+        # at the weld start limits first.
+        assert res.claim_force_model["name"] == "coupled axial law"
+        assert min(lv, key=lambda q: lv[q]) in ("speed", "depth")
+        assert lv["depth"] == pytest.approx(0.059, abs=5e-3)
+        assert lv["lateral"] > 2 * lv["depth"]
     # Asking for less never gives a less robust plan.
     assert out[0.1].tolerated_force_uncertainty >= out[0.2].tolerated_force_uncertainty - 1e-6
     assert out[0.1].verdict().word == out[0.2].verdict().word == "HOLDS NOMINALLY"

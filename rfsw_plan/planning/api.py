@@ -462,7 +462,7 @@ def dominant(model: ElastostaticModel, task: PlanTask, window: WeldWindow, opts:
     least the mirror baseline's force uncertainty on the same waypoints, less
     :data:`~rfsw_plan.planning.robustness.DOMINANCE_TOL`. If the NLP's plan does not (a local
     optimum), the mirror fixed point is verified, timed and sample-checked like the plan and
-    written instead when it tolerates more.
+    written instead when it tolerates more (by more than ``DOMINANCE_TOL``).
 
     Returns:
         The plan to write, and the mirror's metrics over its own written samples when it was
@@ -477,7 +477,9 @@ def dominant(model: ElastostaticModel, task: PlanTask, window: WeldWindow, opts:
     except InfeasibleError as exc:
         log.info("the mirror baseline tolerates more but cannot be written: %s", exc)
         return plan, None
-    better = alt.metrics.tolerated > plan.metrics.tolerated
+    # Written only when it tolerates more by more than the tolerance the trigger allows
+    # (a level both share, such as the pin speed at the weld start, does not swap the plan).
+    better = alt.metrics.tolerated > plan.metrics.tolerated + DOMINANCE_TOL
     log.info("the NLP plan tolerates %.4g, the mirror written and sample-checked %.4g "
              "(%.4g on its waypoints): writing the %s", plan.metrics.tolerated,
              alt.metrics.tolerated, mirror_tolerated, "mirror" if better else "NLP plan")

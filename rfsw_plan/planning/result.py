@@ -144,6 +144,16 @@ class PlanResult:
         return {} if claim is None else claim.levels
 
     @property
+    def claim_force_model(self) -> dict[str, Any]:
+        """The force model of the claim (``plan.json``): ``name`` (``force box`` or
+        ``coupled axial law``) and ``penetration_stiffness_N_per_mm`` (k_p; null for the
+        force box)."""
+        claim = self.plan_metrics.claim
+        k = 0.0 if claim is None else claim.penetration_stiffness
+        return {"name": "coupled axial law" if k > 0 else "force box",
+                "penetration_stiffness_N_per_mm": k * 1e-3 if k > 0 else None}
+
+    @property
     def tolerated_by_strategy(self) -> dict[str, float]:
         """Tolerated relative force uncertainty of ``none``, ``mirror`` and ``nlp``."""
         return {b.name: b.tolerated for b in self.baselines}
@@ -285,6 +295,9 @@ class PlanResult:
             # The level each weld quantity holds (fractions like the one above; null: no
             # uncertain force moves it, or under axial force control the depth).
             "tolerated_force_uncertainty_by_quantity": self.tolerated_by_quantity,
+            # The force model the levels are on: the force box, or the axial force coupled
+            # to the penetration ([process.coupling], position control) with its k_p.
+            "claim_force_model": self.claim_force_model,
             "tolerated_force_uncertainty_by_strategy": dict(self.tolerated_by_strategy),
             "robust_window_held": verdict.word == GO,
             "tradeoff": [p.to_dict() for p in self.tradeoff()],

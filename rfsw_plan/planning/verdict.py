@@ -166,12 +166,16 @@ class Verdict:
     def held(self) -> str:
         """The level every weld quantity holds, in the order the claim lists them:
         ``held per quantity: lateral +-11.4 %, depth +-2.14 %, tilt +-47.2 %, speed +-5.71 %``
-        (empty without a claim); the depth under axial force control is the controller's."""
+        (empty without a claim); the depth under axial force control is the controller's; with
+        the axial force coupled to the penetration the force model follows
+        (``held per quantity (coupled axial law, k_p 1056 N/mm): ...``)."""
         if self.claim is None:
             return ""
         parts = [f"{q} {'the force loop' if q == 'depth' and not self.position_control else pct(u)}"
                  for q, u in self.claim.levels.items()]
-        return "held per quantity: " + ", ".join(parts)
+        model = (f" ({self.claim.force_model})" if self.claim.penetration_stiffness > 0
+                 else "")
+        return f"held per quantity{model}: " + ", ".join(parts)
 
     @property
     def depth_note(self) -> str:

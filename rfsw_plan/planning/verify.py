@@ -760,12 +760,26 @@ class RobustClaim:
         lateral_per_unit: Worst change of the lateral error per unit u at every point,
             sum_i |l . D_i| [m], (N,) (the closed form's; the secant's for a model that is
             not linear in the wrench).
+        penetration_stiffness: k_p [N/m] of the penetration law the axial component was
+            coupled with (:func:`coupled_deflection`), 0 where the box spreads the axial
+            force itself.
     """
 
     limits: dict[str, RobustLimit]
     axial_force_control: float = float("nan")
     linear: bool = True
     lateral_per_unit: FloatArray = field(default_factory=lambda: np.zeros(0))
+    penetration_stiffness: float = 0.0
+
+    @property
+    def force_model(self) -> str:
+        """The force model of the claim, in the output's words: ``force box`` (every
+        seam-frame force component spread by +-u) or ``coupled axial law, k_p 1056 N/mm``
+        (traverse and lateral spread by +-u, the material's axial response by +-u and the
+        axial force its answer to the penetration)."""
+        if self.penetration_stiffness > 0:
+            return f"coupled axial law, k_p {self.penetration_stiffness * 1e-3:.0f} N/mm"
+        return "force box"
 
     @property
     def levels(self) -> dict[str, float]:
@@ -789,7 +803,8 @@ class RobustClaim:
         # Both from one task: both NaN (axial force control) or both levels.
         fc = min(self.axial_force_control, other.axial_force_control)
         return RobustClaim(limits, fc, self.linear and other.linear,
-                           np.concatenate([self.lateral_per_unit, other.lateral_per_unit]))
+                           np.concatenate([self.lateral_per_unit, other.lateral_per_unit]),
+                           self.penetration_stiffness)
 
 
 @dataclass(frozen=True)
@@ -951,6 +966,11 @@ def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
       monotone in its torque); where it is not, the worst case may lie inside the box and the
       vertices are a check, not a proof.
 
+    Where the problem couples the axial force to the penetration (``[process.coupling]``
+    under position control, ``task.penetration_stiffness`` > 0) the box spreads the
+    material's axial response instead of the axial force, and every vertex is solved with the
+    penetration law (:func:`coupled_claim`).
+
     Under position control the depth is the robot's: the force box moves it. Under axial
     force control the set force is exact and the depth is the material's answer to it, not
     the robot's deflection: the depth is not part of the claim (level inf). For position
@@ -960,6 +980,8 @@ def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     """
     dW = _component_steps(task, c)
     linear, D = _component_deflections(model, task, c, dW)
+    if task.penetration_stiffness > 0 and task.axial_control != "force":
+        return coupled_claim(model, task, window, c, dW, D, kind)
     base = _quantities(c, window, c.deflection)
     gains = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
              for Di in D]
@@ -1105,6 +1127,270 @@ def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                    task.plate_normal, ~task.at_surface, np.isin(task.phase, FULL_DEPTH_PHASES),
                    travel, task.s, 1.0)
     return robust_claim(model, task, window, c, "waypoint")
+
+
+#: The coupled axial law (:func:`coupled_deflection`): Newton and secant steps of the axial
+#: force per vertex and the residual [N] below which the rest of the step is taken linearly
+#: (on zk500_table6_seam's samples the levels agree with a 1e-4 N solve to 1e-6 (lateral,
+#: above it) and 2e-4 (depth, below it) relative: the linear rest errs by its nonlinear
+#: part, below the vertices' tolerance :data:`VERTEX_TOL`).
+COUPLED_STEPS = 8
+#: Regula falsi steps of a coupled level after the secant found a feasible one below it.
+REFINE_STEPS = 3
+COUPLED_TOL = 5.0
+
+
+@dataclass(frozen=True)
+class AxialCoupling:
+    """The penetration law of the process at the claim's points, linearised at the nominal
+    force (:func:`coupled_deflection`).
+
+    Attributes:
+        force: Nominal axial force f0 = F . n [N], (N,) (the plan's).
+        stiffness: k_p [N/m] where the pin presses on the material (f0 > 0), 0 elsewhere, (N,).
+        per_newton: The deflection per newton of axial force A [m/N, rad/N], (N, 6).
+        compliance: The robot's axial compliance c = n . A_p [m/N], (N,).
+        cross: The pin's axial deflection n . D_i [m] per unit u of the traverse and the
+            lateral component (the force box's, linearised), (N, 2).
+    """
+
+    force: FloatArray
+    stiffness: FloatArray
+    per_newton: FloatArray
+    compliance: FloatArray
+    cross: FloatArray
+
+
+def _axial_coupling(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
+                    D: list[FloatArray]) -> AxialCoupling:
+    """:class:`AxialCoupling` at the claim's points: A from a step of the axial force of
+    max(:data:`LINEARISATION_STEP` f0, 1 N) along n (one model call; a relative step alone
+    would be lost in rounding where the force ramps up from 0)."""
+    f0 = np.einsum("ki,ki->k", c.wrench[:, :3], c.n_dir)
+    on = f0 > 0
+    h = np.maximum(LINEARISATION_STEP * f0, 1.0)
+    W = c.wrench.copy()
+    W[:, :3] += h[:, None] * c.n_dir
+    dX = model.process_deflection_batch(c.batch, W, task.reference)
+    A = np.where(on[:, None], (dX - c.deflection) / h[:, None], 0.0)
+    return AxialCoupling(f0, np.where(on, task.penetration_stiffness, 0.0), A,
+                         np.einsum("ki,ki->k", A[:, :3], c.n_dir),
+                         np.stack([np.einsum("ki,ki->k", Di[:, :3], c.n_dir)
+                                   for Di in D[:2]], axis=1))
+
+
+def coupled_deflection(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
+                       ax: AxialCoupling, dW: list[FloatArray], sgn: FloatArray, u: float
+                       ) -> FloatArray:
+    """The deflection [m, rad] (N, 6) at the vertex sgn (N, 3) of the coupled force box at u.
+
+    The traverse and lateral components are spread as in the force box (f_i (1 + sigma_i u));
+    the axial force is the material's answer to the penetration, its response spread by
+    sigma_n u (seed 001 Fig. 8's co-simulation, the law of ``[process.coupling]`` anchored at
+    the plan's nominal force f0 at the planned penetration)::
+
+        f = (1 + sigma_n u) max(0, f0 + k_p dp(f)),   dp(f) = -n . (dX_p(W(f)) - dX0_p)
+
+    solved per point by a Newton step f <- f - r(f) / r', r = g - f, r' = -(1 + (1 + sigma_n u)
+    k_p c) (exact in one step for a wrench-linear model: the map is affine), then secant
+    steps (up to :data:`COUPLED_STEPS`, until |r| < :data:`COUPLED_TOL`, the rest of the step
+    taken linearly, A r / |r'|) for the others; W(f) the vertex's wrench with the axial force
+    f, 1 + sigma_n u not below 0.
+    For a linear model f - f0 = (sigma_n u f0 - (1 + sigma_n u) k_p n . dX_tl) /
+    (1 + (1 + sigma_n u) k_p c): a response spread eps moves the force by about
+    eps / (1 + k_p c).
+    """
+    scale = np.maximum(0.0, 1.0 + sgn[:, 2] * u)
+    W = c.wrench + u * (sgn[:, 0, None] * dW[0] + sgn[:, 1, None] * dW[1])
+    slope = 1.0 + scale * ax.stiffness * ax.compliance
+    # The linear answer first (exact for a wrench-linear model).
+    tl = u * (sgn[:, 0] * ax.cross[:, 0] + sgn[:, 1] * ax.cross[:, 1])
+    f = np.maximum(0.0, ax.force + ((scale - 1.0) * ax.force - scale * ax.stiffness * tl)
+                   / slope)
+    dX = c.deflection
+    r = np.zeros(len(f))
+    prev: tuple[FloatArray, FloatArray] | None = None
+    for _ in range(COUPLED_STEPS):
+        Wf = W.copy()
+        Wf[:, :3] += (f - ax.force)[:, None] * c.n_dir
+        dX = model.process_deflection_batch(c.batch, Wf, task.reference)
+        dp = -np.einsum("ki,ki->k", dX[:, :3] - c.deflection[:, :3], c.n_dir)
+        r = np.where(ax.force > 0, scale * np.maximum(0.0, ax.force + ax.stiffness * dp),
+                     0.0) - f
+        if np.max(np.abs(r), initial=0.0) < COUPLED_TOL:
+            break
+        # r(f) falls with f (a larger force lifts the pin: dr/df = -(1 + scale k_p c) <= -1):
+        # secant slopes once two points are known, clamped to that sign.
+        d = -slope
+        if prev is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                sec = (r - prev[1]) / (f - prev[0])
+            d = np.where(np.isfinite(sec) & (sec < -1.0), sec, -slope)
+        prev = (f, r)
+        f = np.maximum(0.0, f - r / d)
+    # The rest of the step, linearly: within COUPLED_TOL its second-order error is far below
+    # the vertices' tolerance.
+    return dX + ax.per_newton * (r / slope)[:, None]
+
+
+def _take_coupling(ax: AxialCoupling, idx: NDArray[np.int_]) -> AxialCoupling:
+    return AxialCoupling(ax.force[idx], ax.stiffness[idx], ax.per_newton[idx],
+                         ax.compliance[idx], ax.cross[idx])
+
+
+def coupled_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                  c: ClaimInput, dW: list[FloatArray], D: list[FloatArray],
+                  kind: str = "sample") -> RobustClaim:
+    """:func:`robust_claim` with the axial force coupled to the penetration (position control
+    with ``[process.coupling]``, ``task.penetration_stiffness`` k_p > 0): the box spreads the
+    traverse and lateral forces and the material's axial response by +-u, and the axial force
+    at every vertex is the law's answer (:func:`coupled_deflection`).
+
+    The first guess is the closed form of the coupling linearised at u = 0: the deflection
+    changes per unit u D_t' = D_t - A k_p (n . D_t) / (1 + k_p c) (the same for D_l) and
+    D_n' = D_n / (1 + k_p c) (A the deflection per newton of axial force, c = n . A its axial
+    part, D_i from :func:`_component_deflections`). The level is then corrected at the box's
+    vertices, each solved with the coupling on the model itself, as :func:`_vertex_level`
+    does (the coupled map is not linear in u even for a wrench-linear robot: the vertices are
+    a proof where each quantity is monotone in each component, else a check).
+    :attr:`RobustClaim.axial_force_control` is the force box's lever (the axial force exact)."""
+    ax = _axial_coupling(model, task, c, D)
+    den = 1.0 + ax.stiffness * ax.compliance
+
+    def coupled(Di: FloatArray) -> FloatArray:
+        return Di - ax.per_newton * (ax.stiffness * np.einsum("ki,ki->k", Di[:, :3], c.n_dir)
+                                     / den)[:, None]
+
+    Dc = [coupled(D[0]), coupled(D[1]), D[2] / den[:, None]]
+    base = _quantities(c, window, c.deflection)
+    gains = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
+             for Di in Dc]
+    exact = [{q: v[0] - base[q][0] for q, v in _quantities(c, window, c.deflection + Di).items()}
+             for Di in D[:2]]
+    limits: dict[str, RobustLimit] = {}
+    fc = np.inf
+    N = len(c.t)
+    lateral = np.zeros(N)
+    for q in ROBUST_QUANTITIES:
+        value, lo, hi, mask = base[q]
+        G = np.sum([np.abs(g[q]) for g in gains], axis=0)
+        if q == "lateral":
+            lateral = G
+        u_k = _levels(value, lo, hi, mask, G)
+        k = int(np.argmin(u_k)) if len(u_k) else -1
+        u = float(u_k[k]) if k >= 0 else np.inf
+        if q != "depth" and len(u_k):
+            fc = min(fc, float(np.min(_levels(value, lo, hi, mask, np.abs(exact[0][q])
+                                               + np.abs(exact[1][q])))))
+        if np.isfinite(u) and u > 0:
+            u, k = _coupled_vertex_level(model, task, window, c, ax, dW, q, u_k, u,
+                                         [g[q] for g in gains])
+        kk = k % N if k >= 0 and np.isfinite(u) else -1
+        limits[q] = (RobustLimit(q, u) if kk < 0 else
+                     RobustLimit(q, u, kk, float(c.t[kk]), str(c.phase[kk]), float(c.s[kk]),
+                                 kind))
+    return RobustClaim(limits, fc, False, lateral, task.penetration_stiffness)
+
+
+def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                          c: ClaimInput, ax: AxialCoupling, dW: list[FloatArray], q: str,
+                          u_k: FloatArray, u0: float, gains: list[FloatArray]
+                          ) -> tuple[float, int]:
+    """:func:`_vertex_level` with every vertex solved with the coupled axial law
+    (:func:`coupled_deflection`): the same vertices, secant corrections (down from a failing
+    level, and up from a holding one: the coupled change is not linear in u) and halvings,
+    then up to :data:`REFINE_STEPS` regula falsi steps between the holding and the failing
+    level, at the
+    points whose linearised level is within :data:`CANDIDATE_FACTOR` of the smallest for
+    every quantity (each vertex costs a few model calls here; the level only falls from
+    u0, so a point left out would need its coupled level below 1 / CANDIDATE_FACTOR of its
+    linearised one). The level is at most 1 (+-100 %)."""
+    N = len(c.t)
+    M = len(u_k)
+    cand = np.unique(np.flatnonzero(u_k <= CANDIDATE_FACTOR * u0) % N)
+    if q == "speed":
+        idx = np.unique(np.clip(np.concatenate([cand - 1, cand, cand + 1]), 0, N - 1))
+    else:
+        idx = cand
+    sub = _take(c, idx)
+    sub_ax = _take_coupling(ax, idx)
+    n = len(idx)
+    value, lo, hi, mask = _quantities(sub, window, sub.deflection, q)[q]
+    mask = mask & np.tile(np.isin(idx, cand), M // N)
+    blocks = M // N
+    sets: list[tuple[FloatArray, NDArray[np.bool_]]] = []
+    if q == "speed":
+        sets = [(np.broadcast_to(np.array(sig), (n, 3)), np.ones(n, dtype=bool))
+                for sig in itertools.product((-1.0, 1.0), repeat=3)]
+    else:
+        for blk in range(blocks):
+            sgn = np.stack([np.where(g[blk * N:(blk + 1) * N][idx] >= 0, 1.0, -1.0)
+                            for g in gains], axis=1)
+            on = np.zeros(blocks * n, dtype=bool)
+            on[blk * n:(blk + 1) * n] = True
+            sets += [(sgn, on), (-sgn, on)]
+    dWs = [d[idx] for d in dW]
+
+    def vertices(u: float) -> tuple[FloatArray, FloatArray]:
+        """Worst margin over the vertices at u, and the secant level through u = 0 of each
+        vertex's own change toward its own bound (the two sides differ), per point."""
+        margin = np.full(len(value), np.inf)
+        level = np.full(len(value), np.inf)
+        for sgn, on in sets:
+            dX = coupled_deflection(model, task, sub, sub_ax, dWs, sgn, u)
+            v = _quantities(sub, window, dX, q)[q][0]
+            margin = np.where(on, np.minimum(margin, np.minimum(v - lo, hi - v)), margin)
+            d = (v - value) / u
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lv = np.where(d > 0, (hi - value) / d, np.where(d < 0, (value - lo) / -d,
+                                                                np.inf))
+            level = np.where(on, np.minimum(level, np.maximum(lv, 0.0)), level)
+        return np.where(mask, margin, np.inf), np.where(mask, level, np.inf)
+
+    u = min(u0, 1.0)  # past +-100 % a force changes sign: the claim stops there
+    ok: tuple[float, float, int] | None = None
+    bad: tuple[float, float] | None = None
+    for _ in range(SECANT_STEPS):
+        margin, level = vertices(u)
+        m = float(np.min(margin))
+        if m >= -VERTEX_TOL:
+            ok = (u, m, int(idx[int(np.argmin(margin)) % n]))
+        else:
+            bad = (u, m)
+        if ok is not None and bad is not None:
+            break
+        # The vertices' own change per unit u predicts the level (secant through u = 0): down
+        # from a failing level, up from a holding one (the coupled change is not linear in u).
+        # Up only to CANDIDATE_FACTOR u0: the points left out have their linearised level
+        # above it.
+        lv = min(float(np.min(level)), CANDIDATE_FACTOR * u0, 1.0)
+        if ok is not None and (lv <= u * (1 + 1e-4) or not np.isfinite(np.min(level))):
+            break
+        u = lv if ok is not None else min(lv, 0.999 * u)
+    if ok is not None:
+        u, m, k = ok
+        # Regula falsi on the worst margin between the holding and the failing level.
+        for _ in range(REFINE_STEPS):
+            if bad is None:
+                break
+            u_try = u + 0.999 * (bad[0] - u) * m / (m - bad[1])
+            if not u < u_try < bad[0]:
+                break
+            margin, _change = vertices(u_try)
+            m_try = float(np.min(margin))
+            if m_try >= -VERTEX_TOL:
+                u, m, k = u_try, m_try, int(idx[int(np.argmin(margin)) % n])
+            else:
+                bad = (u_try, m_try)
+        return u, k
+    lo_u = 0.0
+    for _ in range(BISECTIONS):
+        margin, _change = vertices(u)
+        if np.min(margin) >= -VERTEX_TOL:
+            lo_u = u
+            break
+        u *= 0.5
+    return lo_u, int(idx[int(np.argmin(margin)) % n])
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,12 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from rfsw_plan.process.cosim import CosimResult, PenetrationLaw, cosimulate
-    from rfsw_plan.process.deviation import DeviationResult, predict_deviation, problem_deviation
+    from rfsw_plan.process.deviation import (
+        DeviationResult,
+        predict_deviation,
+        problem_deviation,
+        problem_penetration_law,
+    )
     from rfsw_plan.process.force_fit import ForceFit, fit_process_forces
     from rfsw_plan.process.forces import ProcessForces, ProcessModel
     from rfsw_plan.process.frames import PHASES, LoadSchedule, SeamFrames, tcp_orientation
@@ -47,6 +52,7 @@ _WHERE = {
     "DeviationResult": "deviation",
     "predict_deviation": "deviation",
     "problem_deviation": "deviation",
+    "problem_penetration_law": "deviation",
     "ForceFit": "force_fit",
     "fit_process_forces": "force_fit",
     "ProcessForces": "forces",
@@ -110,6 +116,7 @@ __all__ = [
     "offsets3",
     "predict_deviation",
     "problem_deviation",
+    "problem_penetration_law",
     "process_preset",
     "resolve_problem_path",
     "schedule_for",

@@ -27,6 +27,7 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.process.cosim import (
     CosimResult,
     PenetrationFit,
+    PenetrationLaw,
     cosimulate,
     fit_penetration_law,
 )
@@ -290,3 +291,30 @@ def problem_deviation(problem: Problem, dt: float = 0.1, cosim: bool = False) ->
                          "no co-simulation settings", "a [process.coupling] table")
     return predict_deviation(model, frames, problem.process, Q, problem.window, dt,
                              problem.coupling if cosim else None, problem.seam_reference)
+
+
+def problem_penetration_law(problem: Problem) -> PenetrationLaw:
+    """The penetration law of a problem's ``[process.coupling]``: the explicit one, or the one
+    fitted to its calibration as ``rfsw-plan deviation --cosim`` fits it (the taught path
+    from the problem's q_seed, the load schedule every 0.1 s, the last dwell sample:
+    :func:`~rfsw_plan.process.cosim.fit_penetration_law`; k_p 1056 N/mm on
+    ``zk500_table6_seam``).
+
+    Raises:
+        InputError: The problem has no ``[process.coupling]``.
+        UnreachableError: The seam is not reachable from the problem's q_seed.
+    """
+    coupling = problem.coupling
+    if coupling is None:
+        raise InputError(problem.path or problem.name, "process.coupling",
+                         "no co-simulation settings", "a [process.coupling] table")
+    if coupling.law is not None:
+        return coupling.law
+    robot = load_robot(problem.robot)
+    model = ElastostaticModel(robot)
+    frames = problem.frames()
+    Q = taught_path(robot, frames, problem.q_seed(), problem.planning.tool_rotation)
+    sch = problem.process.schedule(frames, 0.1)
+    Qt = schedule_joints(sch, frames, Q)
+    return fit_penetration_law(model, Qt, sch, coupling.calibration,
+                               reference=problem.seam_reference).law

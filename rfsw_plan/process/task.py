@@ -13,7 +13,7 @@ array of lateral and normal offsets with a zero along-track column).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -63,6 +63,10 @@ class PlanTask:
             :class:`~rfsw_plan.process.forces.ProcessModel`): under force control the axial
             force is the controller's set force, so its uncertainty does not deflect the
             robot (:attr:`spread_weights`) and the depth is the controller's.
+        penetration_stiffness: Slope k_p [N/m] of the process's penetration law
+            (``[process.coupling]``, :class:`~rfsw_plan.process.cosim.PenetrationLaw`) under
+            position control, 0 without one: the robust claim then spreads the material's
+            response, not the axial force (:func:`~rfsw_plan.planning.verify.robust_claim`).
     """
 
     frames: SeamFrames
@@ -76,6 +80,7 @@ class PlanTask:
     travel_speed: float
     reference: SeamReference = "taught"
     axial_control: str = "position"
+    penetration_stiffness: float = 0.0
 
     def __len__(self) -> int:
         return int(self.target.shape[0])
@@ -227,8 +232,13 @@ def task_for(problem: Problem, spacing: float | None = None,
         max_start: Most stationary waypoints (the planner option ``max_start_waypoints``).
     """
     frames = problem.seam.frames(problem.spacing if spacing is None else spacing)
-    return task_from_schedule(frames, schedule_for(problem, frames), max_start,
+    task = task_from_schedule(frames, schedule_for(problem, frames), max_start,
                               problem.seam_reference, problem.process.axial_control)
+    if problem.coupling is None or task.axial_control != "position":
+        return task
+    from rfsw_plan.process.deviation import problem_penetration_law
+
+    return replace(task, penetration_stiffness=problem_penetration_law(problem).stiffness)
 
 
 def task_from_schedule(
