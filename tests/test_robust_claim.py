@@ -31,6 +31,7 @@ import itertools
 import json
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -48,16 +49,18 @@ FULL_DEPTH = ("dwell", "accelerate", "weld", "decelerate")
 TOL_MM = 1e-3
 
 
-def _plan(problem: str | Path, out: Path, u: float | None = None
+def _plan(problem: str | Path, out: Path, u: float | None = None, result: Any = None
           ) -> tuple[dict, dict, list[dict]]:
-    """Plan and write ``waypoints.csv`` and ``plan.json`` as ``rfsw-plan plan`` does (without
-    the plots); read them back with csv and json, and the problem with tomllib."""
+    """Plan (or take ``result``, the problem's plan) and write ``waypoints.csv`` and
+    ``plan.json`` as ``rfsw-plan plan`` does (without the plots); read them back with csv and
+    json, and the problem with tomllib."""
     from rfsw_plan.planfiles.waypoints import write_plan_json, write_waypoints_csv
     from rfsw_plan.planning.api import plan
     from rfsw_plan.process.problem import load_problem
 
     pb = load_problem(problem)
-    res = plan(pb, None if u is None else dataclasses.replace(pb.planning, force_uncertainty=u))
+    res = result if result is not None else plan(
+        pb, None if u is None else dataclasses.replace(pb.planning, force_uncertainty=u))
     out.mkdir(parents=True, exist_ok=True)
     write_waypoints_csv(out / "waypoints.csv", res)
     write_plan_json(out / "plan.json", res.summary())
@@ -70,13 +73,16 @@ def _plan(problem: str | Path, out: Path, u: float | None = None
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[dict, dict, list]]:
-    """Each problem planned once per module, on first use."""
+def planned(tmp_path_factory: pytest.TempPathFactory, planned_result
+            ) -> dict[str, tuple[dict, dict, list]]:
+    """Each problem's plan (the session's, ``planned_result``) written once per module, on
+    first use."""
     cache: dict[str, tuple[dict, dict, list]] = {}
 
     class Lazy(dict):  # type: ignore[type-arg]
         def __missing__(self, name: str) -> tuple[dict, dict, list]:
-            cache[name] = _plan(name, tmp_path_factory.mktemp(name))
+            cache[name] = _plan(name, tmp_path_factory.mktemp(name),
+                                result=planned_result(name))
             self[name] = cache[name]
             return cache[name]
 
