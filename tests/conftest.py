@@ -10,10 +10,12 @@ verification, baseline and workbench tests; helpers they share live in ``tests/_
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import pytest
+from _plan_store import PlanStore, store_root
 
 #: (problem, robot) of the three bundled plans whose programs are checked.
 PROGRAM_CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "fanuc_s900ib_400"),
@@ -24,7 +26,14 @@ _RESULTS: dict[str, Any] = {}
 
 
 @pytest.fixture(scope="session")
-def planned_result():
+def plan_store(tmp_path_factory: pytest.TempPathFactory) -> PlanStore:
+    """The session's :class:`~_plan_store.PlanStore`: each bundled plan made once for all
+    xdist workers."""
+    return PlanStore(store_root(tmp_path_factory.getbasetemp()))
+
+
+@pytest.fixture(scope="session")
+def planned_result(plan_store: PlanStore):
     """``planned_result(problem)`` -> the :class:`~rfsw_plan.planning.result.PlanResult` of
     ``rfsw_plan.plan(problem)`` with the problem's own options, planned once per session
     (frozen: tests read it, never change it)."""
@@ -32,25 +41,32 @@ def planned_result():
 
     def get(problem: str) -> Any:
         if problem not in _RESULTS:
-            _RESULTS[problem] = plan(problem)
+            _RESULTS[problem] = plan_store.result(("plan", problem), lambda: plan(problem))
         return _RESULTS[problem]
 
     return get
 
 
 @pytest.fixture(scope="session")
-def plan_with_programs(tmp_path_factory: pytest.TempPathFactory):
+def plan_with_programs(tmp_path_factory: pytest.TempPathFactory, plan_store: PlanStore):
     """``plan_with_programs(problem)`` -> (folder, plan.json) of ``rfsw-plan plan PROBLEM
-    --export`` with every registered format, planned once per session."""
+    --export`` with every registered format, planned once per session (the folder is this
+    worker's copy of the store's)."""
     from rfsw_plan.cli.main import main
     from rfsw_plan.export.format import format_names
 
+    formats = ",".join(format_names())
+
+    def make(folder: Path, problem: str) -> None:
+        assert main(["-q", "plan", problem, "-o", str(folder / "plan"), "--export",
+                     formats]) == 0
+
     def get(problem: str) -> tuple[Path, dict[str, Any]]:
         if problem not in _PLANS:
+            stored = plan_store.folder(("plan --export", problem, formats),
+                                       lambda f: make(f, problem))
             out = tmp_path_factory.mktemp(problem)
-            code = main(["-q", "plan", problem, "-o", str(out), "--export",
-                         ",".join(format_names())])
-            assert code == 0
+            shutil.copytree(stored / "plan", out, dirs_exist_ok=True)
             _PLANS[problem] = (out, json.loads((out / "plan.json").read_text()))
         return _PLANS[problem]
 

@@ -154,7 +154,8 @@ def test_place_task_moves_points_frames_and_moment_rigidly():
 
 # -- proof on the bundled problems ---------------------------------------------------------------
 
-@pytest.mark.parametrize("name", ["zk500_table6_seam", "fanuc_butt_1700mm",
+@pytest.mark.parametrize("name", ["zk500_table6_seam",
+                                  pytest.param("fanuc_butt_1700mm", marks=pytest.mark.slow),
                                   pytest.param("kr600_curved_seam", marks=pytest.mark.slow)])
 def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
         name, tmp_path, capsys):

@@ -6,7 +6,8 @@ machine); the slow one at 1000 weld waypoints, where they are compiled to C.
 The point functions, the NLP evaluation, the IPOPT solvers and the mapped functions are built
 once per problem structure and kept in memory (``planning/nlp.py``); the point functions are
 compiled to C once and kept on disk (``planning/casadi_.py``, ``$RFSW_PLAN_CACHE``). A plan
-made with every cache warm and one made after emptying them are the same bytes."""
+made with every cache warm and one made after emptying them are the same bytes. So is a plan
+the tests read from their plan store (``tests/_plan_store.py``) and a fresh one."""
 
 from __future__ import annotations
 
@@ -85,3 +86,19 @@ def test_a_plan_compiled_afresh_is_the_plan_from_the_disk_cache(tmp_path) -> Non
         out[name] = (tmp_path / f"{name}.csv").read_bytes()
     assert list((tmp_path / "cache").glob("rfsw_point_*.so"))  # it did compile
     assert out["fresh"] == out["disk"]
+
+
+def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, tmp_path
+                                                                ) -> None:
+    """The test session's plan store (``tests/_plan_store.py``: each bundled plan made once for
+    every xdist worker, pickled and read back) stands for a fresh plan: its data files are the
+    fresh plan's bytes."""
+    from rfsw_plan.planfiles.waypoints import write_plan_data
+
+    for name in ("stored", "fresh"):
+        (tmp_path / name).mkdir()
+    stored = write_plan_data(tmp_path / "stored", planned_result(PROBLEM))
+    fresh = write_plan_data(tmp_path / "fresh", api.plan(PROBLEM))
+    assert [p.name for p in stored] == [p.name for p in fresh] == ["waypoints.csv", "plan.html"]
+    for s, f in zip(stored, fresh, strict=True):
+        assert s.read_bytes() == f.read_bytes(), s.name

@@ -25,7 +25,8 @@ seam point (position control only: under force control the depth is the force lo
 reconstruction is checked against the nominal columns first, so the check cannot pass by
 reading the wrong thing.
 
-zk500_table6_seam and kr600_curved_seam run by default; the other problems under ``-m slow``.
+Every bundled problem runs by default: the plans are the session's (``planned_result``, made
+once for every test that reads them), so a problem costs only its check here.
 """
 
 from __future__ import annotations
@@ -36,13 +37,13 @@ import itertools
 import json
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import tomli_w
 
 ROOT = Path(__file__).resolve().parents[1]
-FAST = ("zk500_table6_seam", "kr600_curved_seam")
 BUNDLED = sorted(p.stem for p in (ROOT / "problems").glob("*.toml"))
 #: Effects whose deflection is linear in the wrench (or does not depend on it).
 LINEAR_EFFECTS = {"joint_compliance", "tilting_compliance", "flange_compliance",
@@ -53,16 +54,18 @@ FULL_DEPTH = ("dwell", "accelerate", "weld", "decelerate")
 TOL_MM = 1e-3
 
 
-def _plan(problem: str | Path, out: Path, u: float | None = None
+def _plan(problem: str | Path, out: Path, u: float | None = None, result: Any = None
           ) -> tuple[dict, dict, list[dict]]:
-    """Plan and write ``waypoints.csv`` and ``plan.json`` as ``rfsw-plan plan`` does (without
-    the plots); read them back with csv and json, and the problem with tomllib."""
+    """Plan (or take ``result``, the problem's plan) and write ``waypoints.csv`` and
+    ``plan.json`` as ``rfsw-plan plan`` does (without the plots); read them back with csv and
+    json, and the problem with tomllib."""
     from rfsw_plan.planfiles.waypoints import write_plan_json, write_waypoints_csv
     from rfsw_plan.planning.api import plan
     from rfsw_plan.process.problem import load_problem
 
     pb = load_problem(problem)
-    res = plan(pb, None if u is None else dataclasses.replace(pb.planning, force_uncertainty=u))
+    res = result if result is not None else plan(
+        pb, None if u is None else dataclasses.replace(pb.planning, force_uncertainty=u))
     out.mkdir(parents=True, exist_ok=True)
     write_waypoints_csv(out / "waypoints.csv", res)
     write_plan_json(out / "plan.json", res.summary())
@@ -75,13 +78,16 @@ def _plan(problem: str | Path, out: Path, u: float | None = None
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[dict, dict, list]]:
-    """Each problem planned once per module, on first use."""
+def planned(tmp_path_factory: pytest.TempPathFactory, planned_result
+            ) -> dict[str, tuple[dict, dict, list]]:
+    """Each problem's plan (the session's, ``planned_result``) written once per module, on
+    first use."""
     cache: dict[str, tuple[dict, dict, list]] = {}
 
     class Lazy(dict):  # type: ignore[type-arg]
         def __missing__(self, name: str) -> tuple[dict, dict, list]:
-            cache[name] = _plan(name, tmp_path_factory.mktemp(name))
+            cache[name] = _plan(name, tmp_path_factory.mktemp(name),
+                                result=planned_result(name))
             self[name] = cache[name]
             return cache[name]
 
@@ -253,11 +259,7 @@ def independent_check(rec: dict, toml: dict, rows: list[dict], u: float) -> list
     return bad
 
 
-def _params(names: list[str]) -> list:
-    return [n if n in FAST else pytest.param(n, marks=pytest.mark.slow) for n in names]
-
-
-@pytest.mark.parametrize("name", _params(BUNDLED))
+@pytest.mark.parametrize("name", BUNDLED)
 def test_every_claim_holds_at_the_vertices_of_its_force_box(planned, name: str) -> None:
     rec, toml, rows = planned[name]
     u = _claim(rec)
