@@ -203,8 +203,10 @@ def _plan(out: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rows = list(csv.DictReader(fh))
     t = np.array([float(r["t_s"]) for r in rows])
     x = np.array([[float(r[k]) for k in ("x_mm", "y_mm", "z_mm")] for r in rows])
-    robot = json.loads((out / "plan.json").read_text())["robot_file"]
-    ctrl = tomllib.loads(Path(robot).read_text()).get("controller", {})
+    robot = Path(json.loads((out / "plan.json").read_text())["robot_file"])
+    if not robot.is_file():  # a bundled robot is recorded by its name (robots/NAME.toml)
+        robot = Path(__file__).resolve().parents[1] / "robots" / f"{robot}.toml"
+    ctrl = tomllib.loads(robot.read_text()).get("controller", {})
     R = Rotation.from_euler("xyz", ctrl.get("base_rpy_deg", [0, 0, 0]), degrees=True).as_matrix()
     o = np.asarray(ctrl.get("base_xyz_mm", [0, 0, 0]), dtype=float)
     return t, (x - o) @ R, np.array([r["phase"] for r in rows])
