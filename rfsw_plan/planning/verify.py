@@ -988,29 +988,46 @@ def robust_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     force = task.axial_control == "force"
     limits: dict[str, RobustLimit] = {}
     fc = np.inf
-    N = len(c.t)
-    lateral = np.zeros(N)
+    lateral = np.zeros(len(c.t))
     for q in ROBUST_QUANTITIES:
-        value, lo, hi, mask = base[q]
-        if q == "depth" and force:
-            mask = np.zeros_like(mask)
-        G = np.sum([np.abs(g[q]) for g in gains], axis=0)
+        u_k, G, fc_q = _linear_levels(base[q], [g[q] for g in gains], q == "depth" and force)
+        fc = fc if q == "depth" else min(fc, fc_q)
         if q == "lateral":
             lateral = G
-        u_k = _levels(value, lo, hi, mask, G)
         k = int(np.argmin(u_k)) if len(u_k) else -1
         u = float(u_k[k]) if k >= 0 else np.inf
-        if q != "depth" and len(u_k):
-            fc = min(fc, float(np.min(_levels(value, lo, hi, mask, np.abs(gains[0][q])
-                                               + np.abs(gains[1][q])))))
         if not linear and np.isfinite(u) and u > 0:
             u, k = _vertex_level(model, task, window, c, dW, q, u_k, u,
                                  [g[q] for g in gains])
-        kk = k % N if k >= 0 and np.isfinite(u) else -1
-        limits[q] = (RobustLimit(q, u) if kk < 0 else
-                     RobustLimit(q, u, kk, float(c.t[kk]), str(c.phase[kk]), float(c.s[kk]),
-                                 kind))
+        limits[q] = _limit_at(c, q, u, k, kind)
     return RobustClaim(limits, float("nan") if force else fc, linear, lateral)
+
+
+def _linear_levels(quantity: tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]],
+                   gains: list[FloatArray], exempt: bool,
+                   ) -> tuple[FloatArray, FloatArray, float]:
+    """One quantity's closed-form levels: per point u_k = dist / G (G = sum_i |g_i|, the
+    worst vertex of a model linear in the wrench), G itself, and the smallest level with the
+    axial component exact (traverse and lateral only: the force-control lever). ``exempt``
+    (the depth under axial force control) gives every point level inf."""
+    value, lo, hi, mask = quantity
+    if exempt:
+        mask = np.zeros_like(mask)
+    G = np.sum([np.abs(g) for g in gains], axis=0)
+    u_k = _levels(value, lo, hi, mask, G)
+    fc = (float(np.min(_levels(value, lo, hi, mask, np.abs(gains[0]) + np.abs(gains[1]))))
+          if len(u_k) else np.inf)
+    return u_k, G, fc
+
+
+def _limit_at(c: ClaimInput, q: str, u: float, k: int, kind: str) -> RobustLimit:
+    """Quantity q's level u, reached at row k of ``c`` (k mod the number of points; -1 or an
+    infinite level: nowhere)."""
+    N = len(c.t)
+    kk = k % N if k >= 0 and np.isfinite(u) else -1
+    if kk < 0:
+        return RobustLimit(q, u)
+    return RobustLimit(q, u, kk, float(c.t[kk]), str(c.phase[kk]), float(c.s[kk]), kind)
 
 
 def _levels(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArray[np.bool_],
@@ -1033,6 +1050,27 @@ def _take(c: ClaimInput, idx: NDArray[np.int_]) -> ClaimInput:
                       c.deflection[idx], c.p[idx], c.t_dir[idx], c.l_dir[idx], c.n_dir[idx],
                       c.plate_normal[idx], c.contact[idx], c.full_depth[idx], c.travel[idx],
                       c.speed_axis[idx], c.speed_scale)
+
+
+def _vertex_sets(q: str, gains: list[FloatArray], idx: NDArray[np.int_], N: int, blocks: int,
+                 ) -> list[tuple[FloatArray, NDArray[np.bool_]]]:
+    """The force box's vertices to evaluate for quantity q at the points ``idx`` (of N), as
+    (sign per point and component (n, 3), the rows of the quantity's ``blocks`` x n values
+    they judge): all 8 for the pin speed (a difference of neighbouring samples), else per
+    block the two the linearised changes ``gains`` (3 x (blocks N,)) find worst,
+    sigma = +-sign g."""
+    n = len(idx)
+    if q == "speed":
+        return [(np.broadcast_to(np.array(sig), (n, 3)), np.ones(n, dtype=bool))
+                for sig in itertools.product((-1.0, 1.0), repeat=3)]
+    sets: list[tuple[FloatArray, NDArray[np.bool_]]] = []
+    for blk in range(blocks):
+        sgn = np.stack([np.where(g[blk * N:(blk + 1) * N][idx] >= 0, 1.0, -1.0)
+                        for g in gains], axis=1)
+        on = np.zeros(blocks * n, dtype=bool)
+        on[blk * n:(blk + 1) * n] = True
+        sets += [(sgn, on), (-sgn, on)]
+    return sets
 
 
 def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
@@ -1062,18 +1100,7 @@ def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     value, lo, hi, mask = _quantities(sub, window, sub.deflection, q)[q]
     rows = np.tile(np.isin(idx, cand), M // N)
     mask = mask & rows
-    blocks = M // N  # tilt: work angles, then travel angles
-    sets: list[tuple[FloatArray, NDArray[np.bool_]]] = []
-    if q == "speed":
-        sets = [(np.broadcast_to(np.array(sig), (n, 3)), np.ones(n, dtype=bool))
-                for sig in itertools.product((-1.0, 1.0), repeat=3)]
-    else:
-        for blk in range(blocks):
-            sgn = np.stack([np.where(g[blk * N:(blk + 1) * N][idx] >= 0, 1.0, -1.0)
-                            for g in gains], axis=1)
-            on = np.zeros(blocks * n, dtype=bool)
-            on[blk * n:(blk + 1) * n] = True
-            sets += [(sgn, on), (-sgn, on)]
+    sets = _vertex_sets(q, gains, idx, N, M // N)  # tilt: work angles, then travel angles
     dWs = [d[idx] for d in dW]
 
     def vertices(u: float) -> tuple[FloatArray, FloatArray]:
@@ -1317,18 +1344,7 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
     n = len(idx)
     value, lo, hi, mask = _quantities(sub, window, sub.deflection, q)[q]
     mask = mask & np.tile(np.isin(idx, cand), M // N)
-    blocks = M // N
-    sets: list[tuple[FloatArray, NDArray[np.bool_]]] = []
-    if q == "speed":
-        sets = [(np.broadcast_to(np.array(sig), (n, 3)), np.ones(n, dtype=bool))
-                for sig in itertools.product((-1.0, 1.0), repeat=3)]
-    else:
-        for blk in range(blocks):
-            sgn = np.stack([np.where(g[blk * N:(blk + 1) * N][idx] >= 0, 1.0, -1.0)
-                            for g in gains], axis=1)
-            on = np.zeros(blocks * n, dtype=bool)
-            on[blk * n:(blk + 1) * n] = True
-            sets += [(sgn, on), (-sgn, on)]
+    sets = _vertex_sets(q, gains, idx, N, M // N)
     dWs = [d[idx] for d in dW]
 
     def vertices(u: float) -> tuple[FloatArray, FloatArray]:
