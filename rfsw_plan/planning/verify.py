@@ -1073,6 +1073,21 @@ def _vertex_sets(q: str, gains: list[FloatArray], idx: NDArray[np.int_], N: int,
     return sets
 
 
+def _halved(vertices: Callable[[float], tuple[FloatArray, FloatArray]], u: float,
+            idx: NDArray[np.int_]) -> tuple[float, int]:
+    """The last resort of the vertex searches: u halved (up to :data:`BISECTIONS` times)
+    until every vertex holds (else 0), and the point of ``idx`` with the smallest margin
+    there."""
+    lo_u = 0.0
+    for _ in range(BISECTIONS):
+        margin, _change = vertices(u)
+        if np.min(margin) >= -VERTEX_TOL:
+            lo_u = u
+            break
+        u *= 0.5
+    return lo_u, int(idx[int(np.argmin(margin)) % len(idx)])
+
+
 def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                   c: ClaimInput, dW: list[FloatArray], q: str, u_k: FloatArray, u0: float,
                   gains: list[FloatArray]) -> tuple[float, int]:
@@ -1123,14 +1138,7 @@ def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
             return u, int(idx[int(np.argmin(margin)) % n])
         lv = _levels(value, lo, hi, mask, change / u)
         u = min(float(np.min(lv)), 0.999 * u)
-    lo_u = 0.0
-    for _ in range(BISECTIONS):
-        margin, _change = vertices(u)
-        if np.min(margin) >= -VERTEX_TOL:
-            lo_u = u
-            break
-        u *= 0.5
-    return lo_u, int(idx[int(np.argmin(margin)) % n])
+    return _halved(vertices, u, idx)
 
 
 def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
@@ -1399,14 +1407,7 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
             else:
                 bad = (u_try, m_try)
         return u, k
-    lo_u = 0.0
-    for _ in range(BISECTIONS):
-        margin, _change = vertices(u)
-        if np.min(margin) >= -VERTEX_TOL:
-            lo_u = u
-            break
-        u *= 0.5
-    return lo_u, int(idx[int(np.argmin(margin)) % n])
+    return _halved(vertices, u, idx)
 
 
 @dataclass(frozen=True)
