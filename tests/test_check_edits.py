@@ -237,12 +237,20 @@ def test_a_base_shifted_down_by_the_pin_depth_fails_with_depth_first(zk500: Path
                                                                      capsys) -> None:
     """The old base sat at pin depth: a base 4.8 mm lower is what the programmer got by
     teaching the plate. Now the base is the plate, and a base 4.8 mm too low fails, the
-    depth named first (was: "XP2 timing")."""
+    depth named first (was: "XP2 timing") with the pin the whole 4.8 mm too deep (was
+    -0.653 mm: the shifted plunge points were matched to other plunge samples), and the
+    base edit listed as what the programmer changed, not 76 moved points."""
     src = _file(zk500, ".src")
     _set_base(src, Z=-4.8)
     code, out = _check(capsys, src)
     first = out.splitlines()[0]
     assert code == 3 and ": depth " in first and "timing" not in first, out
+    depth = float(re.search(r": depth ([-0-9.]+) mm", first).group(1))  # type: ignore[union-attr]
+    assert -4.9 < depth < -4.6, first
+    res = check_program(src).to_dict()
+    assert any(e.startswith("base moved x +0.000 y +0.000 z -4.800 mm") for e in res["edited"]), \
+        res["edited"]
+    assert not any(" moved " in e and e.startswith("XP") for e in res["edited"]), res["edited"]
 
 
 def test_a_base_retaught_on_the_surface_holds(zk500: Path, capsys) -> None:

@@ -76,6 +76,9 @@ NEWTON_STEPS = 4
 #: A point moved farther than this from its plan sample is listed as an edit [m] (the round
 #: trip's tolerance).
 EDIT_TOL = 1e-5
+#: A work object turned by more than this against the exported one is listed as an edit
+#: [deg] (a base re-taught on the plate by the 3-point method: about 1e-4 deg).
+BASE_ANGLE_TOL = 1e-3
 #: The order in which failures are named: the physical quantities of the weld first, then
 #: the hooks, the postures, the timing and any other check.
 ORDER = ("depth", "lateral", "clearance", "tilt", "speed", "hook", "posture", "timing")
@@ -236,7 +239,7 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
         raise InputError(folder, "", "the plan's own samples do not verify with the model "
                          "rebuilt from its files (robot or problem file changed?)",
                          "the robot and problem files the plan was made with")
-    run = run_as_controller(robot, fmt, read, plan.samples)
+    run = run_as_controller(robot, fmt, read, plan.samples, _exported_work(plan, robot))
     ver = verify_samples(model, task, window, run.samples)
     lines = _motion_lines(read.files, run.names)
     res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
@@ -335,7 +338,7 @@ def _edits(run: ControllerRun, lines: dict[str, tuple[str, int]], record: Any,
     """Every edit against the plan, one line each: points moved by more than
     :data:`EDIT_TOL` (the first 20 named) and the points deleted or added against the count
     the export recorded in ``plan.json``."""
-    out = []
+    out = _base_edit(run)
     moved = [k for k in range(len(run.names)) if run.edits[k] > EDIT_TOL]
     for k in moved[:20]:
         f, n = lines.get(run.names[k], ("", 0))
@@ -350,6 +353,34 @@ def _edits(run: ControllerRun, lines: dict[str, tuple[str, int]], record: Any,
                    f"{'deleted' if d > 0 else 'added'} ({len(run.names)} of the {wrote} "
                    "exported)")
     return tuple(out)
+
+
+def _exported_work(plan: Any, robot: Robot) -> FloatArray:
+    """The work object the plan's programs were exported with (controller base frame, (4, 4)
+    [m]): the plate frame on the surface at the first weld sample
+    (:func:`rfsw_plan.export.program.work_frame`, from the plan's problem file)."""
+    from rfsw_plan.export.api import plate_surface
+    from rfsw_plan.export.program import work_frame
+
+    normal, depth, _, _ = plate_surface(plan.problem_file, plan.samples)
+    T = robot.batch_fk_jacobian(plan.samples.q)[0]
+    return work_frame(plan.samples, T, robot.description.convention.base, normal, depth)[0]
+
+
+def _base_edit(run: ControllerRun) -> list[str]:
+    """The base edit as one line, in the exported base's axes (mm, deg), when the
+    program's base differs from the exported one by more than :data:`EDIT_TOL` or
+    :data:`BASE_ANGLE_TOL`."""
+    D = run.base_edit
+    if D is None:
+        return []
+    shift = D[:3, 3]
+    angle = float(np.degrees(Rotation.from_matrix(D[:3, :3]).magnitude()))
+    if float(np.linalg.norm(shift)) <= EDIT_TOL and angle <= BASE_ANGLE_TOL:
+        return []
+    x, y, z = (float(v) * 1e3 for v in shift)
+    return [f"base moved x {x:+.3f} y {y:+.3f} z {z:+.3f} mm, turned {angle:.4f} deg against "
+            "the exported one: every Cartesian point moves with it"]
 
 
 def _hook_positions(files: tuple[Path, ...]) -> dict[str, int]:
@@ -463,6 +494,8 @@ class ControllerRun:
         max_edit: Largest position edit of a point [m].
         findings: Posture and timing failures, by point.
         edits: Position edit of every point [m].
+        base_edit: The program's work object in the exported one's frame, (4, 4) [m]
+            (identity: the base as exported; None: the exported one not known).
     """
 
     samples: Samples
@@ -471,18 +504,29 @@ class ControllerRun:
     max_edit: float
     findings: tuple[_Finding, ...]
     edits: FloatArray = field(default_factory=lambda: np.zeros(0))
+    base_edit: FloatArray | None = None
 
 
 def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
-                      plan: Samples) -> ControllerRun:
-    """The samples the controller runs for a (possibly edited) program (module docstring)."""
+                      plan: Samples, work: FloatArray | None = None) -> ControllerRun:
+    """The samples the controller runs for a (possibly edited) program (module docstring).
+
+    ``work`` is the work object (base) the plan's programs were exported with, controller base
+    frame [m], (4, 4). Where the program's own differs (a base re-taught elsewhere), its
+    Cartesian points are matched to the plan's samples by what the program says (the points
+    in the exported base), and run where the program's base puts them."""
     conv = robot.description.convention
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
     T_plan = robot.batch_fk_jacobian(plan.q)[0]
     pts = read.points
     poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
     seg_t = _segment_times(read, poses)
-    idx = _match(poses, T_plan, plan.t, seg_t)
+    shift = np.eye(4) if work is None else \
+        conv.base @ work @ np.linalg.inv(read.work) @ np.linalg.inv(conv.base)
+    as_written = poses.copy()
+    cart = np.array([p.pose is not None for p in pts], dtype=bool)
+    as_written[cart] = shift[None] @ poses[cart]
+    idx = _match(as_written, T_plan, plan.t, seg_t)
     findings += _posture_changes(q_pts, plan.q[idx], names, robot)
     findings += _timing_changes(seg_t, plan.t[idx], names)
     dp = poses[:, :3, 3] - T_plan[idx, :3, 3]
@@ -514,8 +558,9 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
         target[:first, :3, 3] += dp[0]
     q = _batch_ik(robot, target, plan.q)
     out = Samples(t, plan.phase, plan.s, q, plan.wrench, plan.seam)
-    edits = np.linalg.norm(dp, axis=1)
-    return ControllerRun(out, names, idx, float(np.max(edits)), tuple(findings), edits)
+    edits = np.linalg.norm(as_written[:, :3, 3] - T_plan[idx, :3, 3], axis=1)
+    return ControllerRun(out, names, idx, float(np.max(edits)), tuple(findings), edits,
+                         None if work is None else np.linalg.inv(work) @ read.work)
 
 
 def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: list[ReadPoint],

@@ -469,7 +469,7 @@ def build_program(
     T = robot.batch_fk_jacobian(samples.q)[0]
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool
-    work, notes = _work_frame(samples, T, conv.base, normal, depth)
+    work, notes = work_frame(samples, T, conv.base, normal, depth)
     to_work = np.linalg.inv(conv.base @ work)
     P = to_work[None] @ T  # TCP in the work frame, (N, 4, 4)
     h = pin_heights(samples, T[:, :3, 3] if pin is None else pin, (conv.base @ work)[:3, 2],
@@ -525,8 +525,8 @@ def plate_frame(origin: FloatArray, toward: FloatArray, normal: FloatArray) -> F
     return W
 
 
-def _work_frame(samples: Samples, T: FloatArray, base: FloatArray,
-                normal: FloatArray | None, depth: float = 0.0) -> tuple[FloatArray, list[str]]:
+def work_frame(samples: Samples, T: FloatArray, base: FloatArray,
+               normal: FloatArray | None, depth: float = 0.0) -> tuple[FloatArray, list[str]]:
     """The plate frame in the controller's base frame (origin on the surface, ``depth``
     above the first weld sample's seam point along the normal), and notes for the header."""
     weld = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
