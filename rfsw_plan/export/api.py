@@ -19,6 +19,7 @@ what the folder's record vouches for.
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
@@ -77,10 +78,12 @@ class ExportResult:
     notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (file units)."""
+        """JSON-ready summary (file units). ``files`` are named inside the folder they were
+        written to (``plan.json``'s or ``export.json``'s own), so the record's bytes do not
+        depend on where the folder is."""
         return {
             "plan_id": self.header.plan_id,
-            "files": [str(f) for f in self.files],
+            "files": [f.name for f in self.files],
             "points": self.n_points,
             "spacing_mm": self.header.spacing * 1e3,
             "path_tolerance_mm": self.header.path_tol * 1e3,
@@ -326,7 +329,8 @@ def export_plan_folder(
                           reference=reference)
     if why:
         res = replace(res, notes=(*res.notes, f"plate normal not known: {why}"))
-    summary = {"status": "exported", "plan": str(folder), **res.to_dict()}
+    plan_ref = "." if inside else os.path.relpath(folder.resolve(), target.resolve())
+    summary = {"status": "exported", "plan": plan_ref, **res.to_dict()}
     if inside:
         plan.write_record(record.with_keys(export=summary).with_keys(sha256={
             **record.sha256, **{f.name: sha256_file(f) for f in res.files}}))

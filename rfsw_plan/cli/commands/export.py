@@ -200,7 +200,8 @@ def run(args: argparse.Namespace) -> int:
             _check_cycle(folder, cycle)
         res = export_plan_folder(folder, formats, out, spacing=spacing, path_tol=tol,
                                  options=options)
-    record = {"status": "exported", "plan": str(folder), **res.to_dict()}
+    record = {"status": "exported", "plan": str(folder), **res.to_dict(),
+              "files": [str(f) for f in res.files]}  # printed: paths the user can open
     for note in res.notes:
         if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT", "plate normal")):
             print(f"rfsw-plan export: note: {note}", file=sys.stderr)
