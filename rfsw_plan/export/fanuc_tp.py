@@ -261,9 +261,9 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
     and so is, one by one, the larger of two regions whose bounds add up beyond the
     tolerance on the segment between them. ``FINE`` is left for the phase ends.
     """
-    for src, cr, bound in _CR_CACHE:
+    for src, cr0, bound0 in _CR_CACHE:
         if src is program:
-            return dict(cr), bound
+            return dict(cr0), bound0
     tol = program.header.path_tol
     pts = program.poses[:, :3, 3]
     idx = program.sample_index

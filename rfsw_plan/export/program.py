@@ -646,9 +646,9 @@ def _segment_memo(P: FloatArray, what: str, *params: float) -> dict[tuple[int, i
     h.update(what.encode())
     h.update(np.array([*params, len(P)], dtype=float).tobytes())
     key = h.digest()
-    for k, memo in _MEMOS:
+    for k, known in _MEMOS:
         if k == key:
-            return memo
+            return known
     memo: dict[tuple[int, int], Any] = {}
     _MEMOS[:] = [*_MEMOS[-7:], (key, memo)]
     return memo
@@ -956,7 +956,7 @@ class BlendBound:
                 self._seg[k] = self._segment(k)
         lo, hi = int(idx[max(c - 1, 0)]), int(idx[min(c + 1, last)])
         self.bound[lo:hi + 1] = 0.0
-        for k in np.flatnonzero((idx[:-1] <= hi) & (idx[1:] >= lo)):
+        for k in np.flatnonzero((idx[:-1] <= hi) & (idx[1:] >= lo)).tolist():
             i, j = int(idx[k]), int(idx[k + 1])
             a, b = max(i, lo), min(j, hi)
             self.bound[a:b + 1] = np.maximum(self.bound[a:b + 1], self._seg[k][a - i:b - i + 1])
