@@ -41,8 +41,10 @@ without ``[controller]``)
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import logging
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -277,6 +279,9 @@ class PlotDrawing:
                 or multiprocessing.current_process().daemon):
             return
         ctx = multiprocessing.get_context("fork")
+        for stream in (sys.stdout, sys.stderr):  # or the child's exit writes them out again
+            with contextlib.suppress(Exception):
+                stream.flush()
         recv, send = ctx.Pipe(duplex=False)
         try:
             self._proc = ctx.Process(target=_draw_in_child, args=(send, self._folder, result),
@@ -317,8 +322,13 @@ class PlotDrawing:
 def _draw_in_child(conn: Any, folder: Path, result: PlanResult) -> None:
     """The forked child of :class:`PlotDrawing`: draw in memory, send (name, bytes) pairs
     and the failure lines."""
+    import signal
+
     from rfsw_plan.files import OutputLock, figures_in_memory
 
+    # Ctrl-C is the parent's to handle (it stops this child); SIGTERM ends it silently.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     OutputLock.close_inherited()
     with figures_in_memory() as images:
         _, failed = _draw_plots(folder, result)
