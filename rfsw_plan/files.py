@@ -33,6 +33,7 @@ __all__ = [
     "LOCK_NAME",
     "OutputLock",
     "atomic_path",
+    "figures_in_memory",
     "prepare_output_dir",
     "prepare_output_file",
     "sha256_file",
@@ -277,7 +278,28 @@ def write_figure(target: str | Path, fig: Any, **savefig: Any) -> Path:
     target = Path(target)
     buf = io.BytesIO()
     fig.savefig(buf, format=target.suffix.lstrip(".").lower() or "png", **savefig)
+    if _figures is not None:  # a drawing process: the caller's process writes them
+        _figures[target] = buf.getvalue()
+        return target
     return write_bytes(target, buf.getvalue())
+
+
+#: The images :func:`write_figure` keeps in memory instead of writing (:func:`figures_in_memory`).
+_figures: dict[Path, bytes] | None = None
+
+
+@contextlib.contextmanager
+def figures_in_memory() -> Iterator[dict[Path, bytes]]:
+    """Inside the block :func:`write_figure` writes no file: it keeps each rendered image in
+    the returned dict (target path -> bytes), for another process to write atomically (the
+    plan's plots drawn beside the data files:
+    :class:`rfsw_plan.planfiles.waypoints.PlotDrawing`)."""
+    global _figures
+    before, _figures = _figures, {}
+    try:
+        yield _figures
+    finally:
+        _figures = before
 
 
 def write_text(target: str | Path, text: str) -> Path:
@@ -454,6 +476,17 @@ class OutputLock:
             (self.folder / LOCK_NAME).unlink()  # an earlier version's lock file
         OutputLock._held[self.folder.resolve()] = self
         return self
+
+    @classmethod
+    def close_inherited(cls) -> None:
+        """In a forked child: close the descriptors of the parent's locks (the parent keeps
+        them; the child never writes the folder, and a child that outlives its parent does
+        not keep the folder locked)."""
+        for lock in cls._held.values():
+            if lock._fd is not None:
+                os.close(lock._fd)
+                lock._fd = None
+        cls._held.clear()
 
     def __exit__(self, exc_type: object, *exc: object) -> None:
         try:

@@ -8,7 +8,10 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +23,8 @@ from rfsw_plan.cli.main import main
 from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.planfiles.page3d import margin_colours
 from rfsw_plan.process.problem import bundled_problem_names
+
+ROOT = Path(__file__).resolve().parents[1]
 
 WEB = Path(__file__).parents[1] / "rfsw_plan" / "planfiles" / "web"
 PROBLEM = "zk500_table6_seam"
@@ -185,6 +190,29 @@ def test_margin_colours_are_the_plots_scale() -> None:
     assert hexes[0] == hexes[1] == as_hex[0]  # on a bound or outside: the red end
     assert hexes[2] == hexes[3] == as_hex[1]  # the window's centre: the green end
     assert hexes[4] == "#9a9a9a"  # no margin: out of the material
+
+
+def test_margin_colours_are_matplotlibs_colour_map_without_matplotlib() -> None:
+    """The page's lookup table is matplotlib's ``RdYlGn`` table, entry by entry, and every
+    margin gets matplotlib's colour; computing them does not import matplotlib (the page is
+    written on the plan's critical path, the plots in another process)."""
+    from matplotlib import colormaps
+
+    from rfsw_plan.planfiles.page3d import margin_lut
+
+    cmap = colormaps["RdYlGn"]
+    assert len(margin_lut()) == cmap.N
+    assert np.array_equal(np.asarray(cmap(np.arange(cmap.N)))[:, :3], margin_lut())
+    m = np.concatenate([np.random.default_rng(0).uniform(-0.5, 1.5, 20000),
+                        np.linspace(0.0, 1.0, 2049), [np.nan]]) * 0.975
+    x = np.clip(np.nan_to_num(m / 0.975, nan=0.0), 0.0, 1.0)
+    ref = np.rint(np.asarray(cmap(x))[:, :3] * 255).astype(int)
+    assert margin_colours(m, 0.975)[:-1] == ["#{:02x}{:02x}{:02x}".format(*c) for c in ref[:-1]]
+    code = ("import sys, numpy as np; from rfsw_plan.planfiles.page3d import margin_colours; "
+            "margin_colours(np.linspace(0, 1, 9), 1.0); "
+            "assert 'matplotlib' not in sys.modules, 'matplotlib imported'")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT,
+                   env={**os.environ, "PYTHONPATH": str(ROOT)})
 
 
 @pytest.mark.slow

@@ -131,23 +131,36 @@ def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch
 
 
 def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
-    """While the plots are drawn, plan.json already vouches for waypoints.csv (a killed or
-    hung plot leaves a whole plan without pictures); afterwards it vouches for both plots."""
+    """When a plot file appears in the folder, plan.json already vouches for waypoints.csv (a
+    killed or hung plot leaves a whole plan without pictures); afterwards it vouches for both
+    plots. The plots are drawn in a forked process beside the data files, in memory, and
+    written here: the same bytes as the plots drawn in this process after the commit."""
+    import rfsw_plan.files as files
     import rfsw_plan.planfiles.waypoints as wp
     from rfsw_plan.planning.api import plan
 
     seen = []
-    real = wp.plot_lateral_error
+    real = files._commit_file
 
-    def spy(path, result):
-        seen.append(PlanFolder.open(path.parent).record)
-        return real(path, result)
+    def spy(src, dst, anonymous):
+        if Path(dst).name in wp.PLAN_PLOTS:
+            seen.append((Path(dst).name, PlanFolder.open(Path(dst).parent).record))
+        return real(src, dst, anonymous)
 
-    monkeypatch.setattr(wp, "plot_lateral_error", spy)
+    monkeypatch.setattr(files, "_commit_file", spy)
     res = plan("zk500_table6_seam")
     path = wp.write_plan_folder(tmp_path / "p", res)
-    assert set(seen[0]["sha256"]) == {"waypoints.csv", "plan.html"}
-    assert seen[0]["plots"] == {"pending": list(wp.PLAN_PLOTS)}
+    assert [name for name, _ in seen] == list(wp.PLAN_PLOTS)
+    for _, record in seen:
+        assert set(record["sha256"]) == {"waypoints.csv", "plan.html"}
+        assert record["plots"] == {"pending": list(wp.PLAN_PLOTS)}
     rec = PlanFolder.open(path.parent).record
     assert set(rec["sha256"]) == {"waypoints.csv", "plan.html", *wp.PLAN_PLOTS}
     assert rec["plots"] == {"written": list(wp.PLAN_PLOTS), "failed": []}
+    monkeypatch.undo()
+    drawn = wp.PlotDrawing(tmp_path, res).images()  # the forked child's images
+    assert drawn is not None and drawn[1] == []
+    (tmp_path / "here").mkdir()
+    here, _ = wp.write_plan_plots(tmp_path / "here", res)  # drawn in this process
+    assert {p.name: p.read_bytes() for p in here} == drawn[0]
+    assert drawn[0] == {name: (path.parent / name).read_bytes() for name in wp.PLAN_PLOTS}

@@ -225,3 +225,22 @@ def test_the_ripple_between_waypoints_on_an_arc_is_the_chord_of_the_spacing():
     ratio = ripple[10.0][0] / ripple[5.0][0]
     assert 3.0 < ratio < 5.5, ripple  # quadratic in the spacing: a chord, d^2 / 8R
     assert ripple[10.0][0] < 0.15e-3  # the 0.099 mm the guide quotes, not a fault
+
+
+def test_plots_are_drawn_here_when_the_drawing_process_dies(tmp_path, planned_result,
+                                                            monkeypatch):
+    """A forked plot process that ends without an answer costs no plot: they are drawn in
+    this process, the same bytes as the forked process draws (PlotDrawing)."""
+    import os
+
+    import rfsw_plan.planfiles.waypoints as wp
+
+    res = planned_result("zk500_table6_seam")
+    drawn = wp.PlotDrawing(tmp_path, res).images()
+    assert drawn is not None and drawn[1] == [] and sorted(drawn[0]) == sorted(wp.PLAN_PLOTS)
+    monkeypatch.setattr(wp, "_draw_in_child", lambda *args: os._exit(3))
+    dead = wp.PlotDrawing(tmp_path, res)
+    assert dead.images() is None
+    written, failed = wp.write_plan_plots(tmp_path, res, wp.PlotDrawing(tmp_path, res))
+    assert failed == [] and [p.name for p in written] == list(wp.PLAN_PLOTS)
+    assert {p.name: p.read_bytes() for p in written} == drawn[0]

@@ -67,13 +67,13 @@ from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, R
 from rfsw_plan.export.krl import unwrap_angles
 from rfsw_plan.export.program import (
     BLEND_GROUPS,
+    BlendBound,
     Program,
     Samples,
+    _chord_distances,
     controller_name,
     number,
-    path_deviation,
     payload_assumed,
-    sample_poses,
     speed_note,
 )
 from rfsw_plan.files import write_text
@@ -261,10 +261,13 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
     and so is, one by one, the larger of two regions whose bounds add up beyond the
     tolerance on the segment between them. ``FINE`` is left for the phase ends.
     """
+    for src, cr0, bound0 in _CR_CACHE:
+        if src is program:
+            return dict(cr0), bound0
     tol = program.header.path_tol
     pts = program.poses[:, :3, 3]
     idx = program.sample_index
-    P = sample_poses(program)
+    chords = _chord_distances(program)
     cr: dict[int, int] = {}
     blends: dict[int, float] = {}
     phase = program.samples.phase
@@ -278,8 +281,11 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
             continue
         a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
         la, lb = float(np.linalg.norm(a)), float(np.linalg.norm(b))
-        dev = max(float(np.max(_chord(P, int(idx[k]), int(idx[k + 1])))) for k in (c - 1, c))
-        sin_t = float(np.linalg.norm(np.cross(a, b))) / max(la * lb, 1e-30)
+        dev = max(float(np.max(chords[k])) for k in (c - 1, c))
+        ax, ay, az = a.tolist()
+        bx, by, bz = b.tolist()  # np.cross's operations, without its overhead
+        axb = np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
+        sin_t = float(np.linalg.norm(axb)) / max(la * lb, 1e-30)
         d_max = math.inf if sin_t < 1e-12 else 2.0 * (tol - dev) / sin_t
         half = 0.5 * max(la, lb)
         if dev >= tol or min(1e-3, half) > d_max:
@@ -287,25 +293,25 @@ def corner_regions(program: Program) -> tuple[dict[int, int], FloatArray]:
         y = int(min(CR_MAX, max(1.0, math.floor(min(d_max, 1.0) * 1e3 + 1e-9))))
         cr[c] = y
         blends[c] = min(y * 1e-3, half)
+    path = BlendBound(program, blends)  # only the samples next to a removed blend change
     while True:  # two regions that meet on one segment add their bounds there
-        bound = path_deviation(program, blends)
-        over = np.flatnonzero(bound > tol * (1 + 1e-9))
+        over = np.flatnonzero(path.bound > tol * (1 + 1e-9))
         if over.size == 0 or not blends:
+            bound = path.bound.copy()
+            bound.setflags(write=False)
+            _CR_CACHE[:] = [*_CR_CACHE[-3:], (program, dict(cr), bound)]
             return cr, bound
         k = np.clip(np.searchsorted(idx, over), 1, len(idx) - 1)
         near = {int(c) for c in np.concatenate([k - 1, k]) if int(c) in blends}
         c = max(near or blends, key=lambda c: blends[c])
         cr[c] = 0
         del blends[c]
+        path.remove(c)
 
 
-def _chord(P: FloatArray, i: int, j: int) -> FloatArray:
-    """Position distance of samples i..j (poses (N, 4, 4) [m]) from the chord i -> j [m]."""
-    p = P[i:j + 1, :3, 3]
-    d = p[-1] - p[0]
-    L2 = float(d @ d)
-    f = np.clip(((p - p[0]) @ d) / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(p))
-    return np.asarray(np.linalg.norm(p - (p[0] + f[:, None] * d), axis=1))
+#: The last programs' :func:`corner_regions` (the TP build, its path check and its writer ask
+#: for the same program's).
+_CR_CACHE: list[tuple[Program, dict[int, int], FloatArray]] = []
 
 
 def _frame_remarks(program: Program) -> list[str]:

@@ -608,23 +608,50 @@ def _refine(P: FloatArray, keep: set[int], tol: float, ang_tol: float) -> set[in
 
     A segment is split or kept by its own samples alone, so the segments of one round are
     judged together (:func:`_slerp_angles`: one rotation computation for all of them, the
-    numbers of :func:`_deviation` one segment at a time); the kept set is the same.
+    numbers of :func:`_deviation` one segment at a time); the kept set is the same. For the
+    same reason each segment's verdict is remembered for the same poses and tolerances
+    (:func:`_segment_memo`): a program rebuilt with more points (:meth:`Program.rebuilt`)
+    judges only the segments it has not seen.
     """
+    memo = _segment_memo(P, "split", tol, ang_tol)
     out = set(keep)
     stack = list(zip(sorted(keep)[:-1], sorted(keep)[1:], strict=True))
     while stack:
         segs = [(i, j) for i, j in stack if j - i >= 2]
         stack = []
-        chords = [_chord_fraction(P, i, j) for i, j in segs]
-        angles = _slerp_angles(P, segs, [f for _, f in chords])
-        for (i, j), (pos, _), ang in zip(segs, chords, angles, strict=True):
+        todo = [s for s in segs if s not in memo]
+        chords = [_chord_fraction(P, i, j) for i, j in todo]
+        angles = _slerp_angles(P, todo, [f for _, f in chords])
+        for (i, j), (pos, _), ang in zip(todo, chords, angles, strict=True):
             excess = np.maximum(pos / tol, ang / ang_tol)
             k = int(np.argmax(excess))
-            if excess[k] > 1.0:
-                m = i + k
+            memo[i, j] = i + k if excess[k] > 1.0 else -1
+        for i, j in segs:
+            m = memo[i, j]
+            if m >= 0:
                 out.add(m)
                 stack += [(i, m), (m, j)]
     return out
+
+
+_MEMOS: list[tuple[bytes, dict[tuple[int, int], Any]]] = []
+
+
+def _segment_memo(P: FloatArray, what: str, *params: float) -> dict[tuple[int, int], Any]:
+    """Remembered per-segment results (segment (i, j) -> result) of ``what`` for these poses
+    and parameters: :func:`_refine`'s verdicts (the sample a segment is split at, -1 kept
+    whole), :func:`_chord_distances`' distances. The last few, by a hash of the poses'
+    bytes: a rebuilt program (:meth:`Program.rebuilt`) has the same poses."""
+    h = hashlib.blake2b(np.ascontiguousarray(P).tobytes(), digest_size=16)
+    h.update(what.encode())
+    h.update(np.array([*params, len(P)], dtype=float).tobytes())
+    key = h.digest()
+    for k, known in _MEMOS:
+        if k == key:
+            return known
+    memo: dict[tuple[int, int], Any] = {}
+    _MEMOS[:] = [*_MEMOS[-7:], (key, memo)]
+    return memo
 
 
 def _slerp_angles(P: FloatArray, segs: list[tuple[int, int]], fracs: list[FloatArray]
@@ -690,8 +717,7 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    dev = np.array([float(np.max(_chord_fraction(P, int(idx[k]), int(idx[k + 1]))[0]))
-                    for k in range(len(idx) - 1)])
+    dev = np.array([float(np.max(c)) for c in _segment_chords(P, idx)])
     # the rotation between consecutive points, all at once
     turn = ((Rotation.from_matrix(P[idx[:-1], :3, :3]).inv()
              * Rotation.from_matrix(P[idx[1:], :3, :3])).magnitude() if len(idx) > 1
@@ -838,14 +864,27 @@ def sample_poses(program: Program) -> FloatArray:
 _CHORDS: list[tuple[Program, list[FloatArray]]] = []
 
 
+def _segment_chords(P: FloatArray, idx: NDArray[np.int_]) -> list[FloatArray]:
+    """Per segment k, the distance [m] of samples idx[k]..idx[k + 1] (poses P, (N, 4, 4))
+    from the chord between its ends (:func:`_chord_fraction`, remembered per segment for the
+    same poses: :func:`_segment_memo`)."""
+    memo = _segment_memo(P, "chord")
+    chords = []
+    for i, j in zip(idx[:-1].tolist(), idx[1:].tolist(), strict=True):
+        if (i, j) not in memo:
+            memo[i, j] = _chord_fraction(P, i, j)[0]
+            memo[i, j].setflags(write=False)
+        chords.append(memo[i, j])
+    return chords
+
+
 def _chord_distances(program: Program) -> list[FloatArray]:
     """Per segment k of the program, the distance [m] of its samples idx[k]..idx[k + 1] from
     the chord between its points (once per program: the blend search asks many times)."""
     for src, chords in _CHORDS:
         if src is program:
             return chords
-    P, idx = sample_poses(program), program.sample_index
-    chords = [_chord_fraction(P, int(idx[k]), int(idx[k + 1]))[0] for k in range(len(idx) - 1)]
+    chords = _segment_chords(sample_poses(program), program.sample_index)
     _CHORDS[:] = [*_CHORDS[-7:], (program, chords)]
     return chords
 
@@ -862,31 +901,65 @@ def path_deviation(program: Program, blends: dict[int, float] | None = None) -> 
         blends: Point index -> blend distance [m] a format rounds with (default: the
             program's own, :attr:`Motion.blend`).
     """
-    P = sample_poses(program)
-    idx = program.sample_index
-    pts = P[idx, :3, 3]
-    out = np.zeros(len(program.all_samples))
-    blend = {m.point: m.blend for m in program.motions if m.kind == "lin"} if blends is None \
-        else blends
+    return BlendBound(program, blends).bound.copy()
 
-    def corner_bound(c: int) -> tuple[float, float]:
-        d = blend.get(c, 0.0)
+
+class BlendBound:
+    """:func:`path_deviation` of a program with a set of blends, kept up to date while the
+    blends are removed one by one (:meth:`remove`): removing the blend at point c changes only
+    the two segments that end at c, so only the samples from point c - 1 to c + 1 are summed
+    again (the same operations in the same order: the same bits as a whole new bound)."""
+
+    def __init__(self, program: Program, blends: dict[int, float] | None = None) -> None:
+        P = sample_poses(program)
+        self._idx = idx = program.sample_index
+        self._P, self._pts = P, P[idx, :3, 3]
+        self._chords = _chord_distances(program)
+        blend = {m.point: m.blend for m in program.motions if m.kind == "lin"} \
+            if blends is None else blends
+        self._corner = [self._corner_bound(c, blend.get(c, 0.0)) for c in range(len(idx))]
+        self._seg = [self._segment(k) for k in range(len(idx) - 1)]
+        #: The bound of every verified sample [m], (N,).
+        self.bound = np.zeros(len(program.all_samples))
+        for k, pos in enumerate(self._seg):
+            i, j = int(idx[k]), int(idx[k + 1])
+            self.bound[i:j + 1] = np.maximum(self.bound[i:j + 1], pos)
+
+    def _corner_bound(self, c: int, d: float) -> tuple[float, float]:
+        """(d [m], the blend model's ``d sin(theta) / 2`` [m]) at point c, (0, 0) unblended."""
+        pts = self._pts
         if d <= 0 or not 0 < c < len(pts) - 1:
             return 0.0, 0.0
         a, b = pts[c] - pts[c - 1], pts[c + 1] - pts[c]
         cos_t = float(np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1.0, 1.0))
         return d, d * math.sqrt(max(0.0, 1.0 - cos_t * cos_t)) / 2.0
 
-    bounds = [corner_bound(c) for c in range(len(pts))]
-    for k, pos in enumerate(_chord_distances(program)):
-        i, j = int(idx[k]), int(idx[k + 1])
-        p = P[i:j + 1, :3, 3]
+    def _segment(self, k: int) -> FloatArray:
+        """The bound of the samples of segment k (points k -> k + 1) [m]."""
+        i, j = int(self._idx[k]), int(self._idx[k + 1])
+        p = self._P[i:j + 1, :3, 3]
+        pos = self._chords[k]
         for c in (k, k + 1):
-            d, extra = bounds[c]
+            d, extra = self._corner[c]
             if d > 0:
-                pos = pos + (np.linalg.norm(p - pts[c], axis=1) <= d + 1e-12) * extra
-        out[i:j + 1] = np.maximum(out[i:j + 1], pos)
-    return out
+                pos = pos + (np.linalg.norm(p - self._pts[c], axis=1) <= d + 1e-12) * extra
+        return pos
+
+    def remove(self, c: int) -> None:
+        """Drop the blend at point c (the point becomes exact) and update :attr:`bound`."""
+        if self._corner[c][0] <= 0:
+            return
+        self._corner[c] = (0.0, 0.0)
+        idx, last = self._idx, len(self._idx) - 1
+        for k in (c - 1, c):
+            if 0 <= k < last:
+                self._seg[k] = self._segment(k)
+        lo, hi = int(idx[max(c - 1, 0)]), int(idx[min(c + 1, last)])
+        self.bound[lo:hi + 1] = 0.0
+        for k in np.flatnonzero((idx[:-1] <= hi) & (idx[1:] >= lo)).tolist():
+            i, j = int(idx[k]), int(idx[k + 1])
+            a, b = max(i, lo), min(j, hi)
+            self.bound[a:b + 1] = np.maximum(self.bound[a:b + 1], self._seg[k][a - i:b - i + 1])
 
 
 def tolerated_from_record(rec: dict[str, Any]) -> float:

@@ -193,6 +193,7 @@ class PlanRun:
         from rfsw_plan.planfiles.record import provenance_keys
         from rfsw_plan.planfiles.waypoints import (
             PLAN_OUTPUTS,
+            PlotDrawing,
             commit_plan,
             mark_outputs_stale,
             write_plan_data,
@@ -204,8 +205,10 @@ class PlanRun:
             mark_outputs_stale(out, problem.name, PLAN_OUTPUTS)
             summary = result.summary()
             summary["robot_file"] = str(problem.robot.path)
+            # The plots are drawn in another process while the data files are written here.
+            drawing = PlotDrawing(out, result)
             # The planner's own bar has closed; writing and plotting gets a bar of its own.
-            with Stages("plan", ("files", "plots")) as stages:
+            with contextlib.closing(drawing), Stages("plan", ("files", "plots")) as stages:
                 written = write_plan_data(out, result, problem.seam)
                 exported = programs(result, out, summary) if programs is not None else None
                 if exported is not None:
@@ -216,7 +219,7 @@ class PlanRun:
                 # plan.json commits the data files first, then the plots are drawn and
                 # committed: a plot that fails or is killed never costs the waypoints or the
                 # programs.
-                path, failed = commit_plan(out, summary, written, result)
+                path, failed = commit_plan(out, summary, written, result, drawing)
         files = [out / f for f in summary.get("files", [])] + [path]
         return PlanWritten(out, summary, files, failed)
 

@@ -57,6 +57,40 @@ DEPTH_COLUMNS = ("e_depth_mm", "depth_error_mm", "e_norm_mm")
 NO_MARGIN_COLOUR = "#9a9a9a"
 #: Colour map of the margin (matplotlib name): red at the bound, green at the window's centre.
 MARGIN_CMAP = "RdYlGn"
+#: Its colours (ColorBrewer's RdYlGn, as matplotlib's ``_cm._RdYlGn_data`` gives them, RGB in
+#: [0, 1]), evenly spaced from 0 to 1 (``LinearSegmentedColormap.from_list``).
+MARGIN_COLOURS = (
+    (0.6470588235294118, 0.0, 0.14901960784313725),
+    (0.8431372549019608, 0.18823529411764706, 0.15294117647058825),
+    (0.9568627450980393, 0.42745098039215684, 0.2627450980392157),
+    (0.9921568627450981, 0.6823529411764706, 0.3803921568627451),
+    (0.996078431372549, 0.8784313725490196, 0.5450980392156862),
+    (1.0, 1.0, 0.7490196078431373),
+    (0.8509803921568627, 0.9372549019607843, 0.5450980392156862),
+    (0.6509803921568628, 0.8509803921568627, 0.41568627450980394),
+    (0.4, 0.7411764705882353, 0.38823529411764707),
+    (0.10196078431372549, 0.596078431372549, 0.3137254901960784),
+    (0.0, 0.40784313725490196, 0.21568627450980393),
+)
+#: Entries of the colour map's lookup table (matplotlib's ``image.lut``: 256).
+MARGIN_LUT_SIZE = 256
+
+
+def margin_lut() -> FloatArray:
+    """The lookup table of :data:`MARGIN_CMAP`, (:data:`MARGIN_LUT_SIZE`, 3) RGB in [0, 1]:
+    matplotlib's ``_create_lookup_table`` of :data:`MARGIN_COLOURS`, the same operations (so
+    the same numbers as ``matplotlib.colormaps["RdYlGn"]``, checked in the tests) without
+    importing matplotlib on the plan's critical path: entry i is the linear interpolation of
+    the colours at i / (N - 1)."""
+    c = np.array(MARGIN_COLOURS, dtype=float)
+    n = MARGIN_LUT_SIZE
+    x = np.linspace(0, 1, len(c)) * (n - 1)
+    xind = (n - 1) * np.linspace(0, 1, n) ** 1.0
+    ind = np.searchsorted(x, xind)[1:-1]
+    distance = (xind[1:-1] - x[ind - 1]) / (x[ind] - x[ind - 1])
+    lut = np.concatenate([c[:1], distance[:, None] * (c[ind] - c[ind - 1]) + c[ind - 1],
+                          c[-1:]])
+    return np.asarray(np.clip(lut, 0.0, 1.0))
 
 
 def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
@@ -65,18 +99,19 @@ def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
     The one margin colour scale of the plan's pictures: ``plan.html`` colours its samples with
     it and ``lateral_error_time.png`` its margin panel. :data:`MARGIN_CMAP` from margin 0 (on a
     bound, and beyond: outside the window) to ``half_width`` (the window's centre); a sample
-    without a margin (NaN: the pin is not in the material) is :data:`NO_MARGIN_COLOUR`.
+    without a margin (NaN: the pin is not in the material) is :data:`NO_MARGIN_COLOUR`. The
+    value x in [0, 1] takes the table entry ``int(x N)`` (the last for x = 1), as a matplotlib
+    colour map does (:func:`margin_lut`).
 
     Args:
         margin: Margin to the nearest window bound, any unit, (N,).
         half_width: Half the window's width, same unit, > 0.
     """
-    from matplotlib import colormaps
-
-    cmap = colormaps[MARGIN_CMAP]
     m = np.asarray(margin, dtype=float)
     x = np.clip(np.nan_to_num(m / half_width, nan=0.0), 0.0, 1.0)
-    rgb = np.rint(np.asarray(cmap(x))[:, :3] * 255).astype(int)
+    x *= MARGIN_LUT_SIZE
+    x[x == MARGIN_LUT_SIZE] = MARGIN_LUT_SIZE - 1
+    rgb = np.rint(margin_lut()[x.astype(int)] * 255).astype(int)
     return [NO_MARGIN_COLOUR if not np.isfinite(v) else "#{:02x}{:02x}{:02x}".format(*c)
             for v, c in zip(m, rgb, strict=True)]
 

@@ -41,8 +41,10 @@ without ``[controller]``)
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import logging
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -51,7 +53,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.files import atomic_path, write_figure
+from rfsw_plan.files import atomic_path, write_bytes, write_figure
 from rfsw_plan.numfmt import canonical_quaternion, cell, cell_many
 from rfsw_plan.planfiles.record import PlanRecord
 from rfsw_plan.planning.result import PlanResult
@@ -210,17 +212,35 @@ def write_plan_data(folder: str | Path, result: PlanResult, seam: Seam | None = 
     return [csv_path, page]
 
 
-def write_plan_plots(folder: str | Path, result: PlanResult) -> tuple[list[Path], list[str]]:
+def write_plan_plots(folder: str | Path, result: PlanResult,
+                     drawing: PlotDrawing | None = None) -> tuple[list[Path], list[str]]:
     """Draw the plan's plots (:data:`PLAN_PLOTS`) into ``folder``, each atomically.
 
     A plot that fails does not stop the others: it is reported, not raised (the data files are
-    already committed when the plots are drawn).
+    already committed when the plots are written).
+
+    Args:
+        folder: The plan folder.
+        result: The plan.
+        drawing: The plots already being drawn in another process (:class:`PlotDrawing`):
+            their images are written here. None: drawn here, one after the other.
 
     Returns:
         The written paths, and one line per plot that was not written
         (``lateral_error.png not written (RuntimeError: ...)``).
     """
-    out = Path(folder)
+    if drawing is not None:
+        drawn = drawing.images()
+        if drawn is not None:
+            images, failed = drawn
+            return [write_bytes(Path(folder) / name, images[name]) for name in PLAN_PLOTS
+                    if name in images], failed
+    return _draw_plots(Path(folder), result)
+
+
+def _draw_plots(out: Path, result: PlanResult) -> tuple[list[Path], list[str]]:
+    """Draw every plot into ``out`` (the functions looked up when called); the paths drawn
+    and one line per failed plot."""
     written: list[Path] = []
     failed: list[str] = []
     from rfsw_plan.planfiles.tradeoff_plot import plot_tradeoff
@@ -235,8 +255,90 @@ def write_plan_plots(folder: str | Path, result: PlanResult) -> tuple[list[Path]
     return written, failed
 
 
+class PlotDrawing:
+    """The plan's plots drawn in a forked process while this one writes the data files.
+
+    The plots need nothing but the plan, and drawing them (matplotlib's import, text layout
+    and PNG encoding) costs more than the CSV and the page together: on a second core they are
+    off the critical path. The child writes no file: it renders the images in memory
+    (:func:`rfsw_plan.files.figures_in_memory`) and sends the bytes; this process writes them
+    atomically after ``plan.json`` has committed the data files (:func:`commit_plan`), so the
+    folder goes through the same states as when the plots are drawn here, and the images are
+    the same bytes (the same functions on the same plan). Where a process cannot be forked (a
+    platform without ``fork``, a daemonic process) or the child ends without an answer,
+    :func:`write_plan_plots` draws them here.
+    """
+
+    def __init__(self, folder: str | Path, result: PlanResult) -> None:
+        import multiprocessing
+
+        self._folder = Path(folder)
+        self._proc: Any = None
+        self._conn: Any = None
+        if ("fork" not in multiprocessing.get_all_start_methods()
+                or multiprocessing.current_process().daemon):
+            return
+        ctx = multiprocessing.get_context("fork")
+        for stream in (sys.stdout, sys.stderr):  # or the child's exit writes them out again
+            with contextlib.suppress(Exception):
+                stream.flush()
+        recv, send = ctx.Pipe(duplex=False)
+        try:
+            self._proc = ctx.Process(target=_draw_in_child, args=(send, self._folder, result),
+                                     daemon=True)
+            self._proc.start()
+        except OSError:  # no process to spare: draw here
+            self._proc = None
+            recv.close()
+        else:
+            self._conn = recv
+        finally:
+            send.close()
+
+    def images(self) -> tuple[dict[str, bytes], list[str]] | None:
+        """The images by file name and the failure lines, once the child has drawn them;
+        None if it could not (then draw here)."""
+        if self._proc is None:
+            return None
+        try:
+            names, failed = self._conn.recv()
+            return dict(names), list(failed)
+        except (EOFError, OSError):  # the child died without an answer
+            return None
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop the child if it still runs (an interrupted write) and release the pipe."""
+        if self._proc is None:
+            return
+        if self._proc.is_alive():
+            self._proc.terminate()
+        self._proc.join()
+        self._conn.close()
+        self._proc = None
+
+
+def _draw_in_child(conn: Any, folder: Path, result: PlanResult) -> None:
+    """The forked child of :class:`PlotDrawing`: draw in memory, send (name, bytes) pairs
+    and the failure lines."""
+    import signal
+
+    from rfsw_plan.files import OutputLock, figures_in_memory
+
+    # Ctrl-C is the parent's to handle (it stops this child); SIGTERM ends it silently.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    OutputLock.close_inherited()
+    with figures_in_memory() as images:
+        _, failed = _draw_plots(folder, result)
+    conn.send(([(p.name, data) for p, data in images.items()], failed))
+    conn.close()
+
+
 def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Path],
-                result: PlanResult) -> tuple[Path, list[str]]:
+                result: PlanResult, drawing: PlotDrawing | None = None
+                ) -> tuple[Path, list[str]]:
     """Commit a plan's data files, then draw its plots and commit them too.
 
     ``plan.json`` is written first vouching for ``data_files`` (``"plots": {"pending": ...}``),
@@ -250,6 +352,8 @@ def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Pa
             ``plots`` are set in it as committed last.
         data_files: Files written before the commit (``waypoints.csv``, exported programs).
         result: The plan (for the plots).
+        drawing: The plots already being drawn beside the data files (:class:`PlotDrawing`);
+            None: drawn after the commit, here.
 
     Returns:
         The path of ``plan.json`` and one line per plot that was not written.
@@ -264,7 +368,7 @@ def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Pa
     lock = OutputLock.held(out)
     if lock is not None:  # committed: an interruption from here on keeps the data files
         lock.on_abort(None)
-    plots, failed = write_plan_plots(out, result)
+    plots, failed = write_plan_plots(out, result, drawing)
     record["files"] = [_in_folder(out, p) for p in [*data_files, *plots]]
     record["plots"] = {"written": [p.name for p in plots], "failed": failed}
     write_plan_json(path, record, vouches_for=[*data_files, *plots])
@@ -308,10 +412,15 @@ def write_plan_folder(folder: str | Path, result: PlanResult,
     out = prepare_output_dir(folder, "folder")
     with OutputLock(out, "folder"):
         mark_outputs_stale(out, result.problem_name, PLAN_OUTPUTS)
-        summary = result.summary()
-        if robot_file is not None:
-            summary["robot_file"] = str(robot_file)
-        path, failed = commit_plan(out, summary, write_plan_data(out, result), result)
+        drawing = PlotDrawing(out, result)  # beside the data files, on another core
+        try:
+            summary = result.summary()
+            if robot_file is not None:
+                summary["robot_file"] = str(robot_file)
+            path, failed = commit_plan(out, summary, write_plan_data(out, result), result,
+                                       drawing)
+        finally:
+            drawing.close()
     for line in failed:
         log.warning("%s: %s", out, line)
     return path
