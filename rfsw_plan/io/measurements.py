@@ -25,6 +25,14 @@ lab's own column names and units are read through a mapping file (``--columns FI
 * Orientation as Euler angles (a 6-D probe): ``rx, ry, rz`` columns with the mapping key
   ``orientation = "euler_xyz"`` (extrinsic x-y-z, scipy's ``"xyz"``) or another of
   :data:`ORIENTATIONS`; converted to a rotation vector here.
+* A 6-D pose as markers: the mapping key ``orientation_markers_mm = L`` turns each row's
+  measured pose (position p, orientation R) into four virtual markers p + L R v_k at the
+  corners of a regular tetrahedron (|v_k| = 1, sum_k v_k = 0, :data:`TETRAHEDRON`), so that
+  their centroid is the measured point and ``calibrate`` fits the orientation through the
+  marker rows it already has: sum_k |e_k|^2 / 4 = |e_p|^2 + (2/3) L^2 |e_theta|^2 for a
+  position error e_p and a small rotation error e_theta. L = sqrt(3/2) sigma_p / sigma_theta
+  (the device's position noise per axis over its orientation noise per axis) weighs both
+  by their noise (the least-squares weights 1/sigma_p^2 and 1/sigma_theta^2).
 * Optional ``temperature_C`` (room or arm temperature [deg C], sanity-checked), kept as the
   extra ``temperature_C`` that the diagnosis correlates the residual with.
 * Optional ``t_s`` (time [s]), ``pose_id`` (text), ``load_step`` (integer label of the commanded
@@ -84,10 +92,18 @@ MAPPING_OPTIONS = {
     "wrench_frame": "base | tool | sensor",
     "source": "a note on where the data comes from",
     "orientation": "rotation_vector | euler_xyz | euler_XYZ | euler_zyx | euler_ZYX",
+    "orientation_markers_mm": "lever L > 0 [mm] of four virtual markers from the 6-D pose",
 }
 #: How the ``rx, ry, rz`` columns hold an orientation: a rotation vector, or Euler angles
 #: (scipy's sequence names: lower case extrinsic, upper case intrinsic).
 ORIENTATIONS = ("rotation_vector", "euler_xyz", "euler_XYZ", "euler_zyx", "euler_ZYX")
+#: Unit directions of the virtual markers of a 6-D pose (``orientation_markers_mm``): the
+#: corners of a regular tetrahedron centred on the measured point, sum_k v_k = 0 and
+#: sum_k v_k v_k^T = (4/3) I (every rotation axis weighed alike).
+TETRAHEDRON = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0],
+                        [-1.0, -1.0, 1.0]]) / math.sqrt(3.0)
+#: Largest lever of the virtual markers [mm].
+MAX_ORIENTATION_LEVER_MM = 10_000.0
 #: Extra markers beside marker 1 (x, y, z): x2 .. x9.
 MAX_MARKERS = 9
 #: A temperature outside this range [deg C] is refused as a unit slip (K or deg F).
@@ -324,9 +340,13 @@ def read_measurements(
     measured_in = _frame(tab, frame, mapping)
     if measured_in == "device":
         _whole_positions(tab, position)
+    rotation = _orientation(tab, _orientation_kind(mapping))
+    lever = _orientation_lever(mapping)
+    if lever is not None:
+        markers = _pose_markers(tab, position, rotation, markers, lever)
     data = MeasurementSet(
         q, wrench, position, t, pose_id, sigma, extra,
-        str(tab.path), frame=measured_in, rotation=_orientation(tab, _orientation_kind(mapping)),
+        str(tab.path), frame=measured_in, rotation=rotation,
         load_step=load_step, dialect=tab.dialect, columns=names, approach=approach,
         markers=markers,
     )
@@ -424,6 +444,40 @@ def _markers(tab: Table, position: FloatArray) -> FloatArray | None:
         raise InputError(tab.path, f"row {tab.row_numbers[int(blank[0])]}", "a marker axis is "
                          "blank", "every axis of every marker on every row (several markers)")
     return out
+
+
+def _orientation_lever(mapping: ColumnMap | None) -> float | None:
+    """The lever of the virtual markers of a 6-D pose [m] (``orientation_markers_mm``), or None."""
+    if mapping is None or "orientation_markers_mm" not in mapping.options:
+        return None
+    value = mapping.options["orientation_markers_mm"]
+    if (isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value)
+            or not 0.0 < value <= MAX_ORIENTATION_LEVER_MM):
+        raise InputError(mapping.source, "orientation_markers_mm", f"got {value!r}",
+                         f"a lever in (0, {MAX_ORIENTATION_LEVER_MM:g}] mm")
+    return float(value) / 1000.0
+
+
+def _pose_markers(tab: Table, position: FloatArray, rotation: FloatArray | None,
+                  markers: FloatArray | None, lever: float) -> FloatArray:
+    """Four virtual markers p + L R v_k of every row's 6-D pose [m], shape (m, 4, 3)
+    (:data:`TETRAHEDRON`; their centroid is p)."""
+    from scipy.spatial.transform import Rotation
+
+    if rotation is None:
+        raise InputError(tab.path, "header", "orientation_markers_mm is set but the file has "
+                         "no orientation columns", "rx, ry, rz (or quat_w..quat_z) mapped")
+    if markers is not None:
+        raise InputError(tab.path, "columns of marker 2", "given together with "
+                         "orientation_markers_mm", "markers or a 6-D pose, not both")
+    blank = np.flatnonzero(~(np.all(np.isfinite(position), axis=1)
+                             & np.all(np.isfinite(rotation), axis=1)))
+    if blank.size:
+        raise InputError(tab.path, f"row {tab.row_numbers[int(blank[0])]}", "a position or "
+                         "orientation cell is blank", "the whole 6-D pose on every row "
+                         "(orientation_markers_mm)")
+    R = Rotation.from_rotvec(rotation).as_matrix()
+    return position[:, None, :] + lever * np.einsum("mab,kb->mka", R, TETRAHEDRON)
 
 
 def _temperature(tab: Table) -> FloatArray | None:

@@ -61,12 +61,18 @@ class ModifiedDH:
         d: d_i [m], shape (n,).
         alpha: alpha_{i-1} [rad], shape (n,).
         theta0: Joint zero offset theta0_i [rad], shape (n,).
+        mass: Mass of link i, the body that joint i moves [kg], shape (n,), or None (the
+            links carry no mass: their weight loads no joint).
+        com: Centre of mass of link i in joint i's frame (the MDH frame i, on joint i's axis)
+            [m], shape (n, 3), or None.
     """
 
     a: FloatArray
     d: FloatArray
     alpha: FloatArray
     theta0: FloatArray
+    mass: FloatArray | None = None
+    com: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -326,9 +332,12 @@ PAYLOAD_KEYS = ("mass_kg", "com_mm", "frame", "inertia_kgm2", "source")
 #: Frames a ``[payload]`` centre of mass may be given in.
 PAYLOAD_FRAMES = ("flange", "tool")
 MAX_PAYLOAD_KG = 1e4
+#: Largest mass of one link of an MDH table [kg] (``link_mass_kg``).
+MAX_LINK_MASS_KG = 1e5
 PROVENANCE_KEYS = ("parent", "data", "data_sha256", "forces", "forces_sha256", "created",
                    "command")
-DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "source")
+DH_KEYS = ("convention", "a_mm", "d_mm", "alpha_deg", "theta0_deg", "link_mass_kg",
+           "link_com_mm", "source")
 URDF_KEYS = ("urdf", "tip_link", "source")
 KINEMATICS_KEYS = tuple(dict.fromkeys(DH_KEYS + URDF_KEYS))
 TOOL_KEYS = ("xyz_mm", "rpy_deg", "source")
@@ -586,6 +595,13 @@ def _chain(kin: Table, path: Path | str) -> tuple[ModifiedDH | UrdfChain, UrdfSe
         theta0=np.radians(kin.vec("theta0_deg", n, [0.0] * n,
                                   ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)),
     )
+    if kin.has("link_mass_kg") or kin.has("link_com_mm"):
+        if not (kin.has("link_mass_kg") and kin.has("link_com_mm")):
+            given = "link_mass_kg" if kin.has("link_mass_kg") else "link_com_mm"
+            raise kin.error(given, "given alone", "link_mass_kg and link_com_mm together")
+        dh = replace(dh, mass=kin.vec("link_mass_kg", n, ge=0.0, le=MAX_LINK_MASS_KG),
+                     com=kin.matrix("link_com_mm", n, 3, ge=-MAX_LENGTH_MM,
+                                    le=MAX_LENGTH_MM) / 1000.0)
     return dh, None
 
 
@@ -835,12 +851,15 @@ def _matrix_to_rpy(R: FloatArray) -> FloatArray:
 def _kinematics_toml(desc: RobotDescription) -> dict[str, Any]:
     """The ``[kinematics]`` table of a description (modified DH or URDF), file units."""
     if isinstance(desc.chain, ModifiedDH):
+        c = desc.chain
         return {
             "convention": "modified_dh",
-            "a_mm": _r(desc.chain.a * 1000.0),
-            "d_mm": _r(desc.chain.d * 1000.0),
-            "alpha_deg": _r(np.degrees(desc.chain.alpha)),
-            "theta0_deg": _r(np.degrees(desc.chain.theta0)),
+            "a_mm": _r(c.a * 1000.0),
+            "d_mm": _r(c.d * 1000.0),
+            "alpha_deg": _r(np.degrees(c.alpha)),
+            "theta0_deg": _r(np.degrees(c.theta0)),
+            **({} if c.mass is None or c.com is None else {
+                "link_mass_kg": _r(c.mass), "link_com_mm": [_r(x * 1000.0) for x in c.com]}),
             "source": desc.sources.get("kinematics", "not stated"),
         }
     return {

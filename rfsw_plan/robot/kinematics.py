@@ -87,12 +87,22 @@ def _mdh_placement(alpha: float, a: float, theta0: float, d: float) -> pin.SE3:
     return pin.SE3(R, p)
 
 
+def _link_inertia(chain: ModifiedDH, i: int) -> pin.Inertia:
+    """Link i of an MDH table as a point mass at its centre of mass (joint i's frame): what
+    the links' weight on the joints needs (:meth:`Robot.gravity_torque`); no mass -> zero."""
+    if chain.mass is None or chain.com is None:
+        return pin.Inertia.Zero()
+    return pin.Inertia(float(chain.mass[i]), np.asarray(chain.com[i], dtype=float),
+                       np.zeros((3, 3)))
+
+
 def build_pinocchio_model(desc: RobotDescription) -> pin.Model:
     """Build the Pinocchio model of a description, with a ``tcp`` operational frame.
 
     For an MDH table, joint i is a revolute-Z joint placed at Rx(alpha_{i-1}) Tx(a_{i-1})
     Rz(theta0_i) Tz(d_i) in joint i-1 (Rz(q) commutes with Tz(d)), seed 001 eq. 1. For a URDF,
     the chain from its root to the tip link (:func:`rfsw_plan.robot.urdf.load_urdf_chain`).
+    An MDH table's ``link_mass_kg``/``link_com_mm`` become point-mass link inertias.
 
     This is the one place where the controller offsets enter: the model's joint variable is
     ``G q`` (signed coupling times controller values) and each joint placement is turned by the
@@ -108,7 +118,7 @@ def build_pinocchio_model(desc: RobotDescription) -> pin.Model:
         for i in range(desc.n_joints):
             placement = _mdh_placement(c.alpha[i], c.a[i], c.theta0[i] + offset[i], c.d[i])
             parent = model.addJoint(parent, pin.JointModelRZ(), placement, f"joint{i + 1}")
-            model.appendBodyToJoint(parent, pin.Inertia.Zero(), pin.SE3.Identity())
+            model.appendBodyToJoint(parent, _link_inertia(c, i), pin.SE3.Identity())
         last = parent
         tip_placement = pin.SE3.Identity()
     else:
