@@ -181,18 +181,21 @@ def _judge_end_stop(w: dict[str, Any], proc: Any, F: np.ndarray, pin: np.ndarray
     if np.any(dF > allowed[None]):
         bad.append(f"force steps by {dF.max(axis=0).round(1)} N per sample in the end stop "
                    f"(relaxation allows {allowed.round(1)})")
-    # Relaxed before the pin rises: at the last sample before the pin is 0.01 mm above where
-    # it stood, in the frame of the tool axis (the written orientation's z) and the seam's
-    # direction at its end: no traverse force, the lateral force at the dwell's share.
-    rise = np.flatnonzero(height[rows[-1]:] > height[rows[-1]] + OUT_MM)
-    k = rows[-1] + (int(rise[0]) - 1 if len(rise) else 0)
+    # Relaxed before the pin rises (the pin stood at its depth through the stop, above): at
+    # the stop's last sample, in the frame of the tool axis (the written orientation's z) and
+    # the seam's direction at its end, no traverse force and the lateral force at the dwell's
+    # share.
+    k = rows[-1]
     n, t_end = _end_frame(w)
     l_end = np.cross(n, t_end)
     l_end /= np.linalg.norm(l_end)
     f_l = float(F[k] @ l_end)
     f_t = float(np.linalg.norm(F[k] - f_l * l_end - (F[k] @ n) * n))
     share = fp.dwell_lateral_fraction * fp.lateral
-    if f_t > 1.0 or abs(abs(f_l) - share) > 1.0:
+    # A newton, and the frame read from the written columns (the tool axis as commanded, the
+    # seam's end as a chord): 0.03 deg of it moves 5 kN by 2.6 N (kr600_curved_seam: 1.6 N).
+    tol = 1.0 + 5e-4 * float(np.linalg.norm(F[k]))
+    if f_t > tol or abs(abs(f_l) - share) > tol:
         bad.append(f"the pin rises with {f_t:.1f} N along the seam and {abs(f_l):.1f} N "
                    f"sideways (standstill: 0 and {share:.1f} N)")
     # From the stop on the force only falls (no growth before or during the retract).
@@ -204,14 +207,15 @@ def _judge_end_stop(w: dict[str, Any], proc: Any, F: np.ndarray, pin: np.ndarray
 
 def _end_frame(w: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """The tool axis out of the plate (minus the written orientation's z) and the seam's
-    direction over its last millimetre, at the weld's last sample."""
+    direction over its last 0.1 mm (a curved seam turns over a longer chord), at the weld's
+    last sample."""
     weld = np.flatnonzero(w["phase"] == "weld")
     k = weld[-1]
     qw, qx, qy, qz = (w[c][k] for c in ("qw", "qx", "qy", "qz"))
     n = -np.array([2 * (qx * qz + qw * qy), 2 * (qy * qz - qw * qx), 1 - 2 * (qx * qx + qy * qy)])
     n /= np.linalg.norm(n)
     seam = np.stack([w[f"seam_{a}_mm"] for a in "xyz"], axis=1)
-    j = weld[np.flatnonzero(w["s_mm"][weld] < w["s_mm"][k] - 1.0)[-1]]
+    j = weld[np.flatnonzero(w["s_mm"][weld] < w["s_mm"][k] - 0.1)[-1]]
     t_end = seam[k] - seam[j]
     t_end -= (t_end @ n) * n
     return n, t_end / np.linalg.norm(t_end)
