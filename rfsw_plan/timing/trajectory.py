@@ -32,10 +32,14 @@
   to full depth, Ruckig on the depth, mapped through the planned stationary waypoints by a
   shape-preserving (monotone, Fritsch-Carlson PCHIP) interpolation in depth (the stretch in
   the air, before the first waypoint at the surface, by IK along the tool axis).
+* End stop (``stop``): the tool stands at the seam end while the wrench relaxes to the start
+  standstill's over the task's stop schedule (:attr:`PlanTask.stop_time`), the commanded TCP
+  where the predicted pin stays where the weld left it (:func:`_stop_map`, a fixed point over
+  IK and the deflection model); without an end stop the retract relaxes it.
 * Retract: in the plate, up the tool axis at the process retract speed, the wrench falling
   with the depth still in the plate (the process model's retract force,
-  :meth:`~rfsw_plan.process.forces.ProcessModel.profile`) while it relaxes to the start
-  standstill's (:func:`retract_wrench`: travel has stopped), and the fake-target offsets
+  :meth:`~rfsw_plan.process.forces.ProcessModel.profile`), from the end stop's (without one
+  while it relaxes to the start standstill's, :func:`retract_wrench`), and the fake-target offsets
   following it, so the pin leaves along the tool axis; once the pin is
   at the surface, up to the safe height at the approach speed at zero force.
 * Dwell: the planned stationary waypoints in time, in Cartesian space: the commanded TCP on
