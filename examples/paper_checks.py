@@ -176,7 +176,7 @@ def _plunge_case(depth: float, res: DeviationResult) -> PlungeCase:
         (float(c.axial_force[m].min()), float(c.axial_force[m].max())),
         (float(res.lateral_t[m].min() * 1e3), float(res.lateral_t[m].max() * 1e3)),
         float(res.lateral_t[np.flatnonzero(weld)[-10:]].mean() * 1e3),
-        float(c.penetration.max() * 1e3), c.steady_axial_force,
+        float(c.largest_penetration * 1e3), c.steady_axial_force,
         float(np.max(np.abs(res.lateral_t[weld])) * 1e3),
     )
 

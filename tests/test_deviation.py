@@ -61,7 +61,7 @@ def test_cli_json_and_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
         assert key in data
     assert len(data["lateral_mm"]) == data["n_waypoints"] == len(data["s_mm"])
     assert data["max_abs_lateral_mm"] == pytest.approx(max(map(abs, data["lateral_mm"])))
-    assert set(data["time"]["phase"]) == {"plunge", "dwell", "weld", "retract"}
+    assert set(data["time"]["phase"]) == {"plunge", "dwell", "weld", "stop", "retract"}
     assert data["cosim"]["all_converged"]
     for f in ("deviation.csv", "deviation_time.csv", "deviation.json", "deviation.png"):
         assert (out / f).stat().st_size > 0

@@ -120,6 +120,10 @@ def _judge(w: dict[str, Any], problem: str) -> list[str]:
     grown = np.abs(f_t[acc] - f_t[dwell[-1]])
     if np.any(grown > 1.05 * ramp + 1.0):
         bad.append(f"traverse force {grown.max():.1f} N before the tool has travelled for it")
+    # The end stop: after the weld's last sample the tool stands, the pin in the plate, while
+    # the forces relax to the start standstill's (no traverse force, the dwell's share of the
+    # lateral force); only then does the retract lift it.
+    bad += _judge_end_stop(w, proc, F, pin, height, t_hat, step)
     # The plunge reaches its depth when it ends.
     if abs(height[end] + depth) > DEPTH_MM:
         bad.append(f"the plunge ends {height[end] + depth:+.3f} mm from the planned depth")
@@ -145,6 +149,78 @@ def _judge(w: dict[str, Any], problem: str) -> list[str]:
     return bad
 
 
+def _judge_end_stop(w: dict[str, Any], proc: Any, F: np.ndarray, pin: np.ndarray,
+                    height: np.ndarray, t_hat: np.ndarray, step: float) -> list[str]:
+    """The end stop's claims: it lasts the problem's ``end_stop_s``, the pin stands (sideways
+    and along the seam within STANDSTILL_MM, at its depth) from the weld's last sample to the
+    stop's end, no force steps faster than the relaxation allows, the forces have relaxed
+    (traverse 0, lateral the dwell's share) before the pin rises, and never grow again."""
+    ph, t = w["phase"], w["t_s"]
+    bad: list[str] = []
+    stop = np.flatnonzero(ph == "stop")
+    if proc.end_stop <= 0:
+        return [] if not len(stop) else [f"{len(stop)} end-stop samples without an end stop"]
+    if not len(stop):
+        return ["no end stop"]
+    rows = np.concatenate([stop[:1] - 1, stop])
+    dur = t[stop[-1]] - t[rows[0]]
+    if abs(dur - proc.end_stop) > step + 1e-6:
+        bad.append(f"end stop {dur:.3f} s, the problem's {proc.end_stop:g} s")
+    lat = np.ptp(w["e_lat_mm"][rows])
+    along = np.ptp((pin[rows] - pin[rows[0]]) @ t_hat)
+    sink = np.ptp(height[rows])
+    if lat > STANDSTILL_MM or along > STANDSTILL_MM or sink > DEPTH_MM:
+        bad.append(f"pin moves {lat:.3f} mm sideways, {along:.3f} mm along, {sink:.3f} mm "
+                   "up or down during the end stop")
+    # No step: the relaxation's steepest slope (total change D over the stop T, from rest to
+    # rest: 1.875 D / T, the smoothstep's peak) per sample, plus a newton of round-off.
+    fp = proc.forces
+    dF = np.abs(np.diff(F[rows], axis=0))
+    total = np.ptp(F[rows], axis=0)
+    allowed = 1.875 * total / proc.end_stop * np.diff(t[rows]).max() + 1.0
+    if np.any(dF > allowed[None]):
+        bad.append(f"force steps by {dF.max(axis=0).round(1)} N per sample in the end stop "
+                   f"(relaxation allows {allowed.round(1)})")
+    # Relaxed before the pin rises (the pin stood at its depth through the stop, above): at
+    # the stop's last sample, in the frame of the tool axis (the written orientation's z) and
+    # the seam's direction at its end, no traverse force and the lateral force at the dwell's
+    # share.
+    k = rows[-1]
+    n, t_end = _end_frame(w)
+    l_end = np.cross(n, t_end)
+    l_end /= np.linalg.norm(l_end)
+    f_l = float(F[k] @ l_end)
+    f_t = float(np.linalg.norm(F[k] - f_l * l_end - (F[k] @ n) * n))
+    share = fp.dwell_lateral_fraction * fp.lateral
+    # A newton, and the frame read from the written columns (the tool axis as commanded, the
+    # seam's end as a chord): 0.03 deg of it moves 5 kN by 2.6 N (kr600_curved_seam: 1.6 N).
+    tol = 1.0 + 5e-4 * float(np.linalg.norm(F[k]))
+    if f_t > tol or abs(abs(f_l) - share) > tol:
+        bad.append(f"the pin rises with {f_t:.1f} N along the seam and {abs(f_l):.1f} N "
+                   f"sideways (standstill: 0 and {share:.1f} N)")
+    # From the stop on the force only falls (no growth before or during the retract).
+    mag = np.linalg.norm(F[rows[0]:], axis=1)
+    if np.any(np.diff(mag) > 1.0):
+        bad.append(f"the force grows by {np.diff(mag).max():.1f} N after the weld")
+    return bad
+
+
+def _end_frame(w: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The tool axis out of the plate (minus the written orientation's z) and the seam's
+    direction over its last 0.1 mm (a curved seam turns over a longer chord), at the weld's
+    last sample."""
+    weld = np.flatnonzero(w["phase"] == "weld")
+    k = weld[-1]
+    qw, qx, qy, qz = (w[c][k] for c in ("qw", "qx", "qy", "qz"))
+    n = -np.array([2 * (qx * qz + qw * qy), 2 * (qy * qz - qw * qx), 1 - 2 * (qx * qx + qy * qy)])
+    n /= np.linalg.norm(n)
+    seam = np.stack([w[f"seam_{a}_mm"] for a in "xyz"], axis=1)
+    j = weld[np.flatnonzero(w["s_mm"][weld] < w["s_mm"][k] - 0.1)[-1]]
+    t_end = seam[k] - seam[j]
+    t_end -= (t_end @ n) * n
+    return n, t_end / np.linalg.norm(t_end)
+
+
 @pytest.mark.parametrize("problem", FAST)
 def test_phase_changes_follow_the_motion(written, problem: str) -> None:
     assert _judge(written(problem), problem) == []
@@ -168,3 +244,33 @@ def test_the_judge_catches_a_traverse_step_and_a_short_dwell(written) -> None:
     bad = _judge(w, "zk500_table6_seam")
     assert any(b.startswith("dwell ") for b in bad), bad
     assert any("while standing" in b for b in bad), bad
+
+
+def test_the_judge_catches_an_end_stop_that_slides_or_lifts_loaded(written) -> None:
+    """The end stop's checks can fail: the stored lateral deflection springing back while the
+    tool stands, a step in the relaxation, and a retract that lifts before the forces relaxed
+    (the stop's relaxation cut short: the weld's forces still on at the lift)."""
+    w0 = written("zk500_table6_seam")
+    stop = np.flatnonzero(w0["phase"] == "stop")
+    w = {k: v.copy() for k, v in w0.items()}
+    # The pin slides 0.3 mm sideways over the stop (the deflection springs back, the offsets
+    # not following it).
+    w["e_lat_mm"][stop] += np.linspace(0.0, 0.3, len(stop))
+    # The relaxation's last 20 % at once, in its last sample.
+    F = np.stack([w["fx_N"], w["fy_N"], w["fz_N"]], axis=1)
+    cut = stop[-len(stop) // 5:]
+    F[cut[:-1]] = F[cut[0]]
+    w["fx_N"], w["fy_N"], w["fz_N"] = F.T.copy()
+    bad = _judge(w, "zk500_table6_seam")
+    assert any("during the end stop" in b for b in bad), bad
+    assert any("in the end stop" in b for b in bad), bad
+    w = {k: v.copy() for k, v in w0.items()}
+    # The weld's last force held through the stop and falling only with the depth over the
+    # retract: the pin rises loaded.
+    F = np.stack([w["fx_N"], w["fy_N"], w["fz_N"]], axis=1)
+    after = np.arange(stop[0], len(F))
+    rho = np.linalg.norm(F[after], axis=1) / np.linalg.norm(F[stop[-1]])
+    F[after] = np.minimum(rho, 1.0)[:, None] * F[stop[0] - 1]
+    w["fx_N"], w["fy_N"], w["fz_N"] = F.T.copy()
+    bad = _judge(w, "zk500_table6_seam")
+    assert any(b.startswith("the pin rises with") for b in bad), bad

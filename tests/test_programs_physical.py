@@ -234,7 +234,7 @@ def test_tp_as_a_programmer_teaches_it(planned, problem: str) -> None:
         if (r := re.match(r"^\s*\d+:\s*!(.*?)\s*;\s*$", line)):
             text = r.group(1).strip()
             assert text.isascii() and len(text) <= REMARK_LEN, line
-    assert 1 <= fine <= 6
+    assert 1 <= fine <= 7
 
 
 def test_force_control_written_with_its_set_force(planned) -> None:

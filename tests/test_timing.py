@@ -30,7 +30,8 @@ def test_every_sample_respects_every_joint_limit(result):
     assert np.all(np.abs(tr.qddd) <= d.jerk)
     assert np.all(tr.q >= d.lower) and np.all(tr.q <= d.upper)
     assert np.all(np.diff(tr.t) > 0)
-    order = ["approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract"]
+    order = ["approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "stop",
+             "retract"]
     seen = [p for i, p in enumerate(tr.phase) if i == 0 or p != tr.phase[i - 1]]
     assert seen == order
 

@@ -14,7 +14,9 @@ Points (:func:`build_program`):
 * then, between two neighbouring points, the sample farthest from the straight line the
   controller will run (position distance to the chord, orientation angle to the slerp at the
   same fraction) is added while it is farther than ``path_tol / 2`` (Douglas-Peucker): half
-  the path tolerance for the chords, half for the blending below.
+  the path tolerance for the chords, half for the blending below; over the end stop, where
+  the TCP follows the forces' relaxation in time, the sample farthest from the chord's point
+  at the same share of the segment's *time* (a LIN runs at one speed).
 
 Motions: a linear move to every point after the first, with the speed that keeps the plan's
 time on that segment (chord length / planned duration); a segment over which the pose does not
@@ -60,6 +62,7 @@ with a ``hook <name>`` marker comment (``rfsw-plan check`` finds it by that).
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import re
 import tomllib
@@ -87,9 +90,10 @@ Samples = PlanSamples
 WELD_PHASES = ("accelerate", "weld", "decelerate")
 #: Phases inside which blending is allowed (between two segments of the same group).
 BLEND_GROUPS = {"plunge": "plunge", "dwell": "dwell", "accelerate": "weld", "weld": "weld",
-                "decelerate": "weld", "retract": "retract"}
+                "decelerate": "weld", "stop": "stop", "retract": "retract"}
 #: Phase names in program order.
-PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
+PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "stop",
+          "retract")
 #: Below these a segment does not move [m], [rad]: it is a wait.
 STILL_POS = 1e-6
 STILL_ANG = math.radians(1e-3)
@@ -477,6 +481,8 @@ def build_program(
 
     keep = _anchor_points(samples, header.spacing) | _hook_points(samples, h)
     keep = _refine(P, keep | {int(i) for i in extra}, 0.5 * path_tol, angle_tol)
+    keep = _timed_refine(P, samples.t, keep, np.flatnonzero(samples.phase == "stop"),
+                         0.5 * path_tol)
     idx = _without_stops(samples, P, np.array(sorted(keep), dtype=int))
     motions = _motions(samples, P, idx, path_tol, T[:, :3, 3] if pin is None else pin)
     motions = _with_hooks(motions, idx, h, samples)
@@ -581,6 +587,34 @@ def _anchor_points(samples: Samples, spacing: float) -> set[int]:
                            pos)
         keep |= {int(weld[k]) for k in nearest}
     return keep
+
+
+def _timed_refine(P: FloatArray, t: FloatArray, keep: set[int], rows: NDArray[np.int_],
+                  tol: float) -> set[int]:
+    """Douglas-Peucker in time over ``rows`` (the end stop, with the sample before it): a
+    segment is split where a sample is farther than ``tol`` [m] from the chord's point at the
+    same share of the segment's *time*, since the controller runs a LIN at one speed and the
+    end stop's TCP follows the forces' relaxation (fast first, then slower): one LIN over the
+    stop put the pin up to 0.5 mm off the spot where it stands (zk500_table6_seam)."""
+    if not len(rows):
+        return keep
+    out = set(keep)
+    lo, hi = max(int(rows[0]) - 1, 0), int(rows[-1])
+    out |= {lo, hi}
+    inside = sorted(i for i in out if lo <= i <= hi)
+    stack = list(itertools.pairwise(inside))
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            continue
+        f = (t[i:j + 1] - t[i]) / (t[j] - t[i])
+        a, b = P[i, :3, 3], P[j, :3, 3]
+        dev = np.linalg.norm(P[i:j + 1, :3, 3] - (a + f[:, None] * (b - a)), axis=1)
+        k = int(np.argmax(dev))
+        if dev[k] > tol:
+            out.add(i + k)
+            stack += [(i, i + k), (i + k, j)]
+    return out
 
 
 def _chord_fraction(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:

@@ -49,7 +49,8 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 
 #: Phase names of ``waypoints.csv``, in order.
-PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "retract")
+PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "stop",
+          "retract")
 #: Joint values may sit this far outside the limits (the CSV's 1e-6 deg rounding) [rad].
 LIMIT_SLACK = 1e-7
 #: Program files that a read of a plan folder accepts with other bytes than plan.json vouches

@@ -50,7 +50,7 @@ THREE_VERSION = "0.170.0"
 #: the worst one are always among them).
 MAX_SAMPLES = 900
 #: Phases in which the pin is in the material (``e_lat_mm`` and ``margin_mm`` are written).
-CONTACT = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+CONTACT = ("plunge", "dwell", "accelerate", "weld", "decelerate", "stop")
 #: A depth-error column of ``waypoints.csv`` read when present (else the error is computed).
 DEPTH_COLUMNS = ("e_depth_mm", "depth_error_mm", "e_norm_mm")
 #: Colour of a sample without a margin (the pin out of the material).

@@ -625,7 +625,7 @@ def _lateral_title(result: PlanResult) -> str:
 #: The weld is neutral grey: the window band is green and must stay visible while welding.
 PHASE_COLOURS = {"approach": "0.92", "plunge": "tab:purple", "dwell": "tab:orange",
                  "accelerate": "tab:cyan", "weld": "0.6", "decelerate": "tab:cyan",
-                 "retract": "0.92"}
+                 "stop": "tab:orange", "retract": "0.92"}
 
 
 def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:

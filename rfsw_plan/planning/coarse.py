@@ -68,7 +68,8 @@ def subsample_task(task: PlanTask, max_weld: int = 60) -> tuple[PlanTask, IntArr
     frames = type(fr)(*(getattr(fr, a)[idx] for a in ("s", "p", "t", "l", "n")))
     sub = PlanTask(frames, task.target[idx], task.force_seam[idx], task.moment_base[idx],
                    task.phase[idx], task.time[idx], task.depth[idx], m, task.travel_speed,
-                   task.reference, task.axial_control, task.penetration_stiffness)
+                   task.reference, task.axial_control, task.penetration_stiffness,
+                   task.stop_time, task.stop_force_seam)
     return sub, idx
 
 

@@ -270,7 +270,19 @@ class PlanResult:
                  if len(on) else np.zeros(0, dtype=int))
         runup = float(tr.t[idx[moved[0]] - 1] - tr.t[on[0]]) if len(moved) else 0.0
         dwell = np.flatnonzero(tr.phase == "dwell")
+        stop = np.flatnonzero(tr.phase == "stop")
+        end: dict[str, Any] = {}
+        if len(stop):
+            # The end stop from the weld's last sample: its length, the pin's sideways motion
+            # (the sample check's), and the seam-frame force it relaxed to before the retract.
+            rows = np.concatenate([stop[:1] - 1, stop])
+            f_end = task.frames.rotation()[-1].T @ tr.wrench[stop[-1], :3]
+            end = {"end_stop_s": float(tr.t[stop[-1]] - tr.t[rows[0]]),
+                   "end_stop_pin_motion_mm": None if sv is None
+                   else float(np.ptp(sv.e_lat[rows])) * 1e3,
+                   "end_stop_force_N": [float(x) for x in f_end]}
         return {
+            **end,
             "dwell_s": float(tr.t[dwell[-1]] - tr.t[i]) if len(dwell) else 0.0,
             "plunge_end_depth_error_mm": None if sv is None or sv.height is None
             else (float(sv.height[i]) + depth) * 1e3,

@@ -563,7 +563,7 @@ def pin_track(model: ElastostaticModel, task: PlanTask, traj: TimedTrajectory) -
 # Sample-by-sample verification of what is written
 
 #: Phases in which the pin is in the material.
-CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+CONTACT_PHASES = ("plunge", "dwell", "accelerate", "weld", "decelerate", "stop")
 #: Tolerance of the lateral window check on samples [m] (IPOPT's constraint tolerance).
 WINDOW_TOL = 1e-6
 #: Stationarity while the pin is plunged and not travelling. Every joint of every plunge and
@@ -581,7 +581,7 @@ LIMIT_TOL = 1e-9
 #: [m] (1 um: above the rounding of the written joint values, about 1e-5 mm of position).
 AIR_TOL = 1e-6
 #: Phases with the pin at full depth in the plate (where the depth window applies).
-FULL_DEPTH_PHASES = ("dwell", "accelerate", "weld", "decelerate")
+FULL_DEPTH_PHASES = ("dwell", "accelerate", "weld", "decelerate", "stop")
 #: Tolerance of the tilt check on samples [rad] (the NLP's tool-axis tolerance).
 TILT_TOL = 1e-4
 #: Tolerance of the pin-speed check [1] (finite differences of 10 ms samples).
@@ -673,7 +673,9 @@ class SampleFailure:
                 "plunge_joint_range": "a joint leaves the range of the planned plunge "
                                       "waypoints by",
                 "dwell_joint_range": "a joint leaves the range of the planned dwell "
-                                     "waypoints by"}.get(self.check, self.check)
+                                     "waypoints by",
+                "stop_standstill": "the pin moves sideways during the end stop by"
+                }.get(self.check, self.check)
         return (f"sample {self.sample} (t = {self.t:.3f} s, {self.phase}, s = "
                 f"{self.s * 1e3:.2f} mm): {what}: {self.value:+.4g} {self.unit}, bound "
                 f"{self.bound:.4g} {self.unit}")
@@ -1519,13 +1521,16 @@ def verify_samples(
     the derivatives finite differences of the samples in time. Checks:
 
     * in-material samples (plunge below the plate surface, dwell, accelerate, weld,
-      decelerate): the lateral pin error e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside
+      decelerate, stop): the lateral pin error e = l . (FK_p(q) + dX_p(q, F) - p(s)) inside
       [lower + margin, upper - margin];
     * the rest of the weld envelope: the depth along the plate normal within the depth
-      window at full depth (dwell to decelerate), work and travel angle within the tilt
+      window at full depth (dwell to the end stop), work and travel angle within the tilt
       tolerance in the material, the pin's travel speed within the speed tolerance at
       constant-speed weld samples, and no pin below the plate surface before the plunge;
     * every sample: joint limits, and joint velocity, acceleration and jerk limits;
+    * the end stop: the predicted pin's lateral error moves by at most
+      :data:`~rfsw_plan.process.task.STANDSTILL_MOTION` from the weld's last sample through
+      the stop (the forces relax while the tool stands);
     * stationarity (with ``q_waypoints``): the commanded TCP of every plunge sample inside the
       box spanned by the planned plunge waypoints (and the first dwell one), of every dwell
       sample inside the box of the planned dwell waypoints (with the last plunge and the first
@@ -1646,6 +1651,18 @@ def verify_samples(
             for j in range(Q.shape[1]):
                 first(ratio[:, j] > 1.0 + LIMIT_TOL, f"joint_{name}_q{j + 1}",
                       np.rad2deg(der[:, j]), float(np.rad2deg(limit[j])), unit)
+    # The end stop: the tool stands at the seam end while the forces relax, and the pin does
+    # not move sideways (the start standstill's limit), from the weld's last sample on.
+    stop = np.flatnonzero(phase == "stop")
+    if len(stop):
+        rows = np.concatenate([stop[:1] - 1, stop]) if stop[0] > 0 else stop
+        moved = np.abs(e[rows] - e[rows[0]])
+        bad = np.zeros(N, dtype=bool)
+        bad[rows] = np.ptp(e[rows]) > STANDSTILL_MOTION + WINDOW_TOL
+        val = np.zeros(N)
+        val[rows] = moved * 1e3
+        first(bad & (val >= np.max(val) - 1e-12), "stop_standstill", val,
+              STANDSTILL_MOTION * 1e3, "mm")
     excess = -np.inf
     if q_waypoints is not None and task.n_start:
         m = task.n_start

@@ -105,7 +105,7 @@ class DeviationResult:
                 f"{c.axial_force[m].min():.0f}-{c.axial_force[m].max():.0f} N, lateral "
                 f"{self.lateral_t[m].min() * mm:.2f}-{self.lateral_t[m].max() * mm:.2f} mm; "
                 f"mean lateral of the last 10 samples {self.lateral_t[last].mean() * mm:.2f} mm\n"
-                f"co-simulated: largest penetration {c.penetration.max() * mm:.2f} mm, steady "
+                f"co-simulated: largest penetration {c.largest_penetration * mm:.2f} mm, steady "
                 f"axial force {c.steady_axial_force:.0f} N (median where the penetration is above "
                 f"90 % of its largest), largest |lateral| in the weld "
                 f"{np.max(np.abs(self.lateral_t[self.schedule.mask('weld')])) * mm:.2f} mm")
@@ -172,7 +172,7 @@ class DeviationResult:
                 "all_converged": c.all_converged,
                 "max_iterations": int(np.max(c.iterations)),
                 "max_residual_N": float(np.max(c.residual)),
-                "max_penetration_mm": float(np.max(c.penetration)) * mm,
+                "max_penetration_mm": c.largest_penetration * mm,
                 "steady_axial_force_N": c.steady_axial_force,
                 "max_abs_lateral_weld_mm": float(np.max(np.abs(self.lateral_t[weld])) * mm)
                 if weld.any() else None,

@@ -257,7 +257,7 @@ def plot_deviation(res: DeviationResult, path: Path, title: str = "") -> Path:
 
 _PHASE_COLOURS = {"approach": "0.9", "plunge": "tab:orange", "dwell": "tab:olive",
                   "accelerate": "tab:cyan", "weld": "white", "decelerate": "tab:cyan",
-                  "retract": "0.9"}
+                  "stop": "tab:olive", "retract": "0.9"}
 
 
 def _shade_phases(ax: Any, sch: Any) -> None:

@@ -188,7 +188,9 @@ def _informed(free: Sequence[str], phase: NDArray[Any], has_moment: bool
     if not np.any(phase == "plunge"):
         auto_fixed.append("plunge_peak_axial")
     if not np.any(phase == "dwell"):
-        auto_fixed += ["dwell_lateral_fraction", "dwell_tau"]
+        auto_fixed.append("dwell_tau")
+        if not np.any(phase == "stop"):  # the end stop relaxes to the dwell's lateral share
+            auto_fixed.append("dwell_lateral_fraction")
     if not np.any(phase == "weld"):
         auto_fixed += ["axial", "lateral", "traverse", "ramp_length"]
     if not has_moment:

@@ -1,4 +1,4 @@
-"""Parametric FSW process forces over the phases approach, plunge, dwell, weld, retract.
+"""Parametric FSW process forces over the phases approach, plunge, dwell, weld, stop, retract.
 
 The force is the wrench the workpiece applies to the tool at the TCP, given in the seam frame
 (t, l, n) of :mod:`rfsw_plan.process.frames` (seed 001 Fig. 3c: axial Fd, lateral Fl,
@@ -21,7 +21,20 @@ first-order ramps are continuous across phase boundaries):
 * weld: every component relaxes to its steady value over a length constant L of travel,
   x(s) = x_ss + (x_0 - x_ss) exp(-s/L) with x_0 the value at the end of dwell; g_t = 1 -
   exp(-s/L); g_m = 1.
-* retract: all components scale with rho as the tool leaves the material.
+* stop (the end stop): travel has ended and the tool stands at the seam end, the pin in the
+  plate; every component relaxes from its weld-end value x_w to the start standstill's,
+  x_stand = (0, c_l Fl, Fd) (no traverse force without travel, the dwell's share of the
+  lateral force, the steady axial force), over the stop's length T_e = ``end_stop``::
+
+      x(tau) = x_w + (x_stand - x_w) S(tau / T_e),   S(u) = 10 u^3 - 15 u^4 + 6 u^5
+
+  continuous with the weld at tau = 0 and at the standstill value at tau = T_e, from rest
+  and to rest (S' = S'' = 0 at both ends: the offsets that follow the force start and end
+  without a jump in speed, so the joint jerk stays finite on any sample grid; an
+  exponential with the dwell's T_d starts at its steepest and broke the jerk limit at the
+  stream's cycle). ASSUMED: the seeds measure no end stop; see :data:`END_STOP`.
+* retract: all components scale with rho as the tool leaves the material (from the stop's
+  end: the standstill's forces).
 
 Lateral-force sign (default +1, configurable as ``lateral_sign``): friction on the pin's
 leading edge, where the tool meets cold, hard material. For a clockwise spindle with travel
@@ -149,17 +162,23 @@ class PhaseTimes:
     dwell: float
     weld: float
     retract: float
+    stop: float = 0.0
+
+    @property
+    def durations(self) -> FloatArray:
+        """Duration of each phase in :data:`PHASES` order [s], shape (6,)."""
+        return np.array([self.approach, self.plunge, self.dwell, self.weld, self.stop,
+                         self.retract])
 
     @property
     def starts(self) -> FloatArray:
-        """Start time of each phase in :data:`PHASES` order [s], shape (5,)."""
-        d = np.array([self.approach, self.plunge, self.dwell, self.weld, self.retract])
-        return np.concatenate([[0.0], np.cumsum(d)[:-1]])
+        """Start time of each phase in :data:`PHASES` order [s], shape (6,)."""
+        return np.concatenate([[0.0], np.cumsum(self.durations)[:-1]])
 
     @property
     def total(self) -> float:
         """Total process time [s]."""
-        return self.approach + self.plunge + self.dwell + self.weld + self.retract
+        return float(np.sum(self.durations))
 
 
 #: Default spindle run-up time [s]: ASSUMED. No seed states one (seed 001's electric spindle is
@@ -167,6 +186,14 @@ class PhaseTimes:
 #: that class to a weld speed of 1200-1500 rpm with room to spare. Set ``spindle_runup_s`` in
 #: ``[process]`` from the spindle's data sheet.
 SPINDLE_RUNUP = 2.0
+
+#: Default end stop [s]: ASSUMED. No seed measures the forces after travel ends (seed 001's
+#: Fig. 10 and seed 000's Fig. 22 show the plunge, dwell and weld); the tool stands for 1.5
+#: dwell time constants T_d (the bundled T_d = 2 s, itself ASSUMED: how long the standing
+#: tool's forces take to settle at the start) while the forces relax to the start
+#: standstill's, so the retract starts from them. Set ``end_stop_s`` in ``[process]`` from a
+#: measured force log (0: no end stop, the forces relax over the retract).
+END_STOP = 3.0
 
 #: Axial control modes of the weld (``[process] axial_control``).
 AXIAL_CONTROLS = ("position", "force")
@@ -191,6 +218,9 @@ class ProcessModel:
             plan stands at the spindle clearance above the plate for it, after the
             spindle-start hook and before the plunge moves down (default
             :data:`SPINDLE_RUNUP`).
+        end_stop: How long the tool stands at the seam end with the pin in the plate before
+            the retract, while the forces relax to the start standstill's [s] (default
+            :data:`END_STOP`; 0: none).
         axial_control: ``position`` (seed 001: the robot holds the commanded depth; the
             planner's depth rows apply) or ``force`` (seed 000: the controller's axial force
             loop holds the set force ``forces.axial`` and with it the depth; the program
@@ -211,6 +241,7 @@ class ProcessModel:
     approach_speed: float = 10.0e-3
     rotation_speed_rpm: float = 0.0
     spindle_runup: float = SPINDLE_RUNUP
+    end_stop: float = END_STOP
     axial_control: str = "position"
     name: str = ""
     material: str = ""
@@ -230,6 +261,8 @@ class ProcessModel:
                 raise InputError("process", key, f"got {v * scale:g}", "> 0")
         if not (np.isfinite(self.spindle_runup) and self.spindle_runup >= 0):
             raise InputError("process", "spindle_runup_s", f"got {self.spindle_runup:g}", ">= 0")
+        if not (np.isfinite(self.end_stop) and self.end_stop >= 0):
+            raise InputError("process", "end_stop_s", f"got {self.end_stop:g}", ">= 0")
         if not (np.isfinite(self.dwell_time) and self.dwell_time >= 0):
             raise InputError("process", "dwell_s", f"got {self.dwell_time:g}", ">= 0")
         if self.axial_control not in AXIAL_CONTROLS:
@@ -248,6 +281,7 @@ class ProcessModel:
             dwell=self.dwell_time,
             weld=length / self.travel_speed,
             retract=self.plunge_depth / self.retract_speed,
+            stop=self.end_stop,
         )
 
     def steady_force_seam(self) -> FloatArray:
@@ -276,16 +310,16 @@ class ProcessModel:
         st = pt.starts
         # A sample on a phase boundary belongs to the phase it completes (the weld ends at
         # s = length, the plunge at full depth); t = 0 starts the first phase.
-        idx = np.clip(np.searchsorted(st, t, side="left") - 1, 0, 4)
-        # Zero-length phases (no approach, no dwell) must never own a sample.
-        dur = np.array([pt.approach, pt.plunge, pt.dwell, pt.weld, pt.retract])
-        for k in range(5):
+        idx = np.clip(np.searchsorted(st, t, side="left") - 1, 0, 5)
+        # Zero-length phases (no approach, no dwell, no end stop) must never own a sample.
+        dur = pt.durations
+        for k in range(6):
             while True:
                 bad = (idx == k) & (dur[k] <= 0)
                 if not bad.any():
                     break
-                idx[bad] = min(k + 1, 4)
-        phases = np.array(["approach", "plunge", "dwell", "weld", "retract"])
+                idx[bad] = min(k + 1, 5)
+        phases = np.array(["approach", "plunge", "dwell", "weld", "stop", "retract"])
         tau = np.clip(t - st[idx], 0.0, None)
         N = t.shape[0]
         s = np.zeros(N)
@@ -322,12 +356,22 @@ class ProcessModel:
         F[m, 1] = Fl * (1.0 - (1.0 - gl0) * e)
         F[m, 2] = Fd + (fn0 - Fd) * e
         torque[m] = Ms
-        m = idx == 4
+        e_w = np.exp(-length / L)
+        end = np.array([-Fr * (1.0 - e_w), Fl * (1.0 - (1.0 - gl0) * e_w), Fd + (fn0 - Fd) * e_w])
+        if pt.stop > 0:
+            m = idx == 4
+            stand = np.array([0.0, Fl * cl, Fd])
+            u = np.clip(tau[m] / pt.stop, 0.0, 1.0)
+            prog = u * u * u * (10.0 + u * (6.0 * u - 15.0))
+            s[m] = length
+            depth[m] = dp
+            F[m] = end[None] + prog[:, None] * (stand - end)[None]
+            torque[m] = Ms
+            end = stand
+        m = idx == 5
         rho = np.clip(1.0 - self.retract_speed * tau[m] / dp, 0.0, 1.0)
         s[m] = length
         depth[m] = rho * dp
-        e_w = np.exp(-length / L)
-        end = np.array([-Fr * (1.0 - e_w), Fl * (1.0 - (1.0 - gl0) * e_w), Fd + (fn0 - Fd) * e_w])
         F[m] = rho[:, None] * end
         torque[m] = Ms * rho
         return phases[idx], s, depth, F, torque

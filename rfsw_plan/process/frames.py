@@ -69,7 +69,7 @@ class SeamFrames:
 
 
 #: Phase names of the FSW process, in order.
-PHASES = ("approach", "plunge", "dwell", "weld", "retract")
+PHASES = ("approach", "plunge", "dwell", "weld", "stop", "retract")
 
 
 @dataclass(frozen=True)
@@ -77,7 +77,8 @@ class LoadSchedule:
     """The process over time: where the tool is and which wrench acts on it.
 
     One row per time sample. Stationary phases (plunge, dwell) sit at the seam start with
-    ``s = 0``; during ``weld`` the tool moves along the seam at the travel speed.
+    ``s = 0``, the end stop at the seam end; during ``weld`` the tool moves along the seam at
+    the travel speed.
 
     Attributes:
         t: Time [s], shape (N,), non-decreasing.

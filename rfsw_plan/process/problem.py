@@ -22,7 +22,7 @@ Units are in the key names (mm, deg, s, N, N m); SI inside. Layout::
     preset = "seed001_aa6061_5mm"       # optional start values (see presets.py)
     travel_speed_mm_s, plunge_speed_mm_s, plunge_depth_mm, dwell_s, retract_speed_mm_s,
     approach_height_mm, approach_speed_mm_s, rotation_speed_rpm, spindle_runup_s,
-    thickness_mm, material
+    end_stop_s, thickness_mm, material
 
     [process.forces]
     axial_N, lateral_N, traverse_N, lateral_sign (+1 = toward the advancing side),
@@ -93,8 +93,8 @@ SEAM_KEYS = ("points_mm", "csv", "interpolation", "spacing_mm", "tilt_deg", "rot
              "reverse", "surface_normal", "reference", "source")
 PROCESS_KEYS = ("preset", "travel_speed_mm_s", "plunge_speed_mm_s", "plunge_depth_mm",
                 "dwell_s", "retract_speed_mm_s", "approach_height_mm", "approach_speed_mm_s",
-                "rotation_speed_rpm", "spindle_runup_s", "thickness_mm", "material", "name",
-                "source", "forces",
+                "rotation_speed_rpm", "spindle_runup_s", "end_stop_s", "thickness_mm",
+                "material", "name", "source", "forces",
                 "coupling", "axial_control")
 FORCE_KEYS = ("axial_N", "lateral_N", "traverse_N", "lateral_sign", "plunge_peak_axial_N",
               "dwell_lateral_fraction", "dwell_tau_s", "ramp_length_mm", "spindle_torque_Nm",
@@ -368,6 +368,7 @@ PHASE_NUMBERS: dict[str, tuple[str, float, dict[str, float]]] = {
     "approach_speed_mm_s": ("approach_speed", 1e-3, {"ge": 0.01, "le": 1e4}),
     "rotation_speed_rpm": ("rotation_speed_rpm", 1.0, {"ge": 0.0, "le": 1e5}),
     "spindle_runup_s": ("spindle_runup", 1.0, {"ge": 0.0, "le": 600.0}),
+    "end_stop_s": ("end_stop", 1.0, {"ge": 0.0, "le": 600.0}),
     "thickness_mm": ("thickness", 1e-3, {"ge": 0.0, "le": 1e3}),
 }
 

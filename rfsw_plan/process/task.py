@@ -13,7 +13,7 @@ array of lateral and normal offsets with a zero along-track column).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -67,6 +67,11 @@ class PlanTask:
             (``[process.coupling]``, :class:`~rfsw_plan.process.cosim.PenetrationLaw`) under
             position control, 0 without one: the robust claim then spreads the material's
             response, not the axial force (:func:`~rfsw_plan.planning.verify.robust_claim`).
+        stop_time: Times of the end stop from the weld's end [s], (E,), increasing from 0
+            (empty: no end stop): the tool stands at the last weld waypoint, the pin in the
+            plate, while the forces relax (:meth:`~rfsw_plan.process.forces.ProcessModel.profile`).
+        stop_force_seam: The force on the tool at those times in the last waypoint's seam
+            frame (f_t, f_l, f_n) [N], (E, 3) (the first row is the weld's last force).
     """
 
     frames: SeamFrames
@@ -81,6 +86,13 @@ class PlanTask:
     reference: SeamReference = "taught"
     axial_control: str = "position"
     penetration_stiffness: float = 0.0
+    stop_time: FloatArray = field(default_factory=lambda: np.zeros(0))
+    stop_force_seam: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    @property
+    def end_stop(self) -> float:
+        """Length of the end stop [s] (0: none)."""
+        return float(self.stop_time[-1]) if len(self.stop_time) else 0.0
 
     def __len__(self) -> int:
         return int(self.target.shape[0])
@@ -300,6 +312,13 @@ def task_from_schedule(
             idx = np.union1d(idx, plunge[-1:])
     else:
         idx = np.zeros(0, dtype=int)
+    # The end stop: the weld's last sample, then the stop's (at the seam end).
+    stop = np.flatnonzero(schedule.phase == "stop")
+    t_weld_end = float(schedule.t[weld][-1])
+    stop_time = np.concatenate([[0.0], schedule.t[stop] - t_weld_end]) if len(stop) \
+        else np.zeros(0)
+    stop_force = np.vstack([fw[-1:], schedule.force_seam[stop]]) if len(stop) \
+        else np.zeros((0, 3))
     depth_full = float(np.max(schedule.depth)) if len(schedule) else 0.0
     m = len(idx)
     start = SeamFrames(np.zeros(m), *(np.repeat(getattr(frames, a)[:1], m, 0) for a in "ptln"))
@@ -318,6 +337,8 @@ def task_from_schedule(
         travel_speed=v,
         reference=reference,
         axial_control=axial_control,
+        stop_time=stop_time,
+        stop_force_seam=stop_force,
     )
 
 

@@ -32,10 +32,14 @@
   to full depth, Ruckig on the depth, mapped through the planned stationary waypoints by a
   shape-preserving (monotone, Fritsch-Carlson PCHIP) interpolation in depth (the stretch in
   the air, before the first waypoint at the surface, by IK along the tool axis).
+* End stop (``stop``): the tool stands at the seam end while the wrench relaxes to the start
+  standstill's over the task's stop schedule (:attr:`PlanTask.stop_time`), the commanded TCP
+  where the predicted pin stays where the weld left it (:func:`_stop_map`, a fixed point over
+  IK and the deflection model); without an end stop the retract relaxes it.
 * Retract: in the plate, up the tool axis at the process retract speed, the wrench falling
   with the depth still in the plate (the process model's retract force,
-  :meth:`~rfsw_plan.process.forces.ProcessModel.profile`) while it relaxes to the start
-  standstill's (:func:`retract_wrench`: travel has stopped), and the fake-target offsets
+  :meth:`~rfsw_plan.process.forces.ProcessModel.profile`), from the end stop's (without one
+  while it relaxes to the start standstill's, :func:`retract_wrench`), and the fake-target offsets
   following it, so the pin leaves along the tool axis; once the pin is
   at the surface, up to the safe height at the approach speed at zero force.
 * Dwell: the planned stationary waypoints in time, in Cartesian space: the commanded TCP on
@@ -238,6 +242,55 @@ def retract_wrench(x: FloatArray, length: float, wrench_end: FloatArray,
     so as the tool leaves (no step: W(0) = W_end)."""
     rho = np.clip(1.0 - np.asarray(x, dtype=float) / length, 0.0, 1.0)[:, None]
     return np.asarray(rho * (rho * wrench_end[None] + (1.0 - rho) * wrench_stand[None]))
+
+
+def _stop_map(robot: Robot, q_end: FloatArray, task: PlanTask, wrench_end: FloatArray,
+              wrench_stand: FloatArray, deflection: Deflection | None, points: int = 11,
+              rounds: int = 4) -> tuple[CubicSpline, CubicSpline]:
+    """Joint values q(lam) and offsets o(lam) (lateral, normal, along-track) [m] of the end
+    stop, lam in [0, 1] the progress of the wrench from the weld's last ``wrench_end`` to the
+    standstill's ``wrench_stand`` (W = W_end + lam (W_stand - W_end)): the commanded TCP is
+    where the *predicted* pin stays at the weld's last predicted pin while the wrench relaxes
+    (a fixed point over IK and ``deflection``, as the retract's, :func:`_retract_map`), the
+    orientation kept; without ``deflection`` the robot holds its last pose."""
+    fr = task.frames
+    lam = np.linspace(0.0, 1.0, points)
+    x0 = robot.fk(q_end)[:3, 3]
+    Q = np.repeat(q_end[None], points, 0)
+    cmd = np.repeat(x0[None], points, 0)
+    if deflection is not None:
+        W = wrench_end[None] + lam[:, None] * (wrench_stand - wrench_end)[None]
+        goal = x0 + deflection(q_end[None], wrench_end[None])[0]
+        T0 = robot.fk(q_end)
+        for _ in range(rounds):
+            cmd = goal[None] - deflection(Q, W)
+            cmd[0] = x0
+            q = q_end.copy()
+            for i in range(1, points):
+                T = T0.copy()
+                T[:3, 3] = cmd[i]
+                res = solve_ik(robot, T, q, tol_pos=1e-9, tol_rot=1e-9)
+                if not res.converged:
+                    raise InfeasibleError(f"end stop: IK fails {lam[i] * 100:.0f} % of the way "
+                                          "through the force relaxation", constraint="reach")
+                q = res.q
+                Q[i] = q
+    rel = cmd - fr.p[-1][None]
+    O = np.stack([rel @ fr.l[-1], rel @ fr.n[-1], rel @ fr.t[-1]], axis=1)
+    return CubicSpline(lam, Q, axis=0), CubicSpline(lam, O, axis=0)
+
+
+def stop_progress(task: PlanTask, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The end stop's seam-frame force (f_t, f_l, f_n) [N] (N, 3) at times t [s] (N,) from the
+    weld's end (shape-preserving between the task's stop samples, :func:`monotone_interp`:
+    continuous in slope, so the offsets that follow it have no speed steps), and its progress
+    lam (N,) from the weld's last force (0) to the stop's last (1), the projection on the
+    straight line between them (every component relaxes with the same profile)."""
+    F = monotone_interp(task.stop_time, task.stop_force_seam, np.asarray(t, dtype=float))
+    d = task.stop_force_seam[-1] - task.stop_force_seam[0]
+    dd = float(d @ d)
+    lam = ((F - task.stop_force_seam[0]) @ d) / dd if dd > 0 else np.ones(len(t))
+    return F, np.clip(lam, 0.0, 1.0)
 
 
 def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatArray,
@@ -609,36 +662,52 @@ def time_parameterise(
     pieces.append(("weld", t, s, spline(s), o_spline(s), f_spline(s)))
     s_d = s_end + (x_a[-1] - x_a[::-1])  # mirror of the ramp up
     pieces.append(("decelerate", t_a, s_d, spline(s_d), o_spline(s_d), f_spline(s_d)))
+    # End stop: the tool stands at the seam end, the pin in the plate, while the forces relax
+    # to the start standstill's (the task's stop schedule); the offsets follow the force so
+    # that the predicted pin stays where the weld left it.
+    q_end, W_end = q[-1], F[-1]
+    fr = task.frames
+    if task.end_stop > 0:
+        R_end = fr.rotation()[-1]
+        t = np.linspace(0.0, task.end_stop, max(int(np.ceil(task.end_stop / dt)), 1) + 1)
+        f_stop, lam = stop_progress(task, t)
+        W_stop = np.hstack([f_stop @ R_end.T, np.repeat(F[-1:, 3:], len(t), 0)])
+        W_stand = np.concatenate([R_end @ task.stop_force_seam[-1], F[-1, 3:]])
+        smap, somap = _stop_map(robot, q[-1], task, F[-1], W_stand, deflection)
+        pieces.append(("stop", t, np.full_like(t, sw[-1]), smap(lam), somap(lam), W_stop))
+        q_end, W_end = smap(np.array([1.0]))[0], W_stop[-1]
     # Retract: out of the plate up the tool axis at the retract speed, the wrench and the
     # offsets falling with the depth still in the plate (the offsets' commanded displacement
     # o_lat l + o_norm n + o_along t unwinds along the way); then up to the safe height.
     n_end = task.frames.n[-1]
     cos1 = float(np.dot(n_end, nplate[-1]))
-    fr = task.frames
-    o_end = offsets[-1]
+    o_end = pieces[-1][4][-1]
     o_vec = o_end[0] * fr.l[-1] + o_end[1] * fr.n[-1] + o_end[2] * fr.t[-1]
     dplate = max(depth_full / cos1, 1e-6)
     if deflection is not None and depth_full > 0:
         # From where the weld's last predicted pin really is (it may end a few micrometres
         # off the planned depth, inside the depth window): out of the plate exactly when the
         # in-plate retract ends, where the spindle stops.
-        pin_end = robot.fk(q[-1])[:3, 3] + deflection(q[-1][None], F[-1][None])[0]
+        pin_end = robot.fk(q_end)[:3, 3] + deflection(q_end[None], W_end[None])[0]
         below = -float(np.dot(nplate[-1], pin_end - (fr.p[-1] + depth_full * nplate[-1])))
         dplate = max(below / cos1, 1e-6)
     if depth_full > 0:
         # The start standstill's wrench (the weld's first waypoint: the dwell's end) at the
-        # seam's end frame: what the end stop's forces relax to.
+        # seam's end frame: what the forces relax to over the retract without an end stop
+        # (with one they already have).
         F_stand = (np.concatenate([fr.rotation()[-1] @ task.force_seam[m], F[-1, 3:]]) if m
                    else F[-1])
-        rmap, omap = _retract_map(robot, q[-1], task, o_vec, dplate, F[-1], deflection,
+        if task.end_stop > 0:
+            F_stand = W_end
+        rmap, omap = _retract_map(robot, q_end, task, o_vec, dplate, W_end, deflection,
                                   wrench_stand=F_stand)
         t, x, _, _ = profile_1dof(0.0, dplate, 0.0, 0.0, lim.retract_speed, lim.acceleration,
                                   lim.jerk, dt)
         pieces.append(("retract", t, np.full_like(t, sw[-1]), rmap(x), omap(x),
-                       retract_wrench(x, dplate, F[-1], F_stand)))
+                       retract_wrench(x, dplate, W_end, F_stand)))
         q_out = rmap(np.array([dplate]))[0]
     else:
-        q_out = q[-1]
+        q_out = q_end
     rdist = (lim.clearance - height(q_out, len(task) - 1)) / cos1
     cmap = _grid_map(robot, q_out, n_end, rdist)
     t, x, _, _ = profile_1dof(0.0, rdist, 0.0, 0.0, lim.approach_speed, lim.acceleration,

@@ -157,7 +157,8 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
 
 def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
     """The plunge as written: where the pin is when it ends, the TCP depth commanded for it,
-    the spindle run-up; and a problem's commanded plunge that the planner did not use."""
+    the spindle run-up; a problem's commanded plunge that the planner did not use; and the end
+    stop (its length, the forces it relaxed to, the pin's sideways motion)."""
     if "commanded_plunge_mm" not in env:
         return
     from rfsw_plan.process.task import STANDING_DEPTH_TOL
@@ -180,6 +181,16 @@ def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
         print(f"  not used by the planner: [process.coupling] commanded_depth_mm = "
               f"{problem.coupling.commanded_depth * 1e3:g} (the co-simulation's input; the "
               f"plan commands {env['commanded_plunge_mm']:.2f} mm for the planned depth)")
+    if "end_stop_s" in env:
+        from rfsw_plan.process.task import STANDSTILL_MOTION
+
+        f_t, f_l, _ = env["end_stop_force_N"]
+        moved = env["end_stop_pin_motion_mm"]
+        print(f"end stop: {env['end_stop_s']:.2f} s at the seam end, the forces relaxed to "
+              f"{abs(f_t):.0f} N traverse and {abs(f_l):.0f} N lateral before the retract lifts "
+              "the pin" + ("" if moved is None else
+                           f"; the pin moves {moved:.3f} mm sideways (limit "
+                           f"{STANDSTILL_MOTION * 1e3:g} mm)"))
 
 
 def _print_table(result: Any) -> None:
