@@ -5,6 +5,7 @@ weld of the default problem."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,8 +30,10 @@ def zk500_frames(k: int) -> SeamFrames:
     return SeamFrames(s, a + s[:, None] * t[0], t, np.cross(n, t), n)
 
 
-def softer_joint1_weld(root: Path, problem: str = "zk500_table6_seam") -> tuple[Path, Path, Path]:
-    """Plan ``problem`` with its robot's model into ``root/plan``, then weld it (simulated) on a
+def softer_joint1_weld(root: Path, problem: str = "zk500_table6_seam",
+                       plan_folder: Any = None) -> tuple[Path, Path, Path]:
+    """Plan ``problem`` with its robot's model into ``root/plan`` (a copy of the session's plan
+    with the ``plan_folder`` fixture, else ``rfsw-plan plan``), then weld it (simulated) on a
     truth whose joint 1 is 20 % softer; returns (plan folder, forces CSV, track CSV)."""
     from rfsw_plan.cli.main import main
     from rfsw_plan.elastostatics.model import ElastostaticModel
@@ -45,7 +48,10 @@ def softer_joint1_weld(root: Path, problem: str = "zk500_table6_seam") -> tuple[
     c = np.array(truth.joint_compliance.params)
     c[0] /= 0.8
     truth.joint_compliance.params = c
-    assert main(["-q", "plan", problem, "-o", str(root / "plan")]) == 0
+    if plan_folder is not None:
+        plan_folder(problem, root / "plan")
+    else:
+        assert main(["-q", "plan", problem, "-o", str(root / "plan")]) == 0
     planned = PlanFolder.open(root / "plan").rebuild().waypoints
     forces, track = simulate_trial_weld(pb, planned, model, truth).write(root / "weld")
     return root / "plan", forces, track

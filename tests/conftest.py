@@ -1,7 +1,8 @@
 """Shared fixtures: the bundled problems planned once per session, as typed results
-(``planned_result``) and with every export format (``plan_with_programs``: the plans
-``tests/test_export.py`` and ``tests/test_program_checkers.py`` check). Planning is
-deterministic, so one plan per problem stands for every test that only reads it.
+(``planned_result``), as the folder ``rfsw-plan plan`` writes (``plan_folder``) and with every
+export format (``plan_with_programs``: the plans ``tests/test_export.py`` and
+``tests/test_program_checkers.py`` check). Planning is deterministic, so one plan per problem
+stands for every test that only reads it.
 
 ``model`` (the ZK-500 elastostatic model) and ``zk500_case`` (a constant-force task on the
 seed 001 seam with its taught and mirror baselines) are the set-ups of the planner, row,
@@ -24,6 +25,29 @@ PROGRAM_CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "
 _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
 _RESULTS: dict[str, Any] = {}
 
+#: The longest test files first (by the sum of their ``--durations``, measured on the default
+#: run on 2 busy cores, 28 Nov 2026). xdist's ``loadfile`` hands out whole files in collection
+#: order (``--no-loadscope-reorder`` in pyproject: not by their number of tests), so a long
+#: file never starts last and runs alone while the other worker idles. Every other file
+#: follows in its usual order. The order changes no result: each file's tests stay together
+#: and in their order.
+LONGEST_FIRST = (
+    "test_export.py", "test_validate_weld.py", "test_readme_commands.py", "test_examples.py",
+    "test_placement.py", "test_plan_forces.py", "test_progress_cli.py",
+    "test_kill_and_concurrency.py", "test_mission.py", "test_plan_cache.py",
+    "test_robust_claim.py", "test_reader_fuzz.py", "test_weld_envelope.py",
+    "test_plan_property.py", "test_realdata.py", "test_check_edits.py",
+    "test_page3d_chromium.py", "test_validate_cli.py", "test_verdict.py", "test_plan_job.py",
+    "test_samples.py", "test_compare.py", "test_strict_json.py", "test_selection.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Order the files by :data:`LONGEST_FIRST` (a stable sort: the tests of a file keep their
+    order)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
 
 @pytest.fixture(scope="session")
 def plan_store(tmp_path_factory: pytest.TempPathFactory) -> PlanStore:
@@ -43,6 +67,25 @@ def planned_result(plan_store: PlanStore):
         if problem not in _RESULTS:
             _RESULTS[problem] = plan_store.result(("plan", problem), lambda: plan(problem))
         return _RESULTS[problem]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def plan_folder(plan_store: PlanStore):
+    """``plan_folder(problem, folder)`` -> ``folder``, holding what ``rfsw-plan -q plan PROBLEM
+    -o folder`` writes, planned once per session (a plan folder is the same bytes wherever it
+    is written: ``tests/test_plan_cache.py``). ``folder`` must not exist; it is the caller's
+    copy, to read or change. For tests that need a plan folder, not the ``plan`` command."""
+    from rfsw_plan.cli.main import main
+
+    def make(folder: Path, problem: str) -> None:
+        assert main(["-q", "plan", problem, "-o", str(folder / "plan")]) == 0
+
+    def get(problem: str, folder: Path) -> Path:
+        stored = plan_store.folder(("plan -o", problem), lambda f: make(f, problem))
+        shutil.copytree(stored / "plan", folder)
+        return folder
 
     return get
 

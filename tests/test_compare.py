@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from functools import cache
 from pathlib import Path
 
@@ -208,3 +209,28 @@ def test_mae_along_the_normal_matches_the_deviation_command(
                               "--no-sensitivity", "--no-plot", "--strategies", "none"], capsys)
     assert code == 0, err
     assert "MAE_n mm" in out
+
+
+def _files(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_the_same_comparison_writes_the_same_bytes_and_prints_its_times(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    """``compare.json``, ``compare.md`` and the plot hold no wall time (the plan's and the
+    simulations', which differ from run to run): the same comparison run twice into two
+    folders writes the same bytes. The times are printed, on the table's last line."""
+    args = ["--no-sensitivity", "--strategies", "none", "realtime_seed000", "offline"]
+    runs = []
+    for name in ("a", "b"):
+        code, out, err = run_cli(["fanuc_butt_1700mm", "-o", str(tmp_path / name), *args],
+                                 capsys)
+        assert code == 0, err
+        assert re.search(r"^plan \d+\.\d\d s, simulation \d+\.\d{3} s$", out, re.M), out
+        runs.append(_files(tmp_path / name))
+    assert sorted(runs[0]) == ["compare.json", "compare.md", "compare_lateral.png"]
+    assert [n for n in runs[0] if runs[0][n] != runs[1][n]] == []
+    assert b"plan_time_s" not in runs[0]["compare.json"]
+    assert b"sim_time_s" not in runs[0]["compare.json"]
+    assert b"simulation time" not in runs[0]["compare.md"]

@@ -603,14 +603,13 @@ def test_export_stages_outside_the_output_folder(tmp_path: Path, monkeypatch) ->
     assert (out / "rfsw_golden.src").is_file()
 
 
-def test_an_unwritable_temporary_directory_is_one_line(tmp_path: Path, monkeypatch,
+def test_an_unwritable_temporary_directory_is_one_line(tmp_path: Path, monkeypatch, plan_folder,
                                                        capsys: pytest.CaptureFixture[str]) -> None:
     """Programs are staged in the system's temporary directory: when it cannot take them the
     export says so in one line (exit 2) and names TMPDIR, never a traceback."""
     import tempfile
 
-    plan = tmp_path / "plan"
-    assert main(["-q", "plan", "zk500_table6_seam", "-o", str(plan)]) == 0
+    plan = plan_folder("zk500_table6_seam", tmp_path / "plan")
     capsys.readouterr()
     monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "missing" / "tmp"))
     assert main(["-q", "export", str(plan), "--format", "krl", "-o", str(tmp_path / "o")]) == 2

@@ -43,10 +43,9 @@ def csv_rows(path: Path) -> tuple[list[str], list[list[str]]]:
 
 
 @pytest.fixture(scope="module")
-def plan_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("plan3d") / "plan"
-    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
-    return out
+def plan_dir(tmp_path_factory: pytest.TempPathFactory, plan_folder: Any) -> Path:
+    """A copy of the session's ``rfsw-plan plan PROBLEM`` folder."""
+    return plan_folder(PROBLEM, tmp_path_factory.mktemp("plan3d") / "plan")
 
 
 def test_vendored_three_is_the_npm_release_the_readme_names() -> None:

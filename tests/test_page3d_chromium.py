@@ -14,6 +14,7 @@ import csv
 import io
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -49,9 +50,8 @@ def readout(page: Page) -> dict[str, str]:
                           ".map(k => [k, document.getElementById('ro-' + k).textContent]))"))
 
 
-def test_plan_page_in_chromium(tmp_path: Path) -> None:
-    out = tmp_path / "plan"
-    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
+def test_plan_page_in_chromium(tmp_path: Path, plan_folder: Any) -> None:
+    out = plan_folder(PROBLEM, tmp_path / "plan")
     rows = list(csv.DictReader((out / "waypoints.csv").open(newline="")))
     worst = min((float(r["margin_mm"]), k) for k, r in enumerate(rows) if r["margin_mm"])[1]
     with Page(1400, 900) as page:
@@ -161,7 +161,7 @@ def test_validate_report_3d_view_in_chromium(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
+def test_weld_report_3d_view_in_chromium(tmp_path: Path, plan_folder: Any) -> None:
     """The validate-weld report's residual view (a simulated trial weld with a softer joint 1,
     re-identified with --add): no console error, no request, one arrow per track point, and
     the RMS it shows before and after is the one of validate_weld.json's samples."""
@@ -169,7 +169,7 @@ def test_weld_report_3d_view_in_chromium(tmp_path: Path) -> None:
 
     from _helpers import softer_joint1_weld
 
-    _, forces, track = softer_joint1_weld(tmp_path, PROBLEM)
+    _, forces, track = softer_joint1_weld(tmp_path, PROBLEM, plan_folder)
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),
                  "--forces", str(forces), "-o", str(out), "--add", "joint_compliance:j1"]) == 0

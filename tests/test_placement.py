@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import json
 import multiprocessing
+import re
+import shutil
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from rfsw_plan.cli.commands import place as place_cli
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.placement.geometry import Placement, PlacementGrid, place_task, rot_z
 from rfsw_plan.placement.ik import solve_poses
+from rfsw_plan.placement.job import PLACE_FILES, PlaceRun
 from rfsw_plan.placement.map import (
     compute_map,
     evaluate_given,
@@ -25,6 +30,7 @@ from rfsw_plan.placement.optimise import (
     evaluate_candidate,
     move_problem,
     place,
+    results_table,
     sample_errors,
     tolerated_uncertainty,
 )
@@ -248,19 +254,44 @@ def test_optimiser_finds_the_known_best_yaw_on_a_robot_with_a_soft_base_joint():
     assert radial_alignment(res.chosen.placement.as_array()) < 0.1
 
 
-def test_results_do_not_depend_on_the_executor():
-    """In this process and on two spawned worker processes: the same plans, the same choice."""
+def _folder(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def test_results_do_not_depend_on_the_executor(tmp_path, capsys):
+    """In this process and on two spawned worker processes: the same plans, the same choice.
+    Each with its own map, both write the same bytes into the place folder: no wall time in
+    it (the map's and each plan's, printed instead), so the same input writes the same bytes
+    (``place.json`` names its files with the folder, which is the same)."""
     pr = load_problem("fanuc_butt_1700mm")
     opts = options_from_problem(pr, {"rotation_starts": 2})
-    s = map_problem(pr, MapRequest(shape=(4, 4, 2, 1), max_weld=15), opts)
+    region = MapRequest(shape=(4, 4, 2, 1), max_weld=15)
+    s = map_problem(pr, region, opts)
     a = place(pr, s.map, opts, n_candidates=2)
     with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as ex:
-        b = place(pr, s.map, opts, n_candidates=2, executor=ex)
+        s_b = map_problem(pr, region, opts)
+        b = place(pr, s_b.map, opts, n_candidates=2, executor=ex)
     assert a.best == b.best
     for ra, rb in zip(a.results, b.results, strict=True):
         assert ra.label == rb.label and ra.status == rb.status
         assert ra.tolerated_uncertainty == rb.tolerated_uncertainty
         assert ra.min_lateral_stiffness == rb.min_lateral_stiffness
+    files = []
+    out = tmp_path / "place"
+    for session, res in ((s, a), (s_b, b)):
+        # PlaceRequest.run() with these options; the executor's label is an input, kept equal
+        run = PlaceRun(pr, opts, session, res, results_table(res, session.map.anchor), "x")
+        shutil.rmtree(out, ignore_errors=True)
+        out.mkdir()
+        run.write(out)
+        files.append(_folder(out))
+    assert sorted(files[0]) == sorted(["fanuc_butt_1700mm_placed.toml", *PLACE_FILES])
+    assert [n for n in files[0] if files[0][n] != files[1][n]] == []
+    for n in ("place.json", "map.json", "candidates.csv"):
+        assert b"second" not in files[0][n] and b"plan_time_s" not in files[0][n], n
+    place_cli._print(pr.name, run.to_dict(out), run.rows, b, s_b)
+    out = capsys.readouterr().out
+    assert re.search(r"map of \d+ placements in \d+\.\d s; 3 plans in \d+\.\d s", out), out
 
 
 def test_thread_pools_are_refused():

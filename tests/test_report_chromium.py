@@ -13,6 +13,7 @@ import re
 import subprocess
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -112,8 +113,9 @@ def test_validate_report_in_chromium(tmp_path: Path) -> None:
     _assert_renders(out / "report.html", tmp_path, min_images=5)
 
 
-def test_weld_report_in_chromium(tmp_path: Path) -> None:
-    _, forces, track = softer_joint1_weld(tmp_path)  # the real joint 1 is 20 % softer
+def test_weld_report_in_chromium(tmp_path: Path, plan_folder: Any) -> None:
+    # the real joint 1 is 20 % softer
+    _, forces, track = softer_joint1_weld(tmp_path, plan_folder=plan_folder)
     out = tmp_path / "validate_weld"
     assert main(["-q", "validate-weld", str(tmp_path / "plan"), "--track", str(track),
                  "--forces", str(forces), "-o", str(out)]) == 0

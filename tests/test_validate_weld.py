@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import json
 import sys
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -32,15 +31,10 @@ def _strict(text: str) -> object:
     return json.loads(text, parse_constant=bad)
 
 
-@cache
-def first_weld(folder: str) -> tuple[Path, Path, Path]:
-    """Plan with the model; weld on a truth whose joint 1 is 20 % softer."""
-    return softer_joint1_weld(Path(folder), PROBLEM)
-
-
 @pytest.fixture(scope="module")
-def weld(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path, Path]:
-    return first_weld(str(tmp_path_factory.mktemp("weld")))
+def weld(tmp_path_factory: pytest.TempPathFactory, plan_folder: Any) -> tuple[Path, Path, Path]:
+    """The session's plan with the model, welded on a truth whose joint 1 is 20 % softer."""
+    return softer_joint1_weld(tmp_path_factory.mktemp("weld"), PROBLEM, plan_folder)
 
 
 @pytest.mark.parametrize("name,joint,hidden", [

@@ -56,7 +56,8 @@ def map_summary(m: PlacementMap, requested: float, top: int = 5) -> dict[str, An
     ``best_*`` are the figures of the placement ranked first (:meth:`PlacementMap.ranking`,
     the first row of ``top``), so the summary line and the ranked table quote one placement;
     ``highest_tolerated_uncertainty_centred`` is the largest value anywhere on the map (often
-    an outlier at a soft, barely loaded placement), kept apart.
+    an outlier at a soft, barely loaded placement), kept apart. No wall time (the map's
+    ``seconds`` is printed, never written: the same input writes the same bytes).
     """
     g = m.grid
     rank = m.ranking(requested)
@@ -81,8 +82,6 @@ def map_summary(m: PlacementMap, requested: float, top: int = 5) -> dict[str, An
         "highest_tolerated_uncertainty_centred": highest,
         "requested_reached_somewhere": bool(np.any(feas) and highest >= requested),
         "top": [m.row(int(i)) for i in rank[:top]],
-        "seconds": m.seconds,
-        "placements_per_second": m.rate,
         "evaluated_poses": m.evaluated_poses,
     }
 

@@ -40,7 +40,7 @@ from rfsw_plan.process.problem import Problem, load_problem
 CANDIDATE_COLUMNS = (
     "rank", "label", "chosen", "x_mm", "y_mm", "z_mm", "yaw_deg", "dx_mm", "dy_mm",
     "robot_base_height_mm", "status", "tolerated_uncertainty", "max_abs_lateral_mm",
-    "min_lateral_stiffness_N_per_mm", "sample_window_margin_mm", "plan_time_s",
+    "min_lateral_stiffness_N_per_mm", "sample_window_margin_mm",
     "dominant_compliance", "screen_tolerated_uncertainty_centred", "message")
 #: The files of a map folder.
 MAP_FILES = ("map.csv", "map.json", "map.png", "map_yaw.png")
@@ -312,8 +312,6 @@ def _summary(problem: Any, res: Any, rows: list[dict[str, Any]], m: Any, request
         "chosen": chosen,
         "candidates": rows,
         "executor": where,
-        "plans_seconds": res.seconds,
-        "map_seconds": m.seconds,
     }
 
 

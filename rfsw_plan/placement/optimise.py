@@ -116,7 +116,8 @@ class CandidateResult:
             (a depth that limits every placement alike), NaN if not planned.
         max_abs_lateral: Largest |e_lat| of the plan [m].
         min_lateral_stiffness: Smallest lateral stiffness along the weld [N/m].
-        plan_time: Wall time of the planner [s] (machine-dependent; not part of the choice).
+        plan_time: Wall time of the planner [s] (machine-dependent; not part of the choice,
+            printed and not written).
         worst_waypoint: Waypoint that decides the tolerated uncertainty.
         joint_shares: Which joint's compliance makes the worst-case spread there.
         q_start: First planned configuration [rad], (n,).
@@ -152,14 +153,14 @@ class CandidateResult:
         return f"{k} ({self.joint_shares[k] * 100:.0f} %)"
 
     def to_dict(self, anchor: FloatArray | None = None) -> dict[str, Any]:
-        """File units."""
+        """File units; no wall time (``plan_time`` is printed, never written: the same input
+        writes the same bytes)."""
         return {
             "label": self.label, **self.placement.to_dict(anchor), "status": self.status,
             "message": self.message,
             "tolerated_uncertainty": self.tolerated_uncertainty,
             "max_abs_lateral_mm": self.max_abs_lateral * 1e3,
             "min_lateral_stiffness_N_per_mm": self.min_lateral_stiffness * 1e-3,
-            "plan_time_s": self.plan_time,
             "sample_window_margin_mm": self.sample_margin * 1e3,
             "worst_waypoint": self.worst_waypoint,
             "dominant_compliance": self.dominant(),

@@ -257,8 +257,9 @@ class CompareResult:
         main: Main scenario.
         sensitivity: Sensitivity scenarios.
         consistency: Simulator vs. deviation command.
-        plan_time_s: Planner wall time [s] (0 without offline strategies).
-        sim_time_s: Wall time of all simulations [s].
+        plan_time_s: Planner wall time [s] (0 without offline strategies); printed, never
+            written (the files are the same bytes for the same input).
+        sim_time_s: Wall time of all simulations [s]; printed, never written.
         weld_duration_s: Duration of the weld phase [s].
         n_cycles: Controller cycles per weld.
         notes: Things the user should know (skipped strategies, assumptions).
@@ -294,13 +295,14 @@ class CompareResult:
         return files
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary (mm, s)."""
+        """JSON-ready dictionary (mm, s): ``compare.json``. No wall time (``plan_time_s``,
+        ``sim_time_s``: printed by :func:`format_table`), so the same input writes the same
+        bytes."""
 
         def scen(sc: Scenario) -> dict[str, Any]:
             return {
                 "description": sc.description,
                 "strategies": {k: sc.strategy_dict(k) for k in sc.metrics},
-                "sim_time_s": {k: r.sim_time_s for k, r in sc.runs.items()},
             }
 
         out: dict[str, Any] = {
@@ -324,8 +326,6 @@ class CompareResult:
                 "seed002_step_ms": self.options.seed002_step_s * 1e3,
                 "hybrid_average_percent": self.options.hybrid_average_percent,
             },
-            "plan_time_s": self.plan_time_s,
-            "sim_time_s": self.sim_time_s,
             "weld_duration_s": self.weld_duration_s,
             "n_cycles": self.n_cycles,
             "notes": list(self.notes),
@@ -607,7 +607,7 @@ def format_table(result: CompareResult) -> str:
 
 
 def format_markdown(result: CompareResult) -> str:
-    """Markdown report (compare.md); numbers through :mod:`rfsw_plan.numfmt`."""
+    """Markdown report (compare.md); numbers through :mod:`rfsw_plan.numfmt`, no wall time."""
     out = [f"# Compensation comparison: {result.problem}", ""]
     w, o = result.window, result.options
     out.append(
@@ -634,8 +634,6 @@ def format_markdown(result: CompareResult) -> str:
                 f"{fixed(c.simulator_max_abs_lateral * 1e3, 3)} mm vs "
                 f"{fixed(c.deviation_max_abs_lateral * 1e3, 3)} mm "
                 f"({fixed(c.relative_difference * 100, 2)} % apart)."]
-    out += ["", f"Plan time {fixed(result.plan_time_s, 2)} s; simulation time "
-            f"{fixed(result.sim_time_s, 3)} s for all scenarios."]
     out += [f"- {n}" for n in result.notes]
     return "\n".join(out) + "\n"
 
