@@ -49,6 +49,8 @@ from rfsw_plan.exceptions import IdentificationError, InputError
 #: Relative Gauss-Newton step tolerance of the fits scored here (the held-out RMS does not
 #: change in its 10th digit below it; identify's default 1e-10 costs ~40 % more iterations).
 FIT_TOL = 1e-7
+#: Gauss-Newton steps of each phase of a fit, at most (identify's default).
+FIT_ITER = 30
 #: Default number of folds.
 DEFAULT_FOLDS = 5
 
@@ -231,6 +233,7 @@ def cross_validate(
     data: MeasurementSet,
     folds: NDArray[np.int_],
     batch: PoseBatch | None = None,
+    max_iter: int = FIT_ITER,
 ) -> CrossValidation:
     """Identify all effects of ``model`` and score them on held-out folds (see module doc).
 
@@ -244,6 +247,9 @@ def cross_validate(
         data: The samples.
         folds: Fold index of every sample, shape (m,).
         batch: Kinematics of ``data.q`` if already computed.
+        max_iter: Gauss-Newton steps (linearisations) of each phase of the fit of a model
+            nonlinear in its parameters
+            (:func:`~rfsw_plan.elastostatics.identification_blocks.identify_blocks`).
 
     Raises:
         IdentificationError: Too few samples for the parameters (says how many are needed).
@@ -265,7 +271,7 @@ def cross_validate(
     if data.rotation is not None:
         return _cross_validate_stacked(model, data, folds, batch, min_train)
     try:
-        bf = identify_blocks(model, data, batch, folds, tol=FIT_TOL)
+        bf = identify_blocks(model, data, batch, folds, max_iter=max_iter, tol=FIT_TOL)
     finally:
         forget_block_caches(batch)
     fit = bf.result

@@ -47,6 +47,7 @@ from rfsw_plan.progress import progress
 from rfsw_plan.validation.engine.candidates import candidate_form, candidate_labels
 from rfsw_plan.validation.engine.crossval import (
     DEFAULT_FOLDS,
+    FIT_ITER,
     FIT_TOL,
     CrossValidation,
     cross_validate,
@@ -134,14 +135,14 @@ def _skip(label: str, note: str) -> Skipped:
 
 
 def _fitted(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_],
-            label: str, batch: PoseBatch, F_true: FloatArray
+            label: str, batch: PoseBatch, F_true: FloatArray, max_iter: int = FIT_ITER
             ) -> tuple[CrossValidation | None, Skipped | None]:
     """Cross-validation of ``model`` with ``label`` added, or None and why it was not fitted."""
     reason = make_effect(model.robot, label).identifiable(batch, F_true)
     if reason:
         return None, _skip(label, reason)
     try:
-        cv = cross_validate(model.with_effect(label), data, folds, batch)
+        cv = cross_validate(model.with_effect(label), data, folds, batch, max_iter)
     except IdentificationError as exc:
         return None, Skipped(label, str(exc))
     est = [e for e in cv.fit.estimates if e.effect == label]
@@ -175,6 +176,7 @@ def evaluate_candidates(
     labels: Sequence[str],
     batch: PoseBatch,
     noise: NoiseFloor | None = None,
+    max_iter: int = FIT_ITER,
 ) -> tuple[list[tuple[Candidate, CrossValidation]], list[Skipped]]:
     """Add each effect in ``labels`` to ``model``, cross-validate, and score against ``base``.
 
@@ -182,13 +184,15 @@ def evaluate_candidates(
     reason, that no data can fit, or none of whose parameters the data identifies are returned
     as :class:`Skipped` with the reason. The scored candidates come ranked
     (:func:`~rfsw_plan.validation.engine.scoring.rank`, ties against the noise floor ``noise``).
+    ``max_iter``: Gauss-Newton steps of each phase of a candidate's fit (from ``model``'s
+    parameters, the current fit).
     """
     F_true = model.true_wrench(batch, data.wrench)
     done: list[tuple[str, CrossValidation]] = []
     skipped: list[Skipped] = []
     for label in progress(labels, desc="diagnosis: candidates", total=len(labels),
                           unit="candidate"):
-        cv, why = _fitted(model, data, folds, label, batch, F_true)
+        cv, why = _fitted(model, data, folds, label, batch, F_true, max_iter)
         if cv is None:
             assert why is not None
             skipped.append(why)
@@ -415,6 +419,7 @@ def forward_select(
     *,
     first: tuple[list[tuple[Candidate, CrossValidation]], list[Skipped]] | None = None,
     max_steps: int = MAX_CHAIN,
+    max_iter: int = FIT_ITER,
 ) -> Selection:
     """Forward selection of effects under held-out cross-validation (folds by pose group).
 
@@ -439,6 +444,8 @@ def forward_select(
         batch: Kinematics of ``data.q``.
         first: The first step's :func:`evaluate_candidates` on ``model``, if already done.
         max_steps: At most this many effects.
+        max_iter: Gauss-Newton steps of each phase of every fit of a model nonlinear in its
+            parameters (each candidate's starts from the current model's fit).
     """
     at_noise, _ = _at_noise(base, noise, feats)
     mse0 = base.sse / max(base.n_obs, 1)
@@ -448,12 +455,15 @@ def forward_select(
     if at_noise and within_ratio(base.heldout_rms, noise):
         return Selection((), True, "the starting model is at the noise floor", (), model, base)
     stop = f"{max_steps} effects added (the most the selection adds)"
+    rounds: dict[tuple[str, ...], list[tuple[Candidate, CrossValidation]]] = {}
     while len(steps) < max_steps:
         if first is not None and not steps:
             scored, skipped = first
         else:
             scored, skipped = evaluate_candidates(current, data, fold, cv,
-                                                  candidate_labels(current), batch, noise)
+                                                  candidate_labels(current), batch, noise,
+                                                  max_iter)
+        rounds[tuple(s.label for s in steps)] = scored
         ranked = [x for x, _ in scored]
         c = named(ranked)
         if c is None:
@@ -473,11 +483,13 @@ def forward_select(
                     else "no feature test of the held-out residual is significant")
             break
     if len(steps) >= 2:
-        swapped = _simpler(model, data, fold, noise, feats, batch, steps, cv, at_noise)
+        swapped = _simpler(model, data, fold, noise, feats, batch, steps, cv, at_noise,
+                           max_iter, rounds)
         if swapped is not None:
             swaps = [f"{a.label} replaced by the simpler {b}, as good with the others in"
                      for a, b in zip(steps, swapped, strict=True) if a.label != b]
-            steps, current, cv = _path(model, data, fold, base, batch, swapped, steps)
+            steps, current, cv = _path(model, data, fold, base, batch, swapped, steps,
+                                       max_iter)
             at_noise, _ = _at_noise(cv, noise, feats)
             stop += "; " + "; ".join(swaps)
     return Selection(tuple(steps), at_noise, stop, tuple(skipped), current, cv)
@@ -492,7 +504,8 @@ def _n_params(model: ElastostaticModel, label: str) -> int:
 def _simpler(
     model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_], noise: NoiseFloor,
     feats: dict[str, Any], batch: PoseBatch, steps: Sequence[ChainStep],
-    final: CrossValidation, at_noise: bool,
+    final: CrossValidation, at_noise: bool, max_iter: int = FIT_ITER,
+    rounds: dict[tuple[str, ...], list[tuple[Candidate, CrossValidation]]] | None = None,
 ) -> list[str] | None:
     """The selection's check of each step once the others are in: with every other selected
     effect in the model, all candidates are scored again; if the one named is simpler (fewer
@@ -500,22 +513,27 @@ def _simpler(
     selection reached it, else no larger held-out error), it replaces the step's. An effect
     that a forward step took because it also soaked up a later effect (full link errors for
     joint offsets plus a play) is so replaced by the simpler one. Returns the new labels in
-    step order, or None if none changes."""
+    step order, or None if none changes. ``rounds``: the forward steps' scored candidates by
+    the labels of the model they were added to; a check whose other effects are such a model
+    (the last step's: the steps before it) takes them instead of scoring them again."""
     labels = [s.label for s in steps]
     changed = False
     for i, own in enumerate(list(labels)):
         if _n_params(model, own) <= 1:
             continue  # a candidate scored has at least one parameter: none is simpler
-        m = model
-        for lab in labels[:i] + labels[i + 1:]:
-            m = m.with_effect(lab)
-        try:
-            cv_o = cross_validate(m, data, fold, batch)
-        except IdentificationError:
-            continue
-        start = cv_o.fit.model
-        scored, _ = evaluate_candidates(start, data, fold, cv_o, candidate_labels(start),
-                                        batch, noise)
+        others = labels[:i] + labels[i + 1:]
+        scored = (rounds or {}).get(tuple(others))
+        if scored is None:
+            m = model
+            for lab in others:
+                m = m.with_effect(lab)
+            try:
+                cv_o = cross_validate(m, data, fold, batch)
+            except IdentificationError:
+                continue
+            start = cv_o.fit.model
+            scored, _ = evaluate_candidates(start, data, fold, cv_o, candidate_labels(start),
+                                            batch, noise, max_iter)
         c = named([x for x, _ in scored])
         if c is None or c.label == own or c.n_params >= _n_params(model, own):
             continue
@@ -531,7 +549,7 @@ def _simpler(
 def _path(
     model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_],
     base: CrossValidation, batch: PoseBatch, labels: Sequence[str],
-    old: Sequence[ChainStep],
+    old: Sequence[ChainStep], max_iter: int = FIT_ITER,
 ) -> tuple[list[ChainStep], ElastostaticModel, CrossValidation]:
     """The steps of adding ``labels`` in order from ``model``, each scored against the one
     before it (the held-out F test of :func:`~rfsw_plan.validation.engine.scoring.improvement`)."""
@@ -539,7 +557,7 @@ def _path(
     cv = base
     steps: list[ChainStep] = []
     for lab, prev in zip(labels, old, strict=True):
-        nxt = cross_validate(cv.fit.model.with_effect(lab), data, fold, batch)
+        nxt = cross_validate(cv.fit.model.with_effect(lab), data, fold, batch, max_iter)
         _, p, _ = improvement(cv.sse, nxt.sse, _n_params(model, lab),
                               max(nxt.n_obs - nxt.n_free, 1), max(prev.tested, 1))
         steps.append(ChainStep(
