@@ -301,7 +301,7 @@ def identify_blocks(
     R0 = ff_lin.total
     rms_before = float(np.sqrt(np.sum(R0[:, P] ** 2) / n_obs))
     theta_lin = prior.copy()
-    if start is not None and not linear:
+    if start is not None and not linear and not np.array_equal(start, prior):
         theta_lin = np.array(start, dtype=float)
         set_theta(effects, theta_lin)
         ff_lin = fold_factors(work, effects, data, batch, folds, k)

@@ -74,8 +74,9 @@ HELDOUT_FOLDS = 10
 #: the fit of all samples (the fold changes it by little: the linearisation there is exact to
 #: first order in the change; a second step takes up the rest).
 HELDOUT_STEPS = 2
-#: Gauss-Newton steps of each phase of a candidate's fit in the selection, from the current
-#: model's fit with the candidate at its prior (a linear model needs one).
+#: Gauss-Newton steps of a candidate's fit in the selection, from the current model's fit with
+#: the candidate at its prior (a linear model needs one); the chosen form is then fitted to
+#: convergence.
 SELECTION_STEPS = 3
 #: At most this many alternations of per-file registration and model fit (several files),
 #: stopped when no registration moves by more than FRAME_TOL_M.
@@ -510,7 +511,7 @@ def choose_effects(model: ElastostaticModel, data: MeasurementSet, setup: Device
     feats = residual_features(d, batch.T[:, :3, 3], tau)
     sel = _single_thread(forward_select)(cv.fit.model, d, fold, cv, noise, feats, batch,
                                          max_steps=request.max_effects,
-                                         max_iter=SELECTION_STEPS)
+                                         fit_steps=SELECTION_STEPS)
     if sel.steps:
         # The selection's fits take SELECTION_STEPS Gauss-Newton steps from the model before
         # them; the chosen form is fitted to convergence from its own.
