@@ -175,6 +175,15 @@ def _processes(data: MeasurementSet, n_labels: int) -> int:
     return max(1, min(CANDIDATE_PROCESSES, cores))
 
 
+def _worker_signals() -> None:
+    """A worker leaves Ctrl-C to the calling process (which stops the pool) and dies quietly
+    on SIGTERM (the CLI's own handler, inherited through fork, would print a traceback)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _fit_chunk(labels: Sequence[str]) -> list[_Fitted]:
     """Worker: fit ``labels`` on the job inherited from the parent; picklable results."""
     from rfsw_plan.progress import set_enabled
@@ -213,13 +222,15 @@ def _fit_all(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.i
         _JOB.update(model=model, data=data, folds=folds, batch=batch, F_true=F_true,
                     fit_steps=fit_steps)
         try:
-            with multiprocessing.get_context("fork").Pool(n - 1) as pool:
+            with multiprocessing.get_context("fork").Pool(n - 1, _worker_signals) as pool:
                 pending = [pool.apply_async(_fit_chunk, (c,)) for c in chunks[1:]]
                 mine = []
                 for label in chunks[0]:
                     mine.append(_fitted(model, data, folds, label, batch, F_true, fit_steps))
                     bar.update()
                 theirs = [p.get() for p in pending]
+                pool.close()
+                pool.join()
         finally:
             _JOB.clear()
         bar.update(len(labels) - len(chunks[0]))
