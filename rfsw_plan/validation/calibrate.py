@@ -582,9 +582,12 @@ def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray
     """Marker errors of every sample when its fold is left out of the fit (the registration
     and every effect of ``form`` refitted on the other folds), shape (m, k, 3) [m].
 
-    ``start``: the fit of all samples, where each fold's Gauss-Newton starts (a model
-    nonlinear in its parameters converges in a few passes from there instead of tens from the
-    prior; the priors stay ``form``'s, and a linear model does not depend on it)."""
+    ``start``: the fit of all samples. A model nonlinear in its parameters then takes
+    :data:`HELDOUT_STEPS` Gauss-Newton steps from it on each fold's training samples, its
+    decisions (what is identifiable, positive, plausible) taken again there (a linearisation
+    at the fit of all samples, exact to first order in what one fold changes); the priors stay
+    ``form``'s, and a linear model does not depend on it. Without it each fold's fit
+    converges from the priors."""
     from rfsw_plan.files import check_interrupt
     from rfsw_plan.progress import progress
 
@@ -599,7 +602,8 @@ def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray
         rows, batch = marker_rows(form, train, form.batch_of(train))
         fit = _single_thread(identify_blocks)(form, rows, batch,
                                               np.zeros(len(rows), dtype=np.int_),
-                                              max_iter=HELDOUT_STEPS, start=theta0).result
+                                              max_iter=30 if theta0 is None else HELDOUT_STEPS,
+                                              start=theta0).result
         out[test] = marker_errors(fit.model, train, data.subset(test))
     return out
 
