@@ -291,7 +291,7 @@ def test_fanuc_leave_one_pose_out_beats_the_published_in_sample_figure(
 def test_fanuc_default_selection_through_forward_select(
         capsys: pytest.CaptureFixture[str]) -> None:
     """The documented command (the workbench's forward selection after the geometry, about
-    280 s of CPU): still within 0.35 mm held out, and the geometry comes first."""
+    16 s of CPU): still within 0.35 mm held out, and the geometry comes first."""
     j = _fanuc(capsys)
     effects = j["effects"]
     assert isinstance(effects, list) and effects[:2] == ["kinematic_offsets", "link_errors"]

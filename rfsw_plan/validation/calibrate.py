@@ -70,6 +70,14 @@ SELECTION_FOLDS = 5
 #: :data:`HELDOUT_FOLDS` folds by pose group.
 MAX_LOGO_GROUPS = 60
 HELDOUT_FOLDS = 10
+#: Gauss-Newton steps of a held-out fold's refit of a model nonlinear in its parameters, from
+#: the fit of all samples (the fold changes it by little: the linearisation there is exact to
+#: first order in the change; a second step takes up the rest).
+HELDOUT_STEPS = 2
+#: Gauss-Newton steps of a candidate's fit in the selection, from the current model's fit with
+#: the candidate at its prior (a linear model needs one); the chosen form is then fitted to
+#: convergence.
+SELECTION_STEPS = 3
 #: At most this many alternations of per-file registration and model fit (several files),
 #: stopped when no registration moves by more than FRAME_TOL_M.
 REGISTRATION_ROUNDS = 40
@@ -502,9 +510,13 @@ def choose_effects(model: ElastostaticModel, data: MeasurementSet, setup: Device
     tau = np.einsum("mak,ma->mk", batch.J, d.wrench)
     feats = residual_features(d, batch.T[:, :3, 3], tau)
     sel = _single_thread(forward_select)(cv.fit.model, d, fold, cv, noise, feats, batch,
-                                         max_steps=request.max_effects)
+                                         max_steps=request.max_effects,
+                                         fit_steps=SELECTION_STEPS)
     if sel.steps:
-        cv = sel.cv
+        # The selection's fits take SELECTION_STEPS Gauss-Newton steps from the model before
+        # them; the chosen form is fitted to convergence from its own.
+        linear = all(e.pose_linear_in_params() for e in sel.model.effects)
+        cv = sel.cv if linear else _single_thread(cross_validate)(sel.model, d, fold, batch)
         for s in sel.steps:
             added.append(s.label)
             steps.append(SelectionStep(s.label, s.rms_after, None))
@@ -556,13 +568,30 @@ def _heldout_folds(groups: NDArray[np.int_], request: CalibrationRequest
     return fold_of_group[groups], f"{k}-fold by pose group"
 
 
-def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_]
-                   ) -> FloatArray:
+def _start(form: ElastostaticModel, fit: IdentificationResult | None) -> FloatArray | None:
+    """The parameters of ``fit`` in the order of ``form``'s (None if it lacks one)."""
+    if fit is None:
+        return None
+    got = {(e.effect, e.name): e.value for e in fit.estimates}
+    names = [(e.label, n) for e in form.effects for n in e.param_names()]
+    return np.array([got[n] for n in names]) if all(n in got for n in names) else None
+
+
+def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_],
+                   start: IdentificationResult | None = None) -> FloatArray:
     """Marker errors of every sample when its fold is left out of the fit (the registration
-    and every effect of ``form`` refitted on the other folds), shape (m, k, 3) [m]."""
+    and every effect of ``form`` refitted on the other folds), shape (m, k, 3) [m].
+
+    ``start``: the fit of all samples. A model nonlinear in its parameters then takes
+    :data:`HELDOUT_STEPS` Gauss-Newton steps from it on each fold's training samples, its
+    decisions (what is identifiable, positive, plausible) taken again there (a linearisation
+    at the fit of all samples, exact to first order in what one fold changes); the priors stay
+    ``form``'s, and a linear model does not depend on it. Without it each fold's fit
+    converges from the priors."""
     from rfsw_plan.files import check_interrupt
     from rfsw_plan.progress import progress
 
+    theta0 = _start(form, start)
     k_markers = 1 if data.markers is None else data.markers.shape[1]
     out = np.full((len(data), k_markers, 3), np.nan)
     names = np.unique(folds)
@@ -572,7 +601,9 @@ def heldout_errors(form: ElastostaticModel, data: MeasurementSet, folds: NDArray
         train = data.subset(~test)
         rows, batch = marker_rows(form, train, form.batch_of(train))
         fit = _single_thread(identify_blocks)(form, rows, batch,
-                                              np.zeros(len(rows), dtype=np.int_)).result
+                                              np.zeros(len(rows), dtype=np.int_),
+                                              max_iter=30 if theta0 is None else HELDOUT_STEPS,
+                                              start=theta0).result
         out[test] = marker_errors(fit.model, train, data.subset(test))
     return out
 
@@ -674,7 +705,7 @@ def run(request: CalibrationRequest) -> CalibrationResult:
     form = _form(model, chosen, setup)
     groups = pose_groups(data.q)
     folds, scheme = _heldout_folds(groups, request)
-    err = heldout_errors(form, data, folds)
+    err = heldout_errors(form, data, folds, res.identification)
     measured = data.position[:, None, :] if data.markers is None else data.markers
     fit_err = marker_errors(res.identification.model, data, data)
     params, missing = _parameters(res)

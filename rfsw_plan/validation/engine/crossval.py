@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +49,8 @@ from rfsw_plan.exceptions import IdentificationError, InputError
 #: Relative Gauss-Newton step tolerance of the fits scored here (the held-out RMS does not
 #: change in its 10th digit below it; identify's default 1e-10 costs ~40 % more iterations).
 FIT_TOL = 1e-7
+#: Gauss-Newton steps of each phase of a fit, at most (identify's default).
+FIT_ITER = 30
 #: Default number of folds.
 DEFAULT_FOLDS = 5
 
@@ -189,6 +191,10 @@ class CrossValidation:
     n_free: int
     residual_of: Callable[[], FloatArray] = field(repr=False, compare=False)
     _cache: dict[str, FloatArray] = field(default_factory=dict, repr=False, compare=False)
+    #: Identified columns and per-fold steps of a fit in blocks (what :func:`attach` needs to
+    #: evaluate the held-out residual again); None for a stacked fit (residual computed).
+    cols: NDArray[np.int_] | None = field(default=None, repr=False, compare=False)
+    steps: FloatArray | None = field(default=None, repr=False, compare=False)
 
     @property
     def heldout_residual(self) -> FloatArray:
@@ -231,6 +237,7 @@ def cross_validate(
     data: MeasurementSet,
     folds: NDArray[np.int_],
     batch: PoseBatch | None = None,
+    steps: int | None = None,
 ) -> CrossValidation:
     """Identify all effects of ``model`` and score them on held-out folds (see module doc).
 
@@ -244,6 +251,13 @@ def cross_validate(
         data: The samples.
         folds: Fold index of every sample, shape (m,).
         batch: Kinematics of ``data.q`` if already computed.
+        steps: None: the fit converges from the model's parameters (its priors). A number:
+            those parameters are a fit (the current model's in a forward selection, the
+            candidate at its prior), and a model nonlinear in its parameters takes that many
+            Gauss-Newton steps from them, its decisions (positive compliances, plausible
+            values) from the first
+            (:func:`~rfsw_plan.elastostatics.identification_blocks.identify_blocks`'s
+            ``start``).
 
     Raises:
         IdentificationError: Too few samples for the parameters (says how many are needed).
@@ -265,25 +279,16 @@ def cross_validate(
     if data.rotation is not None:
         return _cross_validate_stacked(model, data, folds, batch, min_train)
     try:
-        bf = identify_blocks(model, data, batch, folds, tol=FIT_TOL)
+        start = None if steps is None else np.concatenate([e.params for e in model.effects])
+        bf = identify_blocks(model, data, batch, folds, tol=FIT_TOL, start=start,
+                             max_iter=FIT_ITER if steps is None else steps)
     finally:
         forget_block_caches(batch)
     fit = bf.result
     idx = np.flatnonzero([e.identified for e in fit.estimates])
     _check_trainable(data, fit, idx.size, min_train, k)
-    steps, sse = heldout_steps(bf.factors, idx)
+    fold_steps, sse = heldout_steps(bf.factors, idx)
     n_obs = int(mask.sum())
-
-    def residual_of() -> FloatArray:
-        full = np.full(mask.shape, np.nan)
-        try:
-            for s, held in heldout_blocks(fit.model, data, batch, folds, idx, steps):
-                view = full[s]
-                view[mask[s]] = held
-        finally:
-            forget_block_caches(batch)
-        return full
-
     return CrossValidation(
         labels=tuple(fit.model.labels),
         fit=fit,
@@ -291,8 +296,49 @@ def cross_validate(
         sse=sse,
         n_obs=n_obs,
         n_free=int(idx.size),
-        residual_of=residual_of,
+        residual_of=_block_residual(fit.model, data, batch, folds, idx, fold_steps),
+        cols=idx,
+        steps=fold_steps,
     )
+
+
+def _block_residual(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch,
+                    folds: NDArray[np.int_], idx: NDArray[np.int_], steps: FloatArray
+                    ) -> Callable[[], FloatArray]:
+    """The held-out residual of a fit in blocks, evaluated when called [m], shape (m, 3)."""
+    mask = data.measured
+
+    def residual_of() -> FloatArray:
+        full = np.full(mask.shape, np.nan)
+        try:
+            for s, held in heldout_blocks(model, data, batch, folds, idx, steps):
+                view = full[s]
+                view[mask[s]] = held
+        finally:
+            forget_block_caches(batch)
+        return full
+
+    return residual_of
+
+
+def _detached() -> FloatArray:
+    raise RuntimeError("a detached cross-validation needs attach() before its residual")
+
+
+def detach(cv: CrossValidation) -> CrossValidation:
+    """``cv`` without its lazily evaluated residual, so that it pickles (a worker process
+    sends it back; :func:`attach` gives the residual back where the data is)."""
+    return replace(cv, residual_of=_detached, _cache=dict(cv._cache))
+
+
+def attach(cv: CrossValidation, data: MeasurementSet, batch: PoseBatch,
+           folds: NDArray[np.int_]) -> CrossValidation:
+    """A :func:`detach`-ed cross-validation of ``data`` (``batch``, ``folds``) with its
+    held-out residual evaluable again."""
+    if "r" in cv._cache or cv.cols is None or cv.steps is None:
+        return cv
+    return replace(cv, residual_of=_block_residual(cv.fit.model, data, batch, folds, cv.cols,
+                                                   cv.steps), _cache={})
 
 
 def _check_trainable(
@@ -335,5 +381,6 @@ def _cross_validate_stacked(
         sse=sse,
         n_obs=int(held.size),
         n_free=n_free,
-        residual_of=lambda: full,
+        residual_of=_detached,
+        _cache={"r": full},
     )

@@ -43,7 +43,7 @@ from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
 from rfsw_plan.elastostatics.measurement_set import MeasurementSet
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import IdentificationError
-from rfsw_plan.progress import progress
+from rfsw_plan.progress import Bar
 from rfsw_plan.validation.engine.candidates import candidate_form, candidate_labels
 from rfsw_plan.validation.engine.crossval import (
     DEFAULT_FOLDS,
@@ -134,14 +134,14 @@ def _skip(label: str, note: str) -> Skipped:
 
 
 def _fitted(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_],
-            label: str, batch: PoseBatch, F_true: FloatArray
+            label: str, batch: PoseBatch, F_true: FloatArray, fit_steps: int | None = None
             ) -> tuple[CrossValidation | None, Skipped | None]:
     """Cross-validation of ``model`` with ``label`` added, or None and why it was not fitted."""
     reason = make_effect(model.robot, label).identifiable(batch, F_true)
     if reason:
         return None, _skip(label, reason)
     try:
-        cv = cross_validate(model.with_effect(label), data, folds, batch)
+        cv = cross_validate(model.with_effect(label), data, folds, batch, fit_steps)
     except IdentificationError as exc:
         return None, Skipped(label, str(exc))
     est = [e for e in cv.fit.estimates if e.effect == label]
@@ -149,6 +149,96 @@ def _fitted(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.in
         return None, _skip(label, next((e.note for e in est if e.note),
                                        "no parameter identified"))
     return cv, None
+
+
+#: Processes that fit the candidates of one round (the calling process is one of them) ...
+CANDIDATE_PROCESSES = 2
+#: ... when the data has at least this many measured values (below, a round takes well under a
+#: second and a second process costs more than it saves).
+PARALLEL_MIN_OBS = 1500
+
+_Fitted = tuple[CrossValidation | None, Skipped | None]
+#: What a forked worker of :func:`_fit_all` fits (inherited through fork, never pickled).
+_JOB: dict[str, Any] = {}
+
+
+def _processes(data: MeasurementSet, n_labels: int) -> int:
+    """Processes for a round of ``n_labels`` candidates on ``data``: CANDIDATE_PROCESSES on a
+    POSIX machine with as many cores (fork), else 1."""
+    import multiprocessing
+    import os
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    if ("fork" not in multiprocessing.get_all_start_methods() or n_labels < 4
+            or int(data.measured.sum()) < PARALLEL_MIN_OBS):
+        return 1
+    return max(1, min(CANDIDATE_PROCESSES, cores))
+
+
+def _worker_signals() -> None:
+    """A worker leaves Ctrl-C to the calling process (which stops the pool) and dies quietly
+    on SIGTERM (the CLI's own handler, inherited through fork, would print a traceback)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _fit_chunk(labels: Sequence[str]) -> list[_Fitted]:
+    """Worker: fit ``labels`` on the job inherited from the parent; picklable results."""
+    from rfsw_plan.progress import set_enabled
+    from rfsw_plan.validation.engine.crossval import detach
+
+    set_enabled(False)
+    model, data, folds, batch, F_true, fit_steps = (
+        _JOB[k] for k in ("model", "data", "folds", "batch", "F_true", "fit_steps"))
+    out: list[_Fitted] = []
+    for label in labels:
+        cv, why = _fitted(model, data, folds, label, batch, F_true, fit_steps)
+        out.append((None if cv is None else detach(cv), why))
+    return out
+
+
+def _fit_all(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_],
+             labels: Sequence[str], batch: PoseBatch, F_true: FloatArray, fit_steps: int | None
+             ) -> list[_Fitted]:
+    """:func:`_fitted` of every label, in order. With :func:`_processes` > 1 the labels are
+    dealt out (every n-th) to forked processes that inherit the data; each candidate's fit is
+    the same computation wherever it runs, so the results do not depend on the split."""
+
+    n = _processes(data, len(labels))
+    with Bar(len(labels), "diagnosis: candidates", "candidate") as bar:
+        if n == 1:
+            out = []
+            for label in labels:
+                out.append(_fitted(model, data, folds, label, batch, F_true, fit_steps))
+                bar.update()
+            return out
+        import multiprocessing
+
+        from rfsw_plan.validation.engine.crossval import attach
+
+        chunks = [list(labels[i::n]) for i in range(n)]
+        _JOB.update(model=model, data=data, folds=folds, batch=batch, F_true=F_true,
+                    fit_steps=fit_steps)
+        try:
+            with multiprocessing.get_context("fork").Pool(n - 1, _worker_signals) as pool:
+                pending = [pool.apply_async(_fit_chunk, (c,)) for c in chunks[1:]]
+                mine = []
+                for label in chunks[0]:
+                    mine.append(_fitted(model, data, folds, label, batch, F_true, fit_steps))
+                    bar.update()
+                theirs = [p.get() for p in pending]
+                pool.close()
+                pool.join()
+        finally:
+            _JOB.clear()
+        bar.update(len(labels) - len(chunks[0]))
+    got = dict(zip(chunks[0], mine, strict=True))
+    for c, res in zip(chunks[1:], theirs, strict=True):
+        for label, (cv, why) in zip(c, res, strict=True):
+            got[label] = (None if cv is None else attach(cv, data, batch, folds), why)
+    return [got[label] for label in labels]
 
 
 def _score(model: ElastostaticModel, label: str, before: CrossValidation,
@@ -175,6 +265,7 @@ def evaluate_candidates(
     labels: Sequence[str],
     batch: PoseBatch,
     noise: NoiseFloor | None = None,
+    fit_steps: int | None = None,
 ) -> tuple[list[tuple[Candidate, CrossValidation]], list[Skipped]]:
     """Add each effect in ``labels`` to ``model``, cross-validate, and score against ``base``.
 
@@ -182,13 +273,15 @@ def evaluate_candidates(
     reason, that no data can fit, or none of whose parameters the data identifies are returned
     as :class:`Skipped` with the reason. The scored candidates come ranked
     (:func:`~rfsw_plan.validation.engine.scoring.rank`, ties against the noise floor ``noise``).
+    ``fit_steps``: None: every candidate's fit converges; a number: ``model``'s parameters
+    are a fit, and a candidate's fit takes that many Gauss-Newton steps from them
+    (:func:`~rfsw_plan.validation.engine.crossval.cross_validate`'s ``steps``).
     """
     F_true = model.true_wrench(batch, data.wrench)
     done: list[tuple[str, CrossValidation]] = []
     skipped: list[Skipped] = []
-    for label in progress(labels, desc="diagnosis: candidates", total=len(labels),
-                          unit="candidate"):
-        cv, why = _fitted(model, data, folds, label, batch, F_true)
+    for label, (cv, why) in zip(labels, _fit_all(model, data, folds, labels, batch, F_true,
+                                                 fit_steps), strict=True):
         if cv is None:
             assert why is not None
             skipped.append(why)
@@ -415,6 +508,7 @@ def forward_select(
     *,
     first: tuple[list[tuple[Candidate, CrossValidation]], list[Skipped]] | None = None,
     max_steps: int = MAX_CHAIN,
+    fit_steps: int | None = None,
 ) -> Selection:
     """Forward selection of effects under held-out cross-validation (folds by pose group).
 
@@ -439,6 +533,9 @@ def forward_select(
         batch: Kinematics of ``data.q``.
         first: The first step's :func:`evaluate_candidates` on ``model``, if already done.
         max_steps: At most this many effects.
+        fit_steps: None: every fit converges. A number: each candidate's fit takes that
+            many Gauss-Newton steps from the current model's fit (a model nonlinear in its
+            parameters; :func:`~rfsw_plan.validation.engine.crossval.cross_validate`).
     """
     at_noise, _ = _at_noise(base, noise, feats)
     mse0 = base.sse / max(base.n_obs, 1)
@@ -448,12 +545,15 @@ def forward_select(
     if at_noise and within_ratio(base.heldout_rms, noise):
         return Selection((), True, "the starting model is at the noise floor", (), model, base)
     stop = f"{max_steps} effects added (the most the selection adds)"
+    rounds: dict[tuple[str, ...], list[tuple[Candidate, CrossValidation]]] = {}
     while len(steps) < max_steps:
         if first is not None and not steps:
             scored, skipped = first
         else:
             scored, skipped = evaluate_candidates(current, data, fold, cv,
-                                                  candidate_labels(current), batch, noise)
+                                                  candidate_labels(current), batch, noise,
+                                                  fit_steps)
+        rounds[tuple(s.label for s in steps)] = scored
         ranked = [x for x, _ in scored]
         c = named(ranked)
         if c is None:
@@ -473,11 +573,13 @@ def forward_select(
                     else "no feature test of the held-out residual is significant")
             break
     if len(steps) >= 2:
-        swapped = _simpler(model, data, fold, noise, feats, batch, steps, cv, at_noise)
+        swapped = _simpler(model, data, fold, noise, feats, batch, steps, cv, at_noise,
+                           fit_steps, rounds)
         if swapped is not None:
             swaps = [f"{a.label} replaced by the simpler {b}, as good with the others in"
                      for a, b in zip(steps, swapped, strict=True) if a.label != b]
-            steps, current, cv = _path(model, data, fold, base, batch, swapped, steps)
+            steps, current, cv = _path(model, data, fold, base, batch, swapped, steps,
+                                       fit_steps)
             at_noise, _ = _at_noise(cv, noise, feats)
             stop += "; " + "; ".join(swaps)
     return Selection(tuple(steps), at_noise, stop, tuple(skipped), current, cv)
@@ -492,7 +594,8 @@ def _n_params(model: ElastostaticModel, label: str) -> int:
 def _simpler(
     model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_], noise: NoiseFloor,
     feats: dict[str, Any], batch: PoseBatch, steps: Sequence[ChainStep],
-    final: CrossValidation, at_noise: bool,
+    final: CrossValidation, at_noise: bool, fit_steps: int | None = None,
+    rounds: dict[tuple[str, ...], list[tuple[Candidate, CrossValidation]]] | None = None,
 ) -> list[str] | None:
     """The selection's check of each step once the others are in: with every other selected
     effect in the model, all candidates are scored again; if the one named is simpler (fewer
@@ -500,22 +603,27 @@ def _simpler(
     selection reached it, else no larger held-out error), it replaces the step's. An effect
     that a forward step took because it also soaked up a later effect (full link errors for
     joint offsets plus a play) is so replaced by the simpler one. Returns the new labels in
-    step order, or None if none changes."""
+    step order, or None if none changes. ``rounds``: the forward steps' scored candidates by
+    the labels of the model they were added to; a check whose other effects are such a model
+    (the last step's: the steps before it) takes them instead of scoring them again."""
     labels = [s.label for s in steps]
     changed = False
     for i, own in enumerate(list(labels)):
         if _n_params(model, own) <= 1:
             continue  # a candidate scored has at least one parameter: none is simpler
-        m = model
-        for lab in labels[:i] + labels[i + 1:]:
-            m = m.with_effect(lab)
-        try:
-            cv_o = cross_validate(m, data, fold, batch)
-        except IdentificationError:
-            continue
-        start = cv_o.fit.model
-        scored, _ = evaluate_candidates(start, data, fold, cv_o, candidate_labels(start),
-                                        batch, noise)
+        others = labels[:i] + labels[i + 1:]
+        scored = (rounds or {}).get(tuple(others))
+        if scored is None:
+            m = model
+            for lab in others:
+                m = m.with_effect(lab)
+            try:
+                cv_o = cross_validate(m, data, fold, batch)
+            except IdentificationError:
+                continue
+            start = cv_o.fit.model
+            scored, _ = evaluate_candidates(start, data, fold, cv_o, candidate_labels(start),
+                                            batch, noise, fit_steps)
         c = named([x for x, _ in scored])
         if c is None or c.label == own or c.n_params >= _n_params(model, own):
             continue
@@ -531,7 +639,7 @@ def _simpler(
 def _path(
     model: ElastostaticModel, data: MeasurementSet, fold: NDArray[np.int_],
     base: CrossValidation, batch: PoseBatch, labels: Sequence[str],
-    old: Sequence[ChainStep],
+    old: Sequence[ChainStep], fit_steps: int | None = None,
 ) -> tuple[list[ChainStep], ElastostaticModel, CrossValidation]:
     """The steps of adding ``labels`` in order from ``model``, each scored against the one
     before it (the held-out F test of :func:`~rfsw_plan.validation.engine.scoring.improvement`)."""
@@ -539,7 +647,7 @@ def _path(
     cv = base
     steps: list[ChainStep] = []
     for lab, prev in zip(labels, old, strict=True):
-        nxt = cross_validate(cv.fit.model.with_effect(lab), data, fold, batch)
+        nxt = cross_validate(cv.fit.model.with_effect(lab), data, fold, batch, fit_steps)
         _, p, _ = improvement(cv.sse, nxt.sse, _n_params(model, lab),
                               max(nxt.n_obs - nxt.n_free, 1), max(prev.tested, 1))
         steps.append(ChainStep(
