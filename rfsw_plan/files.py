@@ -307,6 +307,16 @@ def write_text(target: str | Path, text: str) -> Path:
     return write_bytes(target, text.encode("utf-8"))
 
 
+def without_wall_times(o: Any) -> Any:
+    """``o`` without its wall times (every ``seconds`` key, at any depth): what a file holds,
+    so that the same input writes the same bytes on any machine (the terminal prints them)."""
+    if isinstance(o, dict):
+        return {k: without_wall_times(v) for k, v in o.items() if k != "seconds"}
+    if isinstance(o, list | tuple):
+        return [without_wall_times(v) for v in o]
+    return o
+
+
 def write_json(target: str | Path, obj: Any) -> Path:
     """Write ``obj`` as strict JSON to ``target`` atomically."""
     return write_text(target, strict_json(obj))

@@ -289,12 +289,13 @@ class CalibrationResult:
         }
 
     def write(self, folder: str | Path) -> Path:
-        """Write ``calibrate.json`` into ``folder`` (atomically); returns its path."""
-        from rfsw_plan.files import write_json
+        """Write ``calibrate.json`` into ``folder`` (atomically), without the wall time (the same
+        input writes the same bytes; ``--json`` prints it); returns its path."""
+        from rfsw_plan.files import without_wall_times, write_json
 
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
-        return write_json(out / "calibrate.json", self.to_json())
+        return write_json(out / "calibrate.json", without_wall_times(self.to_json()))
 
 
 # -- data ----------------------------------------------------------------------------------------

@@ -10,7 +10,6 @@ import html
 import json
 import math
 import shlex
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from rfsw_plan.files import write_figure, write_text
+from rfsw_plan.files import without_wall_times, write_figure, write_text
 from rfsw_plan.validation.engine.diagnosis import Skipped
 from rfsw_plan.validation.report.html_page import PAGE_END, figure, page_head, table
 from rfsw_plan.validation.workbench import ValidationResult
@@ -67,10 +66,12 @@ def _clean(o: Any) -> Any:
     return o
 
 
-def result_json(result: ValidationResult) -> str:
-    """The validation result as one strict JSON object (NaN -> null)."""
-    return json.dumps(_clean(result.to_json()), indent=2, default=_json_default,
-                      allow_nan=False)
+def result_json(result: ValidationResult, wall_times: bool = True) -> str:
+    """The validation result as one strict JSON object (NaN -> null); ``wall_times`` False:
+    without them (``validate.json``, :func:`without_wall_times`)."""
+    data = result.to_json()
+    return json.dumps(_clean(data if wall_times else without_wall_times(data)), indent=2,
+                      default=_json_default, allow_nan=False)
 
 
 # --------------------------------------------------------------------------------------------
@@ -388,8 +389,8 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         plots: PNG plots by name (:func:`make_plots`).
         argv: The command line (without the program name) that made ``result``, to print the
             next command ready to copy; None for API use.
-        wall_seconds: Wall time of the whole command up to writing the report [s]; None: the
-            validation's own time.
+        wall_seconds: Not written (the page holds no wall time: the same input writes the
+            same bytes; the terminal prints it). Kept for callers.
     """
     dg = result.diagnosis
     an = result.analysis
@@ -420,9 +421,7 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
     ):
         if name in plots:
             parts.append(figure(plots[name], alt))
-    secs = result.seconds if wall_seconds is None else wall_seconds
-    what = "validation" if wall_seconds is None else "whole command, up to this report"
-    parts.append(f"<p><small>Wall time: {secs:.1f} s ({what}).</small></p>{PAGE_END}")
+    parts.append(PAGE_END)  # no wall time: the same input writes the same bytes
     return "\n".join(parts)
 
 
@@ -661,15 +660,13 @@ def write_report(result: ValidationResult, out_dir: str | Path,
         result: The validation result.
         out_dir: Output folder (created if needed).
         argv: The command line that made ``result`` (the report prints the next command).
-        started: ``time.perf_counter()`` at the start of the command: the report states the
-            wall time of the whole command up to writing it (None: the validation's own time).
+        started: Not used (the files hold no wall time; the terminal prints it).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots = make_plots(result, out)
     json_path = out / "validate.json"
-    write_text(json_path, result_json(result) + "\n")
+    write_text(json_path, result_json(result, wall_times=False) + "\n")
     html_path = out / "report.html"
-    wall = None if started is None else time.perf_counter() - started
-    write_text(html_path, render_html(result, plots, argv=argv, wall_seconds=wall))
+    write_text(html_path, render_html(result, plots, argv=argv))
     return ReportFiles(html=html_path, json=json_path, plots=plots)
