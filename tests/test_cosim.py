@@ -137,7 +137,8 @@ def test_fit_bad_input(setup) -> None:
 def test_deviation_reports_the_cosimulated_lateral_and_steady_force() -> None:
     """``cosim.lateral_mm`` is the lateral deflection under the co-simulated forces (the model
     evaluated again with the converged f_n gives it), not the force model's; the steady force is
-    the median where the penetration is above 90 % of its largest (issue 28)."""
+    the median where the penetration is above 90 % of its largest, up to the weld's end
+    (issue 28)."""
     from rfsw_plan.process.deviation import problem_deviation
     from rfsw_plan.process.problem import load_problem
 
@@ -160,6 +161,11 @@ def test_deviation_reports_the_cosimulated_lateral_and_steady_force() -> None:
     # Other forces than the force model's: another lateral.
     assert np.max(np.abs(c.axial_force[weld] - res.schedule.force_seam[weld, 2])) > 50.0
     assert np.max(np.abs(lateral[weld] - plain.lateral_t[weld])) > 1e-5
-    settled = c.penetration > 0.9 * c.penetration.max()
+    # read up to the weld's end, as seed 001 Fig. 10's runs end: not in the end stop, where
+    # the lateral and traverse forces relax, nor in the retract
+    upto = ~(res.schedule.mask("stop") | res.schedule.mask("retract"))
+    assert upto.any() and not upto.all()
+    largest = c.penetration[upto].max()
+    settled = upto & (c.penetration > 0.9 * largest)
     assert js["steady_axial_force_N"] == pytest.approx(float(np.median(c.axial_force[settled])))
-    assert js["max_penetration_mm"] == pytest.approx(c.penetration.max() * 1e3)
+    assert js["max_penetration_mm"] == pytest.approx(largest * 1e3)

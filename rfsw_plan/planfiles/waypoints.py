@@ -284,8 +284,8 @@ class PlotDrawing:
                 stream.flush()
         recv, send = ctx.Pipe(duplex=False)
         try:
-            self._proc = ctx.Process(target=_draw_in_child, args=(send, self._folder, result),
-                                     daemon=True)
+            self._proc = ctx.Process(target=_draw_in_child,
+                                     args=(send, recv, self._folder, result), daemon=True)
             self._proc.start()
         except OSError:  # no process to spare: draw here
             self._proc = None
@@ -319,12 +319,18 @@ class PlotDrawing:
         self._proc = None
 
 
-def _draw_in_child(conn: Any, folder: Path, result: PlanResult) -> None:
+def _draw_in_child(conn: Any, parents_end: Any, folder: Path, result: PlanResult) -> None:
     """The forked child of :class:`PlotDrawing`: draw in memory, send (name, bytes) pairs
-    and the failure lines."""
+    and the failure lines.
+
+    It first closes its copy of the pipe's reading end: with the parent killed (SIGKILL), the
+    send then fails at once (no reader left) and the child ends, instead of blocking forever on
+    a full pipe that only it could read, holding the parent's terminal or pipes open."""
     import signal
 
     from rfsw_plan.files import OutputLock, figures_in_memory
+
+    parents_end.close()
 
     # Ctrl-C is the parent's to handle (it stops this child); SIGTERM ends it silently.
     signal.signal(signal.SIGINT, signal.SIG_IGN)

@@ -1653,16 +1653,8 @@ def verify_samples(
                       np.rad2deg(der[:, j]), float(np.rad2deg(limit[j])), unit)
     # The end stop: the tool stands at the seam end while the forces relax, and the pin does
     # not move sideways (the start standstill's limit), from the weld's last sample on.
-    stop = np.flatnonzero(phase == "stop")
-    if len(stop):
-        rows = np.concatenate([stop[:1] - 1, stop]) if stop[0] > 0 else stop
-        moved = np.abs(e[rows] - e[rows[0]])
-        bad = np.zeros(N, dtype=bool)
-        bad[rows] = np.ptp(e[rows]) > STANDSTILL_MOTION + WINDOW_TOL
-        val = np.zeros(N)
-        val[rows] = moved * 1e3
-        first(bad & (val >= np.max(val) - 1e-12), "stop_standstill", val,
-              STANDSTILL_MOTION * 1e3, "mm")
+    bad, val = _stop_motion(e, phase)
+    first(bad, "stop_standstill", val, STANDSTILL_MOTION * 1e3, "mm")
     excess = -np.inf
     if q_waypoints is not None and task.n_start:
         m = task.n_start
@@ -1707,6 +1699,23 @@ def verify_samples(
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
                               tuple(fails), derr, tilt_err, speed_ratio, height, claim,
                               (float(steady[0]), float(steady[-1])) if len(steady) else None)
+
+
+def _stop_motion(e: FloatArray, phase: NDArray[np.str_]
+                 ) -> tuple[NDArray[np.bool_], FloatArray]:
+    """The end stop's sideways motion of the pin (:func:`verify_samples`): per sample, the
+    lateral error's change from the weld's last sample through the stop [mm], and the sample
+    to name (the largest) when the stop's spread exceeds
+    :data:`~rfsw_plan.process.task.STANDSTILL_MOTION` (none without a stop)."""
+    n = len(e)
+    bad, val = np.zeros(n, dtype=bool), np.zeros(n)
+    stop = np.flatnonzero(phase == "stop")
+    if not len(stop):
+        return bad, val
+    rows = np.concatenate([stop[:1] - 1, stop]) if stop[0] > 0 else stop
+    val[rows] = np.abs(e[rows] - e[rows[0]]) * 1e3
+    bad[rows] = np.ptp(e[rows]) > STANDSTILL_MOTION + WINDOW_TOL
+    return bad & (val >= np.max(val) - 1e-12), val
 
 
 def tolerated_uncertainty(pred: Prediction, window: WeldWindow, uncertainty: float,

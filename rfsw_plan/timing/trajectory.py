@@ -280,6 +280,39 @@ def _stop_map(robot: Robot, q_end: FloatArray, task: PlanTask, wrench_end: Float
     return CubicSpline(lam, Q, axis=0), CubicSpline(lam, O, axis=0)
 
 
+def _relaxed_wrench(task: PlanTask, wrench_last: FloatArray, wrench_end: FloatArray
+                    ) -> FloatArray:
+    """What the forces relax to over the retract (base frame, (6,)) [N, N m]: with an end stop
+    they already have (its last wrench, ``wrench_end``); without one, the start standstill's
+    wrench (the weld's first waypoint: the dwell's end) at the seam's end frame, the moments of
+    the weld's last sample ``wrench_last`` kept (no start phases: that wrench itself)."""
+    if task.end_stop > 0:
+        return wrench_end
+    m = task.n_start
+    if not m:
+        return wrench_last
+    return np.concatenate([task.frames.rotation()[-1] @ task.force_seam[m], wrench_last[3:]])
+
+
+def _stop_piece(robot: Robot, task: PlanTask, q_end: FloatArray, wrench_end: FloatArray,
+                s_end: float, dt: float, deflection: Deflection | None
+                ) -> tuple[tuple[str, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+                           FloatArray]:
+    """The end stop as a timeline piece (phase, t [s], s [m], q [rad], offsets [m], wrench
+    (base frame) [N, N m]) and the joints it ends at (the relaxation's end, lam = 1) [rad]:
+    ``task.end_stop`` seconds at the seam's end ``s_end`` while the seam-frame force relaxes
+    over the task's stop schedule (:func:`stop_progress`), the moments held, the joints and
+    offsets on :func:`_stop_map`'s fixed point."""
+    R_end = task.frames.rotation()[-1]
+    t = np.linspace(0.0, task.end_stop, max(int(np.ceil(task.end_stop / dt)), 1) + 1)
+    f_stop, lam = stop_progress(task, t)
+    W_stop = np.hstack([f_stop @ R_end.T, np.repeat(wrench_end[None, 3:], len(t), 0)])
+    W_stand = np.concatenate([R_end @ task.stop_force_seam[-1], wrench_end[3:]])
+    smap, somap = _stop_map(robot, q_end, task, wrench_end, W_stand, deflection)
+    return ("stop", t, np.full_like(t, s_end), smap(lam), somap(lam), W_stop), \
+        smap(np.array([1.0]))[0]
+
+
 def stop_progress(task: PlanTask, t: FloatArray) -> tuple[FloatArray, FloatArray]:
     """The end stop's seam-frame force (f_t, f_l, f_n) [N] (N, 3) at times t [s] (N,) from the
     weld's end (shape-preserving between the task's stop samples, :func:`monotone_interp`:
@@ -668,14 +701,9 @@ def time_parameterise(
     q_end, W_end = q[-1], F[-1]
     fr = task.frames
     if task.end_stop > 0:
-        R_end = fr.rotation()[-1]
-        t = np.linspace(0.0, task.end_stop, max(int(np.ceil(task.end_stop / dt)), 1) + 1)
-        f_stop, lam = stop_progress(task, t)
-        W_stop = np.hstack([f_stop @ R_end.T, np.repeat(F[-1:, 3:], len(t), 0)])
-        W_stand = np.concatenate([R_end @ task.stop_force_seam[-1], F[-1, 3:]])
-        smap, somap = _stop_map(robot, q[-1], task, F[-1], W_stand, deflection)
-        pieces.append(("stop", t, np.full_like(t, sw[-1]), smap(lam), somap(lam), W_stop))
-        q_end, W_end = smap(np.array([1.0]))[0], W_stop[-1]
+        stop, q_end = _stop_piece(robot, task, q[-1], F[-1], float(sw[-1]), dt, deflection)
+        pieces.append(stop)
+        W_end = stop[5][-1]
     # Retract: out of the plate up the tool axis at the retract speed, the wrench and the
     # offsets falling with the depth still in the plate (the offsets' commanded displacement
     # o_lat l + o_norm n + o_along t unwinds along the way); then up to the safe height.
@@ -692,13 +720,7 @@ def time_parameterise(
         below = -float(np.dot(nplate[-1], pin_end - (fr.p[-1] + depth_full * nplate[-1])))
         dplate = max(below / cos1, 1e-6)
     if depth_full > 0:
-        # The start standstill's wrench (the weld's first waypoint: the dwell's end) at the
-        # seam's end frame: what the forces relax to over the retract without an end stop
-        # (with one they already have).
-        F_stand = (np.concatenate([fr.rotation()[-1] @ task.force_seam[m], F[-1, 3:]]) if m
-                   else F[-1])
-        if task.end_stop > 0:
-            F_stand = W_end
+        F_stand = _relaxed_wrench(task, F[-1], W_end)
         rmap, omap = _retract_map(robot, q_end, task, o_vec, dplate, W_end, deflection,
                                   wrench_stand=F_stand)
         t, x, _, _ = profile_1dof(0.0, dplate, 0.0, 0.0, lim.retract_speed, lim.acceleration,

@@ -18,6 +18,7 @@ td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;whi
 th{white-space:normal;vertical-align:bottom}
 pre{background:#f4f4f4;padding:0.6em;white-space:pre-wrap;overflow-wrap:anywhere}
 td.prose{white-space:normal;text-align:left;min-width:16em}
+td.list{white-space:normal;text-align:left}
 th{background:#eee}td:first-child{text-align:left}
 .verdict{font-size:1.2em;padding:0.6em;border-radius:4px}
 .adequate{background:#dfd}.missing{background:#ffd}.unexplained{background:#fdd}.undetermined{background:#eee}
@@ -39,7 +40,8 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     """An HTML table; every header and cell text is escaped.
 
     Numbers and short cells never wrap; a cell of prose (longer than :data:`PROSE_CHARS` with
-    spaces) wraps at its spaces so that the table fits the page.
+    spaces) wraps at its spaces, and a list (``c_t1 3.9e-07, c_t2 2.0e-07``, longer than
+    :data:`LIST_CHARS`) after its commas, so that the table fits the page.
     """
     head = "".join(f"<th>{html.escape(h)}</th>" for h in header)
     body = "".join(
@@ -52,7 +54,16 @@ def table(header: list[str], rows: list[list[str]]) -> str:
 PROSE_CHARS = 40
 
 
+#: A list cell (``a 1, b 2, c 3``) longer than this, of items no longer than this, wraps after
+#: its commas, never inside an item.
+LIST_CHARS = 20
+
+
 def _cell(text: str) -> str:
+    items = text.split(", ")
+    if len(text) > LIST_CHARS and len(items) > 1 and max(map(len, items)) <= LIST_CHARS:
+        kept = (html.escape(t).replace(" ", "&nbsp;") for t in items)  # an item never breaks
+        return f"<td class='list'>{', '.join(kept)}</td>"
     if len(text) > PROSE_CHARS and " " in text.strip():
         return f"<td class='prose'>{html.escape(text)}</td>"
     return f"<td>{html.escape(text)}</td>"

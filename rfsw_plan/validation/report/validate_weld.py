@@ -144,9 +144,9 @@ def render_weld_html(result: WeldValidation, plots: dict[str, Path], next_cmd: s
                  "yes" if c.significant else "no", "yes" if c.identifiable else "no",
                  "no" if c.label in dg.ties else "yes",
                  "yes" if c.plausible else f"no: {c.implausible}",
-                 ", ".join(f"{k} {v:.4g}" for k, v in c.params.items())
-                 + ("" if c.stiffness_scale is None else
-                    f" (stiffness x{c.stiffness_scale:.3f})")]
+                 ", ".join([*(f"{k} {v:.4g}" for k, v in c.params.items()),
+                            *([] if c.stiffness_scale is None else
+                              [f"stiffness x{c.stiffness_scale:.3f}"])])]
                 for c in dg.candidates[:25]]),
         "<p>Sorted by held-out RMS. The named candidate is the simplest (fewest parameters) "
         "among the best and those this weld cannot tell from it; an implausible fit (a joint "
