@@ -14,7 +14,7 @@ from pathlib import Path
 CSS = """
 body{font-family:sans-serif;max-width:1100px;margin:1em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1em}
-td,th{border:1px solid #bbb;padding:2px 8px;text-align:right;font-size:0.9em;white-space:nowrap}
+td,th{border:1px solid #bbb;padding:2px 6px;text-align:right;font-size:0.9em;white-space:nowrap}
 th{white-space:normal;vertical-align:bottom}
 pre{background:#f4f4f4;padding:0.6em;white-space:pre-wrap;overflow-wrap:anywhere}
 td.prose{white-space:normal;text-align:left;min-width:16em}
