@@ -244,6 +244,32 @@ def retract_wrench(x: FloatArray, length: float, wrench_end: FloatArray,
     return np.asarray(rho * (rho * wrench_end[None] + (1.0 - rho) * wrench_stand[None]))
 
 
+def _pin_fixed_point(robot: Robot, q_end: FloatArray, Q: FloatArray, goal: FloatArray,
+                     W: FloatArray, deflection: Deflection, rounds: int, tol: float,
+                     failure: Callable[[int], str]) -> FloatArray:
+    """The commanded TCP positions (m, 3) [m] at which the *predicted* pin is at ``goal``
+    (m, 3) under the wrenches ``W`` (m, 6): ``rounds`` of cmd = goal - dX(Q, W), then Q from
+    IK of cmd (orientation of ``q_end``'s pose kept, each point from the previous one), with
+    the first point held at ``q_end``'s TCP. ``Q`` (m, n) [rad] is the start and is updated in
+    place. Raises :class:`InfeasibleError` (``failure(i)``) where the IK fails at point i."""
+    x0 = robot.fk(q_end)[:3, 3]
+    T0 = robot.fk(q_end)
+    cmd = goal
+    for _ in range(rounds):
+        cmd = goal - deflection(Q, W)
+        cmd[0] = x0
+        q = q_end.copy()
+        for i in range(1, len(goal)):
+            T = T0.copy()
+            T[:3, 3] = cmd[i]
+            res = solve_ik(robot, T, q, tol_pos=tol, tol_rot=tol)
+            if not res.converged:
+                raise InfeasibleError(failure(i), constraint="reach")
+            q = res.q
+            Q[i] = q
+    return cmd
+
+
 def _stop_map(robot: Robot, q_end: FloatArray, task: PlanTask, wrench_end: FloatArray,
               wrench_stand: FloatArray, deflection: Deflection | None, points: int = 11,
               rounds: int = 4) -> tuple[CubicSpline, CubicSpline]:
@@ -261,20 +287,10 @@ def _stop_map(robot: Robot, q_end: FloatArray, task: PlanTask, wrench_end: Float
     if deflection is not None:
         W = wrench_end[None] + lam[:, None] * (wrench_stand - wrench_end)[None]
         goal = x0 + deflection(q_end[None], wrench_end[None])[0]
-        T0 = robot.fk(q_end)
-        for _ in range(rounds):
-            cmd = goal[None] - deflection(Q, W)
-            cmd[0] = x0
-            q = q_end.copy()
-            for i in range(1, points):
-                T = T0.copy()
-                T[:3, 3] = cmd[i]
-                res = solve_ik(robot, T, q, tol_pos=1e-9, tol_rot=1e-9)
-                if not res.converged:
-                    raise InfeasibleError(f"end stop: IK fails {lam[i] * 100:.0f} % of the way "
-                                          "through the force relaxation", constraint="reach")
-                q = res.q
-                Q[i] = q
+        cmd = _pin_fixed_point(
+            robot, q_end, Q, np.repeat(goal[None], points, 0), W, deflection, rounds, 1e-9,
+            lambda i: f"end stop: IK fails {lam[i] * 100:.0f} % of the way through the force "
+                      "relaxation")
     rel = cmd - fr.p[-1][None]
     O = np.stack([rel @ fr.l[-1], rel @ fr.n[-1], rel @ fr.t[-1]], axis=1)
     return CubicSpline(lam, Q, axis=0), CubicSpline(lam, O, axis=0)
@@ -348,20 +364,9 @@ def _retract_map(robot: Robot, q_end: FloatArray, task: PlanTask, o_vec: FloatAr
                            wrench_end if wrench_stand is None else wrench_stand)
         pin_end = x0 + deflection(q_end[None], wrench_end[None])[0]
         goal = pin_end + xs[:, None] * n_end[None]
-        T0 = robot.fk(q_end)
-        for _ in range(rounds):
-            cmd = goal - deflection(Q, W)
-            cmd[0] = x0
-            q = q_end.copy()
-            for i in range(1, len(xs)):
-                T = T0.copy()
-                T[:3, 3] = cmd[i]
-                res = solve_ik(robot, T, q, tol_pos=1e-8, tol_rot=1e-8)
-                if not res.converged:
-                    raise InfeasibleError(f"retract: IK fails {xs[i] * 1e3:.1f} mm along the "
-                                          "tool axis", constraint="reach")
-                q = res.q
-                Q[i] = q
+        cmd = _pin_fixed_point(
+            robot, q_end, Q, goal, W, deflection, rounds, 1e-8,
+            lambda i: f"retract: IK fails {xs[i] * 1e3:.1f} mm along the tool axis")
     target = fr.p[-1] + xs[:, None] * n_end[None]
     rel = cmd - target
     O = np.stack([rel @ l_end, rel @ n_end, rel @ t_end], axis=1)
