@@ -67,7 +67,7 @@ def run_validate(
     marker: FloatArray | None = None, noise_m: float | None = None, add: Sequence[str] = (),
     folds: int = 5, seed: int = 0, force_noise_n: float | None = None,
     report: Path | None = None, save_robot: Path | None = None, name: str | None = None,
-    argv: list[str] | None = None, started: float | None = None,
+    argv: list[str] | None = None,
     on_stage: OnStage = _nothing,
 ) -> ValidateRun:
     """Check the data, validate (:func:`~rfsw_plan.validation.workbench.validate`), write the
@@ -87,7 +87,6 @@ def run_validate(
         save_robot: Robot file to write, already checked (None: none).
         name: Robot name in that file.
         argv: The command line (the report prints the next command).
-        started: ``time.perf_counter()`` at the start of the command.
         on_stage: Progress callback, called with "diagnosis" and "plots and report".
 
     Raises:
@@ -104,7 +103,7 @@ def run_validate(
     if report is not None:
         on_stage("plots and report")
         with OutputLock(report):
-            files = write_report(result, report, argv=argv, started=started)
+            files = write_report(result, report, argv=argv)
     saved = save_extended_robot(result, save_robot, name=name) if save_robot else None
     return ValidateRun(result, files, saved)
 

@@ -111,7 +111,7 @@ def _run(args: argparse.Namespace, report: Path | None, stages: Stages) -> int:
         noise_m=None if args.noise_mm is None else args.noise_mm * 1e-3,
         add=args.add, folds=args.folds, seed=args.seed, force_noise_n=args.force_noise_n,
         report=report, save_robot=save, name=args.name, argv=getattr(args, "argv", None),
-        started=getattr(args, "started", None), on_stage=stages.start)
+        on_stage=stages.start)
     if args.json:
         print(result_json(run_.result))
         return 0

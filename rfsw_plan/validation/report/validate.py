@@ -381,7 +381,7 @@ def model_title(result: ValidationResult) -> str:
 
 
 def render_html(result: ValidationResult, plots: dict[str, Path],
-                argv: list[str] | None = None, wall_seconds: float | None = None) -> str:
+                argv: list[str] | None = None) -> str:
     """The report as one self-contained HTML string (plots inline).
 
     Args:
@@ -389,8 +389,6 @@ def render_html(result: ValidationResult, plots: dict[str, Path],
         plots: PNG plots by name (:func:`make_plots`).
         argv: The command line (without the program name) that made ``result``, to print the
             next command ready to copy; None for API use.
-        wall_seconds: Not written (the page holds no wall time: the same input writes the
-            same bytes; the terminal prints it). Kept for callers.
     """
     dg = result.diagnosis
     an = result.analysis
@@ -652,15 +650,13 @@ def _param_units(result: ValidationResult) -> dict[tuple[str, str], str]:
 
 
 def write_report(result: ValidationResult, out_dir: str | Path,
-                 argv: list[str] | None = None,
-                 started: float | None = None) -> ReportFiles:
+                 argv: list[str] | None = None) -> ReportFiles:
     """Write report.html, validate.json and the PNG plots into ``out_dir``.
 
     Args:
         result: The validation result.
         out_dir: Output folder (created if needed).
         argv: The command line that made ``result`` (the report prints the next command).
-        started: Not used (the files hold no wall time; the terminal prints it).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
