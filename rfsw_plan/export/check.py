@@ -234,7 +234,7 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
                                   f"{plan_id} ({folder}): check it against its own plan",
                            failures=(f"plan id {stated} != {plan_id}",), edited=edited)
     model, task, window = _plan_model(plan, robot)
-    base = verify_samples(model, task, window, plan.samples)
+    base = verify_samples(model, task, window, plan.samples, robust=False)
     if _reported(base):
         raise InputError(folder, "", "the plan's own samples do not verify with the model "
                          "rebuilt from its files (robot or problem file changed?)",
