@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import multiprocessing
 import re
-import shutil
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import replace
 from pathlib import Path
@@ -261,8 +260,9 @@ def _folder(folder: Path) -> dict[str, bytes]:
 def test_results_do_not_depend_on_the_executor(tmp_path, capsys):
     """In this process and on two spawned worker processes: the same plans, the same choice.
     Each with its own map, both write the same bytes into the place folder: no wall time in
-    it (the map's and each plan's, printed instead), so the same input writes the same bytes
-    (``place.json`` names its files with the folder, which is the same)."""
+    it (the map's and each plan's, printed instead), so the same input writes the same bytes,
+    in two different folders (``place.json`` and ``map.json`` name their files inside the
+    folder)."""
     pr = load_problem("fanuc_butt_1700mm")
     opts = options_from_problem(pr, {"rotation_starts": 2})
     region = MapRequest(shape=(4, 4, 2, 1), max_weld=15)
@@ -277,14 +277,14 @@ def test_results_do_not_depend_on_the_executor(tmp_path, capsys):
         assert ra.tolerated_uncertainty == rb.tolerated_uncertainty
         assert ra.min_lateral_stiffness == rb.min_lateral_stiffness
     files = []
-    out = tmp_path / "place"
-    for session, res in ((s, a), (s_b, b)):
+    for i, (session, res) in enumerate(((s, a), (s_b, b))):
         # PlaceRequest.run() with these options; the executor's label is an input, kept equal
         run = PlaceRun(pr, opts, session, res, results_table(res, session.map.anchor), "x")
-        shutil.rmtree(out, ignore_errors=True)
+        out = tmp_path / f"place_{i}"
         out.mkdir()
         run.write(out)
         files.append(_folder(out))
+        assert json.loads(files[-1]["place.json"])["files"][-1] == "place.json"
     assert sorted(files[0]) == sorted(["fanuc_butt_1700mm_placed.toml", *PLACE_FILES])
     assert [n for n in files[0] if files[0][n] != files[1][n]] == []
     for n in ("place.json", "map.json", "candidates.csv"):

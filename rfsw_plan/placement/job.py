@@ -127,7 +127,8 @@ class PlacementMapRun:
         write_map_csv(out / "map.csv", m)
         plot_map(out / "map.png", m, requested=u)
         plot_yaw(out / "map_yaw.png", m)
-        write_map_json(out / "map.json", m, u, self._extra(out))
+        # the file names its files inside its folder (the same bytes in any folder)
+        write_map_json(out / "map.json", m, u, {**self._extra(None), "files": list(MAP_FILES)})
         return [out / n for n in MAP_FILES]
 
 
@@ -247,7 +248,8 @@ class PlaceRun:
         plot_yaw(out / "map_yaw.png", m)
         write_map_json(out / "map.json", m, u)
         write_candidates_csv(out / "candidates.csv", self.rows)
-        summary = self.to_dict(out)
+        summary = self.to_dict()  # the file names its files inside its folder
+        summary["files"] = [f.name for f in self.files(out)]
         chosen = self.chosen
         if chosen is not None:
             note = (f"Placed by rfsw-plan place from {self.problem.name}: seam anchor moved to "
