@@ -314,3 +314,33 @@ def test_tp_lines_are_the_pendants(zk500: Path, capsys) -> None:
     assert file_line != int(m.group(1))
     code, out = _check(capsys, ls)
     assert code == 3 and f"P[{k}]" in out and f"line {m.group(1)})" in out, out
+
+
+def test_the_force_uncertainty_held_as_run_is_reported_against_the_claim(
+        zk500: Path, capsys) -> None:
+    """``check`` computes the robust claim on the samples the controller runs and sets it
+    beside the plan's: a weld segment slowed by 1.5 % (within the timing tolerance) still
+    holds the nominal envelope (the pin speed's tolerance is 5 %), but it eats the speed's
+    share of the force uncertainty, and the line says the program holds less than the plan
+    claims."""
+    import json
+
+    claimed = 100 * json.loads((zk500 / "plan.json").read_text())["tolerated_force_uncertainty"]
+    src = _file(zk500, ".src")
+    capsys.readouterr()
+    assert main(["check", str(src), "--json"]) == 0
+    before = json.loads(capsys.readouterr().out)
+    assert before["claimed_pct"] == pytest.approx(claimed)
+    assert before["held_pct"] > 0 and before["held_limited_by"]
+    text = src.read_text()
+    weld = text.index("phase: weld")
+    m = re.compile(r"\$VEL\.CP = ([0-9.]+)").search(text, weld)
+    assert m is not None
+    src.write_text(text[:m.start(1)] + f"{0.985 * float(m.group(1)):.7f}" + text[m.end(1):])
+    code, out = _check(capsys, src)
+    assert code == 0 and "holds" in out, out
+    assert main(["check", str(src), "--json"]) == 0
+    after = json.loads(capsys.readouterr().out)
+    assert after["held_pct"] < before["held_pct"] - 0.5, (before["held_pct"], after)
+    assert after["below_claim"] and after["held_limited_by"] == "speed"
+    assert f"below the plan's +-{claimed:.2f} %" in out, out

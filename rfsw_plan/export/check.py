@@ -84,6 +84,10 @@ BASE_ANGLE_TOL = 1e-3
 ORDER = ("depth", "lateral", "clearance", "tilt", "speed", "hook", "posture", "timing")
 #: A hook's rule holds within this [m] (a few plan samples at the plunge speed).
 HOOK_TOL = 1e-4
+#: The program as run is said to hold less force uncertainty than the plan claims when its
+#: level is below the claimed one by more than this share of it (the claims are bisected and
+#: rounded to 0.01 %; the same samples give the same level).
+CLAIM_TOL = 0.01
 
 
 @dataclass(frozen=True)
@@ -116,6 +120,11 @@ class CheckResult:
             (the count ``plan.json`` recorded), listed even when the program holds.
         quantity: The physical quantity of the first failure (``depth``, ``lateral``,
             ``clearance``, ``tilt``, ``speed``, ``hook``), or the check's name.
+        held: The largest uniform relative force uncertainty every weld quantity holds at
+            with the program as run (:func:`~rfsw_plan.planning.verify.robust_claim` on the
+            run's samples), and the quantity that limits it first; (NaN, "") if not computed.
+        claimed: The level the plan's verdict claims (``plan.json``
+            ``tolerated_force_uncertainty``), NaN if it names none.
     """
 
     program: Path
@@ -139,6 +148,22 @@ class CheckResult:
     detail: str = ""
     edits: tuple[str, ...] = ()
     quantity: str = ""
+    held: tuple[float, str] = (math.nan, "")
+    claimed: float = math.nan
+
+    @property
+    def below_claim(self) -> bool:
+        """The program as run holds less force uncertainty than the plan claims
+        (:data:`CLAIM_TOL`)."""
+        return bool(self.held[0] < self.claimed * (1.0 - CLAIM_TOL))
+
+    def claim_text(self) -> str:
+        """``; as run it holds +-3.66 % force uncertainty (speed first), below the plan's
+        +-4.55 %`` where :attr:`below_claim`, else ""."""
+        if not self.below_claim:
+            return ""
+        return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
+                f"({self.held[1]} first), below the plan's +-{100 * self.claimed:.2f} %")
 
     def line(self) -> str:
         """One line for the terminal."""
@@ -150,7 +175,7 @@ class CheckResult:
         if self.holds:
             return (f"{self.program.name}: holds ({self.n_points} points, {self.n_samples} "
                     f"samples; smallest window margin {self.min_margin * 1e3:.3f} mm; largest "
-                    f"edit {self.max_edit * 1e3:.3f} mm{edited})")
+                    f"edit {self.max_edit * 1e3:.3f} mm{edited}){self.claim_text()}")
         more = (f" (+{len(self.failures) - 1} more failure"
                 f"{'s' if len(self.failures) > 2 else ''})" if len(self.failures) > 1 else "")
         where = f"line {self.line_no}" + (f" of {self.file}" if self.file and
@@ -179,7 +204,14 @@ class CheckResult:
                 "edited": [*(f"{f}: changed since the export" for f in self.edited),
                            *self.edits],
                 "edited_files": list(self.edited), "quantity": self.quantity,
+                "held_pct": _pct(self.held[0]), "held_limited_by": self.held[1],
+                "claimed_pct": _pct(self.claimed), "below_claim": self.below_claim,
                 "line": self.line()}
+
+
+def _pct(u: float) -> float | None:
+    """A relative level as percent for JSON (None: not computed or not claimed)."""
+    return None if not math.isfinite(u) else 100.0 * u
 
 
 @dataclass(frozen=True)
@@ -242,9 +274,14 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
     run = run_as_controller(robot, fmt, read, plan.samples, _exported_work(plan, robot))
     ver = verify_samples(model, task, window, run.samples)
     lines = _motion_lines(read.files, run.names)
+    held = ((ver.claim.tolerated, ver.claim.limiting.quantity) if ver.claim is not None
+            else (math.nan, ""))
+    claimed = plan.record.get("tolerated_force_uncertainty")
     res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
                       window=(window.lower, window.upper), min_margin=ver.min_margin,
-                      edited=edited, edits=_edits(run, lines, plan.record, fmt.name))
+                      edited=edited, edits=_edits(run, lines, plan.record, fmt.name),
+                      held=held, claimed=float(claimed) if isinstance(claimed, (int, float))
+                      else math.nan)
     # (point, check, text, sample, failure, quantity)
     texts: list[tuple[int, str, str, int, Any, str]] = []
     for f in [*run.findings, *_hook_findings(read.files, run, model, plan)]:
