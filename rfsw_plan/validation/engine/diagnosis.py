@@ -49,6 +49,7 @@ from rfsw_plan.validation.engine.crossval import (
     DEFAULT_FOLDS,
     FIT_TOL,
     CrossValidation,
+    Indeterminate,
     cross_validate,
     make_folds,
     single_thread_numpy_blas,
@@ -400,6 +401,10 @@ class Diagnosis:
         floor_ratio: The selection's held-out RMS over the noise floor (NaN if unknown).
         experiment: With the verdict ``unexplained`` after a selection (partly explained):
             the ``design-campaign`` that would tell its effects from their candidates.
+        indeterminate: Samples whose state of an effect of the selected model nothing before
+            them in the data sets (the side of a play before the first load on its joint),
+            scored against the model's stated spread
+            (:class:`~rfsw_plan.validation.engine.crossval.Indeterminate`).
     """
 
     verdict: Verdict
@@ -423,6 +428,7 @@ class Diagnosis:
     excess_explained: float = float("nan")
     floor_ratio: float = float("nan")
     experiment: str = ""
+    indeterminate: tuple[Indeterminate, ...] = ()
 
     @property
     def missing(self) -> Candidate | None:
@@ -467,6 +473,8 @@ class Diagnosis:
             "excess_explained": _finite(self.excess_explained),
             "floor_ratio": _finite(self.floor_ratio),
             "experiment": self.experiment,
+            "indeterminate": [x.to_json() for x in self.indeterminate],
+            "indeterminate_readings": sum(x.count for x in self.indeterminate),
             "candidates": [c.to_json() for c in self.candidates],
             "not_identifiable": [s.to_json() for s in self.skipped],
             "not_supported": [s.to_json() for s in self.not_supported],
@@ -880,6 +888,10 @@ def diagnose(
     last_rms = chain[-1].rms_after if chain else base.heldout_rms
     if noise.sigma is None:
         message += f"; {NO_FLOOR}"
+    ind = (sel.cv if chain else base).indeterminate
+    advice = [*advice_for(sel.model, batch, data, last_skipped, [st.label for st in chain],
+                          at_noise),
+              *(f"{x.label}: {x.advice}" for x in ind if x.advice)]
     seconds = time.perf_counter() - t0
     log.info("diagnosis of %s: %d candidates, %d skipped, %d chain step(s), %.2f s: %s",
              ", ".join(model.labels), len(candidates), len(skipped), len(chain), seconds,
@@ -902,11 +914,11 @@ def diagnose(
         seconds=seconds,
         not_supported=tuple(s for s in last_skipped if s.kind == "not_supported"),
         stop=sel.stop,
-        advice=tuple(advice_for(sel.model, batch, data, last_skipped,
-                                [st.label for st in chain], at_noise)),
+        advice=tuple(advice),
         excess_explained=_excess_explained(base, chain, last_rms, noise),
         floor_ratio=(last_rms / noise.sigma if noise.sigma else float("nan")),
         experiment=experiment if verdict == "unexplained" else "",
+        indeterminate=ind,
     )
 
 
