@@ -826,6 +826,15 @@ def _after_chain(model: ElastostaticModel, data: MeasurementSet, sel: Selection,
             _experiment(model, data, list(sel.steps)))
 
 
+def _advice(sel: Selection, batch: PoseBatch, data: MeasurementSet,
+            skipped: Sequence[Skipped], ind: Sequence[Indeterminate]) -> tuple[str, ...]:
+    """What the next campaign should add (:func:`advice_for`), then how it avoids readings
+    of unknown state (``ind``)."""
+    return (*advice_for(sel.model, batch, data, skipped, [st.label for st in sel.steps],
+                        sel.at_noise),
+            *(f"{x.label}: {x.advice}" for x in ind if x.advice))
+
+
 def _excess_explained(base: CrossValidation, chain: list[ChainStep], last_rms: float,
                       noise: NoiseFloor) -> float:
     """Share of the held-out excess over the noise floor the chain explains (NaN without)."""
@@ -888,10 +897,8 @@ def diagnose(
     last_rms = chain[-1].rms_after if chain else base.heldout_rms
     if noise.sigma is None:
         message += f"; {NO_FLOOR}"
-    ind = (sel.cv if chain else base).indeterminate
-    advice = [*advice_for(sel.model, batch, data, last_skipped, [st.label for st in chain],
-                          at_noise),
-              *(f"{x.label}: {x.advice}" for x in ind if x.advice)]
+    ind = sel.cv.indeterminate if chain else base.indeterminate
+    advice = _advice(sel, batch, data, last_skipped, ind)
     seconds = time.perf_counter() - t0
     log.info("diagnosis of %s: %d candidates, %d skipped, %d chain step(s), %.2f s: %s",
              ", ".join(model.labels), len(candidates), len(skipped), len(chain), seconds,
@@ -914,7 +921,7 @@ def diagnose(
         seconds=seconds,
         not_supported=tuple(s for s in last_skipped if s.kind == "not_supported"),
         stop=sel.stop,
-        advice=tuple(advice),
+        advice=advice,
         excess_explained=_excess_explained(base, chain, last_rms, noise),
         floor_ratio=(last_rms / noise.sigma if noise.sigma else float("nan")),
         experiment=experiment if verdict == "unexplained" else "",
