@@ -12,9 +12,10 @@ The residual is *at the noise floor* when SSE_0 / sigma^2 is not above chi^2(n) 
 or F(n, dof) (sigma from repeats) at level ALPHA, or RMS_0 <= NOISE_TOLERANCE sigma.
 
 Verdict: ``adequate`` when the current model's held-out residual is at the noise floor and
-within FLOOR_RATIO times it, or at the floor (not significantly above it) but beyond FLOOR_RATIO
-times it and no library effect is significant (the selection is run to find out: the same 1.5x
-rule as "missing");
+within FLOOR_RATIO times it; at the floor (not significantly above it) but beyond FLOOR_RATIO
+times it, the selection is run (the same 1.5x rule as "missing"), and with no significant
+library effect the verdict is ``unexplained``, never ``adequate``: a test without the power to
+see the excess is no evidence that there is none;
 ``missing`` when the named candidate (and, greedily, at most MAX_CHAIN - 1 more, each round
 re-testing every remaining candidate on the extended model) brings the held-out RMS to within
 FLOOR_RATIO times the noise floor, checked on the selection's own cross-validation before the
@@ -775,11 +776,15 @@ def _verdict(
                 f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm is at the noise floor "
                 f"({floor}); no effect is missing"
             )
+        # Not significantly above the floor, but beyond FLOOR_RATIO x it: the same 1.5x rule
+        # as "missing" keeps it from being "adequate" (a test without the power to see the
+        # excess is no evidence that there is none).
         assert noise.sigma is not None
-        return "adequate", (
-            f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm, "
-            f"{base.heldout_rms / noise.sigma:.2f} x the noise floor ({floor}), is not "
-            "significantly above it and no library effect is significant"
+        return "unexplained", (
+            f"unexplained: held-out RMS {base.heldout_rms * mm:.4g} mm is "
+            f"{base.heldout_rms / noise.sigma:.2f} x the noise floor ({floor}), beyond "
+            f"{FLOOR_RATIO:g} x it though not significantly above it on this data, and no "
+            f"library effect is significant; the residual correlates most with {_points(corr)}"
         )
     if chain and reaches_floor(chain[-1].rms_after, noise, at_noise):
         first, last = chain[0], chain[-1]
