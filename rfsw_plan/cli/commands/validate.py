@@ -238,6 +238,7 @@ def _print_summary(
              *_floor_lines(result), *_frame_line(result), *_add_lines(result),
              f"verdict: {dg.message}", *_candidate_lines(result)]
     lines += _selection_lines(result)
+    lines += [f"unknown state: {x.line()}" for x in dg.indeterminate]
     if dg.skipped:
         lines.append("not identifiable from this data: " + ", ".join(s.label for s in dg.skipped))
     if dg.not_supported:

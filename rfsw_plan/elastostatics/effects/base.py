@@ -121,8 +121,8 @@ class PoseBatch:
         T, J, frames = robot.batch_fk_jacobian_frames(Q)
         return cls(robot, Q, T, J, frames, approach, force_noise, load_change, load_history)
 
-    def rows(self, s: slice) -> PoseBatch:
-        """The samples ``s`` as a new batch (its own, empty cache)."""
+    def rows(self, s: slice | NDArray[np.int_]) -> PoseBatch:
+        """The samples ``s`` (a slice or indices) as a new batch (its own, empty cache)."""
         return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
                          None if self.approach is None else self.approach[s],
                          self.force_noise,
@@ -326,6 +326,37 @@ class Effect(abc.ABC):
         data would identify the effect, or None (nothing to say, or nothing missing). The
         diagnosis prints it for the effects it could not identify."""
         return None
+
+    def unknown_state(self, batch: PoseBatch, wrench: FloatArray) -> NDArray[np.bool_] | None:
+        """Samples whose state of this effect nothing before them in the data sets, shape
+        (m,), or None when the effect has no such state (the default).
+
+        A state of the campaign, not a parameter of the robot: the side of a joint's play
+        before the first motion or load that sets it. The model's prediction there is a
+        segment, the prediction at the middle state +- :meth:`state_spread`; the held-out
+        score measures such a sample against that segment
+        (:mod:`rfsw_plan.validation.engine.crossval`), never against a state read from the
+        held-out samples themselves.
+
+        Args:
+            batch: Kinematics and history of the samples.
+            wrench: True wrench at the TCP, base frame [N, N m], shape (m, 6).
+        """
+        return None
+
+    def state_spread(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        """Half the extent of the TCP's prediction over the unknown state [m], base frame,
+        shape (m, 3) (zero by default): a sample of :meth:`unknown_state` is predicted
+        anywhere on the segment centre +- this vector."""
+        return np.zeros((len(batch), 3))
+
+    def unknown_state_reason(self) -> str:
+        """Why the samples of :meth:`unknown_state` have no known state, in words."""
+        return "state unknown before anything in the data sets it"
+
+    def unknown_state_advice(self) -> str:
+        """How a campaign avoids samples of unknown state, in words ('' if it cannot)."""
+        return ""
 
     # -- what the model and identification ask of every effect (implemented by the bases) ----
     @abc.abstractmethod

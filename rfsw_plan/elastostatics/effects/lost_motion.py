@@ -186,6 +186,28 @@ class LostMotion(JointPlay):
         """s = sign(tau_N) where the torque is clear, else -a_N (class docstring)."""
         return self.sides(batch, wrench)[0]
 
+    def unknown_state(self, batch: PoseBatch, wrench: FloatArray) -> NDArray[np.bool_] | None:
+        """Samples of a recording (approach directions known) whose side nothing sets: no
+        clear torque, no clear earlier load at the pose and no motion of joint N before them
+        in the file (s = 0), shape (m,); None for a planned path (no history). Their side is a
+        state of the campaign (where the output sat when the recording began), not of the
+        robot: the model predicts them anywhere within +-b/2 (:meth:`state_spread`)."""
+        if batch.approach is None:
+            return None
+        out: NDArray[np.bool_] = self.sides(batch, wrench)[0] == 0
+        return out
+
+    def unknown_state_reason(self) -> str:
+        j = self._joint_name().replace("joint ", "j")
+        return (f"side of the play unknown before the first load on {j} (no motion of {j} "
+                "before them in the file)")
+
+    def unknown_state_advice(self) -> str:
+        j = self._joint_name().replace("joint ", "j")
+        return (f"move {j} onto the first pose from a known side (an approach move of a few "
+                f"degrees), or preload {j} with a load that turns it before the first reading, "
+                "so that no reading's side of the play is unknown")
+
     def side_counts(self, batch: PoseBatch, wrench: FloatArray) -> dict[str, int]:
         """Samples on each side of each mechanism: ``torque+``, ``torque-``, ``approach+``,
         ``approach-`` (the side, not the direction: approach+ = the joint last moved down)

@@ -96,6 +96,14 @@ class JointPlay(ComplianceEffect):
             return None
         return self.what_to_add(batch, wrench, plus, minus)
 
+    def state_spread(self, batch: PoseBatch, theta: FloatArray) -> FloatArray:
+        """J_v,N max(w, 0) / 2 [m], shape (m, 3): a sample whose side is unknown
+        (:meth:`~rfsw_plan.elastostatics.effects.base.Effect.unknown_state`) sits anywhere
+        between the two flanks, s in [-1, 1]."""
+        assert self.joint is not None
+        out: FloatArray = batch.J[:, :3, self.joint] * (0.5 * max(float(theta[0]), 0.0))
+        return out
+
     def visible(self, batch: PoseBatch) -> bool:
         """The joint moves the TCP in some sample (its lever arm |J_v,N| is above 1 um/rad):
         else no campaign of these poses shows its play."""

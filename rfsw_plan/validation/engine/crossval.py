@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 from threadpoolctl import ThreadpoolController
 
-from rfsw_plan.elastostatics.effects.base import FloatArray, PoseBatch
+from rfsw_plan.elastostatics.effects.base import Effect, FloatArray, PoseBatch
 from rfsw_plan.elastostatics.identification import (
     IdentificationResult,
     identify,
@@ -171,6 +171,112 @@ def make_folds(data: MeasurementSet, k: int, seed: int = 0) -> NDArray[np.int_]:
 
 
 @dataclass(frozen=True)
+class Indeterminate:
+    """Samples whose state of one effect nothing before them in the data sets (the side of a
+    joint's play before the first motion or load that sets it): a state of the campaign, not
+    a parameter of the robot.
+
+    The held-out score never reads that state from the held-out samples themselves: each is
+    scored against the model's own prediction for it, the segment centre +- the effect's
+    :meth:`~rfsw_plan.elastostatics.effects.base.Effect.state_spread` (+-b/2 of a play along
+    its joint's motion), with the width fitted on the training folds; its residual is the
+    distance to that segment.
+
+    Attributes:
+        label: The effect.
+        rows: The samples, shape (n,).
+        poses: Their pose ids (or rows ``#i`` without a pose column), in file order.
+        reason: Why their state is unknown, in words.
+        advice: How a campaign avoids them, in words.
+    """
+
+    label: str
+    rows: NDArray[np.int_] = field(repr=False, compare=False)
+    poses: tuple[str, ...]
+    reason: str
+    advice: str = ""
+
+    @property
+    def count(self) -> int:
+        """Number of samples."""
+        return int(self.rows.size)
+
+    def line(self) -> str:
+        """One line for the terminal."""
+        where = ", ".join(self.poses[:4]) + (" ..." if len(self.poses) > 4 else "")
+        return (f"{self.count} reading(s) at pose {where} scored against {self.label}'s "
+                f"stated spread (+-b/2), not fitted to their own side: {self.reason}")
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON form."""
+        return {"effect": self.label, "readings": self.count, "poses": list(self.poses),
+                "reason": self.reason, "treatment": "scored against the model's +-b/2 spread",
+                "advice": self.advice}
+
+
+def unknown_states(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch
+                   ) -> list[tuple[int, NDArray[np.bool_]]]:
+    """(index of the effect in ``model.effects``, its samples of unknown state, shape (m,))
+    for every effect of ``model`` with such samples
+    (:meth:`~rfsw_plan.elastostatics.effects.base.Effect.unknown_state`)."""
+    if not any(type(e).unknown_state is not Effect.unknown_state for e in model.effects):
+        return []
+    F = model.true_wrench(batch, data.wrench)
+    out = []
+    for i, e in enumerate(model.effects):
+        u = e.unknown_state(batch, F)
+        if u is not None and bool(np.any(u)):
+            out.append((i, np.asarray(u, dtype=bool)))
+    return out
+
+
+def _banded(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch,
+            folds: NDArray[np.int_], idx: NDArray[np.int_], steps: FloatArray,
+            unknown: list[tuple[int, NDArray[np.bool_]]],
+            ) -> tuple[NDArray[np.int_], FloatArray, FloatArray]:
+    """(rows of unknown state, their held-out residual [m] (n, 3), its distance to the
+    segment centre +- spread of each effect's unknown state [m] (n, 3)); zero where not
+    measured. The spread of fold f is the effect's at theta* + d_f (the training fit)."""
+    rows = np.flatnonzero(np.any([u for _, u in unknown], axis=0))
+    meas = data.measured[rows]
+    held = np.zeros((rows.size, 3))
+    for s, r in heldout_blocks(model, data.subset(rows), batch.rows(rows), folds[rows], idx,
+                               steps):
+        view = held[s]
+        view[meas[s]] = r
+    out = held.copy()
+    theta = np.concatenate([e.params for e in model.effects])
+    offs = np.cumsum([0] + [e.params.size for e in model.effects])
+    fo = folds[rows]
+    for f in np.unique(fo):
+        th = theta.copy()
+        th[idx] += steps[f]
+        sel = fo == f
+        sub = batch.rows(rows[sel])
+        for i, u in unknown:
+            v = (model.effects[i].state_spread(sub, th[offs[i]:offs[i + 1]])
+                 * meas[sel] * u[rows[sel]][:, None])
+            vv = np.einsum("ma,ma->m", v, v)
+            t = np.einsum("ma,ma->m", out[sel], v) / np.where(vv > 0, vv, 1.0)
+            out[sel] = out[sel] - v * np.clip(t, -1.0, 1.0)[:, None]
+    return rows, held, out
+
+
+def _indeterminate(model: ElastostaticModel, data: MeasurementSet,
+                   unknown: list[tuple[int, NDArray[np.bool_]]]) -> tuple[Indeterminate, ...]:
+    """What :class:`Indeterminate` says of each effect's samples of unknown state."""
+    out = []
+    for i, u in unknown:
+        e = model.effects[i]
+        rows = np.flatnonzero(u)
+        poses = ([str(p) for p in data.pose_id[rows]] if data.pose_id is not None
+                 else [f"#{r + 1}" for r in rows])
+        out.append(Indeterminate(e.label, rows, tuple(dict.fromkeys(poses)),
+                                 e.unknown_state_reason(), e.unknown_state_advice()))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
 class CrossValidation:
     """Held-out score of one model form.
 
@@ -195,6 +301,12 @@ class CrossValidation:
     #: evaluate the held-out residual again); None for a stacked fit (residual computed).
     cols: NDArray[np.int_] | None = field(default=None, repr=False, compare=False)
     steps: FloatArray | None = field(default=None, repr=False, compare=False)
+    #: Samples of unknown state (:func:`unknown_states`), scored against the model's spread.
+    indeterminate: tuple[Indeterminate, ...] = field(default=(), compare=False)
+    #: (rows, their held-out residual to the segment of their unknown state [m], (n, 3)):
+    #: what :attr:`heldout_residual` holds for them.
+    band: tuple[NDArray[np.int_], FloatArray] | None = field(default=None, repr=False,
+                                                            compare=False)
 
     @property
     def heldout_residual(self) -> FloatArray:
@@ -289,6 +401,12 @@ def cross_validate(
     _check_trainable(data, fit, idx.size, min_train, k)
     fold_steps, sse = heldout_steps(bf.factors, idx)
     n_obs = int(mask.sum())
+    unknown = unknown_states(fit.model, data, batch)
+    band = None
+    if unknown:
+        rows, held, to_segment = _banded(fit.model, data, batch, folds, idx, fold_steps, unknown)
+        sse += float(np.sum(to_segment ** 2) - np.sum(held ** 2))
+        band = (rows, to_segment)
     return CrossValidation(
         labels=tuple(fit.model.labels),
         fit=fit,
@@ -296,16 +414,20 @@ def cross_validate(
         sse=sse,
         n_obs=n_obs,
         n_free=int(idx.size),
-        residual_of=_block_residual(fit.model, data, batch, folds, idx, fold_steps),
+        residual_of=_block_residual(fit.model, data, batch, folds, idx, fold_steps, band),
         cols=idx,
         steps=fold_steps,
+        indeterminate=_indeterminate(fit.model, data, unknown),
+        band=band,
     )
 
 
 def _block_residual(model: ElastostaticModel, data: MeasurementSet, batch: PoseBatch,
-                    folds: NDArray[np.int_], idx: NDArray[np.int_], steps: FloatArray
+                    folds: NDArray[np.int_], idx: NDArray[np.int_], steps: FloatArray,
+                    band: tuple[NDArray[np.int_], FloatArray] | None = None,
                     ) -> Callable[[], FloatArray]:
-    """The held-out residual of a fit in blocks, evaluated when called [m], shape (m, 3)."""
+    """The held-out residual of a fit in blocks, evaluated when called [m], shape (m, 3)
+    (the samples of unknown state: their distance to the model's segment, ``band``)."""
     mask = data.measured
 
     def residual_of() -> FloatArray:
@@ -316,6 +438,9 @@ def _block_residual(model: ElastostaticModel, data: MeasurementSet, batch: PoseB
                 view[mask[s]] = held
         finally:
             forget_block_caches(batch)
+        if band is not None:
+            rows, to_segment = band
+            full[rows] = np.where(mask[rows], to_segment, np.nan)
         return full
 
     return residual_of
@@ -338,7 +463,7 @@ def attach(cv: CrossValidation, data: MeasurementSet, batch: PoseBatch,
     if "r" in cv._cache or cv.cols is None or cv.steps is None:
         return cv
     return replace(cv, residual_of=_block_residual(cv.fit.model, data, batch, folds, cv.cols,
-                                                   cv.steps), _cache={})
+                                                   cv.steps, cv.band), _cache={})
 
 
 def _check_trainable(

@@ -12,9 +12,10 @@ The residual is *at the noise floor* when SSE_0 / sigma^2 is not above chi^2(n) 
 or F(n, dof) (sigma from repeats) at level ALPHA, or RMS_0 <= NOISE_TOLERANCE sigma.
 
 Verdict: ``adequate`` when the current model's held-out residual is at the noise floor and
-within FLOOR_RATIO times it, or at the floor (not significantly above it) but beyond FLOOR_RATIO
-times it and no library effect is significant (the selection is run to find out: the same 1.5x
-rule as "missing");
+within FLOOR_RATIO times it; at the floor (not significantly above it) but beyond FLOOR_RATIO
+times it, the selection is run (the same 1.5x rule as "missing"), and with no significant
+library effect the verdict is ``unexplained``, never ``adequate``: a test without the power to
+see the excess is no evidence that there is none;
 ``missing`` when the named candidate (and, greedily, at most MAX_CHAIN - 1 more, each round
 re-testing every remaining candidate on the extended model) brings the held-out RMS to within
 FLOOR_RATIO times the noise floor, checked on the selection's own cross-validation before the
@@ -49,6 +50,7 @@ from rfsw_plan.validation.engine.crossval import (
     DEFAULT_FOLDS,
     FIT_TOL,
     CrossValidation,
+    Indeterminate,
     cross_validate,
     make_folds,
     single_thread_numpy_blas,
@@ -400,6 +402,10 @@ class Diagnosis:
         floor_ratio: The selection's held-out RMS over the noise floor (NaN if unknown).
         experiment: With the verdict ``unexplained`` after a selection (partly explained):
             the ``design-campaign`` that would tell its effects from their candidates.
+        indeterminate: Samples whose state of an effect of the selected model nothing before
+            them in the data sets (the side of a play before the first load on its joint),
+            scored against the model's stated spread
+            (:class:`~rfsw_plan.validation.engine.crossval.Indeterminate`).
     """
 
     verdict: Verdict
@@ -423,6 +429,7 @@ class Diagnosis:
     excess_explained: float = float("nan")
     floor_ratio: float = float("nan")
     experiment: str = ""
+    indeterminate: tuple[Indeterminate, ...] = ()
 
     @property
     def missing(self) -> Candidate | None:
@@ -467,6 +474,8 @@ class Diagnosis:
             "excess_explained": _finite(self.excess_explained),
             "floor_ratio": _finite(self.floor_ratio),
             "experiment": self.experiment,
+            "indeterminate": [x.to_json() for x in self.indeterminate],
+            "indeterminate_readings": sum(x.count for x in self.indeterminate),
             "candidates": [c.to_json() for c in self.candidates],
             "not_identifiable": [s.to_json() for s in self.skipped],
             "not_supported": [s.to_json() for s in self.not_supported],
@@ -767,11 +776,15 @@ def _verdict(
                 f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm is at the noise floor "
                 f"({floor}); no effect is missing"
             )
+        # Not significantly above the floor, but beyond FLOOR_RATIO x it: the same 1.5x rule
+        # as "missing" keeps it from being "adequate" (a test without the power to see the
+        # excess is no evidence that there is none).
         assert noise.sigma is not None
-        return "adequate", (
-            f"adequate: held-out RMS {base.heldout_rms * mm:.4g} mm, "
-            f"{base.heldout_rms / noise.sigma:.2f} x the noise floor ({floor}), is not "
-            "significantly above it and no library effect is significant"
+        return "unexplained", (
+            f"unexplained: held-out RMS {base.heldout_rms * mm:.4g} mm is "
+            f"{base.heldout_rms / noise.sigma:.2f} x the noise floor ({floor}), beyond "
+            f"{FLOOR_RATIO:g} x it though not significantly above it on this data, and no "
+            f"library effect is significant; the residual correlates most with {_points(corr)}"
         )
     if chain and reaches_floor(chain[-1].rms_after, noise, at_noise):
         first, last = chain[0], chain[-1]
@@ -816,6 +829,15 @@ def _after_chain(model: ElastostaticModel, data: MeasurementSet, sel: Selection,
         return (), ""
     return (correlations(sel.cv.heldout_residual, feats),
             _experiment(model, data, list(sel.steps)))
+
+
+def _advice(sel: Selection, batch: PoseBatch, data: MeasurementSet,
+            skipped: Sequence[Skipped], ind: Sequence[Indeterminate]) -> tuple[str, ...]:
+    """What the next campaign should add (:func:`advice_for`), then how it avoids readings
+    of unknown state (``ind``)."""
+    return (*advice_for(sel.model, batch, data, skipped, [st.label for st in sel.steps],
+                        sel.at_noise),
+            *(f"{x.label}: {x.advice}" for x in ind if x.advice))
 
 
 def _excess_explained(base: CrossValidation, chain: list[ChainStep], last_rms: float,
@@ -880,6 +902,8 @@ def diagnose(
     last_rms = chain[-1].rms_after if chain else base.heldout_rms
     if noise.sigma is None:
         message += f"; {NO_FLOOR}"
+    ind = sel.cv.indeterminate if chain else base.indeterminate
+    advice = _advice(sel, batch, data, last_skipped, ind)
     seconds = time.perf_counter() - t0
     log.info("diagnosis of %s: %d candidates, %d skipped, %d chain step(s), %.2f s: %s",
              ", ".join(model.labels), len(candidates), len(skipped), len(chain), seconds,
@@ -902,11 +926,11 @@ def diagnose(
         seconds=seconds,
         not_supported=tuple(s for s in last_skipped if s.kind == "not_supported"),
         stop=sel.stop,
-        advice=tuple(advice_for(sel.model, batch, data, last_skipped,
-                                [st.label for st in chain], at_noise)),
+        advice=advice,
         excess_explained=_excess_explained(base, chain, last_rms, noise),
         floor_ratio=(last_rms / noise.sigma if noise.sigma else float("nan")),
         experiment=experiment if verdict == "unexplained" else "",
+        indeterminate=ind,
     )
 
 

@@ -505,6 +505,13 @@ def _candidates_html(result: ValidationResult, plots: dict[str, Path]) -> list[s
                   "negative play or compliance): the data give no evidence for them.</p>",
                   table(["reason", "effects"], [[why, ", ".join(labels)] for why, labels
                                                 in skipped_by_reason(dg.not_supported).items()])]
+    if dg.indeterminate:
+        parts += ["<h3>Readings of unknown state</h3>",
+                  "<p>Nothing before them in the data sets their state (the side of a play): "
+                  "the held-out score measures them against the model's stated spread, never "
+                  "against a state read from themselves.</p>",
+                  "<ul>" + "".join(f"<li>{html.escape(x.line())}</li>"
+                                   for x in dg.indeterminate) + "</ul>"]
     if dg.advice:
         parts += ["<h3>What the next campaign should add</h3>",
                   "<ul>" + "".join(f"<li>{html.escape(a)}</li>" for a in dg.advice) + "</ul>"]
