@@ -65,12 +65,6 @@ FloatArray = NDArray[np.float64]
 NOT_REPORTED = ("joint_velocity", "joint_acceleration", "joint_jerk", "pin_speed")
 #: Largest relative difference of a segment's programmed time from the plan's.
 TIMING_TOL = 0.02
-#: The last written digit of a program's positions [m] (every bundled format writes mm with 4
-#: decimals). A segment's programmed length can differ from the plan's by the rounding of both
-#: ends, up to sqrt(3) POSITION_RESOLUTION, so its time is compared within TIMING_TOL plus that
-#: share of its length (negligible above a millimetre; a 3 um creep of the end stop's first
-#: move is 6 % of it).
-POSITION_RESOLUTION = 1e-7
 #: Largest difference of a point's joint value from its plan sample's [rad] (a turn or branch
 #: change is 2 pi or a large angle; an edit of millimetres moves the joints by far less).
 POSTURE_TOL = math.radians(5.0)
@@ -534,8 +528,7 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     as_written[cart] = shift[None] @ poses[cart]
     idx = _match(as_written, T_plan, plan.t, seg_t)
     findings += _posture_changes(q_pts, plan.q[idx], names, robot)
-    findings += _timing_changes(seg_t, plan.t[idx], names,
-                                np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1))
+    findings += _timing_changes(seg_t, plan.t[idx], names)
     dp = poses[:, :3, 3] - T_plan[idx, :3, 3]
     dr = (Rotation.from_matrix(poses[:, :3, :3])
           * Rotation.from_matrix(T_plan[idx, :3, :3]).inv()).as_rotvec()
@@ -619,11 +612,8 @@ def _posture_changes(q: FloatArray, q_plan: FloatArray, names: list[str],
     return out
 
 
-def _timing_changes(seg_t: FloatArray, t_plan: FloatArray, names: list[str],
-                    lengths: FloatArray) -> list[_Finding]:
-    """Segments whose programmed time differs from the plan's by more than TIMING_TOL (plus
-    the written positions' rounding, :data:`POSITION_RESOLUTION`, relative to the segment's
-    length ``lengths[k - 1]`` [m])."""
+def _timing_changes(seg_t: FloatArray, t_plan: FloatArray, names: list[str]) -> list[_Finding]:
+    """Segments whose programmed time differs from the plan's by more than TIMING_TOL."""
     out = []
     plan_dt = np.diff(t_plan)
     for k in range(1, len(seg_t)):
@@ -631,8 +621,7 @@ def _timing_changes(seg_t: FloatArray, t_plan: FloatArray, names: list[str],
         if want <= 0 or seg_t[k] <= 0:
             continue
         rel = seg_t[k] / want - 1.0
-        rounding = np.sqrt(3.0) * POSITION_RESOLUTION / max(float(lengths[k - 1]), 1e-12)
-        if abs(rel) > TIMING_TOL + rounding:
+        if abs(rel) > TIMING_TOL:
             out.append(_Finding(k, "timing", f"timing: the move to it takes {seg_t[k]:.3f} s, "
                                 f"the plan {want:.3f} s ({100 * rel:+.1f} %, tolerance "
                                 f"{100 * TIMING_TOL:g} %): the speed is {1 / (1 + rel):.2f} x "
