@@ -61,10 +61,12 @@ def test_casadi_prediction_matches_numeric_model(setup):
     np.testing.assert_allclose(1e6 / terms[:, 0], pred.lateral_stiffness, rtol=1e-9)
 
 
-@pytest.mark.parametrize("robot_name", ["zk500", "kuka_kr600_r2830"])
-def test_point_derivatives_match_finite_differences(robot_name):
+@pytest.mark.parametrize(("robot_name", "coupled"), [
+    ("zk500", False), ("kuka_kr600_r2830", False),
+    ("zk500", True)])  # the coupled axial law's depth centring term
+def test_point_derivatives_match_finite_differences(robot_name, coupled):
     model = ElastostaticModel(load_robot(robot_name))
-    pf = point_functions(model, compile_c=False)
+    pf = point_functions(model, compile_c=False, coupled=coupled)
     rng = np.random.default_rng(4)
     n = model.robot.nq
     w = np.concatenate([rng.uniform(-1, 1, n), rng.normal(0, 2, 3), rng.uniform(0, 1, 2)])
@@ -82,6 +84,7 @@ def test_point_derivatives_match_finite_differences(robot_name):
         "surface_on": 0.0,
         "standing": 1.0, "stand_at": -0.275,  # standing in the plate: the standstill row is on
         "standing_full": 1.0,  # ... at full depth: the standing depth row is on
+        "depth_at": 0.15,  # the coupled law's depth centre (unused without it)
     })[0]
     assert par.size == n_par(n)
     glob = GLOBALS.pack(1, {

@@ -340,3 +340,18 @@ def test_the_coupled_axial_law_is_the_claims_where_the_problem_declares_it(plann
     assert [b for b in independent_check(box, toml, rows, depth) if "depth" in b]
     kr = planned["kr600_curved_seam"][0]
     assert kr["claim_force_model"] == {"name": "force box", "penetration_stiffness_N_per_mm": None}
+
+
+def test_the_coupled_plan_centres_the_depth_in_its_window(planned) -> None:
+    """Under the coupled axial law the NLP centres the weld's nominal depth in the depth window
+    (-0.2 / +0.5 mm: at +0.15 mm, where the symmetric coupled spread holds the most), so the
+    plan's depth holds more than the mirror's (at the planned depth, 0.2 mm from the deep
+    side). The pin stays at the planned depth while the tool stands (the dwell)."""
+    rec = planned["zk500_table6_seam"][0]
+    mirror = next(b for b in rec["baselines"] if b["strategy"] == "mirror")
+    depth = rec["tolerated_force_uncertainty_by_quantity"]["depth"] * 100
+    assert depth > 1.05 * mirror["tolerated_force_uncertainty_by_quantity_pct"]["depth"]
+    lo, hi = rec["envelope"]["depth_window_mm"]
+    deepest, shallowest = rec["envelope"]["depth_error_mm"]
+    assert abs(shallowest - 0.5 * (lo + hi)) < 0.05
+    assert abs(deepest) < 0.05

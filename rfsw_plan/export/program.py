@@ -96,6 +96,11 @@ PHASES = ("approach", "plunge", "dwell", "accelerate", "weld", "decelerate", "st
           "retract")
 #: Below these a segment does not move [m], [rad]: it is a wait.
 STILL_POS = 1e-6
+#: The resolution of the positions every format writes [m] (mm with 4 decimals), and the length
+#: below which a move's speed is taken from its ends as written [m] (at 0.1 mm the rounding of
+#: its ends reaches 0.17 % of its length, a tenth of the 2 % timing tolerance of ``check``).
+WRITTEN_POSITION = 1e-7
+SHORT_MOVE = 1e-4
 STILL_ANG = math.radians(1e-3)
 #: Largest blend distance as a share of the shorter neighbouring segment.
 BLEND_SHARE = 0.4
@@ -751,6 +756,11 @@ def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    # A creep shorter than SHORT_MOVE (the end stop's first moves: a few micrometres) runs at
+    # the speed that gives the plan's time between its ends as written (every format writes mm
+    # with 4 decimals, WRITTEN_POSITION m): their rounding is several per cent of its length.
+    written = np.round(pts / WRITTEN_POSITION) * WRITTEN_POSITION
+    seg = np.where(seg < SHORT_MOVE, np.linalg.norm(np.diff(written, axis=0), axis=1), seg)
     dev = np.array([float(np.max(c)) for c in _segment_chords(P, idx)])
     # the rotation between consecutive points, all at once
     turn = ((Rotation.from_matrix(P[idx[:-1], :3, :3]).inv()

@@ -46,6 +46,7 @@ from rfsw_plan.planning.nlp import (
     _model_key,
     build_plan_nlp,
     nlp_prediction,
+    plans_coupled,
     solve_plan_nlp,
     update_parameters,
 )
@@ -662,7 +663,8 @@ def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     ``coarse_correction`` [m]: the coarse NLP's first outer correction (an earlier solve's
     :attr:`Solved.coarse_correction` on the same task, see :func:`_solve_outer`)."""
     if compile_c is None:
-        compile_c = len(task) >= 200 or (*_model_key(model.physical()), True) in _POINT_CACHE
+        compile_c = len(task) >= 200 or (*_model_key(model.physical()), True,
+                                                  plans_coupled(task)) in _POINT_CACHE
     load_steps = np.diff(warm.offsets, axis=0)
     fine = build_plan_nlp(model, task, window, warm.q, warm.offsets, opts, compile_c=compile_c,
                           load_steps=load_steps)

@@ -119,13 +119,15 @@ def point_layout(n: int) -> Layout:
     weld flag, depth flag (1 where the depth window applies: in the plate under position
     control), surface flag (1 at the plunge start, where the pin must not be below the
     surface), standstill flag (1 where the tool stands with the pin in the plate) and the
-    lateral pin error held there [mm] (the window centre), and the flag of the standing
-    waypoints at full depth (the pin at the planned depth)."""
+    lateral pin error held there [mm] (the window centre), the flag of the standing
+    waypoints at full depth (the pin at the planned depth), and the normal pin error the
+    objective centres the depth on [mm] (``depth_at``: 0, or under the coupled axial law the
+    depth window's centre, see :func:`~rfsw_plan.planning.nlp.depth_targets`)."""
     return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
                    ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
                    ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1),
                    ("depth_on", 1), ("surface_on", 1), ("standing", 1), ("stand_at", 1),
-                   ("standing_full", 1)))
+                   ("standing_full", 1), ("depth_at", 1)))
 
 
 #: Global scalars passed to every waypoint: the objective weights, the lateral compliance

@@ -56,7 +56,9 @@ Objective (weights and priorities in :mod:`rfsw_plan.process.plan_options`):
 w_stiffness share c_max / ref plus the mean over waypoints of
 w_stiffness (1 - share) l^T C_tt l / ref + w_worst r_k / hw
 + w_robust (sigma_k / hw + 1 - rho)
-+ w_centre ((e_k - centre) / hw)^2 + w_depth (normal error / 1 mm)^2
++ w_centre ((e_k - centre) / hw)^2 + w_depth ((normal error - d_k) / 1 mm)^2
+(d_k = 0, the planned depth; under the coupled axial law the depth window's centre, with the
+weight w_depth x w_robust: :func:`depth_targets`)
 + w_proximity |q_k - q_warm,k|^2 (keeps the null space, e.g. an unused tool rotation, at the
 warm start), plus mean over links of
 w_smooth_q |dq / h|^2 + w_smooth_o |do_lat,norm / h|^2 (the along-track offset is fixed by the
@@ -227,15 +229,19 @@ def _family_expression(family: Any, sym: PointSymbols) -> Any:
     return g
 
 
-def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointFunctions:
+def point_functions(model: ElastostaticModel, compile_c: bool = False, coupled: bool = False
+                    ) -> PointFunctions:
     """The per-waypoint functions of the NLP (see :class:`PointFunctions`).
 
     Args:
         model: Elastostatic model; its joint and tilting compliance enter symbolically.
         compile_c: Compile them to C with the system compiler (cached on disk, see
             :func:`_compile`); falls back to the CasADi virtual machine if that fails.
+        coupled: The objective plans with the coupled axial law (:func:`plans_coupled`): the
+            depth centred on ``depth_at`` (:func:`depth_targets`) instead of 0; a problem
+            without it gets the functions without that parameter.
     """
-    key = (*_model_key(model), compile_c)
+    key = (*_model_key(model), compile_c, coupled)
     if key in _POINT_CACHE:
         return _POINT_CACHE[key]
     robot = model.robot
@@ -257,7 +263,8 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False) -> PointF
     phi = gl["inv_k"] * (gl["w_stiffness"] * gl["mean_share"] * cll / cref
                          + gl["w_worst"] * r / hw
                          + gl["w_robust"] * (v["sigma"] / hw + (1 - rho))
-                         + gl["w_centre"] * ((e - centre) / hw) ** 2 + gl["w_depth"] * dep ** 2
+                         + gl["w_centre"] * ((e - centre) / hw) ** 2
+                         + gl["w_depth"] * (dep - pp["depth_at"] if coupled else dep) ** 2
                          + gl["w_proximity"] * ca.sumsqr(q - pp["q_lin"]))
     lam_f = ca.SX.sym("lam_f")
     lam_g = ca.SX.sym("lam_g", point_row_count())
@@ -705,10 +712,11 @@ def build_plan_nlp(
     model = model.physical()  # the wrench is modelled: sensor-only effects do not apply
     robot = model.robot
     n, K = robot.nq, len(task)
+    coupled = plans_coupled(task)
     if compile_c is None:
-        compile_c = K >= 200 or (*_model_key(model), True) in _POINT_CACHE
-    pf = point_functions(model, compile_c)
-    skey = (*_model_key(model), pf.compiled, K, opts.tol, opts.max_iter)
+        compile_c = K >= 200 or (*_model_key(model), True, coupled) in _POINT_CACHE
+    pf = point_functions(model, compile_c, coupled)
+    skey = (*_model_key(model), pf.compiled, coupled, K, opts.tol, opts.max_iter)
     ekey = skey[:-2]
     if ekey not in _EVAL_CACHE:
         _EVAL_CACHE[ekey] = _build_eval(pf, K, n)
@@ -727,6 +735,36 @@ def build_plan_nlp(
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
 
 
+def plans_coupled(task: PlanTask) -> bool:
+    """Whether the NLP plans with the coupled axial law: position control where the problem
+    couples the axial force to the penetration (``[process.coupling]``,
+    ``task.penetration_stiffness`` k_p > 0), as the robust claim judges it
+    (:func:`rfsw_plan.planning.verify.coupled_claim`)."""
+    return task.penetration_stiffness > 0 and task.axial_control != "force"
+
+
+def depth_targets(task: PlanTask, window: WeldWindow) -> FloatArray:
+    """The normal pin error the objective centres each waypoint's depth on [m], (K,).
+
+    Without the coupled axial law (:func:`plans_coupled`): 0, the planned depth. With it the
+    depth's spread over the force box is symmetric about the nominal depth, +- u r_n with
+    r_n = sum_i |f_i| |n^T C_tt b_i| / (1 + k_p n^T C_tt n) (b = t, l, n; the coupled claim's
+    linearisation, :func:`rfsw_plan.planning.verify.coupled_claim`: a deeper pin raises the
+    force, which lifts the robot back), so the nominal depth that holds the most
+    uncertainty is the depth window's centre, (depth_shallow - depth_deep) / 2: there on the
+    weld waypoints; on the standing ones at full depth (the plunge's end, the dwell, the weld
+    start, where the pin stands at the planned depth, the ``standing_depth`` rows) the point of
+    their band nearest to it; 0 elsewhere (the plunge, on its way down)."""
+    z = np.zeros(len(task))
+    if not plans_coupled(task):
+        return z
+    centre = 0.5 * (window.depth_shallow - window.depth_deep)
+    band = 0.4 * STANDING_DEPTH_TOL
+    z[task.phase == "weld"] = centre
+    z[task.standing_full] = float(np.clip(centre, -band, band))
+    return z
+
+
 def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_init: FloatArray,
                 opts: PlanOptions, correction: FloatArray | None) -> FloatArray:
     """The parameter vector p (:func:`problem_layout`) of a task, warm start q_init (K, n)
@@ -743,6 +781,7 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "surface_on": task.at_surface.astype(float),
         "standing": task.standing.astype(float), "stand_at": window.centre * 1e3,
         "standing_full": task.standing_full.astype(float),
+        "depth_at": depth_targets(task, window) * 1e3,
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6
@@ -753,6 +792,9 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "compliance_ref": max(float(np.mean(cll0)), 1e-12), "centre": window.centre * 1e3,
         "half_width": window.half_width * 1e3, "inv_k": 1.0 / K,
         "mean_share": 1.0 - opts.min_stiffness_share,
+        # Under the coupled axial law the depth's held level is part of the claim the
+        # robust-first objective maximises: its centring weighs w_depth x w_robust.
+        **({"w_depth": w["w_depth"] * w["w_robust"]} if plans_coupled(task) else {}),
     })
     return problem_layout(n, K).pack(1, {
         "points": PAR.reshape(-1), "inv_link": 1.0 / task.link_lengths(), "globals": glob,
