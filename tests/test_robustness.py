@@ -47,6 +47,11 @@ def plan_at(name: str | Path, u: float, lateral_only: bool = False,
     return api.plan(pb, dataclasses.replace(pb.planning, force_uncertainty=u, **overrides))
 
 
+#: An offset rate [m/m] that lets the offsets leave the mirror's (the problems use 0.05-0.2):
+#: where a test needs an NLP that spends the window and ends below the mirror.
+FREE_OFFSET_RATE = 1.0
+
+
 def assert_dominates(res: api.PlanResult) -> None:
     """The acceptance inequality, with the numbers in the message."""
     tol = res.tolerated_by_strategy
@@ -80,8 +85,12 @@ def test_zk500_plan_dominates_mirror_at_10_and_20_percent_and_is_monotone() -> N
 def test_trading_robustness_for_stiffness_is_explicit_and_said() -> None:
     """robust_first=false is the old planner: it holds the requested +-10 % at the waypoints
     and spends the rest of the window, ending below the mirror (the issue's +-9.68 %); the
-    verdict says so."""
-    res = plan_at("zk500_table6_seam", 0.1, lateral_only=True, robust_first=False)
+    verdict says so. With offsets free to leave the mirror's (offset_rate 1 mm/mm): at the
+    problem's 0.05 mm/mm they follow the mirror's closely enough that even the old planner
+    holds more than the mirror (+-14.5 % against +-12.3 %, since both NLPs bound the change
+    of the offsets' departure from the mirror's, issue 38)."""
+    res = plan_at("zk500_table6_seam", 0.1, lateral_only=True, robust_first=False,
+                  offset_rate=FREE_OFFSET_RATE)
     tol = res.tolerated_by_strategy
     assert tol["nlp"] < tol["mirror"] - DOMINANCE_TOL
     v = res.verdict()
@@ -101,7 +110,7 @@ def test_a_plan_less_robust_than_the_mirror_falls_back_to_the_mirror(monkeypatch
     """If the NLP ends below the mirror (here: made to pursue only the request), the mirror
     fixed point is verified, timed and written instead, and says so."""
     monkeypatch.setattr(api, "nlp_options", lambda o: o)
-    res = plan_at("zk500_table6_seam", 0.02, lateral_only=True)
+    res = plan_at("zk500_table6_seam", 0.02, lateral_only=True, offset_rate=FREE_OFFSET_RATE)
     assert res.source == "mirror" and "mirror baseline" in res.solver_status
     assert_dominates(res)
     assert res.samples is not None and res.samples.ok

@@ -127,3 +127,8 @@ def test_offset_rate_is_checked_against_the_load_steps(setup):
     assert bad.binding_margin == pytest.approx(allow - step[k, j], rel=1e-9)
     with pytest.raises(InfeasibleError, match=f"waypoint {k + 1} .*offset_rate_"):
         bad.raise_if_infeasible()
+    # The rows bound the change of the departure from the reference, not |delta o| beyond
+    # |delta o_ref| (issue 38): offsets held where the mirror's move fail against the mirror.
+    held = np.repeat(mir.offsets[:1], len(mir.offsets), axis=0)
+    lag = verify_plan(model, task, w, mir.q, held, options=tight, reference_offsets=mir.offsets)
+    assert not lag.feasible and any("offset_rate_" in m for m in lag.messages)

@@ -40,11 +40,16 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
 * at weld waypoints l^T C_tt(q_k) l <= c_max: c_max is one global epigraph variable (the last
   entry of x, one dense Jacobian column), the compliance of the weakest waypoint.
 
-Between neighbours: |q_{k+1} - q_k| <= joint step; |o_{k+1} - o_k| <= offset rate * travel
-(+ offset speed * time while stationary), and <= offset speed * time while moving, each plus
-the step the load change itself demands (the mirror baseline's step; see ``load_steps``), per
-offset component (the along-track component follows the traverse-force ramp, which the load
-step allows).
+Between neighbours: |q_{k+1} - q_k| <= joint step; the offsets' change beyond the change the
+load itself demands (m_k: the mirror baseline's offsets, ``offset_reference``),
+|(o_{k+1} - m_{k+1}) - (o_k - m_k)| <= offset rate * travel (+ offset speed * time while
+stationary), and <= offset speed * time while moving, per offset component (the offsets follow
+the force ramps as the mirror does; the along-track component follows the traverse-force
+ramp). The planner uses this form in the coarse and in the full NLP: with the looser
+``load_steps`` form, |o_{k+1} - o_k| <= allowance + |m_{k+1} - m_k|, the full NLP followed the
+travel-start ramp only in part (fanuc_laser_1400mm_yplus: 0.16 mm of pin error over the first
+0.625 mm link, five times the offset rate) where the coarse NLP could not, and the two plans
+were 0.08-0.13 mm apart there (issue 38).
 
 Every row family above is declared once, by name, in :mod:`rfsw_plan.planning.rows` (its
 expression, bounds, independent check); the variables and parameters are named by the layouts
@@ -701,9 +706,10 @@ def build_plan_nlp(
         offset_reference: Instead of ``load_steps``: offsets (K, 3) [m] (the mirror
             baseline's) whose change the offset link rows follow, |delta (o - o_ref)| <=
             allowance (offset rate * travel...). Tighter than ``load_steps``
-            (|delta o| <= allowance + |delta o_ref|); the coarse NLP uses it so that its
-            solution, interpolated as a departure from the mirror offsets, meets the fine
-            NLP's offset rows.
+            (|delta o| <= allowance + |delta o_ref|); the planner uses it in the coarse and
+            the full NLP, so that both solve the same problem (and the coarse solution,
+            interpolated as a departure from the mirror offsets, meets the fine NLP's offset
+            rows; :func:`~rfsw_plan.planning.verify.verify_plan` checks this form).
 
     Returns:
         The inspectable :class:`PlanNLP`.

@@ -211,7 +211,8 @@ class CheckInput:
         kappa_max: Largest kappa_f.
         options: The planner options (offset rate and speeds), or None.
         reference_offsets: Offsets whose change the load itself demands [m], (K, 3) (the
-            mirror baseline's), or None (zero).
+            mirror baseline's: the offset rows bound the departure from their change), or
+            None (zero).
     """
 
     model: ElastostaticModel
@@ -232,11 +233,12 @@ class CheckInput:
         fr, o = self.task.frames, OFFSETS.split(self.offsets)
         return self.task.target + o["lateral"] * fr.l + o["normal"] * fr.n + o["along"] * fr.t
 
-    def offset_steps(self) -> tuple[FloatArray, FloatArray]:
-        """|delta o| and the reference's |delta o_ref| between neighbours [m], (K - 1, 3)."""
+    def offset_steps(self) -> FloatArray:
+        """|delta (o - o_ref)| between neighbours [m], (K - 1, 3): the offsets' change beyond
+        the reference's (the change the load itself demands)."""
         ref = (np.zeros_like(self.offsets) if self.reference_offsets is None
                else offsets3(self.reference_offsets))
-        return np.abs(np.diff(self.offsets, axis=0)), np.abs(np.diff(ref, axis=0))
+        return np.abs(np.diff(self.offsets - ref, axis=0))
 
 
 #: A named margin series: (check name, margin (K,) (>= 0 holds), unit: "m", "rad", "speed"
@@ -296,17 +298,16 @@ def _check_joint_steps(c: CheckInput) -> Margins:
 
 
 def _offset_margins(name: str, c: CheckInput, bound: FloatArray) -> Margins:
-    """Margins of |delta o| <= bound + |delta o_ref| + OFFSET_TOL per offset component, named
+    """Margins of |delta (o - o_ref)| <= bound + OFFSET_TOL per offset component, named
     ``{name}_lat`` etc., at the link's first waypoint."""
-    step, ref = c.offset_steps()
-    m = bound[:, None] + ref + OFFSET_TOL - step
+    m = bound[:, None] + OFFSET_TOL - c.offset_steps()
     return [(f"{name}_{label}", np.append(m[:, OFFSETS[comp]][:, 0], np.inf), "offset")
             for comp, label in zip(OFFSETS.names, OFFSET_LABELS, strict=True)]
 
 
 def _check_offset_rate(c: CheckInput) -> Margins | None:
-    """|delta o| <= offset_rate x travel (+ offset_speed_stationary x time while stationary)
-    + |delta o_ref|."""
+    """|delta (o - o_ref)| <= offset_rate x travel (+ offset_speed_stationary x time while
+    stationary)."""
     if c.options is None:
         return None
     if len(c.q) < 2:
@@ -318,7 +319,7 @@ def _check_offset_rate(c: CheckInput) -> Margins | None:
 
 
 def _check_offset_speed(c: CheckInput) -> Margins | None:
-    """|delta o| <= offset_speed x time + |delta o_ref| on every link with travel."""
+    """|delta (o - o_ref)| <= offset_speed x time on every link with travel."""
     if c.options is None:
         return None
     if len(c.q) < 2:
@@ -472,7 +473,8 @@ def verify_plan(
             against ``offset_rate``, ``offset_speed_stationary`` and ``offset_speed``
             (skipped without them, and listed in :attr:`Verification.skipped`).
         reference_offsets: The offsets whose change the load itself demands [m], (K, 3) (the
-            mirror baseline's, as the planner's ``load_steps``); None: zero.
+            mirror baseline's, the planner's ``offset_reference``): the offset checks bound
+            the change of o - o_ref; None: zero.
     """
     Q = np.atleast_2d(np.asarray(q, dtype=float))
     pred = predict(model, task, Q, uncertainty, length_scale)
