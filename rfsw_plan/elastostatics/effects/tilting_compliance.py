@@ -6,6 +6,7 @@ from collections.abc import Mapping
 from typing import ClassVar
 
 import numpy as np
+import pinocchio as pin
 
 from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
@@ -22,12 +23,49 @@ def _normal_axes(axis: FloatArray) -> FloatArray:
     return np.stack([t1, np.cross(a, t1)])
 
 
+#: Key of the links' gravity moments in a batch's cache (they depend on the poses only).
+_GRAVITY_KEY = "link_gravity_moments"
+
+
+def link_gravity_moments(batch: PoseBatch) -> FloatArray:
+    """Moment of the weight of the links beyond each chain joint about the joint's origin, in
+    the joint's frame [N m], shape (m, n, 3); zeros when the robot file has no link masses.
+
+    M_i = sum_{k >= i} (c_k - o_i) x (m_k g) (g = -9.81 m/s^2 along base Z), written in joint
+    i's frame: what the joint's gear (the component along its axis, :meth:`Robot.
+    gravity_torque`) and its bearing (the normal components) carry. It is minus the angular
+    part of Pinocchio's joint force of a static inverse dynamics (``rnea`` with v = a = 0,
+    ``data.f[i]``: the force that holds the subtree). Kept in ``batch.cache``.
+    """
+    got: FloatArray | None = batch.cache.get(_GRAVITY_KEY)
+    if got is not None:
+        return got
+    robot = batch.robot
+    m, n = len(batch), robot.nq
+    out = np.zeros((m, n, 3))
+    if robot.has_link_masses:
+        model, data = robot.model, robot.data
+        zero = np.zeros(model.nv)
+        for k, qc in enumerate(robot.chain_q(batch.q)):
+            pin.rnea(model, data, qc, zero, zero)
+            for i in range(n):
+                out[k, i] = -data.f[i + 1].angular
+    batch.cache[_GRAVITY_KEY] = out
+    return out
+
+
 class TiltingCompliance(ComplianceEffect):
     """Joint N tilts about its frame's t1 and t2 axes under the moment it carries.
 
     Each tilting direction is a rotational spring through the joint origin o_N about the base-
-    frame axis u: its TCP twist is j_u = [u x (p - o_N); u], and dX = sum_u c_u j_u (j_u^T F).
-    Parameters c_t1, c_t2 are tilting compliances [rad/(N m)]; seed 002 eq. 2.
+    frame axis u: its TCP twist is j_u = [u x (p - o_N); u], and
+
+        dX = sum_u c_u j_u (j_u^T F + u . M_g),
+
+    the tilting moment being the process wrench's j_u^T F plus the moment M_g of the weight of
+    the links beyond the joint about o_N (:func:`link_gravity_moments`; zero without link
+    masses in the robot file): the bearing carries both. Parameters c_t1, c_t2 are tilting
+    compliances [rad/(N m)]; seed 002 eq. 2.
     """
 
     name = "tilting_compliance"
@@ -86,12 +124,21 @@ class TiltingCompliance(ComplianceEffect):
             self._local_cache = cached
         return cached
 
+    def tilt_moments(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
+        """Tilting moments about t1 and t2, process wrench and links' weight [N m], (m, 1, 2)."""
+        assert self.joint is not None
+        jt = self.tilt_twists(batch)
+        F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
+        moment = np.matmul(F[:, None, :], jt)  # from the process wrench
+        if batch.robot.has_link_masses:
+            gravity = link_gravity_moments(batch)[:, self.joint] @ self._local_axes().T
+            moment = moment + gravity[:, None, :]
+        return moment
+
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
     ) -> FloatArray:
-        jt = self.tilt_twists(batch)
-        moment = np.matmul(wrench[:, None, :], jt)  # tilting moments [N m], (m, 1, 2)
-        return jt * moment
+        return self.tilt_twists(batch) * self.tilt_moments(batch, wrench)
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
         return self.deflection_regressor(batch, wrench, theta) @ theta
