@@ -6,7 +6,6 @@ from collections.abc import Mapping
 from typing import ClassVar
 
 import numpy as np
-import pinocchio as pin
 
 from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
 
@@ -31,11 +30,14 @@ def link_gravity_moments(batch: PoseBatch) -> FloatArray:
     """Moment of the weight of the links beyond each chain joint about the joint's origin, in
     the joint's frame [N m], shape (m, n, 3); zeros when the robot file has no link masses.
 
-    M_i = sum_{k >= i} (c_k - o_i) x (m_k g) (g = -9.81 m/s^2 along base Z), written in joint
-    i's frame: what the joint's gear (the component along its axis, :meth:`Robot.
-    gravity_torque`) and its bearing (the normal components) carry. It is minus the angular
-    part of Pinocchio's joint force of a static inverse dynamics (``rnea`` with v = a = 0,
-    ``data.f[i]``: the force that holds the subtree). Kept in ``batch.cache``.
+        M_i = sum_{k >= i} (c_k - o_i) x m_k g = (S_i - o_i M_i) x g,
+
+    S_i = sum_{k >= i} m_k c_k [kg m] and M_i = sum_{k >= i} m_k [kg], c_k the centre of mass of
+    link k (base frame, from the batch's joint frames and the model's inertias), o_i the
+    joint's origin, g = 9.81 m/s^2 along -Z of the base (Pinocchio's gravity, as
+    :meth:`Robot.gravity_torque`). Written in joint i's frame, it is what the joint carries:
+    the component along its axis loads the gear (``gravity_torque``), the normal ones the
+    bearing. Vectorised over the samples; kept in ``batch.cache``.
     """
     got: FloatArray | None = batch.cache.get(_GRAVITY_KEY)
     if got is not None:
@@ -44,12 +46,21 @@ def link_gravity_moments(batch: PoseBatch) -> FloatArray:
     m, n = len(batch), robot.nq
     out = np.zeros((m, n, 3))
     if robot.has_link_masses:
-        model, data = robot.model, robot.data
-        zero = np.zeros(model.nv)
-        for k, qc in enumerate(robot.chain_q(batch.q)):
-            pin.rnea(model, data, qc, zero, zero)
-            for i in range(n):
-                out[k, i] = -data.f[i + 1].angular
+        R = batch.frames[:, :, :3, :3]  # (m, n, 3, 3)
+        origin = batch.frames[:, :, :3, 3]  # (m, n, 3): o_i
+        # A prismatic joint's body sits further along its axis by its travel (chain value).
+        axes = np.asarray(robot.geometry.axes, dtype=float)  # (n, 3) in the joint frames
+        travel = robot.chain_q(batch.q) * np.asarray(robot.prismatic, dtype=float)  # (m, n)
+        lever = np.array([robot.model.inertias[i + 1].lever for i in range(n)])  # (n, 3)
+        mass = np.array([float(robot.model.inertias[i + 1].mass) for i in range(n)])  # (n,)
+        local = lever[None] + travel[:, :, None] * axes[None]  # c_k in frame k, (m, n, 3)
+        com = origin + np.einsum("mnab,mnb->mna", R, local)  # (m, n, 3) base frame
+        weighted = mass[None, :, None] * com  # m_k c_k, (m, n, 3)
+        first = np.flip(np.cumsum(np.flip(weighted, axis=1), axis=1), axis=1)  # S_i
+        total = np.flip(np.cumsum(np.flip(mass)))  # M_i, (n,)
+        g = np.array([0.0, 0.0, -float(np.linalg.norm(robot.model.gravity.linear))])
+        base = np.cross(first - origin * total[None, :, None], g)  # (m, n, 3)
+        out = np.einsum("mnba,mnb->mna", R, base)  # R_i^T M_i
     batch.cache[_GRAVITY_KEY] = out
     return out
 
