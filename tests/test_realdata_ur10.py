@@ -99,50 +99,6 @@ def test_link_masses_round_trip_and_refusals(tmp_path: Path) -> None:
         load_robot_description(negative)
 
 
-def test_tilting_and_torque_stiffening_carry_the_links_weight() -> None:
-    """tilting_compliance and torque_dependent_stiffness load their joint with the total
-    torque, the process wrench's plus the links' weight (a gear's stiffness and a bearing's
-    tilt depend on what they carry, whatever loads it): on no-load data with UR's masses they
-    deflect the arm. The bearing moment is checked against a hand sum over UR's standard-DH
-    chain, M_j = sum_{i >= j} (c_i - o_j) x m_i g about the joint's origin o_j, taken about its two
-    normal axes."""
-    from rfsw_plan.elastostatics.effects import make_effect
-    from rfsw_plan.elastostatics.effects.base import PoseBatch
-    from rfsw_plan.elastostatics.effects.torque_dependent_stiffness import TAU_REF_NM
-
-    robot = load_robot("ur10")
-    g = np.array([0.0, 0.0, -9.81])
-    q = np.random.default_rng(11).uniform(-3, 3, (5, 6))
-    batch = PoseBatch.from_q(robot, q)
-    none = np.zeros((5, 6))
-    wrench = np.tile([30.0, -20.0, 50.0, 2.0, -1.0, 3.0], (5, 1))
-    for j in range(6):
-        tilt = make_effect(robot, f"tilting_compliance:j{j + 1}")
-        tds = make_effect(robot, f"torque_dependent_stiffness:j{j + 1}")
-        t1t2 = batch.frames[:, j, :3, :3] @ tilt.joint_springs().T  # (m, 3, 2) base frame
-        for k in range(5):
-            frames = _std_frames(q[k])
-            # The spring's centre o_j: the file's (modified DH) joint origin, on UR's joint axis.
-            axis = [np.eye(4), *frames[:-1]][j]
-            o = batch.frames[k, j, :3, 3]
-            np.testing.assert_allclose(np.cross(axis[:3, 2], o - axis[:3, 3]), 0, atol=1e-12)
-            M = sum(np.cross((frames[i] @ np.r_[COM_STD[i], 1.0])[:3] - o, MASS[i] * g)
-                    for i in range(j, 6))
-            jt = tilt.tilt_twists(batch)[k]
-            np.testing.assert_allclose(tilt.tilt_moments(batch, none)[k, 0], M @ t1t2[k],
-                                       atol=1e-9)
-            np.testing.assert_allclose(tilt.tilt_moments(batch, wrench)[k, 0],
-                                       M @ t1t2[k] + wrench[k] @ jt, atol=1e-9)
-        tau = np.einsum("ma,ma->m", batch.J[:, :, j], wrench)
-        np.testing.assert_allclose(
-            tds.normalised_torque(batch, wrench),
-            (tau + robot.gravity_torque(q)[:, j]) / TAU_REF_NM, atol=1e-15)
-    # No load, UR's masses: the shoulder's bearing and gear still deflect the arm.
-    for label in ("tilting_compliance:j2", "torque_dependent_stiffness:j2"):
-        eff = make_effect(robot, label)
-        assert np.abs(eff.deflection_regressor(batch, none, eff.prior())).max() > 1e-6
-
-
 # -- a 6-D pose as four virtual markers -------------------------------------------------------
 MAP_6D = """frame = "device"
 orientation = "euler_XYZ"

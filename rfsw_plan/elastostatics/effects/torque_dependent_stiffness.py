@@ -8,7 +8,6 @@ from typing import ClassVar
 import numpy as np
 
 from rfsw_plan.elastostatics.effects.base import ComplianceEffect, FloatArray, PoseBatch
-from rfsw_plan.elastostatics.effects.joint_compliance import JointCompliance
 
 #: Reference torque that normalises the polynomial [N m]: s = tau / TAU_REF_NM.
 TAU_REF_NM = 1.0e4
@@ -20,15 +19,11 @@ class TorqueDependentStiffness(ComplianceEffect):
     Seed 002 Fig. 7 fits each joint's angular displacement phi(tau) with a polynomial; the
     linear term is the joint compliance, so this effect adds the higher odd terms:
 
-        dq_N = d2 s|s| + d3 s^3,   s = tau_N / TAU_REF_NM,   tau_N = (J^T F + tau_g(q))_N,
+        dq_N = d2 s|s| + d3 s^3,   s = tau_N / TAU_REF_NM,   tau_N = (J^T F)_N,
 
     and moves the TCP by dX = J_N dq_N (base frame [m, rad]). d2 and d3 [rad] are the extra
     deflection at tau_N = TAU_REF_NM (10 kN m); d < 0 is a joint that stiffens with load,
     d > 0 one that softens. Linear in (d2, d3).
-
-    tau_N is the total torque the gear carries: the process wrench's J^T F plus the links' own
-    weight tau_g(q) (:meth:`JointCompliance.torques`; zero when the robot file has no link
-    masses), since a gear's stiffness depends on the torque through it, whatever loads it.
     """
 
     name = "torque_dependent_stiffness"
@@ -67,13 +62,10 @@ class TorqueDependentStiffness(ComplianceEffect):
         return dict(zip(self.param_names(), d.tolist(), strict=True))
 
     def normalised_torque(self, batch: PoseBatch, wrench: FloatArray) -> FloatArray:
-        """s = tau_N / TAU_REF_NM for every sample, shape (m,); tau_N = (J^T F + tau_g)_N."""
+        """s = tau_N / TAU_REF_NM for every sample, shape (m,)."""
         assert self.joint is not None
         F = np.broadcast_to(np.asarray(wrench, dtype=float), (len(batch), 6))
-        tau = np.einsum("ma,ma->m", batch.J[:, :, self.joint], F)
-        if batch.robot.has_link_masses:  # the links' weight (the cached JointCompliance one)
-            tau = tau + JointCompliance.torques(batch, np.zeros_like(F))[:, self.joint]
-        return tau / TAU_REF_NM
+        return np.einsum("ma,ma->m", batch.J[:, :, self.joint], F) / TAU_REF_NM
 
     def deflection_regressor(
         self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray
