@@ -71,11 +71,11 @@ def test_zk500_plan_dominates_mirror_at_10_and_20_percent_and_is_monotone() -> N
         # response is spread, and the axial force changes about 1 / (1 + k_p c) = 1 / 2.8 of
         # it, so the depth holds about +-5.9 % at the planned depth where the force box gave
         # +-2.1 %; the NLP plans with the law and centres the weld's depth in its window, which
-        # holds about +-6.6 % (the dwell, at the planned depth, limits it); the pin speed at the
-        # weld start limits first.
+        # (with the offsets following the mirror's change at the ramp) holds about +-7.2 %; the
+        # pin speed at the weld start limits first.
         assert res.claim_force_model["name"] == "coupled axial law"
         assert min(lv, key=lambda q: lv[q]) in ("speed", "depth")
-        assert lv["depth"] == pytest.approx(0.066, abs=3e-3)
+        assert lv["depth"] == pytest.approx(0.072, abs=3e-3)
         assert lv["lateral"] > 2 * lv["depth"]
     # Asking for less never gives a less robust plan.
     assert out[0.1].tolerated_force_uncertainty >= out[0.2].tolerated_force_uncertainty - 1e-6

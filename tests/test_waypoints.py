@@ -166,8 +166,11 @@ def test_worst_waypoint_time_is_on_the_clock_of_waypoints_csv(written):
         s = np.array([float(r["s_mm"]) for r in rows])
         assert abs(s[i] - ww["s_mm"]) <= 0.5 * float(np.max(np.abs(np.diff(s[i - 1:i + 2])))) \
             + 1e-6
+        # At a local extremum of the error the curve peaks between the samples, by up to
+        # |second difference| / 8 beyond the nearest (a parabola through the three).
         lo, hi = np.min(e[i - 1:i + 2]), np.max(e[i - 1:i + 2])
-        assert lo - 2e-6 <= ww["e_lat_mm"] <= hi + 2e-6
+        bulge = abs(e[i - 1] - 2 * e[i] + e[i + 1]) / 8
+        assert lo - bulge - 2e-6 <= ww["e_lat_mm"] <= hi + bulge + 2e-6
         return
     assert e[i] == pytest.approx(ww["e_lat_mm"], abs=2e-6)
     assert float(rows[i]["margin_mm"]) == pytest.approx(ww["margin_mm"], abs=2e-6)

@@ -1593,11 +1593,10 @@ def verify_samples(
     welding = phase == "weld"
     claim = robust_claim(model, task, window, ClaimInput(
         t, phase, s, batch, W, dX, p, tt, ll, nn, npl, contact, full, welding, t,
-        1.0 / task.travel_speed if task.travel_speed > 0 else 0.0)) if robust else None
+        _time_per_length(task))) if robust else None
     # Worst case of the lateral error per unit uncertainty: sum_i |l . D_i| (the box's
     # worst vertex; for a wrench-linear model sum_i |f_i| |l^T C_tt b_i|, seed 000 eq. 11).
-    R = np.where(contact, claim.lateral_per_unit, 0.0) if claim is not None else np.zeros(N)
-    tolerated = claim.tolerated if claim is not None else float("nan")
+    R, tolerated = _claim_terms(claim, contact)
 
     fails: list[SampleFailure] = []
 
@@ -1706,6 +1705,20 @@ def verify_samples(
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
                               tuple(fails), derr, tilt_err, speed_ratio, height, claim,
                               (float(steady[0]), float(steady[-1])) if len(steady) else None)
+
+
+def _time_per_length(task: PlanTask) -> float:
+    """1 / weld speed [s/m] (0 without a travel speed): the pin speed's scale on time."""
+    return 1.0 / task.travel_speed if task.travel_speed > 0 else 0.0
+
+
+def _claim_terms(claim: RobustClaim | None, contact: NDArray[np.bool_]
+                 ) -> tuple[FloatArray, float]:
+    """The worst lateral change per unit uncertainty at the in-material samples [m] and the
+    tolerated level (zeros and NaN without a claim: :func:`verify_samples` ``robust=False``)."""
+    if claim is None:
+        return np.zeros(len(contact)), float("nan")
+    return np.where(contact, claim.lateral_per_unit, 0.0), claim.tolerated
 
 
 def _stop_motion(e: FloatArray, phase: NDArray[np.str_]
