@@ -4,7 +4,8 @@ For every bundled problem the plan is written once per module (``waypoints.csv``
 ``plan.json`` as ``rfsw-plan plan`` writes them, without the plots), then ``waypoints.csv``,
 the problem TOML and the claim of ``plan.json`` (verdict and level) are read with numpy, csv
 and tomllib only. At the claimed +-u (the requested one for GO, the tolerated one for HOLDS
-NOMINALLY) the lateral error and the depth are evaluated at the vertices of the force box:
+NOMINALLY) the lateral error, the depth and the pin's travel speed are evaluated at the
+vertices of the force box:
 
 * wrench-linear robot models: every force scaled by k = 1 -+ u, the deflection columns
   (dx_mm, dy_mm, dz_mm) scaled with it (exact for a compliance linear in the wrench; the two
@@ -49,9 +50,15 @@ BUNDLED = sorted(p.stem for p in (ROOT / "problems").glob("*.toml"))
 LINEAR_EFFECTS = {"joint_compliance", "tilting_compliance", "flange_compliance",
                   "payload_gravity", "kinematic_offsets", "link_errors"}
 CONTACT = ("plunge", "dwell", "accelerate", "weld", "decelerate")
+#: Where the seam point moves and the pin speed is judged.
+TRAVEL = ("accelerate", "weld", "decelerate")
 FULL_DEPTH = ("dwell", "accelerate", "weld", "decelerate")
 #: Tolerance of a bound [mm] (the written columns' rounding, 1e-6 mm, and IPOPT's 1e-7 mm).
 TOL_MM = 1e-3
+#: Tolerance of the pin speed [% of the weld speed]: the rounding of four columns (x, dx, seam,
+#: s; +-0.5e-6 mm each) in a central difference over two 10 ms samples is 2e-4 mm/s, 0.0083 %
+#: of the slowest bundled weld speed (3 mm/s); twice that.
+SPEED_TOL_PCT = 0.02
 
 
 def _plan(problem: str | Path, out: Path, u: float | None = None, result: Any = None
@@ -121,12 +128,19 @@ class Weld:
         seam = toml.get("seam", {})
         ns = np.asarray(seam.get("surface_normal", [0, 0, 1]), float)
         self.normal = ns / np.linalg.norm(ns)
-        # Seam tangent from the weld's seam points, at every sample by its arc length.
-        w = np.flatnonzero(phase == "weld")
+        # Seam tangent from the travel's seam points, at every sample by its arc length: the
+        # chord over +-h (h the problem's waypoint spacing) of the written seam points (linear
+        # between the waypoints), so the tangent does not jump where the chords meet.
+        w = np.flatnonzero(np.isin(phase, TRAVEL))
         sw, order = np.unique(self.s[w], return_index=True)
         pw = self.seam[w][order]
-        tw = np.gradient(pw, sw, axis=0)
-        t = np.stack([np.interp(self.s, sw, tw[:, i]) for i in range(3)], axis=1)
+        h = float(toml.get("seam", {}).get("spacing_mm", 5.0))
+
+        def at(s: np.ndarray) -> np.ndarray:
+            s = np.clip(s, sw[0], sw[-1])
+            return np.stack([np.interp(s, sw, pw[:, i]) for i in range(3)], axis=1)
+
+        t = at(self.s + h) - at(self.s - h)
         t -= np.outer(t @ self.normal, self.normal)
         t /= np.linalg.norm(t, axis=1, keepdims=True)
         lat = np.cross(self.normal, t)
@@ -139,12 +153,26 @@ class Weld:
         self.lat, self.t = lat, t
         self.contact = have & np.isin(phase, CONTACT)
         self.full = np.isin(phase, FULL_DEPTH)
+        self.time = _col(rows, "t_s")[:, 0]
+        self.travel = np.isin(phase, TRAVEL)
 
     def lateral(self, d: np.ndarray) -> np.ndarray:
         return np.einsum("ki,ki->k", self.lat, self.x + d - self.seam)
 
     def depth(self, d: np.ndarray) -> np.ndarray:
         return (self.x + d - self.seam) @ self.normal
+
+    def speed(self, d: np.ndarray, v_weld: float) -> np.ndarray:
+        """The pin's speed along the seam off the commanded one, as a share of the weld speed
+        (v_weld [mm/s]), at the travel samples: the pin's velocity (its positions differenced
+        in time) along the direction the seam point moves (the seam columns differenced in
+        time), less the seam point's speed d s / d t."""
+        k = self.travel
+        v = np.gradient(self.x[k] + d[k], self.time[k], axis=0)
+        along = np.gradient(self.seam[k], self.time[k], axis=0)
+        along /= np.linalg.norm(along, axis=1, keepdims=True)
+        return (np.einsum("ki,ki->k", along, v)
+                - np.gradient(self.s[k], self.time[k])) / v_weld
 
 
 def _robot_is_linear(toml: dict) -> bool:
@@ -247,6 +275,10 @@ def independent_check(rec: dict, toml: dict, rows: list[dict], u: float) -> list
     assert np.max(np.abs(weld.lateral(weld.d) - weld.e_lat)[weld.contact]) < TOL_MM
     dep = weld.depth(weld.d)[weld.full]
     assert rec["envelope"]["depth_error_mm"] == pytest.approx([dep.min(), dep.max()], abs=TOL_MM)
+    v_w, tol = rec["weld_speed_mm_s"], rec["envelope"]["speed_tol_pct"] / 100
+    dev = weld.speed(weld.d, v_w)
+    assert rec["envelope"]["pin_speed_deviation_pct"] == pytest.approx(
+        [100 * dev.min(), 100 * dev.max()], abs=SPEED_TOL_PCT)
     bad = []
     for i, d in enumerate(_vertex_deflections(weld, toml, u, position, k_p)):
         e = weld.lateral(d)[weld.contact]
@@ -256,6 +288,9 @@ def independent_check(rec: dict, toml: dict, rows: list[dict], u: float) -> list
             z = weld.depth(d)[weld.full]
             if z.min() < dlo - TOL_MM or z.max() > dhi + TOL_MM:
                 bad.append(f"vertex {i}: depth [{z.min():+.3f}, {z.max():+.3f}] mm")
+        v = weld.speed(d, v_w)
+        if np.max(np.abs(v)) > tol + SPEED_TOL_PCT / 100:
+            bad.append(f"vertex {i}: pin speed [{100 * v.min():+.2f}, {100 * v.max():+.2f}] %")
     return bad
 
 
@@ -273,9 +308,9 @@ def test_every_claim_holds_at_the_vertices_of_its_force_box(planned, name: str) 
         assert rec["limiting"]["quantity"] == min(levels, key=lambda q: levels[q])
         assert rec["verdict_text"].split(": ")[2].startswith(rec["limiting"]["quantity"])
     assert independent_check(rec, toml, rows, u) == []
-    # Not a check that cannot fail: beyond the levels of the lateral error and the depth (the
-    # two this check evaluates) one of them leaves its window.
-    checked = [levels[q] for q in ("lateral", "depth") if q in levels]
+    # Not a check that cannot fail: beyond the levels of the lateral error, the depth and the
+    # pin speed (the three this check evaluates) one of them leaves its window.
+    checked = [levels[q] for q in ("lateral", "depth", "speed") if q in levels]
     if checked:
         assert independent_check(rec, toml, rows, min(3 * max(checked), 0.95)) != []
 

@@ -584,6 +584,9 @@ LIMIT_TOL = 1e-9
 AIR_TOL = 1e-6
 #: Phases with the pin at full depth in the plate (where the depth window applies).
 FULL_DEPTH_PHASES = ("dwell", "accelerate", "weld", "decelerate", "stop")
+#: Phases in which the seam point moves: the pin's travel speed is judged there, against the
+#: commanded speed (:func:`_quantities`).
+TRAVEL_PHASES = ("accelerate", "weld", "decelerate")
 #: Tolerance of the tilt check on samples [rad] (the NLP's tool-axis tolerance).
 TILT_TOL = 1e-4
 #: Tolerance of the pin-speed check [1] (finite differences of 10 ms samples).
@@ -828,7 +831,8 @@ class ClaimInput:
         plate_normal: Plate normal, (N, 3).
         contact: Points in the material (lateral and tilt), (N,).
         full_depth: Points at full depth (depth), (N,).
-        travel: Constant-speed travel points (speed), (N,).
+        travel: Travel points (speed): the samples where the seam point moves (accelerate,
+            weld, decelerate), or the constant-speed weld waypoints, (N,).
         speed_axis: Abscissa of the pin's speed: time [s] (samples) or arc length [m]
             (waypoints), (N,).
         speed_scale: 1 / weld speed [s/m] for time, 1 for arc length.
@@ -852,6 +856,20 @@ class ClaimInput:
     speed_scale: float
 
 
+def seam_direction(p: FloatArray, x: FloatArray, t_dir: FloatArray, normal: FloatArray
+                   ) -> FloatArray:
+    """The direction the seam point moves, unit (N, 3): the seam points p [m] (N, 3)
+    differenced along x (time [s] or arc length [m]), i.e. the seam's own direction, in the
+    plate; where p does not move, the frame tangent t_dir in the plate's plane,
+    t - (t . n) n normalised (the tool-tilted frame tangent itself would count a depth change
+    as travel)."""
+    g = np.gradient(p, x, axis=0) if len(p) >= 2 else np.zeros_like(p)
+    n = np.linalg.norm(g, axis=1, keepdims=True)
+    t = t_dir - np.einsum("ki,ki->k", t_dir, normal)[:, None] * normal
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return np.where(n > 1e-12, g / np.maximum(n, 1e-300), t)
+
+
 def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = ""
                 ) -> dict[str, tuple[FloatArray, FloatArray, FloatArray, NDArray[np.bool_]]]:
     """Every weld quantity under the deflection dX (N, 6): value, lower and upper bound, and
@@ -864,8 +882,15 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
       of the deflection's rotation from the nominal one, (z + (dX_r - dX0_r) x z) . l (. t),
       in [-sin tol, sin tol] (the nominal rotation is the nominal tilt check's, which
       checks the commanded axis);
-    * speed: d sigma / d x x scale - 1, sigma = s + t . (FK_p + dX_p - p) the pin's arc
-      length, in [-speed_tol, speed_tol].
+    * speed: the pin's travel speed along the seam off the commanded one, as a share of the
+      weld speed, (t_p . d(FK_p + dX_p)/dx - ds/dx) x scale in [-speed_tol, speed_tol], t_p
+      the direction the seam point moves (:func:`seam_direction`): on samples (x = time, scale =
+      1 / v_weld) the pin's velocity along the seam against the commanded speed ds/dt,
+      wherever the seam point moves (the acceleration and deceleration included); at
+      waypoints (x = s, scale 1) per unit of travel. The band is the weld speed's tolerance
+      in mm/s, so it does not widen as the commanded speed passes through 0; on a curve the
+      pin's own velocity counts (inside a corner at lateral error e it travels
+      ds/dt (1 - kappa e)), not its projection's.
 
     ``only``: compute that quantity alone (the others are left out).
     """
@@ -891,9 +916,11 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
     if only in ("", "speed"):
         speed = np.zeros(N)
         if c.travel.sum() >= 3:
-            sigma = c.s + np.einsum("ki,ki->k", c.t_dir, pin)
-            speed[c.travel] = np.gradient(sigma[c.travel],
-                                          c.speed_axis[c.travel]) * c.speed_scale - 1
+            k, ax = c.travel, c.speed_axis[c.travel]
+            v = np.gradient(x[k] + dX[k, :3], ax, axis=0)
+            speed[k] = (np.einsum("ki,ki->k", seam_direction(c.p[k], ax, c.t_dir[k],
+                                                             c.plate_normal[k]), v)
+                        - np.gradient(c.s[k], ax)) * c.speed_scale
         out["speed"] = (speed, -window.speed_tol * one, window.speed_tol * one,
                         c.travel & (c.travel.sum() >= 3))
     return out
@@ -1151,8 +1178,8 @@ def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     """:func:`robust_claim` of joint values q (K, n) [rad] at the task's waypoints (every one in
     the material but the plunge start; the pin speed as d sigma / d s over the weld
     waypoints, only those within ``constant_speed`` (first, last arc length [m] of the
-    constant-speed weld samples) where given: as the samples, the speed tolerance is not
-    judged while the tool accelerates and the traverse force ramps): how a baseline without
+    constant-speed weld samples) where given: a waypoint has no time, so the acceleration
+    and deceleration are judged on written samples only): how a baseline without
     written samples (the mirror) is judged, and the plan's waypoints beside its samples."""
     batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
     W = task.wrench_base
@@ -1528,8 +1555,10 @@ def verify_samples(
       [lower + margin, upper - margin];
     * the rest of the weld envelope: the depth along the plate normal within the depth
       window at full depth (dwell to the end stop), work and travel angle within the tilt
-      tolerance in the material, the pin's travel speed within the speed tolerance at
-      constant-speed weld samples, and no pin below the plate surface before the plunge;
+      tolerance in the material, the pin's travel speed within the speed tolerance (a share
+      of the weld speed) of the commanded speed wherever the seam point moves (the
+      acceleration and deceleration included; :func:`_quantities`), and no pin below the
+      plate surface before the plunge;
     * every sample: joint limits, and joint velocity, acceleration and jerk limits;
     * the end stop: the predicted pin's lateral error moves by at most
       :data:`~rfsw_plan.process.task.STANDSTILL_MOTION` from the weld's last sample through
@@ -1590,10 +1619,10 @@ def verify_samples(
     contact = np.isin(phase, CONTACT_PHASES) & ~((phase == "plunge") & (height > AIR_TOL))
     dist = np.minimum(e - window.lower, window.upper - e)
     full = np.isin(phase, FULL_DEPTH_PHASES)
-    welding = phase == "weld"
-    claim = robust_claim(model, task, window, ClaimInput(
-        t, phase, s, batch, W, dX, p, tt, ll, nn, npl, contact, full, welding, t,
-        _time_per_length(task))) if robust else None
+    travel = np.isin(phase, TRAVEL_PHASES)
+    cin = ClaimInput(t, phase, s, batch, W, dX, p, tt, ll, nn, npl, contact, full, travel, t,
+                     _time_per_length(task))
+    claim = robust_claim(model, task, window, cin) if robust else None
     # Worst case of the lateral error per unit uncertainty: sum_i |l . D_i| (the box's
     # worst vertex; for a wrench-linear model sum_i |f_i| |l^T C_tt b_i|, seed 000 eq. 11).
     R, tolerated = _claim_terms(claim, contact)
@@ -1633,13 +1662,11 @@ def verify_samples(
               float(np.rad2deg(window.tilt_tol)), "deg")
     tilt_err = np.where(contact, np.maximum(np.abs(work), np.abs(trav)), np.nan)
     speed_ratio = np.full(N, np.nan)
-    if N >= 3 and welding.sum() >= 3 and task.travel_speed > 0:
-        sigma = s + np.einsum("ki,ki->k", tt, pin - p)
-        speed_ratio[welding] = np.gradient(sigma[welding], t[welding]) / task.travel_speed
-        dev = np.abs(speed_ratio - 1.0)
-        with np.errstate(invalid="ignore"):
-            first(welding & (dev > window.speed_tol + SPEED_TOL), "pin_speed",
-                  (speed_ratio - 1.0) * 100, window.speed_tol * 100, "%")
+    if N >= 3 and travel.sum() >= 3 and task.travel_speed > 0:
+        dev = _quantities(cin, window, dX, "speed")["speed"][0]
+        speed_ratio[travel] = 1.0 + dev[travel]
+        first(travel & (np.abs(dev) > window.speed_tol + SPEED_TOL), "pin_speed",
+              dev * 100, window.speed_tol * 100, "%")
     for j in range(Q.shape[1]):
         qj = Q[:, j]
         bad = (qj < d.lower[j] - 1e-9 - q_resolution) | (qj > d.upper[j] + 1e-9 + q_resolution)
