@@ -166,13 +166,24 @@ class Weld:
         """The pin's speed along the seam off the commanded one, as a share of the weld speed
         (v_weld [mm/s]), at the travel samples: the pin's velocity (its positions differenced
         in time) along the direction the seam point moves (the seam columns differenced in
-        time), less the seam point's speed d s / d t."""
+        time), less the commanded speed: the weld speed in the weld phase, the seam point's
+        d s / d t while the tool accelerates and decelerates."""
         k = self.travel
-        v = np.gradient(self.x[k] + d[k], self.time[k], axis=0)
-        along = np.gradient(self.seam[k], self.time[k], axis=0)
+        t, ph = self.time[k], self.phase[k]
+
+        def rate(y: np.ndarray) -> np.ndarray:  # within each phase: no step spans a change
+            out = np.gradient(y, t, axis=0)
+            for p in TRAVEL:
+                i = np.flatnonzero(ph == p)
+                if len(i) >= 2:
+                    out[i] = np.gradient(y[i], t[i], axis=0)
+            return out
+
+        v = rate(self.x[k] + d[k])
+        along = np.gradient(self.seam[k], t, axis=0)
         along /= np.linalg.norm(along, axis=1, keepdims=True)
         return (np.einsum("ki,ki->k", along, v)
-                - np.gradient(self.s[k], self.time[k])) / v_weld
+                - np.where(ph == "weld", v_weld, rate(self.s[k]))) / v_weld
 
 
 def _robot_is_linear(toml: dict) -> bool:

@@ -107,7 +107,8 @@ class CheckResult:
         lateral_error: Predicted lateral pin error there [m].
         window: The weld window (lower, upper) [m].
         failure: The failing check (``window``, ``joint_limit_q2``, ``timing``,
-            ``posture``, ``plan_id``...), or "".
+            ``posture``, ``plan_id``, ``claim``: the program as run holds less force uncertainty
+            than the plan claims...), or "".
         value: Its value and bound (file units, e.g. mm or deg), and the unit.
         min_margin: Smallest window margin over the in-material samples [m].
         line_no: The failing point's motion line in the program file (1-based; 0: none).
@@ -293,6 +294,11 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
         texts.append((k, f.check, f"{f.check} {f.value:.3f} {f.unit} beyond {f.bound:.3f} "
                       f"{f.unit}", f.index, f, f.quantity))
     if not texts:
+        if res.below_claim:  # the envelope holds nominally, not at the plan's claim
+            return replace(res, holds=False, failure="claim", quantity=held[1],
+                           detail=f"holds the weld envelope nominally, but {res.claim_text()[2:]}"
+                                  f": the controller does not run what was verified",
+                           failures=(res.claim_text()[2:],))
         return res
     # the weld's physical quantities first (depth, lateral, clearance...), then by sample
     texts.sort(key=lambda x: (ORDER.index(x[5]) if x[5] in ORDER else len(ORDER), x[3], x[0]))

@@ -856,6 +856,19 @@ class ClaimInput:
     speed_scale: float
 
 
+def phase_gradient(y: FloatArray, x: FloatArray, phase: NDArray[np.str_]) -> FloatArray:
+    """d y / d x (np.gradient, along the first axis) within each run of one phase, so no
+    difference spans a phase change (the last weld sample's is not averaged with the
+    deceleration's first step); a run of one point takes the difference across its
+    neighbours."""
+    g = np.gradient(y, x, axis=0)
+    cut = np.flatnonzero(phase[1:] != phase[:-1]) + 1
+    for a, b in zip(np.r_[0, cut], np.r_[cut, len(x)], strict=True):
+        if b - a >= 2:
+            g[a:b] = np.gradient(y[a:b], x[a:b], axis=0)
+    return g
+
+
 def seam_direction(p: FloatArray, x: FloatArray, t_dir: FloatArray, normal: FloatArray
                    ) -> FloatArray:
     """The direction the seam point moves, unit (N, 3): the seam points p [m] (N, 3)
@@ -863,7 +876,7 @@ def seam_direction(p: FloatArray, x: FloatArray, t_dir: FloatArray, normal: Floa
     plate; where p does not move, the frame tangent t_dir in the plate's plane,
     t - (t . n) n normalised (the tool-tilted frame tangent itself would count a depth change
     as travel)."""
-    g = np.gradient(p, x, axis=0) if len(p) >= 2 else np.zeros_like(p)
+    g = np.gradient(p, x, axis=0)
     n = np.linalg.norm(g, axis=1, keepdims=True)
     t = t_dir - np.einsum("ki,ki->k", t_dir, normal)[:, None] * normal
     t /= np.linalg.norm(t, axis=1, keepdims=True)
@@ -883,10 +896,11 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
       in [-sin tol, sin tol] (the nominal rotation is the nominal tilt check's, which
       checks the commanded axis);
     * speed: the pin's travel speed along the seam off the commanded one, as a share of the
-      weld speed, (t_p . d(FK_p + dX_p)/dx - ds/dx) x scale in [-speed_tol, speed_tol], t_p
+      weld speed, (t_p . d(FK_p + dX_p)/dx - v_c) x scale in [-speed_tol, speed_tol], t_p
       the direction the seam point moves (:func:`seam_direction`): on samples (x = time, scale =
-      1 / v_weld) the pin's velocity along the seam against the commanded speed ds/dt,
-      wherever the seam point moves (the acceleration and deceleration included); at
+      1 / v_weld) the pin's velocity along the seam against the commanded speed v_c (the weld
+      speed in the weld phase, ds/dt while the tool accelerates and decelerates), wherever
+      the seam point moves; at
       waypoints (x = s, scale 1) per unit of travel. The band is the weld speed's tolerance
       in mm/s, so it does not widen as the commanded speed passes through 0; on a curve the
       pin's own velocity counts (inside a corner at lateral error e it travels
@@ -916,11 +930,14 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
     if only in ("", "speed"):
         speed = np.zeros(N)
         if c.travel.sum() >= 3:
-            k, ax = c.travel, c.speed_axis[c.travel]
-            v = np.gradient(x[k] + dX[k, :3], ax, axis=0)
-            speed[k] = (np.einsum("ki,ki->k", seam_direction(c.p[k], ax, c.t_dir[k],
-                                                             c.plate_normal[k]), v)
-                        - np.gradient(c.s[k], ax)) * c.speed_scale
+            k, ax, ph = c.travel, c.speed_axis[c.travel], c.phase[c.travel]
+            v = phase_gradient(x[k] + dX[k, :3], ax, ph)
+            # The commanded speed: the weld speed itself at constant speed (so a program that
+            # runs the weld slower is judged), ds/dt on the ramps.
+            ref = np.where(ph == "weld", 1.0, phase_gradient(c.s[k], ax, ph) * c.speed_scale)
+            speed[k] = np.einsum("ki,ki->k", seam_direction(c.p[k], ax, c.t_dir[k],
+                                                            c.plate_normal[k]),
+                                 v) * c.speed_scale - ref
         out["speed"] = (speed, -window.speed_tol * one, window.speed_tol * one,
                         c.travel & (c.travel.sum() >= 3))
     return out

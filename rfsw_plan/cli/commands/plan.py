@@ -145,8 +145,9 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
         tilt = env.get("max_tilt_error_deg")
         print(f"weld envelope at every written sample: {depth}; tilt within "
               f"{0.0 if tilt is None else tilt:.3f} deg (tolerance {env['tilt_tol_deg']:g}); "
-              f"pin speed within {max(abs(x) for x in spd) if spd else 0.0:.2f} % of the weld "
-              f"speed (tolerance {env['speed_tol_pct']:g} %); pin "
+              f"pin speed off the commanded by at most "
+              f"{max(abs(x) for x in spd) if spd else 0.0:.2f} % of the weld speed, the "
+              f"acceleration included (tolerance {env['speed_tol_pct']:g} %); pin "
               f"{env['min_height_before_plunge_mm']:.2f} mm above the plate before the plunge")
         _print_plunge(problem, env)
     print(f"plan time {result.total_time:.2f} s (NLP {result.solve_time:.2f} s); wrote "
