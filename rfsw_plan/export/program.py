@@ -488,7 +488,7 @@ def build_program(
     keep = _refine(P, keep | {int(i) for i in extra}, 0.5 * path_tol, angle_tol)
     keep = _timed_refine(P, samples.t, keep, np.flatnonzero(samples.phase == "stop"),
                          0.5 * path_tol)
-    keep = _speed_refine(P, samples, keep, to_work[:3, :3])
+    keep = _speed_refine(P, samples, keep, np.asarray(to_work[:3, :3], dtype=float))
     idx = _without_stops(samples, P, np.array(sorted(keep), dtype=int))
     motions = _motions(samples, P, idx, path_tol, T[:, :3, 3] if pin is None else pin)
     motions = _with_hooks(motions, idx, h, samples)
