@@ -320,8 +320,8 @@ def test_stream_at_the_controller_cycle(planned) -> None:
 
 def test_check_holds_and_names_a_moved_point(planned, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
-    """rfsw-plan check on the exported KRL says holds; one weld point (XP36: past the force ramp
-    at the weld start, behind the plunge motions from the spindle clearance) moved 2 mm sideways in
+    """rfsw-plan check on the exported KRL says holds; one weld point (the third of the
+    constant-speed weld, past the acceleration and its force ramp) moved 2 mm sideways in
     the .dat is named with its lateral error and the window, exit 3."""
     out, robot, _ = planned
     if not robot.name.startswith("zk500"):
@@ -335,12 +335,15 @@ def test_check_holds_and_names_a_moved_point(planned, tmp_path: Path,
         (edit / f.name).write_bytes(f.read_bytes())
     dat = edit / src.with_suffix(".dat").name
     text = dat.read_text()
-    m = re.search(r"(DECL E6POS XP36=\{X [-0-9.]+,Y )([-0-9.]+)", text)
+    body = src.read_text()
+    weld = body[body.index("; ---- phase: weld"):body.index("; ---- phase: decelerate")]
+    xp = re.findall(r"LIN (XP\d+)", weld)[2]
+    m = re.search(rf"(DECL E6POS {xp}=\{{X [-0-9.]+,Y )([-0-9.]+)", text)
     assert m is not None
     dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + 2.0:.4f}" + text[m.end(2):])
     assert main(["check", str(edit / src.name), "--plan", str(out)]) == 3
     line = capsys.readouterr().out.strip()
-    assert line.startswith(f"{src.name}: XP36 (weld"), line
+    assert line.startswith(f"{src.name}: {xp} (weld"), line
     assert "leaves the weld window: lateral error +1." in line
     assert "window -1.250 .. +0.700 mm" in line
 

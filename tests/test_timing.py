@@ -84,9 +84,13 @@ def test_weld_keeps_the_predicted_pin_at_the_weld_speed(bundled, result):
     rtol = 0.03 if pb.name == "kr600_curved_seam" else 0.01
     np.testing.assert_allclose(pin_speed[w], v, rtol=rtol)
     np.testing.assert_allclose(tr.pin_speed()[w], v, rtol=rtol)
-    # The commanded TCP runs ahead of the pin while the lag winds up, never backwards.
+    # The commanded TCP runs ahead of the pin while the lag winds up, never backwards: faster
+    # than the seam point while the force builds (most of it during the acceleration, which
+    # spans two of the force's build-up lengths).
     speed = tr.tcp_speed(robot)
-    assert np.max(speed[ramp]) > 1.5 * v
+    ahead = ramp | (tr.phase == "accelerate")
+    seam_speed = np.gradient(tr.s, tr.t)
+    assert np.max(speed[ahead] / np.maximum(seam_speed[ahead], 1e-9)) > 1.5
     travel = np.isin(tr.phase, ("accelerate", "weld", "decelerate"))
     assert np.all(np.diff((tr.s + tr.offsets[:, 2])[travel]) > 0)
     assert tr.max_weld_speed > v

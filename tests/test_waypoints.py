@@ -159,7 +159,7 @@ def test_worst_waypoint_time_is_on_the_clock_of_waypoints_csv(written):
     assert abs(t[i] - ww["t_s"]) < 1e-5  # a sample's own time, not another clock's
     assert rows[i]["phase"] == ww["phase"]
     e = np.array([float(r["e_lat_mm"]) if r["e_lat_mm"] else np.nan for r in rows])
-    if ww["phase"] == "weld":
+    if ww["phase"] in ("accelerate", "weld", "decelerate"):
         # A travelling waypoint is passed between two samples (the worst one is at s = 0.6 mm
         # since the pin stands still through the dwell, issue 38): the nearest sample is within
         # half a sample's travel of it, and the waypoint's error between its neighbours'.

@@ -216,7 +216,8 @@ class PlanResult:
         """The weld envelope as written (file units): the window of each quantity and its
         range over the written samples (:func:`~rfsw_plan.planning.verify.verify_samples`):
         depth error along the plate normal at full depth (+ shallow) [mm], largest tilt
-        error [deg], pin speed / weld speed - 1 at constant-speed weld samples [%], the
+        error [deg], pin speed along the seam less the commanded, in % of the weld speed, where
+        the seam point moves [%], the
         pin's lowest height above the plate before the plunge [mm]; and the plunge as written:
         the predicted pin's depth error when the plunge ends (+ shallow) [mm], the depth of the
         commanded TCP below the plate surface there (the plunge the robot is commanded, the
@@ -294,6 +295,7 @@ class PlanResult:
         """JSON-ready summary in file units (mm, deg, N/mm, s)."""
         v = self.verification
         k = self.worst_waypoint
+        t_k = float(self.waypoint_times()[k])
         sl = self.task.weld
         verdict = self.verdict()
         return {
@@ -344,8 +346,11 @@ class PlanResult:
             "weights": self.options.weights,
             "baselines": [b.to_dict() for b in self.baselines],
             "worst_waypoint": {
-                "waypoint": k + 1, "index": k, "phase": str(self.task.phase[k]),
-                "s_mm": self.task.s[k] * 1e3, "t_s": float(self.waypoint_times()[k]),
+                # the phase of the written sample that passes it (a weld waypoint within the
+                # acceleration's length is passed while the tool accelerates)
+                "waypoint": k + 1, "index": k, "phase": str(self.trajectory.phase[int(
+                    np.argmin(np.abs(self.trajectory.t - t_k)))]),
+                "s_mm": self.task.s[k] * 1e3, "t_s": t_k,
                 "e_lat_mm": v.prediction.e_lat[k] * 1e3, "margin_mm": v.margin[k] * 1e3,
                 "worst_case_mm": v.prediction.worst[k] * 1e3,
                 "robust_margin_mm": v.robust_margin[k] * 1e3,

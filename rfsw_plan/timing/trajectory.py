@@ -131,6 +131,15 @@ class TimingLimits:
 TRAVEL_START_LENGTHS = 2.0
 
 
+def weld_acceleration(v: float, lim: TimingLimits) -> float:
+    """The acceleration from rest to the weld speed v [m/s]: the limit's, or less, so the
+    acceleration spans at least ``lim.travel_start`` [m] (v^2 / (2 a); the jerk limit only
+    lengthens it) [m/s^2]."""
+    if lim.travel_start > 0:
+        return min(lim.acceleration, v * v / (2 * lim.travel_start))
+    return lim.acceleration
+
+
 def timing_limits(options: PlanOptions, process: ProcessModel, dt: float | None = None
                   ) -> TimingLimits:
     """The timing limits of a problem: the planner options' safe height (the process's
@@ -703,10 +712,8 @@ def time_parameterise(
     pieces += _stationary_pieces(robot, task, q, offsets, lim, q_air, d0 - air)
     # Weld: ramp up, constant speed, ramp down (Ruckig velocity interface) on the pin's arc
     # length s.
-    a_w = lim.acceleration
-    if lim.travel_start > 0:
-        a_w = min(a_w, v * v / (2 * lim.travel_start))
-    t_a, x_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, a_w, lim.jerk, dt)
+    t_a, x_a, _, _ = profile_1dof(0.0, None, 0.0, v, 10 * v, weld_acceleration(v, lim),
+                                  lim.jerk, dt)
     L = float(sw[-1] - sw[0])
     if 2 * x_a[-1] >= L:
         raise InfeasibleError("the seam is shorter than the acceleration to the weld speed",
