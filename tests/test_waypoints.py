@@ -247,29 +247,3 @@ def test_plots_are_drawn_here_when_the_drawing_process_dies(tmp_path, planned_re
     written, failed = wp.write_plan_plots(tmp_path, res, wp.PlotDrawing(tmp_path, res))
     assert failed == [] and [p.name for p in written] == list(wp.PLAN_PLOTS)
     assert {p.name: p.read_bytes() for p in written} == drawn[0]
-
-
-def test_a_warm_plotter_draws_the_bytes_of_a_forked_one_and_stops_unused(tmp_path,
-                                                                         planned_result):
-    """The plotter ``plan`` starts before planning (matplotlib imported on the other core,
-    issue 41) draws the plan it is sent, the same bytes as the child PlotDrawing forks; one
-    that was never sent a plan (a refused plan) is stopped by close(), and PlotDrawing forks
-    its own child when the warm one is gone."""
-    import rfsw_plan.planfiles.waypoints as wp
-
-    res = planned_result("zk500_table6_seam")
-    forked = wp.PlotDrawing(tmp_path, res).images()
-    plotter = wp.WarmPlotter()
-    child = plotter.proc
-    assert child is not None and child.is_alive()
-    warm = wp.PlotDrawing(tmp_path, res, plotter)
-    assert plotter.proc is None  # handed over to the drawing
-    drawn = warm.images()
-    assert forked is not None and drawn is not None and drawn[1] == []
-    assert drawn[0] == forked[0] and sorted(drawn[0]) == sorted(wp.PLAN_PLOTS)
-    assert not child.is_alive()
-    unused = wp.WarmPlotter()
-    child = unused.proc
-    unused.close()
-    assert not child.is_alive() and unused.take(tmp_path, res) is None
-    assert wp.PlotDrawing(tmp_path, res, unused).images() == forked

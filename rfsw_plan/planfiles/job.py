@@ -180,15 +180,12 @@ class PlanRun:
     result: PlanResult
     check: Any = None
 
-    def write(self, folder: str | Path, programs: ProgramsStep | None = None,
-              plotter: Any = None) -> PlanWritten:
+    def write(self, folder: str | Path, programs: ProgramsStep | None = None) -> PlanWritten:
         """Write the plan folder: ``waypoints.csv``, ``plan.html``, the programs of
         ``programs`` (if given), ``plan.json`` (committing them), then the plots.
 
         One transaction (module docstring); the folder is created if needed and locked unless
-        this process already holds its lock. ``plotter``: a
-        :class:`~rfsw_plan.planfiles.waypoints.WarmPlotter` started before the plan, to draw
-        the plots (default: a child forked here).
+        this process already holds its lock.
 
         Raises:
             OutputPathError: The folder cannot be written or another writer holds it.
@@ -209,7 +206,7 @@ class PlanRun:
             summary = result.summary()
             summary["robot_file"] = str(problem.robot.path)
             # The plots are drawn in another process while the data files are written here.
-            drawing = PlotDrawing(out, result, plotter)
+            drawing = PlotDrawing(out, result)
             # The planner's own bar has closed; writing and plotting gets a bar of its own.
             with contextlib.closing(drawing), Stages("plan", ("files", "plots")) as stages:
                 written = write_plan_data(out, result, problem.seam)

@@ -44,7 +44,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import logging
-import pickle
 import sys
 from pathlib import Path
 from typing import Any
@@ -270,17 +269,12 @@ class PlotDrawing:
     :func:`write_plan_plots` draws them here.
     """
 
-    def __init__(self, folder: str | Path, result: PlanResult,
-                 plotter: WarmPlotter | None = None) -> None:
+    def __init__(self, folder: str | Path, result: PlanResult) -> None:
         import multiprocessing
 
         self._folder = Path(folder)
         self._proc: Any = None
         self._conn: Any = None
-        taken = plotter.take(self._folder, result) if plotter is not None else None
-        if taken is not None:
-            self._proc, self._conn = taken
-            return
         if ("fork" not in multiprocessing.get_all_start_methods()
                 or multiprocessing.current_process().daemon):
             return
@@ -336,8 +330,7 @@ def _draw_in_child(conn: Any, parents_end: Any, folder: Path, result: PlanResult
 
     from rfsw_plan.files import OutputLock, figures_in_memory
 
-    if parents_end is not None:
-        parents_end.close()
+    parents_end.close()
 
     # Ctrl-C is the parent's to handle (it stops this child); SIGTERM ends it silently.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -347,90 +340,6 @@ def _draw_in_child(conn: Any, parents_end: Any, folder: Path, result: PlanResult
         _, failed = _draw_plots(folder, result)
     conn.send(([(p.name, data) for p, data in images.items()], failed))
     conn.close()
-
-
-class WarmPlotter:
-    """A forked child that imports matplotlib and the plot functions while this process plans,
-    then draws the plan it is sent (issue 41: the plots were the last step of ``plan``, and
-    matplotlib's import, about a third of their time, ran only after the plan was made).
-
-    Started before the plan (``rfsw-plan plan``), handed to :class:`PlotDrawing`, which sends
-    the child the pickled plan (a few ms for zk500) instead of forking a new child; the child
-    then does what :func:`_draw_in_child` does, on the same plan, so the images are the same
-    bytes. Where no process can be forked, or the child is gone, :class:`PlotDrawing` forks or
-    draws here as before. :meth:`close` stops an unused child (a refused plan)."""
-
-    def __init__(self) -> None:
-        import multiprocessing
-
-        self.proc: Any = None
-        self.conn: Any = None
-        if ("fork" not in multiprocessing.get_all_start_methods()
-                or multiprocessing.current_process().daemon):
-            return
-        ctx = multiprocessing.get_context("fork")
-        for stream in (sys.stdout, sys.stderr):  # or the child's exit writes them out again
-            with contextlib.suppress(Exception):
-                stream.flush()
-        mine, childs = ctx.Pipe(duplex=True)
-        try:
-            self.proc = ctx.Process(target=_warm_child, args=(childs, mine), daemon=True)
-            self.proc.start()
-        except OSError:  # no process to spare: PlotDrawing forks later or draws here
-            self.proc = None
-            mine.close()
-        else:
-            self.conn = mine
-        finally:
-            childs.close()
-
-    def take(self, folder: Path, result: PlanResult) -> tuple[Any, Any] | None:
-        """Send the child the plan to draw and hand over (process, connection); None (the
-        child stopped) if it cannot draw it."""
-        if self.proc is None:
-            return None
-        try:
-            self.conn.send((folder, result))
-        except (OSError, ValueError, TypeError, AttributeError, pickle.PicklingError):
-            self.close()
-            return None
-        taken = self.proc, self.conn
-        self.proc = self.conn = None
-        return taken
-
-    def close(self) -> None:
-        """Stop the child if no plan was sent to it (a plan handed over is
-        :class:`PlotDrawing`'s to stop)."""
-        if self.proc is None:
-            return
-        if self.proc.is_alive():
-            self.proc.terminate()
-        self.proc.join()
-        self.conn.close()
-        self.proc = None
-
-
-def _warm_child(conn: Any, parents_end: Any) -> None:
-    """The child of :class:`WarmPlotter`: import the plotting, wait for the plan, draw it as
-    :func:`_draw_in_child` does. A parent that ends without sending one (EOF) ends it."""
-    import signal
-
-    from rfsw_plan.files import OutputLock
-
-    parents_end.close()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # as in _draw_in_child
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    OutputLock.close_inherited()
-    with contextlib.suppress(ImportError):  # a missing matplotlib fails in the plots, as here
-        import matplotlib.backends.backend_agg
-        import matplotlib.figure  # noqa: F401
-
-        import rfsw_plan.planfiles.tradeoff_plot  # noqa: F401
-    try:
-        folder, result = conn.recv()
-    except (EOFError, OSError):
-        return
-    _draw_in_child(conn, None, folder, result)
 
 
 def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Path],

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import sys
 from pathlib import Path
 from typing import Any
@@ -76,15 +75,12 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.planfiles.job import write_refusal
-    from rfsw_plan.planfiles.waypoints import WarmPlotter
 
     check_export_arguments(args)
     prepared = request(args).prepare()
     problem, flog = prepared.problem, prepared.force_log
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
-    with OutputLock(out), contextlib.closing(WarmPlotter()) as plotter:
-        # The lock is taken before planning: a second writer is refused at once. The plotter
-        # imports matplotlib on the other core while this process plans.
+    with OutputLock(out):  # taken before planning: a second writer is refused at once
         try:
             run_ = prepared.run()
         except RfswError as exc:  # the refusal is recorded (verdict NO), printed first
@@ -93,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
                 print(record["verdict_text"])
             raise
         written = run_.write(out, lambda result, folder, record:
-                             export_plan_result(args, result, folder, record), plotter)
+                             export_plan_result(args, result, folder, record))
     result, check, summary = run_.result, run_.check, written.record
     for line in written.failed_plots:  # the plan is whole without its plots: exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
