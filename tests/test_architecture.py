@@ -696,6 +696,29 @@ def test_export_and_check_never_import_the_planner():
     assert not loaded & set(PLAN_READER_FORBIDDEN), sorted(loaded & set(PLAN_READER_FORBIDDEN))
 
 
+def test_check_and_export_commands_run_without_the_planner(plan_with_programs, tmp_path):
+    """Not only their imports: ``check`` of the zk500 ``.src`` and ``export`` of its plan, run
+    as the CLI runs them (the task rebuilt, the penetration law fitted, the programs written
+    and checked), load none of :data:`PLAN_READER_FORBIDDEN` (issue 41)."""
+    import subprocess
+    import sys
+
+    folder, _ = plan_with_programs("zk500_table6_seam")
+    src = folder / "rfsw_zk500_table6_seam.src"
+    for argv in (["check", str(src), "--plan", str(folder)],
+                 ["export", str(folder), "-q", "-o", str(tmp_path / "p"), "--format",
+                  "krl,fanuc_tp,rapid,stream"]):
+        code = ("import sys\nfrom rfsw_plan.cli.main import main\n"
+                f"assert main({argv!r}) == 0\n"
+                "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                             check=True, cwd=PACKAGE.parent, timeout=300).stdout
+        loaded = set(out.splitlines()[-1].split())
+        assert "rfsw_plan" in loaded and "pinocchio" in loaded, argv[0]
+        assert not loaded & set(PLAN_READER_FORBIDDEN), (argv[0], sorted(
+            loaded & set(PLAN_READER_FORBIDDEN)))
+
+
 def test_plan_readers_never_import_the_timing_or_scipy_interpolate():
     """``export`` and ``check`` need SciPy's rotations, not its splines: the timing
     (``rfsw_plan.timing``, TOPPRA's and Ruckig's adapters, ``scipy.interpolate``) and SciPy's

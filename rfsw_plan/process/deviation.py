@@ -16,6 +16,9 @@ start or end, weld samples interpolate the taught joints linearly in arc length)
 
 from __future__ import annotations
 
+import hashlib
+import pickle
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -310,6 +313,38 @@ def problem_penetration_law(problem: Problem) -> PenetrationLaw:
                          "no co-simulation settings", "a [process.coupling] table")
     if coupling.law is not None:
         return coupling.law
+    key = _law_key(problem)
+    if key is not None and key in _LAW_CACHE:
+        return _LAW_CACHE[key]
+    law = _fit_problem_law(problem, coupling)
+    if key is not None:
+        _LAW_CACHE[key] = law
+        while len(_LAW_CACHE) > _LAW_CACHE_SIZE:
+            _LAW_CACHE.popitem(last=False)
+    return law
+
+
+#: Penetration laws fitted in this process (:func:`problem_penetration_law`), by
+#: :func:`_law_key`, oldest first: rebuilding a task (``check``, ``validate-weld``, the
+#: placement map, the tests) refitted the law every time (issue 41).
+_LAW_CACHE: OrderedDict[bytes, PenetrationLaw] = OrderedDict()
+_LAW_CACHE_SIZE = 16
+
+
+def _law_key(problem: Problem) -> bytes | None:
+    """The SHA-256 of the pickled problem (robot, seam, process, coupling, options: every input
+    of the fit), or None for a problem that does not pickle (then the law is not cached).
+
+    Pickling is a faithful serialisation, so two problems with one key hold the same inputs;
+    two equal problems with different keys only miss the cache."""
+    try:
+        return hashlib.sha256(pickle.dumps(problem, protocol=5)).digest()
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None
+
+
+def _fit_problem_law(problem: Problem, coupling: Coupling) -> PenetrationLaw:
+    """The law fitted to the coupling's calibration (see :func:`problem_penetration_law`)."""
     robot = load_robot(problem.robot)
     model = ElastostaticModel(robot)
     frames = problem.frames()
