@@ -401,3 +401,18 @@ def test_the_coupled_plan_centres_the_depth_in_its_window(planned) -> None:
     deepest, shallowest = rec["envelope"]["depth_error_mm"]
     assert abs(shallowest - 0.5 * (lo + hi)) < 0.05
     assert abs(deepest) < 0.05
+
+
+def test_the_speed_claim_and_the_independent_check_agree(planned) -> None:
+    """The pin speed wherever the seam point moves (the weld-start acceleration included),
+    judged from waypoints.csv alone at the 8 vertices of the coupled force box: it holds 1 %
+    below the planner's speed level and fails 1 % above it, so the two agree within 1 %."""
+    rec, toml, rows = planned["zk500_table6_seam"]
+    level = rec["tolerated_force_uncertainty_by_quantity"]["speed"]
+    assert Weld(toml, rows).phase.tolist().count("accelerate") > 10  # the ramp is sampled
+
+    def speed(u: float) -> list[str]:
+        return [b for b in independent_check(rec, toml, rows, u) if "pin speed" in b]
+
+    assert speed(level * 0.99) == []
+    assert speed(level * 1.01) != []
