@@ -204,7 +204,10 @@ def test_place_finds_a_placement_at_least_as_robust_and_it_plans_from_its_file(
     # never less robust.
     held = {}
     for u_req in (0.1, 0.2):
-        r = plan(placed, replace(placed.planning, force_uncertainty=u_req))
+        opts = replace(placed.planning, force_uncertainty=u_req)
+        # plan(placed) planned with placed.planning (options_from_problem): when these options
+        # are the same, the plan is the same (deterministic), so it is read, not planned again
+        r = res if opts == placed.planning else plan(placed, opts)
         by = r.tolerated_by_strategy
         assert by["nlp"] >= by["mirror"] - DOMINANCE_TOL, (name, u_req, by)
         held[u_req] = by["nlp"]

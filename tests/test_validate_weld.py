@@ -42,12 +42,29 @@ def weld(tmp_path_factory: pytest.TempPathFactory, plan_folder: Any) -> tuple[Pa
     pytest.param(*d, marks=[] if d[2] else [pytest.mark.slow])
     for d in trial_weld_loop.DIFFERENCES])
 def test_the_loop_converges_on_a_virtual_trial_weld(
-    tmp_path: Path, name: str, joint: int | None, hidden: str | None
+    tmp_path: Path, name: str, joint: int | None, hidden: str | None, plan_folder: Any,
+    monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Issue 17 §3: the second weld is inside the window over >= 99 % of its length where
     the first was not, and validate-weld names the difference (best, or a candidate this
     weld cannot tell from the best)."""
+    cli = trial_weld_loop._cli
+    first = ["plan", trial_weld_loop.PROBLEM, "-o", str(tmp_path / "plan1")]
+    seen = []
+
+    def session_first_plan(args: list[str]) -> None:
+        # the loop's first command, ``rfsw-plan -q plan PROBLEM -o plan1``, is the command
+        # plan_folder ran once for the session: its folder is copied, not planned again;
+        # every other command (validate-weld twice, the re-plan) runs as in the example
+        seen.append(args)
+        if args == first:
+            plan_folder(trial_weld_loop.PROBLEM, tmp_path / "plan1")
+        else:
+            cli(args)
+
+    monkeypatch.setattr(trial_weld_loop, "_cli", session_first_plan)
     r = trial_weld_loop.run_loop(tmp_path, name, joint, hidden)
+    assert seen[0] == first and len(seen) == 4
     assert r.inside_first < 0.99
     assert r.inside_second >= 0.99
     assert r.verdict == "missing"
