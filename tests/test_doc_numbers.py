@@ -69,12 +69,14 @@ def test_planning_lists_the_files_plan_writes() -> None:
 
 def test_planning_pin_speed_is_the_quoted_figure() -> None:
     page = GUIDE / "planning.md"
-    m = re.search(r"the weld speed within the weld envelope's tolerance of ([\d.]+) %, the start "
-                  r"ramp included: `plan` prints the figure, ([\d.]+) % on `kr600_curved_seam`",
+    m = re.search(r"the commanded speed within the weld envelope's tolerance of ([\d.]+) %, "
+                  r"the start ramp included: `plan` prints the figure, ([\d.]+) % on "
+                  r"`kr600_curved_seam`",
                   prose(page))
     assert m, "planning.md no longer states the pin speed"
     out = quoted(page, "rfsw-plan plan kr600_curved_seam -o").output or ""
-    got = re.search(r"pin speed within ([\d.]+) % of the weld speed \(tolerance ([\d.]+) %\)", out)
+    got = re.search(r"pin speed off the commanded by at most ([\d.]+) % of the weld speed, the "
+                    r"acceleration included \(tolerance ([\d.]+) %\)", out)
     assert got, "the quoted kr600 output no longer shows the weld envelope line"
     assert (m[2], m[1]) == (got[1], got[2])
     assert float(got[1]) <= float(got[2])
