@@ -43,6 +43,14 @@ def weld_point(src: Path, k: int = 0) -> str:
     return re.findall(r"LIN (XP\d+)", weld)[k]
 
 
+def touch_up(dat: Path, text: str, xp: str, axis: str, delta_mm: float) -> None:
+    """Write ``text`` (a KRL .dat) to ``dat`` with point ``xp``'s coordinate ``axis`` (X, Y
+    or Z) moved by ``delta_mm``, as a touch-up on the pendant does."""
+    m = re.search(rf"(DECL E6POS {xp}=\{{[^}}]*?\b{axis} )([-0-9.]+)", text)
+    assert m is not None, (xp, axis)
+    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + delta_mm:.4f}" + text[m.end(2):])
+
+
 def roomy_weld_point(src: Path) -> str:
     """The constant-speed weld's point with the longest moves on both sides (a touch-up
     there changes the programmed times least)."""
@@ -180,13 +188,11 @@ def test_a_touch_up_inside_the_plan_folder_is_reverified(zk500: Path, capsys) ->
     # programmed time by several per cent, which check rightly reports as timing)
     xp = roomy_weld_point(src)
     text = dat.read_text()
-    m = re.search(rf"(DECL E6POS {xp}=\{{X [-0-9.]+,Y )([-0-9.]+)", text)
-    assert m is not None
-    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + 0.05:.4f}" + text[m.end(2):])
+    touch_up(dat, text, xp, "Y", 0.05)
     code, out = _check(capsys, src)
     assert code == 0, out
     assert "largest edit 0.050 mm" in out and f"edited against the export: {dat.name}" in out
-    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) + 2.0:.4f}" + text[m.end(2):])
+    touch_up(dat, text, xp, "Y", 2.0)
     code, out = _check(capsys, src)
     assert code == 3 and out.startswith(f"{src.name}: {xp} (weld") and "lateral error" in out
 
@@ -358,11 +364,7 @@ def test_the_force_uncertainty_held_as_run_is_reported_against_the_claim(
     assert before["claimed_pct"] == pytest.approx(claimed)
     assert before["held_pct"] >= claimed * 0.99 and before["held_limited_by"]
     assert not before["below_claim"]
-    xp = roomy_weld_point(src)
-    text = dat.read_text()
-    m = re.search(rf"(DECL E6POS {xp}=\{{X [-0-9.]+,Y [-0-9.]+,Z )([-0-9.]+)", text)
-    assert m is not None
-    dat.write_text(text[:m.start(2)] + f"{float(m.group(2)) - 0.2:.4f}" + text[m.end(2):])
+    touch_up(dat, dat.read_text(), roomy_weld_point(src), "Z", -0.2)
     code, out = _check(capsys, src)
     assert code == 3 and "holds the weld envelope nominally, but as run" in out, out
     assert main(["check", str(src), "--json"]) == 3

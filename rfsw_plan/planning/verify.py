@@ -900,11 +900,10 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
       the direction the seam point moves (:func:`seam_direction`): on samples (x = time, scale =
       1 / v_weld) the pin's velocity along the seam against the commanded speed v_c (the weld
       speed in the weld phase, ds/dt while the tool accelerates and decelerates), wherever
-      the seam point moves; at
-      waypoints (x = s, scale 1) per unit of travel. The band is the weld speed's tolerance
-      in mm/s, so it does not widen as the commanded speed passes through 0; on a curve the
-      pin's own velocity counts (inside a corner at lateral error e it travels
-      ds/dt (1 - kappa e)), not its projection's.
+      the seam point moves; at waypoints (x = s, scale 1) per unit of travel. The band is the
+      weld speed's tolerance in mm/s, so it does not widen as the commanded speed passes
+      through 0; on a curve the pin's own velocity counts (inside a corner at lateral error e
+      it travels ds/dt (1 - kappa e)), not its projection's.
 
     ``only``: compute that quantity alone (the others are left out).
     """
@@ -1193,11 +1192,12 @@ def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                    q: FloatArray, constant_speed: tuple[float, float] | None = None
                    ) -> RobustClaim:
     """:func:`robust_claim` of joint values q (K, n) [rad] at the task's waypoints (every one in
-    the material but the plunge start; the pin speed as d sigma / d s over the weld
-    waypoints, only those within ``constant_speed`` (first, last arc length [m] of the
-    constant-speed weld samples) where given: a waypoint has no time, so the acceleration
-    and deceleration are judged on written samples only): how a baseline without
-    written samples (the mirror) is judged, and the plan's waypoints beside its samples."""
+    the material but the plunge start; the pin's velocity along the seam per unit of travel
+    over the weld waypoints (:func:`_quantities`), only those within ``constant_speed``
+    (first, last arc length [m] of the constant-speed weld samples) where given: a waypoint
+    has no time, so the acceleration and deceleration are judged on written samples only):
+    how a baseline without written samples (the mirror) is judged, and the plan's waypoints
+    beside its samples."""
     batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
     W = task.wrench_base
     dX = model.process_deflection_batch(batch, W, task.reference)
