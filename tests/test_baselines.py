@@ -136,3 +136,22 @@ def test_batched_newton_refinement_matches_the_ik_path(setup):
     np.testing.assert_allclose(q_new, q_ref, atol=1e-6)
     for k in range(len(task)):
         np.testing.assert_allclose(model.robot.fk(q_new[k]), poses[k], atol=1e-7)
+
+
+def test_a_branch_that_cannot_reach_the_seam_stops_where_it_is_stuck(setup, monkeypatch):
+    """The batched IK stops a start whose errors no longer change (IK_STALL) instead of
+    running all its steps: same convergence, same reported miss as without the stop."""
+    import rfsw_plan.planning.baselines as baselines
+
+    model, task = setup
+    seeds = np.stack([q for _, q in branch_seeds(model.robot, Q_SEED)])
+    pose = commanded_poses(task, np.zeros((len(task), 3)), 0.0)[0]
+    poses = np.repeat(pose[None], len(seeds), axis=0)
+    q, ok, ep, er = baselines._batch_ik(model.robot, poses, seeds, 1e-7, 400)
+    assert ok.any() and not ok.all()  # the shoulder flips cannot reach it
+    monkeypatch.setattr(baselines, "IK_STALL", -1.0)
+    q_all, ok_all, ep_all, er_all = baselines._batch_ik(model.robot, poses, seeds, 1e-7, 400)
+    np.testing.assert_array_equal(ok, ok_all)
+    np.testing.assert_array_equal(q[ok], q_all[ok])
+    np.testing.assert_allclose(ep, ep_all, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(er, er_all, rtol=0, atol=1e-9)

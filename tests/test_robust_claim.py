@@ -416,3 +416,24 @@ def test_the_speed_claim_and_the_independent_check_agree(planned) -> None:
 
     assert speed(level * 0.99) == []
     assert speed(level * 1.01) != []
+
+
+def test_the_vertices_stacked_in_one_model_call_are_each_vertex_alone(planned_result,
+                                                                       monkeypatch) -> None:
+    """The coupled claim evaluates a level's vertices in one model call per step
+    (verify.coupled_deflections); each keeps its own steps and stop, so the claim is the
+    same bit for bit as with every vertex solved alone."""
+    from rfsw_plan.planning import verify
+
+    res = planned_result("zk500_table6_seam")
+    assert res.task.penetration_stiffness > 0  # the coupled law is the claim's
+    stacked = verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    stacked_fn = verify.coupled_deflections
+
+    def alone(model, task, c, ax, dW, signs, u, tiled=None):
+        return [stacked_fn(model, task, c, ax, dW, [s], u)[0] for s in signs]
+
+    monkeypatch.setattr(verify, "coupled_deflections", alone)
+    single = verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    assert any(0 < lim.level < 1 for lim in stacked.limits.values())
+    assert stacked.limits == single.limits

@@ -836,6 +836,8 @@ class ClaimInput:
         speed_axis: Abscissa of the pin's speed: time [s] (samples) or arc length [m]
             (waypoints), (N,).
         speed_scale: 1 / weld speed [s/m] for time, 1 for arc length.
+        cache: What :func:`_quantities` derives from the points alone (the seam's direction
+            and the commanded speed), kept for the force box's many vertices.
     """
 
     t: FloatArray
@@ -854,6 +856,8 @@ class ClaimInput:
     travel: NDArray[np.bool_]
     speed_axis: FloatArray
     speed_scale: float
+    cache: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict, compare=False,
+                                                            repr=False)
 
 
 def phase_gradient(y: FloatArray, x: FloatArray, phase: NDArray[np.str_]) -> FloatArray:
@@ -931,12 +935,14 @@ def _quantities(c: ClaimInput, window: WeldWindow, dX: FloatArray, only: str = "
         if c.travel.sum() >= 3:
             k, ax, ph = c.travel, c.speed_axis[c.travel], c.phase[c.travel]
             v = phase_gradient(x[k] + dX[k, :3], ax, ph)
-            # The commanded speed: the weld speed itself at constant speed (so a program that
-            # runs the weld slower is judged), ds/dt on the ramps.
-            ref = np.where(ph == "weld", 1.0, phase_gradient(c.s[k], ax, ph) * c.speed_scale)
-            speed[k] = np.einsum("ki,ki->k", seam_direction(c.p[k], ax, c.t_dir[k],
-                                                            c.plate_normal[k]),
-                                 v) * c.speed_scale - ref
+            if "speed" not in c.cache:
+                # The commanded speed: the weld speed itself at constant speed (so a program
+                # that runs the weld slower is judged), ds/dt on the ramps.
+                c.cache["speed"] = (
+                    seam_direction(c.p[k], ax, c.t_dir[k], c.plate_normal[k]),
+                    np.where(ph == "weld", 1.0, phase_gradient(c.s[k], ax, ph) * c.speed_scale))
+            direction, ref = c.cache["speed"]
+            speed[k] = np.einsum("ki,ki->k", direction, v) * c.speed_scale - ref
         out["speed"] = (speed, -window.speed_tol * one, window.speed_tol * one,
                         c.travel & (c.travel.sum() >= 3))
     return out
@@ -1283,37 +1289,64 @@ def coupled_deflection(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
     (1 + (1 + sigma_n u) k_p c): a response spread eps moves the force by about
     eps / (1 + k_p c).
     """
+    return coupled_deflections(model, task, c, ax, dW, [sgn], u)[0]
+
+
+def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
+                        ax: AxialCoupling, dW: list[FloatArray], signs: list[FloatArray],
+                        u: float, tiled: PoseBatch | None = None) -> list[FloatArray]:
+    """:func:`coupled_deflection` at several vertices (each ``signs[v]`` (N, 3)) with one model
+    call per step for all of them: every vertex keeps its own steps and its own stop (the
+    model is evaluated point by point, so the result is each vertex's alone).
+
+    ``tiled``: ``c.batch`` repeated once per vertex (``c.batch.rows(np.tile(arange(N), V))``),
+    built once by a caller that evaluates the same vertices at several u, so the effects'
+    pose caches (:attr:`PoseBatch.cache`) live across the calls."""
+    V, N = len(signs), len(c.t)
+    sgn = np.concatenate(signs)
+    tile = np.tile(np.arange(N), V)
+    batch = c.batch if V == 1 else tiled if tiled is not None else c.batch.rows(tile)
+    n_dir, dX0, f0 = c.n_dir[tile], c.deflection[tile], ax.force[tile]
+    k_p, A = ax.stiffness[tile], ax.per_newton[tile]
     scale = np.maximum(0.0, 1.0 + sgn[:, 2] * u)
-    W = c.wrench + u * (sgn[:, 0, None] * dW[0] + sgn[:, 1, None] * dW[1])
-    slope = 1.0 + scale * ax.stiffness * ax.compliance
+    W = c.wrench[tile] + u * (sgn[:, 0, None] * dW[0][tile] + sgn[:, 1, None] * dW[1][tile])
+    slope = 1.0 + scale * k_p * ax.compliance[tile]
     # The linear answer first (exact for a wrench-linear model).
-    tl = u * (sgn[:, 0] * ax.cross[:, 0] + sgn[:, 1] * ax.cross[:, 1])
-    f = np.maximum(0.0, ax.force + ((scale - 1.0) * ax.force - scale * ax.stiffness * tl)
-                   / slope)
-    dX = c.deflection
+    tl = u * (sgn[:, 0] * ax.cross[tile, 0] + sgn[:, 1] * ax.cross[tile, 1])
+    f = np.maximum(0.0, f0 + ((scale - 1.0) * f0 - scale * k_p * tl) / slope)
+    dX = dX0.copy()
     r = np.zeros(len(f))
-    prev: tuple[FloatArray, FloatArray] | None = None
-    for _ in range(COUPLED_STEPS):
+    prev_f, prev_r = np.zeros(len(f)), np.zeros(len(f))
+    live = np.ones(V, dtype=bool)  # vertices still stepping
+    for step in range(COUPLED_STEPS):
+        # The whole tiled batch each step (its pose caches stay valid); a vertex that has
+        # stopped keeps its deflection and residual.
+        rows: slice | NDArray[np.int_] = (slice(None) if live.all()
+                                          else np.flatnonzero(np.repeat(live, N)))
         Wf = W.copy()
-        Wf[:, :3] += (f - ax.force)[:, None] * c.n_dir
-        dX = model.process_deflection_batch(c.batch, Wf, task.reference)
-        dp = -np.einsum("ki,ki->k", dX[:, :3] - c.deflection[:, :3], c.n_dir)
-        r = np.where(ax.force > 0, scale * np.maximum(0.0, ax.force + ax.stiffness * dp),
-                     0.0) - f
-        if np.max(np.abs(r), initial=0.0) < COUPLED_TOL:
+        Wf[:, :3] += (f - f0)[:, None] * n_dir
+        dX[rows] = model.process_deflection_batch(batch, Wf, task.reference)[rows]
+        dp = -np.einsum("ki,ki->k", dX[rows, :3] - dX0[rows, :3], n_dir[rows])
+        r[rows] = np.where(f0[rows] > 0, scale[rows] * np.maximum(0.0, f0[rows]
+                                                                    + k_p[rows] * dp),
+                           0.0) - f[rows]
+        live &= np.max(np.abs(r).reshape(V, N), axis=1, initial=0.0) >= COUPLED_TOL
+        if not np.any(live):
             break
+        rows = slice(None) if live.all() else np.flatnonzero(np.repeat(live, N))
         # r(f) falls with f (a larger force lifts the pin: dr/df = -(1 + scale k_p c) <= -1):
         # secant slopes once two points are known, clamped to that sign.
-        d = -slope
-        if prev is not None:
+        d = -slope[rows]
+        if step > 0:
             with np.errstate(divide="ignore", invalid="ignore"):
-                sec = (r - prev[1]) / (f - prev[0])
-            d = np.where(np.isfinite(sec) & (sec < -1.0), sec, -slope)
-        prev = (f, r)
-        f = np.maximum(0.0, f - r / d)
+                sec = (r[rows] - prev_r[rows]) / (f[rows] - prev_f[rows])
+            d = np.where(np.isfinite(sec) & (sec < -1.0), sec, d)
+        prev_f[rows], prev_r[rows] = f[rows], r[rows]
+        f[rows] = np.maximum(0.0, f[rows] - r[rows] / d)
     # The rest of the step, linearly: within COUPLED_TOL its second-order error is far below
     # the vertices' tolerance.
-    return dX + ax.per_newton * (r / slope)[:, None]
+    out = dX + A * (r / slope)[:, None]
+    return [out[v * N:(v + 1) * N] for v in range(V)]
 
 
 def _take_coupling(ax: AxialCoupling, idx: NDArray[np.int_]) -> AxialCoupling:
@@ -1401,6 +1434,8 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
     value, lo, hi, mask = _quantities(sub, window, sub.deflection, q)[q]
     mask = mask & np.tile(np.isin(idx, cand), M // N)
     sets = _vertex_sets(q, gains, idx, N, M // N)
+    signs = [sg for sg, _ in sets]
+    tiled = sub.batch.rows(np.tile(np.arange(n), len(sets)))
     dWs = [d[idx] for d in dW]
 
     def vertices(u: float) -> tuple[FloatArray, FloatArray]:
@@ -1408,8 +1443,8 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
         vertex's own change toward its own bound (the two sides differ), per point."""
         margin = np.full(len(value), np.inf)
         level = np.full(len(value), np.inf)
-        for sgn, on in sets:
-            dX = coupled_deflection(model, task, sub, sub_ax, dWs, sgn, u)
+        dXs = coupled_deflections(model, task, sub, sub_ax, dWs, signs, u, tiled)
+        for (_sgn, on), dX in zip(sets, dXs, strict=True):
             v = _quantities(sub, window, dX, q)[q][0]
             margin = np.where(on, np.minimum(margin, np.minimum(v - lo, hi - v)), margin)
             d = (v - value) / u
