@@ -1,7 +1,9 @@
 """The planner's CasADi caches change nothing but the time (issue 41).
 
-The default test plans the problem at its own spacing (the functions in CasADi's virtual
-machine); the slow one at 1000 weld waypoints, where they are compiled to C.
+The point functions run compiled to C from 200 waypoints on, or wherever their library is
+already compiled (in memory or on disk, ``nlp.auto_compile``), else in CasADi's virtual
+machine; the slow tests compile afresh and compare with the disk cache and with the virtual
+machine.
 
 The point functions, the NLP evaluation, the IPOPT solvers and the mapped functions are built
 once per problem structure and kept in memory (``planning/nlp.py``); the point functions are
@@ -102,3 +104,44 @@ def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, 
     assert [p.name for p in stored] == [p.name for p in fresh] == ["waypoints.csv", "plan.html"]
     for s, f in zip(stored, fresh, strict=True):
         assert s.read_bytes() == f.read_bytes(), s.name
+
+
+def test_a_small_problem_runs_compiled_where_its_library_is_on_disk(tmp_path, monkeypatch
+                                                                    ) -> None:
+    """Below 200 waypoints the point functions are compiled only if their library already is
+    (the first compile of a robot's functions costs more than the plan): an empty compile
+    cache leaves them in the virtual machine, a library at their path loads it."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planning.casadi_ import library_path
+    from rfsw_plan.process.problem import load_problem
+    from rfsw_plan.robot.kinematics import load_robot
+
+    monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path))
+    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
+    monkeypatch.setattr(nlp_module, "_POINT_CACHE", OrderedDict())
+    model = ElastostaticModel(load_robot(load_problem("fanuc_butt_1700mm").robot)).physical()
+    assert nlp_module.auto_compile(model, nlp_module.COMPILE_MIN_WAYPOINTS, False)
+    assert not nlp_module.auto_compile(model, 78, False)
+    vm = nlp_module.point_functions(model, False, False)
+    lib = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess], "rfsw_point")
+    assert lib.parent == tmp_path
+    lib.write_bytes(b"")  # where compile_functions keeps it
+    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
+    assert nlp_module.auto_compile(model, 78, False)
+    assert not nlp_module.auto_compile(model, 78, True)  # other functions, no library
+
+
+@pytest.mark.slow
+def test_the_compiled_functions_plan_the_bytes_of_the_virtual_machine(tmp_path, monkeypatch
+                                                                      ) -> None:
+    """A small problem planned with its point functions compiled to C (a library on disk)
+    writes the bytes of the plan in CasADi's virtual machine."""
+    monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path / "cache"))
+    out = {}
+    for name, compiled in (("vm", False), ("c", True)):
+        for cache in CACHES:
+            monkeypatch.setattr(nlp_module, cache, OrderedDict())
+        result = api.plan("fanuc_butt_1700mm", compile_c=compiled)
+        out[name] = write_waypoints_csv(tmp_path / f"{name}.csv", result).read_bytes()
+    assert list((tmp_path / "cache").glob("rfsw_point_*.so"))  # it did compile
+    assert out["vm"] == out["c"]

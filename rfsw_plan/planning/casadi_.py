@@ -37,6 +37,16 @@ def cache_dir() -> Path:
     return Path(root)
 
 
+def library_path(fns: Sequence[ca.Function], prefix: str) -> Path:
+    """Where :func:`compile_functions` keeps the library of ``fns``: ``<prefix>_<hash>.so`` in
+    :func:`cache_dir`, the hash over CasADi's version and the functions' serialisation (a
+    change of the functions, e.g. of a row or of the robot's constants, is a new library)."""
+    h = hashlib.sha1(str(getattr(ca, "__version__", "")).encode())
+    for f in fns:
+        h.update(f.serialize().encode())
+    return cache_dir() / f"{prefix}_{h.hexdigest()[:16]}.so"
+
+
 def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | None = None
                       ) -> list[ca.Function] | None:
     """Compile functions to one shared library, cached on disk, and load them.
@@ -56,12 +66,9 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
     if cc is None:
         log.info("no C compiler; CasADi functions run in the virtual machine")
         return None
-    h = hashlib.sha1(str(getattr(ca, "__version__", "")).encode())
-    for f in fns:
-        h.update(f.serialize().encode())
-    tag = h.hexdigest()[:16]
-    d = cache_dir()
-    so = d / f"{prefix}_{tag}.so"
+    so = library_path(fns, prefix)
+    tag = so.stem[len(prefix) + 1:]
+    d = so.parent
     try:
         if not so.exists():
             d.mkdir(parents=True, exist_ok=True)

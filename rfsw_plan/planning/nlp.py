@@ -89,7 +89,7 @@ from numpy.typing import NDArray
 from rfsw_plan import files
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning import rows
-from rfsw_plan.planning.casadi_ import compile_functions, single_thread_blas
+from rfsw_plan.planning.casadi_ import compile_functions, library_path, single_thread_blas
 from rfsw_plan.planning.layout import (
     ERROR_TERMS,
     GLOBALS,
@@ -198,6 +198,9 @@ class PointFunctions:
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
 _SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 _EVAL_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
+#: Whether a compiled library of the point functions was on disk, by structure (checked once
+#: per process: hashing the functions costs 20-100 ms).
+_ON_DISK: dict[tuple[object, ...], bool] = {}
 
 
 def _point_symbols(model: ElastostaticModel, v: dict[str, Any], pp: dict[str, Any]
@@ -294,6 +297,28 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False, coupled: 
     while len(_POINT_CACHE) > 8:
         _POINT_CACHE.popitem(last=False)
     return pf
+
+
+#: Waypoints from which compiling the point functions to C pays for itself in one plan (the
+#: first compile of a robot's functions takes 5-20 s of gcc; the compiled Hessian is 5-10x
+#: faster than CasADi's virtual machine).
+COMPILE_MIN_WAYPOINTS = 200
+
+
+def auto_compile(model: ElastostaticModel, K: int, coupled: bool) -> bool:
+    """Whether a plan on K waypoints runs the point functions compiled to C: from
+    :data:`COMPILE_MIN_WAYPOINTS` on, or whenever they are compiled already, in this process
+    or on disk (:func:`~rfsw_plan.planning.casadi_.library_path`: a smaller problem on a
+    robot that a larger one has compiled loads its library). The compiled and the virtual
+    machine's functions give the same plan bit for bit (``tests/test_plan_cache.py``)."""
+    key = (*_model_key(model), True, coupled)
+    if K >= COMPILE_MIN_WAYPOINTS or key in _POINT_CACHE:
+        return True
+    if key not in _ON_DISK:
+        vm = point_functions(model, False, coupled)
+        _ON_DISK[key] = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess],
+                                     "rfsw_point").exists()
+    return _ON_DISK[key]
 
 
 @dataclass(frozen=True)
@@ -720,7 +745,7 @@ def build_plan_nlp(
     n, K = robot.nq, len(task)
     coupled = plans_coupled(task)
     if compile_c is None:
-        compile_c = K >= 200 or (*_model_key(model), True, coupled) in _POINT_CACHE
+        compile_c = auto_compile(model, K, coupled)
     pf = point_functions(model, compile_c, coupled)
     skey = (*_model_key(model), pf.compiled, coupled, K, opts.tol, opts.max_iter)
     ekey = skey[:-2]
