@@ -106,11 +106,11 @@ def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, 
         assert s.read_bytes() == f.read_bytes(), s.name
 
 
-def test_a_small_problem_runs_compiled_where_its_library_is_on_disk(tmp_path, monkeypatch
-                                                                    ) -> None:
-    """Below 200 waypoints the point functions are compiled only if their library already is
-    (the first compile of a robot's functions costs more than the plan): an empty compile
-    cache leaves them in the virtual machine, a library at their path loads it."""
+def test_a_small_problem_runs_optimised_only_where_that_library_is_on_disk(tmp_path, monkeypatch
+                                                                           ) -> None:
+    """Below 200 waypoints the point functions are compiled without optimisation (a quick
+    compile), unless the optimised library is already compiled: an empty compile cache gives
+    ``O0``, a library at the optimised path gives ``O1``."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.planning.casadi_ import library_path
     from rfsw_plan.process.problem import load_problem
@@ -120,28 +120,33 @@ def test_a_small_problem_runs_compiled_where_its_library_is_on_disk(tmp_path, mo
     monkeypatch.setattr(nlp_module, "_ON_DISK", {})
     monkeypatch.setattr(nlp_module, "_POINT_CACHE", OrderedDict())
     model = ElastostaticModel(load_robot(load_problem("fanuc_butt_1700mm").robot)).physical()
-    assert nlp_module.auto_compile(model, nlp_module.COMPILE_MIN_WAYPOINTS, False)
-    assert not nlp_module.auto_compile(model, 78, False)
-    vm = nlp_module.point_functions(model, False, False)
-    lib = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess], "rfsw_point")
+    big = nlp_module.COMPILE_MIN_WAYPOINTS
+    assert nlp_module.compile_level(model, big, False) == "O1"
+    assert nlp_module.compile_level(model, 78, False) == "O0"
+    vm = nlp_module.point_functions(model, "", False)
+    lib = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess],
+                       nlp_module.COMPILE_LEVELS["O1"][0])
     assert lib.parent == tmp_path
-    lib.write_bytes(b"")  # where compile_functions keeps it
+    lib.write_bytes(b"")  # where compile_functions keeps the optimised library
     monkeypatch.setattr(nlp_module, "_ON_DISK", {})
-    assert nlp_module.auto_compile(model, 78, False)
-    assert not nlp_module.auto_compile(model, 78, True)  # other functions, no library
+    assert nlp_module.compile_level(model, 78, False) == "O1"
+    assert nlp_module.compile_level(model, 78, True) == "O0"  # other functions, no library
 
 
 @pytest.mark.slow
 def test_the_compiled_functions_plan_the_bytes_of_the_virtual_machine(tmp_path, monkeypatch
                                                                       ) -> None:
-    """A small problem planned with its point functions compiled to C (a library on disk)
-    writes the bytes of the plan in CasADi's virtual machine."""
+    """A small problem planned with its point functions compiled to C, without and with the
+    compiler's optimisation, writes the bytes of the plan in CasADi's virtual machine."""
     monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
     out = {}
-    for name, compiled in (("vm", False), ("c", True)):
+    for name, level in (("vm", ""), ("O0", "O0"), ("O1", "O1")):
         for cache in CACHES:
             monkeypatch.setattr(nlp_module, cache, OrderedDict())
-        result = api.plan("fanuc_butt_1700mm", compile_c=compiled)
+        monkeypatch.setattr(nlp_module, "compile_level", lambda *a, lv=level: lv)
+        result = api.plan("fanuc_butt_1700mm", compile_c=bool(level))
         out[name] = write_waypoints_csv(tmp_path / f"{name}.csv", result).read_bytes()
-    assert list((tmp_path / "cache").glob("rfsw_point_*.so"))  # it did compile
-    assert out["vm"] == out["c"]
+    libs = sorted(p.name.split("_")[2] for p in (tmp_path / "cache").glob("rfsw_point_*.so"))
+    assert len(libs) == 2 and "O0" in libs  # both compiled
+    assert out["vm"] == out["O0"] == out["O1"]

@@ -42,10 +42,8 @@ from rfsw_plan.planning.baselines import (
 from rfsw_plan.planning.coarse import interpolate_coarse, project_fine, subsample_task
 from rfsw_plan.planning.nlp import (
     PlanNLP,
-    auto_compile,
     build_plan_nlp,
     nlp_prediction,
-    plans_coupled,
     solve_plan_nlp,
     update_parameters,
 )
@@ -661,8 +659,6 @@ def solve_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
 
     ``coarse_correction`` [m]: the coarse NLP's first outer correction (an earlier solve's
     :attr:`Solved.coarse_correction` on the same task, see :func:`_solve_outer`)."""
-    if compile_c is None:
-        compile_c = auto_compile(model.physical(), len(task), plans_coupled(task))
     # The offset rows follow the mirror's offsets in the fine NLP as in the coarse one: both
     # solve the same problem (with load_steps here the full NLP's plan was 0.08-0.13 mm from
     # the default's at the travel-start ramp, issue 38).

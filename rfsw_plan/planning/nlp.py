@@ -198,8 +198,8 @@ class PointFunctions:
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
 _SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 _EVAL_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
-#: Whether a compiled library of the point functions was on disk, by structure (checked once
-#: per process: hashing the functions costs 20-100 ms).
+#: Whether an optimised library of the point functions was on disk, by structure (checked
+#: once per process: hashing the functions costs 20-100 ms).
 _ON_DISK: dict[tuple[object, ...], bool] = {}
 
 
@@ -237,19 +237,22 @@ def _family_expression(family: Any, sym: PointSymbols) -> Any:
     return g
 
 
-def point_functions(model: ElastostaticModel, compile_c: bool = False, coupled: bool = False
-                    ) -> PointFunctions:
+def point_functions(model: ElastostaticModel, compile_c: bool | str = False,
+                    coupled: bool = False) -> PointFunctions:
     """The per-waypoint functions of the NLP (see :class:`PointFunctions`).
 
     Args:
         model: Elastostatic model; its joint and tilting compliance enter symbolically.
-        compile_c: Compile them to C with the system compiler (cached on disk, see
-            :func:`_compile`); falls back to the CasADi virtual machine if that fails.
+        compile_c: Compile them to C with the system compiler, at a level of
+            :data:`COMPILE_LEVELS` (True: ``O1``; False or "": CasADi's virtual machine),
+            cached on disk (:func:`~rfsw_plan.planning.casadi_.compile_functions`); falls
+            back to the virtual machine if that fails.
         coupled: The objective plans with the coupled axial law (:func:`plans_coupled`): the
             depth centred on ``depth_at`` (:func:`depth_targets`) instead of 0; a problem
             without it gets the functions without that parameter.
     """
-    key = (*_model_key(model), compile_c, coupled)
+    level = "O1" if compile_c is True else compile_c or ""
+    key = (*_model_key(model), level, coupled)
     if key in _POINT_CACHE:
         return _POINT_CACHE[key]
     robot = model.robot
@@ -286,8 +289,9 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False, coupled: 
     ]
     compiled = False
     fg_vm = fg_nlp = fns[1]
-    if compile_c:
-        loaded = compile_functions(fns, "rfsw_point", fd_index=1)
+    if level:
+        prefix, flag = COMPILE_LEVELS[level]
+        loaded = compile_functions(fns, prefix, fd_index=1, optimise=flag)
         if loaded is not None:
             fns, compiled = loaded[:-1], True
             fg_nlp = loaded[-1]
@@ -299,26 +303,35 @@ def point_functions(model: ElastostaticModel, compile_c: bool = False, coupled: 
     return pf
 
 
-#: Waypoints from which compiling the point functions to C pays for itself in one plan (the
-#: first compile of a robot's functions takes 5-20 s of gcc; the compiled Hessian is 5-10x
-#: faster than CasADi's virtual machine).
+#: Waypoints from which the point functions are compiled with the compiler's optimisation
+#: (``-O1``: kr600_curved_seam's 15 s of gcc, once per robot, for a Hessian 4x faster than
+#: CasADi's virtual machine); below, ``-O0`` (2.7 s of gcc, 2.7x faster) unless an optimised
+#: library is already on disk.
 COMPILE_MIN_WAYPOINTS = 200
+#: The compiled libraries by level: (file name prefix, compiler flag).
+COMPILE_LEVELS = {"O1": ("rfsw_point", "-O1"), "O0": ("rfsw_point_O0", "-O0")}
 
 
-def auto_compile(model: ElastostaticModel, K: int, coupled: bool) -> bool:
-    """Whether a plan on K waypoints runs the point functions compiled to C: from
-    :data:`COMPILE_MIN_WAYPOINTS` on, or whenever they are compiled already, in this process
-    or on disk (:func:`~rfsw_plan.planning.casadi_.library_path`: a smaller problem on a
-    robot that a larger one has compiled loads its library). The compiled and the virtual
-    machine's functions give the same plan bit for bit (``tests/test_plan_cache.py``)."""
-    key = (*_model_key(model), True, coupled)
-    if K >= COMPILE_MIN_WAYPOINTS or key in _POINT_CACHE:
-        return True
-    if key not in _ON_DISK:
-        vm = point_functions(model, False, coupled)
-        _ON_DISK[key] = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess],
-                                     "rfsw_point").exists()
-    return _ON_DISK[key]
+def compile_level(model: ElastostaticModel, K: int, coupled: bool) -> str:
+    """How a plan on K waypoints runs the point functions: ``O1`` (compiled with the
+    optimisation) from :data:`COMPILE_MIN_WAYPOINTS` on or wherever such a library is already
+    compiled (in this process or on disk, :func:`~rfsw_plan.planning.casadi_.library_path`),
+    else ``O0``.
+
+    Measured on kr600_curved_seam's first plan with an empty compile cache: 3.4 s of planning
+    plus 2.7 s of gcc at ``O0`` against 5.3 s in the virtual machine, then 3.3 s per plan
+    (``O1``: 15 s of gcc, then 2.4 s). Every level gives the same plan bit for bit
+    (``tests/test_plan_cache.py``)."""
+    key = _model_key(model)
+    if K >= COMPILE_MIN_WAYPOINTS or (*key, "O1", coupled) in _POINT_CACHE:
+        return "O1"
+    if (*key, "O0", coupled) in _POINT_CACHE:
+        return "O0"
+    if (*key, coupled) not in _ON_DISK:
+        vm = point_functions(model, "", coupled)
+        _ON_DISK[(*key, coupled)] = library_path(
+            [vm.info, vm.fg, vm.grad, vm.jac, vm.hess], COMPILE_LEVELS["O1"][0]).exists()
+    return "O1" if _ON_DISK[(*key, coupled)] else "O0"
 
 
 @dataclass(frozen=True)
@@ -722,7 +735,8 @@ def build_plan_nlp(
         options: Planner options.
         correction: Outer-loop correction of the lateral, normal and along-track error [m],
             shape (K, 3).
-        compile_c: Compile the point functions to C; None: when K >= 200 or already cached.
+        compile_c: Compile the point functions to C (None or True: at :func:`compile_level`'s
+            level for K waypoints; False: CasADi's virtual machine).
         load_steps: Offset change the load itself demands on each link (lateral, normal,
             along-track) [m], shape (K - 1, 3), e.g. the mirror baseline's steps; added to the
             bound of every link row family on the offsets (offset rate, offset speed) so the
@@ -744,10 +758,10 @@ def build_plan_nlp(
     robot = model.robot
     n, K = robot.nq, len(task)
     coupled = plans_coupled(task)
-    if compile_c is None:
-        compile_c = auto_compile(model, K, coupled)
-    pf = point_functions(model, compile_c, coupled)
-    skey = (*_model_key(model), pf.compiled, coupled, K, opts.tol, opts.max_iter)
+    level = compile_level(model, K, coupled) if compile_c in (None, True) else ""
+    pf = point_functions(model, level, coupled)
+    skey = (*_model_key(model), level if pf.compiled else "", coupled, K, opts.tol,
+            opts.max_iter)
     ekey = skey[:-2]
     if ekey not in _EVAL_CACHE:
         _EVAL_CACHE[ekey] = _build_eval(pf, K, n)
