@@ -38,6 +38,8 @@ def _compare(problem_name: str) -> None:
     dk = abs(weakest(default) - weakest(full)) / weakest(full)
     assert dk <= K_TOL, f"weakest lateral stiffness {100 * dk:.3f} % off the full NLP's"
     de = float(np.max(np.abs(full.e_lat - default.e_lat)))
+    print(f"{problem_name}: default {de * 1e3:.4f} mm and {100 * dk:.3f} % of the weakest "
+          f"lateral stiffness off the full NLP's ({default.source}, {full.source})")
     assert de <= E_TOL, f"default plan {de * 1e3:.4f} mm off the full NLP's"
 
 
@@ -46,19 +48,11 @@ def test_full_nlp_plans_and_default_stays_close(problem: str) -> None:
     _compare(problem)
 
 
-#: Known failures of the full NLP, with their cause. kr600_forming_contour (12 mm corners,
-#: the pin 3 mm below the surface): the written samples' pin speed, judged as the pin's own
-#: velocity along the seam against the commanded speed, is +5.08 % of the weld speed at
-#: s = 62 mm (bound 5 %). The NLP's travel_speed rows bound the change of t . (pin - p) per
-#: travel, which on a tight corner leaves out the pin's curvature term (kappa x offset); the
-#: default plan (the mirror's, there) holds it.
-FULL_FAILS = {"kr600_forming_contour": "the pin speed at a 12 mm corner: +5.08 % against 5 % "
-                                       "(the NLP's travel_speed rows leave out kappa x offset)"}
-
-
+#: Every other bundled problem, kr600_forming_contour (12 mm corners) included: its full NLP's
+#: plan failed the sample check's pin speed at s = 62 mm (+5.08 % against 5 %) while the NLP's
+#: travel_speed rows bounded the change of t . (pin - p) and left out the turn of the seam
+#: (kappa x offset); they now bound the pin's travel along the seam chord (issue 38).
 @pytest.mark.slow
-@pytest.mark.parametrize("problem", [
-    pytest.param(p, marks=pytest.mark.xfail(reason=FULL_FAILS[p], strict=True))
-    if p in FULL_FAILS else p for p in bundled_problem_names() if p not in FAST])
+@pytest.mark.parametrize("problem", [p for p in bundled_problem_names() if p not in FAST])
 def test_full_nlp_plans_every_bundled_problem(problem: str) -> None:
     _compare(problem)

@@ -17,6 +17,7 @@ from rfsw_plan.planning.nlp import (
     point_layout,
     solve_plan_nlp,
 )
+from rfsw_plan.planning.rows import link_sum_families
 from rfsw_plan.planning.verify import predict, verify_plan
 from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.window import WeldWindow
@@ -85,6 +86,9 @@ def test_point_derivatives_match_finite_differences(robot_name, coupled):
         "standing": 1.0, "stand_at": -0.275,  # standing in the plate: the standstill row is on
         "standing_full": 1.0,  # ... at full depth: the standing depth row is on
         "depth_at": 0.15,  # the coupled law's depth centre (unused without it)
+        # a weld waypoint between two links: the seam chords (scaled) and their offsets [mm]
+        "travel_in": rng.normal(0, 0.5, 3), "travel_out": rng.normal(0, 0.5, 3),
+        "travel_at": rng.normal(0, 1e-3, 2),
     })[0]
     assert par.size == n_par(n)
     glob = GLOBALS.pack(1, {
@@ -235,6 +239,24 @@ def test_assembled_constraint_jacobian_matches_the_nlp_definition(setup):
     np.testing.assert_allclose(J, J_ref, rtol=1e-9, atol=1e-9)
 
 
+def test_assembled_hessian_matches_the_nlp_definition(setup):
+    """IPOPT's Hessian of the Lagrangian (per-waypoint blocks, the smoothing term, and the
+    link sums' multipliers passed to the point rows they add) is the second derivative of the
+    NLP's own objective and constraints (CasADi's AD through the virtual machine)."""
+    import casadi as ca
+
+    nlp = setup[4]
+    X = ca.MX.sym("x", nlp.x0.size)
+    f, g = nlp.nlp_function(X, nlp.p)
+    rng = np.random.default_rng(8)
+    x = nlp.x0 + rng.normal(0, 1e-2, nlp.x0.size)
+    lam = rng.normal(0, 1, nlp.lbg.size)
+    L = 0.7 * f + ca.dot(ca.DM(lam), g)
+    H_ref = np.array(ca.densify(ca.Function("h", [X], [ca.hessian(L, X)[0]])(x)))
+    H = np.array(ca.densify(nlp.solver.get_function("nlp_hess_l")(x, nlp.p, 0.7, lam)))
+    np.testing.assert_allclose(np.triu(H), np.triu(H_ref), rtol=1e-8, atol=1e-8)
+
+
 def test_single_thread_blas_is_scoped():
     from rfsw_plan.planning.casadi_ import casadi_blas as _casadi_blas
     from rfsw_plan.planning.casadi_ import single_thread_blas
@@ -305,7 +327,8 @@ def test_documented_shapes_match_the_built_nlp(setup):
     model, task, _, _, nlp = setup
     K, n = len(task), model.robot.nq
     point = len(POINT_CONSTRAINTS)
-    link = (nlp.lbg.size - point * K) // (K - 1)
+    sums = len(link_sum_families())  # the link sums (travel_speed), one per link each
+    link = (nlp.lbg.size - point * K) // (K - 1) - sums
     actual = {"var": nlp.n_w - n, "point": point, "link": link - n, "terms": TERMS.size}
     assert nlp.x0.size == K * nlp.n_w + 1
     found = _documented_shapes()

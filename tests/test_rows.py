@@ -58,18 +58,19 @@ def test_built_nlp_has_the_declared_rows_in_order(setup):
     per_point = [label for f in POINT_ROWS for label in f.labels]
     per_link = sum(variable_layout(n).width(v) for v in rows.link_variables())
     # lateral (window, robust, tolerated) and the rest of the weld envelope (depth, surface,
-    # tilt, travel speed) and the standstill (lateral, depth): 21 rows per waypoint.
-    assert len(per_point) == 21 and per_link == n + 4
+    # tilt, travel speed in and out) and the standstill (lateral, depth): 22 rows per waypoint.
+    assert len(per_point) == 22 and per_link == n + 4
     names = nlp.constraint_names()
-    assert len(names) == nlp.lbg.size == 21 * K + (n + 4) * (K - 1)
-    assert names[:21] == [f"{c}[0]" for c in per_point]
-    link0 = names[21 * K:21 * K + per_link]
+    # ... then n + 4 link rows per link, then the travel_speed link sum of every link.
+    assert len(names) == nlp.lbg.size == 22 * K + (n + 4) * (K - 1) + (K - 1)
+    assert names[:22] == [f"{c}[0]" for c in per_point]
+    link0 = names[22 * K:22 * K + per_link]
     # The default offset speed never binds here (0.2 mm/mm x 3 mm/s < 10 mm/s): the offset
     # rows are the offset-rate rows, with the bounds they had before the speed was declared.
     assert link0 == [f"joint_step_q{j + 1}[0]" for j in range(n)] + [
         "offset_rate_lat[0]", "offset_rate_norm[0]", "offset_rate_along[0]",
         "tolerated_link[0]"]
-    hi = nlp.ubg[21 * K:].reshape(K - 1, n + 4)
+    hi = nlp.ubg[22 * K:22 * K + (n + 4) * (K - 1)].reshape(K - 1, n + 4)
     o = PlanOptions()
     expected = (o.offset_rate * task.link_travel() * 1e3 + 1e-6)[:, None] + np.abs(steps) * 1e3
     np.testing.assert_array_equal(hi[:, n:n + 3], expected)
@@ -89,12 +90,13 @@ def test_offset_speed_row_bounds_the_offset_change_in_time(setup):
     nlp = build_plan_nlp(model, task, w, mirror.q, mirror.offsets, tight, compile_c=False,
                          load_steps=steps)
     K, n = len(task), model.robot.nq
-    link0 = nlp.constraint_names()[21 * K:21 * K + n + 4]
+    link0 = nlp.constraint_names()[22 * K:22 * K + n + 4]
     assert link0[n:n + 3] == ["offset_speed_lat[0]", "offset_speed_norm[0]",
                               "offset_speed_along[0]"]
     dt = np.diff(task.time)
     bound = (speed * dt * 1e3 + 1e-6)[:, None] + np.abs(steps) * 1e3
-    np.testing.assert_allclose(nlp.ubg[21 * K:].reshape(K - 1, n + 4)[:, n:n + 3], bound,
+    np.testing.assert_allclose(nlp.ubg[22 * K:22 * K + (n + 4) * (K - 1)].reshape(
+        K - 1, n + 4)[:, n:n + 3], bound,
                                rtol=1e-15)
     np.testing.assert_allclose(nlp.links.allowance["offsets"], np.repeat(
         (speed * dt)[:, None], 3, 1), rtol=1e-15)
@@ -149,9 +151,9 @@ def test_a_new_point_row_is_one_declaration(monkeypatch, setup):
                          compile_c=False, load_steps=steps)
     K, n = len(task), model.robot.nq
     names = nlp.constraint_names()
-    assert len(names) == nlp.lbg.size == 22 * K + (n + 4) * (K - 1)
+    assert len(names) == nlp.lbg.size == 23 * K + (n + 4) * (K - 1) + (K - 1)
     at = [names.index(f"toy_depth[{k}]") for k in range(K)]
-    assert at == [22 * k + 21 for k in range(K)]
+    assert at == [23 * k + 22 for k in range(K)]
     assert np.all(nlp.lbg[at] == -0.5) and np.all(nlp.ubg[at] == 0.5)
     x = nlp.x0
     g_rows, terms = nlp.point_rows(x)
@@ -184,3 +186,58 @@ def test_offset_speed_option_reads_in_mm_per_s_and_refuses_nonsense():
         options_from_table({"offset_speed_mm_s": 0.0})
     with pytest.raises(InputError, match="offset_speed"):
         PlanOptions(offset_speed=-1.0)
+
+
+def test_travel_speed_rows_bound_the_pin_travel_along_the_seam_chord(setup):
+    """The travel_speed rows of the two ends of each weld link add up to the pin's travel
+    along the seam chord less the seam's travel (scaled by h_min / h), the turn of the chord
+    included: on a seam bent sideways, the independent check's deviation (numeric model,
+    chords of the seam points) is what the rows hold, and a speed tolerance below it fails
+    the check on that link."""
+    from dataclasses import replace
+
+    from rfsw_plan.planning.nlp import shortest_weld_link
+
+    model, task, mirror, steps = setup
+    fr, m = task.frames, task.n_start
+    # The weld bent sideways along l: 2 mm at its end (radius about 0.2 m at 6.3 mm links).
+    bend = np.zeros(len(task))
+    bend[m:] = 2e-3 * ((fr.s[m:] - fr.s[m]) / (fr.s[-1] - fr.s[m])) ** 2
+    bent = replace(task, frames=replace(fr, p=fr.p + bend[:, None] * fr.l),
+                   target=task.target + bend[:, None] * fr.l)
+    w = WeldWindow()
+    nlp = build_plan_nlp(model, bent, w, mirror.q, mirror.offsets, PlanOptions(),
+                         compile_c=False, load_steps=steps)
+    h_min = shortest_weld_link(bent)
+    names = nlp.constraint_names()
+    # The two rows at each waypoint are free; each weld link's sum of them is bounded.
+    i_in, i_out = names.index(f"travel_speed_in[{m + 1}]"), names.index(f"travel_speed_out[{m}]")
+    assert nlp.lbg[i_in] == nlp.lbg[i_out] == -np.inf and nlp.ubg[i_in] == np.inf
+    i_sum = names.index(f"travel_speed[{m}]")
+    assert nlp.ubg[i_sum] == pytest.approx(0.5 * w.speed_tol * h_min * 1e3)
+    assert nlp.lbg[i_sum] == -nlp.ubg[i_sum]
+    g_rows, _ = nlp.point_rows(nlp.x0)
+    ts = g_rows["travel_speed"]  # (K, 2): in, out [mm]
+    _, g = nlp.evaluate(nlp.x0)
+    assert g[i_sum] == pytest.approx(ts[m + 1, 0] + ts[m, 1], abs=1e-12)
+    h = np.diff(fr.s)[m:]
+    rows_dev = (ts[m + 1:, 0] + ts[m:-1, 1]) * 1e-3 * h / h_min  # [m]
+    # Independently: the numeric pin, the chords of the bent seam points.
+    pred = verify.predict(model, bent, mirror.q, 0.0)
+    q = pred.T[m:, :3, 3] + pred.dX[:, :3][m:] - bent.frames.p[m:]
+    dp = np.diff(bent.frames.p[m:], axis=0)
+    chord = np.linalg.norm(dp, axis=1)
+    dev = np.einsum("ki,ki->k", np.diff(q, axis=0), dp / chord[:, None]) + chord - h
+    np.testing.assert_allclose(rows_dev, dev, atol=1e-9)
+    assert np.max(np.abs(dev) / h) > 1e-4  # the bend moves the pin's travel
+    # The check judges the same quantity: a tolerance below the worst link fails it there.
+    k = int(np.argmax(np.abs(dev) / h))
+    tight = replace(w, speed_tol=0.5 * float(np.abs(dev[k]) / h[k]))
+    bad = verify_plan(model, bent, tight, mirror.q, mirror.offsets, 0.2)
+    check = verify.ROW_CHECKS["travel_speed"](verify.CheckInput(
+        model=model, task=bent, window=tight, q=mirror.q, offsets=mirror.offsets,
+        prediction=pred, robust_hard=False, joint_step=None, kappa_max=np.inf, options=None,
+        reference_offsets=None))
+    assert check is not None and check[0][0] == "travel_speed"
+    assert check[0][1][m + k] == pytest.approx(-tight.speed_tol, rel=1e-6)
+    assert not bad.feasible and any("travel_speed" in msg for msg in bad.messages)

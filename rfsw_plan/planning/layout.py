@@ -122,12 +122,15 @@ def point_layout(n: int) -> Layout:
     lateral pin error held there [mm] (the window centre), the flag of the standing
     waypoints at full depth (the pin at the planned depth), and the normal pin error the
     objective centres the depth on [mm] (``depth_at``: 0, or under the coupled axial law the
-    depth window's centre, see :func:`~rfsw_plan.planning.nlp.depth_targets`)."""
+    depth window's centre, see :func:`~rfsw_plan.planning.nlp.depth_targets`), and the
+    travel-speed rows' seam chords and their offsets [mm]
+    (:func:`~rfsw_plan.planning.nlp.travel_parameters`)."""
     return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
                    ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
                    ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1),
                    ("depth_on", 1), ("surface_on", 1), ("standing", 1), ("stand_at", 1),
-                   ("standing_full", 1), ("depth_at", 1)))
+                   ("standing_full", 1), ("depth_at", 1), ("travel_in", 3),
+                   ("travel_out", 3), ("travel_at", 2)))
 
 
 #: Global scalars passed to every waypoint: the objective weights, the lateral compliance

@@ -21,6 +21,10 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
   up over the first millimetre of *pin* travel); with this row the pin is there, the lag of
   the pin behind the TCP (several mm while the ramp winds it up) is in o_along, and the weld is
   timed on s_k directly (:mod:`rfsw_plan.timing.trajectory`);
+* the pin's travel over each weld link along the seam chord u_k within half the speed
+  tolerance of the seam's travel h_k, the chord's turn included (:func:`travel_parameters`:
+  one row per link, the sum of a term of each end, scaled by h_min / h_k to the bound
+  speed_tol h_min / 2);
 * e_k = l_k . (FK_p(q_k) + [C_X(q_k) F_k]_p - p_k) + c_k (c_k: outer correction for effects
   the symbolic model lacks), lower + margin <= e_k <= upper - margin;
 * robust window: the box |delta f_i| <= u |f_i| moves e_k by at most
@@ -54,7 +58,7 @@ were 0.08-0.13 mm apart there (issue 38).
 Every row family above is declared once, by name, in :mod:`rfsw_plan.planning.rows` (its
 expression, bounds, independent check); the variables and parameters are named by the layouts
 of :mod:`rfsw_plan.planning.layout`. Per waypoint there are
-:func:`~rfsw_plan.planning.rows.point_row_count` rows (21) and n + 5 variables; per link n + 4
+:func:`~rfsw_plan.planning.rows.point_row_count` rows (22) and n + 5 variables; per link n + 4
 rows; x has K (n + 5) + 1 entries.
 
 Objective (weights and priorities in :mod:`rfsw_plan.process.plan_options`):
@@ -111,6 +115,8 @@ from rfsw_plan.planning.rows import (
     PointSymbols,
     epigraph_rows,
     link_families,
+    link_sum_families,
+    link_sum_rows,
     link_variables,
     point_labels,
     point_row_count,
@@ -147,9 +153,11 @@ def x_layout(n: int, K: int) -> Layout:
 def g_layout(n: int, K: int) -> Layout:
     """The NLP's constraint vector g: the per-waypoint rows of K waypoints (waypoint-major,
     :data:`POINT_CONSTRAINTS` each), then the link rows of K - 1 links (link-major, see
-    :class:`LinkBounds`)."""
+    :class:`LinkBounds`), then the link sums of K - 1 links (link-major, one per family
+    declared with ``link_sum``)."""
     per_link = sum(variable_layout(n).width(v) for v in link_variables())
-    return Layout((("points", point_row_count() * K), ("links", per_link * max(K - 1, 0))))
+    return Layout((("points", point_row_count() * K), ("links", per_link * max(K - 1, 0)),
+                   ("sums", len(link_sum_families()) * max(K - 1, 0))))
 
 
 def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
@@ -163,16 +171,16 @@ def _model_key(model: ElastostaticModel) -> tuple[object, ...]:
 class PointFunctions:
     """Per-waypoint CasADi functions (SX, optionally compiled to C).
 
-    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (21, named
+    With n_g = :func:`~rfsw_plan.planning.rows.point_row_count` rows per waypoint (22, named
     by :data:`POINT_CONSTRAINTS`), n_w = n + 5 variables per waypoint
     (:func:`~rfsw_plan.planning.layout.variable_layout`) and the terms of
     :data:`~rfsw_plan.planning.layout.TERMS` (6):
 
     Attributes:
-        info: ``(w, par) -> (g (21,), terms (6,), dX (6,))``.
+        info: ``(w, par) -> (g (22,), terms (6,), dX (6,))``.
         fg: ``(w, par, glob) -> (phi, g)``, phi the waypoint's objective share.
         grad: ``(w, par, glob) -> grad phi (n + 5,)``.
-        jac: ``(w, par) -> dg/dw`` dense (21, n + 5).
+        jac: ``(w, par) -> dg/dw`` dense (22, n + 5).
         hess: ``(w, par, glob, lam_f, lam_g) -> triu of the Hessian of lam_f phi + lam_g . g``
             dense upper triangle (n + 5, n + 5).
         skipped: Effects the symbolic model lacks.
@@ -224,6 +232,7 @@ def _point_symbols(model: ElastostaticModel, v: dict[str, Any], pp: dict[str, An
         error=1e3 * ca.dot(l, pin_err) + corr["lateral"],
         normal_error=1e3 * ca.dot(nn, pin_err) + corr["normal"],
         along_error=1e3 * ca.dot(t, pin_err) + corr["along"],
+        pin=1e3 * pin_err + corr["lateral"] * l + corr["normal"] * nn + corr["along"] * t,
         worst=ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2)), compliance=cll)
     return sym, dX, tuple(skipped)
 
@@ -352,9 +361,10 @@ class PlanNLP:
         x0: Initial guess, shape (K (n + 5) + 1,) (:func:`x_layout`: the last entry is c_max,
             the largest lateral compliance of the weld waypoints [mm/kN]).
         lbx, ubx: Variable bounds, same shape.
-        lbg, ubg: Constraint bounds, shape (21 K + (n + 4)(K - 1),): the rows of
+        lbg, ubg: Constraint bounds, shape (22 K + (n + 4)(K - 1) + (K - 1),): the rows of
             :data:`~rfsw_plan.planning.rows.POINT_ROWS` at every waypoint, then the link
-            rows of :data:`~rfsw_plan.planning.rows.LINK_ROWS` on every link.
+            rows of :data:`~rfsw_plan.planning.rows.LINK_ROWS` on every link, then the link
+            sums (``travel_speed``) of every link.
         p: Parameter vector.
         links: The link rows' bounds by variable (which family binds, the allowance).
     """
@@ -423,7 +433,8 @@ class PlanNLP:
         K = self.n_waypoints
         labels = point_labels()
         names = [f"{c}[{k}]" for k in range(K) for c in labels]
-        return names + self.links.names(self.n_joints)
+        sums = [f"{f.name}[{k}]" for k in range(K - 1) for f in link_sum_families()]
+        return names + self.links.names(self.n_joints) + sums
 
     def variables(self, x: FloatArray) -> dict[str, FloatArray]:
         """The per-waypoint variables of x by name, NLP units (K, width) (:func:`variable_layout`),
@@ -448,7 +459,7 @@ class PlanNLP:
         return np.append(W.reshape(-1), c_max)
 
     def point_values(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Per-waypoint (g (K, 21), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
+        """Per-waypoint (g (K, 22), terms (K, 6), dX (K, 6)) at x (the NLP's own model); the
         columns of g are :data:`POINT_CONSTRAINTS` (by family: the rows' layout), of
         terms :data:`~rfsw_plan.planning.layout.TERMS`."""
         K = self.n_waypoints
@@ -590,6 +601,9 @@ def _expressions(pf: PointFunctions, K: int, n: int) -> _Expressions:
         fs = (wq * ca.sumsqr(dq * ca.repmat(hinv, n, 1))
               + wo * ca.sumsqr(1e-3 * do * ca.repmat(hinv, do.shape[0], 1))) / (K - 1)
         g_parts.append(ca.vec(ca.vertcat(*(dW[vl[var], :] for var in link_variables()))))
+        if link_sum_rows():
+            g_parts.append(ca.vec(ca.vertcat(*(G[i_end, 1:] + G[i_start, :-1]
+                                               for i_end, i_start in link_sum_rows()))))
     return _Expressions(X, P, W, PAR, GLOB, glob, c_max, f + fs, ca.vertcat(*g_parts), fs)
 
 
@@ -637,15 +651,21 @@ def _build_solver(pf: PointFunctions, K: int, n: int, opts: PlanOptions) -> ca.F
                       ) + ca.gradient(fs, X)
     Jb = mapped(pf.jac)(W, PAR)
     J_pts = ca.horzcat(ca.sparsity_cast(Jb, _blockdiag(K, np.ones((ng, nw), bool))), cap_col)
+    gl_ = g_layout(n, K)
+    S = _link_sum_matrix(K, ng)
     if K > 1:
         J_link = _link_jacobian(K, columns(variable_layout(n), link_variables()), nw,
                                 x_layout(n, K).size)
-        J = ca.vertcat(J_pts, J_link)
+        J = ca.vertcat(J_pts, J_link, *([ca.mtimes(S, J_pts)] if S.shape[0] else []))
     else:
         J = J_pts
     lam_f = ca.MX.sym("lam_f")
     lam_g = ca.MX.sym("lam_g", g.shape[0])
-    LG = ca.reshape(lam_g[g_layout(n, K)["points"]], ng, K)
+    # A link sum's multiplier acts on the point rows it adds (g_sums = S g_points).
+    lam_pts = lam_g[gl_["points"]]
+    if S.shape[0]:
+        lam_pts = lam_pts + ca.mtimes(S.T, lam_g[gl_["sums"]])
+    LG = ca.reshape(lam_pts, ng, K)
     Hb = mapped(pf.hess)(W, PAR, GLOB, ca.repmat(lam_f, 1, K), LG)
     H = ca.diagcat(ca.sparsity_cast(Hb, _blockdiag(K, np.triu(np.ones((nw, nw), bool)))),
                    ca.MX(1, 1))
@@ -678,6 +698,23 @@ def _link_jacobian(K: int, cols_w: NDArray[np.int_], nw: int, n_x: int) -> ca.DM
     c = np.concatenate([cols, cols + nw]).tolist()
     v = np.concatenate([-np.ones(row.size), np.ones(row.size)])
     return ca.DM.triplet(r, c, ca.DM(v), m * (K - 1), n_x)
+
+
+def _link_sum_matrix(K: int, ng: int) -> ca.DM:
+    """The constant matrix S with g_sums = S g_points (K - 1 links, ng rows per waypoint): on
+    link k, per link-sum family, +1 on its end row at k + 1 and its start row at k."""
+    pairs = link_sum_rows()
+    m = len(pairs)
+    if K < 2 or not m:
+        return ca.DM(0, ng * K)
+    link = np.repeat(np.arange(K - 1), m)
+    fam = np.tile(np.arange(m), K - 1)
+    row = link * m + fam
+    end = np.array([p[0] for p in pairs])[fam] + (link + 1) * ng
+    start = np.array([p[1] for p in pairs])[fam] + link * ng
+    return ca.DM.triplet(np.concatenate([row, row]).tolist(),
+                         np.concatenate([end, start]).tolist(),
+                         ca.DM(np.ones(2 * row.size)), m * (K - 1), ng * K)
 
 
 def _blockdiag(K: int, block: NDArray[np.bool_]) -> ca.Sparsity:
@@ -774,9 +811,10 @@ def build_plan_nlp(
     lbx, ubx = _variable_bounds(robot, K, opts)
     lbg, ubg = _point_bounds(window, opts, K, task)
     links = _link_bounds(task, opts, n, load_steps, offset_reference)
+    lbs, ubs = _link_sum_bounds(window, opts, K, task)
     nlp = PlanNLP(skey, nlp_fn, pf, robot, task, opts, n, np.zeros(x_layout(n, K).size),
-                  lbx, ubx, np.concatenate([lbg, links.lower]),
-                  np.concatenate([ubg, links.upper]), p, links)
+                  lbx, ubx, np.concatenate([lbg, links.lower, lbs]),
+                  np.concatenate([ubg, links.upper, ubs]), p, links)
     return replace(nlp, x0=nlp.pack(q_init, np.asarray(offsets_init, dtype=float)))
 
 
@@ -810,6 +848,54 @@ def depth_targets(task: PlanTask, window: WeldWindow) -> FloatArray:
     return z
 
 
+def shortest_weld_link(task: PlanTask) -> float:
+    """h_min, the shortest weld link with travel [m] (0 if there is none)."""
+    travel = task.link_travel()[task.n_start:]
+    travel = travel[travel > 1e-12]
+    return float(np.min(travel)) if len(travel) else 0.0
+
+
+def travel_parameters(task: PlanTask) -> dict[str, FloatArray]:
+    """The parameters of the ``travel_speed`` rows (:data:`~rfsw_plan.planning.rows.POINT_ROWS`)
+    per waypoint.
+
+    On each weld link k -> k + 1 with travel h_k = s_{k+1} - s_k > 0 the seam point moves along
+    the chord u_k = (p_{k+1} - p_k) / |p_{k+1} - p_k| (what the sample check projects the pin's
+    velocity on, :func:`~rfsw_plan.planning.verify.seam_direction`), by c_k + h_k with
+    c_k = |p_{k+1} - p_k| - h_k. With q = pin - p and w_k = h_min / h_k (h_min:
+    :func:`shortest_weld_link`):
+
+    * ``travel_in`` at k + 1: u_k w_k, ``travel_at[0]`` = c_k / 2 w_k [mm];
+    * ``travel_out`` at k: -u_k w_k, ``travel_at[1]`` = c_k / 2 w_k [mm];
+
+    so the link sum of link k, ``travel_in`` row at k + 1 plus ``travel_out`` row at k, is
+    ((q_{k+1} - q_k) . u_k + c_k) w_k, the pin's travel along u_k less the seam's travel h_k,
+    scaled by w_k; 0 where a waypoint has no such link.
+
+    Returns:
+        ``travel_in``, ``travel_out`` (K, 3) [1] and ``travel_at`` (K, 2) [mm].
+    """
+    K, m = len(task), task.n_start
+    out = {"travel_in": np.zeros((K, 3)), "travel_out": np.zeros((K, 3)),
+           "travel_at": np.zeros((K, 2))}
+    h_min = shortest_weld_link(task)
+    if K - m < 2 or h_min <= 0:
+        return out
+    p = task.frames.p[m:]
+    h = np.diff(task.frames.s[m:])
+    dp = np.diff(p, axis=0)
+    chord = np.linalg.norm(dp, axis=1)
+    moving = (h > 1e-12) & (chord > 1e-12)
+    w = np.where(moving, h_min / np.where(moving, h, 1.0), 0.0)
+    u = dp / np.where(moving, chord, 1.0)[:, None] * w[:, None]
+    half = np.where(moving, 0.5 * (chord - h), 0.0) * w * 1e3
+    out["travel_in"][m + 1:] = u
+    out["travel_out"][m:-1] = -u
+    out["travel_at"][m + 1:, 0] = half
+    out["travel_at"][m:-1, 1] = half
+    return out
+
+
 def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_init: FloatArray,
                 opts: PlanOptions, correction: FloatArray | None) -> FloatArray:
     """The parameter vector p (:func:`problem_layout`) of a task, warm start q_init (K, n)
@@ -826,7 +912,7 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "surface_on": task.at_surface.astype(float),
         "standing": task.standing.astype(float), "stand_at": window.centre * 1e3,
         "standing_full": task.standing_full.astype(float),
-        "depth_at": depth_targets(task, window) * 1e3,
+        "depth_at": depth_targets(task, window) * 1e3, **travel_parameters(task),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6
@@ -860,18 +946,33 @@ def _variable_bounds(robot: Robot, K: int, opts: PlanOptions) -> tuple[FloatArra
             xl.pack(1, {"points": np.tile(ubw, K), "c_max": np.inf})[0])
 
 
+def _bound_context(window: WeldWindow, opts: PlanOptions, task: PlanTask | None
+                   ) -> PointBounds:
+    h_min = shortest_weld_link(task) if task is not None else 0.0
+    return PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3,
+                       (-window.depth_deep + opts.margin) * 1e3,
+                       (window.depth_shallow - opts.margin) * 1e3,
+                       float(np.sin(window.tilt_tol)), 0.5 * window.speed_tol * h_min * 1e3,
+                       0.4 * STANDSTILL_MOTION * 1e3, 0.4 * STANDING_DEPTH_TOL * 1e3)
+
+
+def _link_sum_bounds(window: WeldWindow, opts: PlanOptions, K: int, task: PlanTask
+                     ) -> tuple[FloatArray, FloatArray]:
+    """Bounds of the link sums of K - 1 links (link-major), from each declaration's
+    ``link_sum`` (NLP units)."""
+    ctx = _bound_context(window, opts, task)
+    pairs = [f.link_sum(ctx) for f in link_sum_families() if f.link_sum is not None]
+    if not pairs or K < 2:
+        return np.zeros(0), np.zeros(0)
+    lb, ub = np.array(pairs, dtype=float).T
+    return np.tile(lb, K - 1), np.tile(ub, K - 1)
+
+
 def _point_bounds(window: WeldWindow, opts: PlanOptions, K: int, task: PlanTask | None = None
                   ) -> tuple[FloatArray, FloatArray]:
     """Bounds of the per-waypoint rows of K waypoints, from each family's declaration (NLP
     units), shape (rows per waypoint x K,) each."""
-    travel = task.link_travel()[task.n_start:] if task is not None else np.zeros(0)
-    travel = travel[travel > 1e-12]
-    h_min = float(np.min(travel)) if len(travel) else 0.0
-    ctx = PointBounds(window.lower * 1e3, window.upper * 1e3, opts.margin * 1e3,
-                      (-window.depth_deep + opts.margin) * 1e3,
-                      (window.depth_shallow - opts.margin) * 1e3,
-                      float(np.sin(window.tilt_tol)), 0.5 * window.speed_tol * h_min * 1e3,
-                      0.4 * STANDSTILL_MOTION * 1e3, 0.4 * STANDING_DEPTH_TOL * 1e3)
+    ctx = _bound_context(window, opts, task)
     pairs = []
     for f in rows.POINT_ROWS:
         got = f.bounds(ctx)

@@ -5,9 +5,11 @@ residuals and their bounds from named parts, the NLP (:mod:`rfsw_plan.planning.n
 assembled from the declarations in :data:`POINT_ROWS` and :data:`LINK_ROWS`, in their order.
 A declaration gives everything about its rows:
 
-* its **expression**: a CasADi expression of one waypoint's quantities (:class:`PointRows`),
-  or the change of one variable between neighbouring waypoints (:class:`LinkRows`; the rows
-  are linear, their block of the constant link Jacobian is +-1 on that variable's columns);
+* its **expression**: a CasADi expression of one waypoint's quantities (:class:`PointRows`;
+  with ``link_sum``, two terms whose sum over the ends of a link is bounded, one row per
+  link), or the change of one variable between neighbouring waypoints (:class:`LinkRows`; the
+  rows are linear, their block of the constant link Jacobian is +-1 on that variable's
+  columns);
 * its **bounds**, by row name, in NLP units (mm, rad, 1);
 * its **independent numeric check**: the name of a check in
   :data:`rfsw_plan.planning.verify.ROW_CHECKS`, which :func:`~rfsw_plan.planning.verify.verify_plan`
@@ -78,6 +80,8 @@ class PointSymbols:
         error: Lateral pin error e = l . (FK_p + [C F]_p - p) + c_lat [mm].
         normal_error: n . (FK_p + [C F]_p - p) + c_norm [mm].
         along_error: t . (FK_p + [C F]_p - p) + c_along [mm].
+        pin: The predicted pin against the target, FK_p + [C F]_p - p + c_lat l + c_norm n
+            + c_along t [mm], base frame, (3,).
         worst: Worst case over the force box, r = sum_i u |f_i| |l^T C_tt b_i| (smooth |.|)
             [mm].
         compliance: Lateral compliance l^T C_tt l [mm/kN].
@@ -90,6 +94,7 @@ class PointSymbols:
     error: Any
     normal_error: Any
     along_error: Any
+    pin: Any
     worst: Any
     compliance: Any
 
@@ -104,9 +109,11 @@ class PointBounds:
         depth_lower, depth_upper: Bounds of the normal pin error (positive: shallower than
             planned) with the margin [mm] (the weld window's depth_deep and depth_shallow).
         tilt: sin of the tilt tolerance [1].
-        along: Bound of the along-track error that keeps the pin's speed between
-            neighbouring weld waypoints within the speed tolerance [mm]:
-            speed_tol x shortest weld link / 2.
+        along: Half the pin's travel speed band on the shortest weld link h_min [mm]:
+            speed_tol x h_min / 2 (the ``travel_speed`` link sums, scaled to h_min): the other
+            half is for the pin's motion between the waypoints, which the timing interpolates
+            (kr600_forming_contour: the link at s = 62 mm, +4.13 % on average, reached
+            +5.08 % at a sample).
         stand: Half the pin's lateral motion allowed while the tool stands in the plate,
             less a 20 % share for the motion between waypoints [mm].
         stand_depth: Largest normal pin error while the tool stands at full depth, less a
@@ -159,6 +166,11 @@ class PointRows:
             define an auxiliary variable of the objective).
         epigraph: The global variable c_max (last entry of x) is subtracted from these rows:
             row = expression - c_max.
+        link_sum: For a quantity of a link that is a sum of one term of each of its
+            waypoints: ``PointBounds -> (lower, upper)`` of (first row at k + 1) + (second
+            row at k) on every link k -> k + 1 (NLP units), one row per link named after the
+            family (``travel_speed[k]``, after the link rows). The family has two rows, which
+            are not bounded at a waypoint (``bounds`` gives them (-inf, inf)).
     """
 
     name: str
@@ -168,9 +180,13 @@ class PointRows:
     check: str | None = None
     unchecked: str = ""
     epigraph: bool = False
+    link_sum: Callable[[PointBounds], tuple[float, float]] | None = None
 
     def __post_init__(self) -> None:
         _check_or_reason(self.name, self.check, self.unchecked)
+        if self.link_sum is not None and len(self.labels) != 2:
+            raise TypeError(f"row family {self.name!r}: a link sum needs two rows (the terms "
+                            f"of the link's end and start), not {self.labels}")
 
 
 @dataclass(frozen=True)
@@ -294,11 +310,23 @@ POINT_ROWS: tuple[PointRows, ...] = (
         "tilt", ("work_angle", "travel_angle"),
         lambda s: _sym(ca.dot(s.axis, s.par["l"]), ca.dot(s.axis, s.par["t"])),
         lambda b: ((-b.tilt, b.tilt), (-b.tilt, b.tilt)), check="tilt"),
-    # The pin's travel between neighbouring weld waypoints within the speed tolerance of the
-    # weld speed: each pin within speed_tol x h_min / 2 of its seam point along the track.
+    # The pin's travel over each weld link k -> k + 1 along the seam chord u_k (the direction
+    # the seam point moves, on which the sample check projects the pin's velocity) within
+    # half the speed tolerance of the seam's travel h_k (the other half for the motion between
+    # the waypoints), the chord's turn included (on a corner of radius R a pin e inside the
+    # seam travels (1 - e / R) h):
+    #     |(q_{k+1} - q_k) . u_k + |p_{k+1} - p_k| - h_k| <= speed_tol h_k / 2,
+    # q = pin - p. One link sum per link: travel_in at k + 1 (q . u_k + c_k / 2) plus
+    # travel_out at k (-q . u_k + c_k / 2), c = chord - h, both scaled by h_min / h_k to the
+    # common bound speed_tol h_min / 2 (:func:`~rfsw_plan.planning.nlp.travel_parameters`; 0 off
+    # the weld links). A part of q common to both ends (the depth along the tilted tool axis)
+    # cancels, as it does in the pin's velocity.
     PointRows(
-        "travel_speed", ("travel_speed",), lambda s: s.along_error,
-        lambda b: ((-b.along, b.along),), check="travel_speed"),
+        "travel_speed", ("travel_speed_in", "travel_speed_out"),
+        lambda s: _sym(ca.dot(s.pin, s.par["travel_in"]) + s.par["travel_at"][0],
+                       ca.dot(s.pin, s.par["travel_out"]) + s.par["travel_at"][1]),
+        lambda b: ((-INF, INF),) * 2, check="travel_speed",
+        link_sum=lambda b: (-b.along, b.along)),
     # sign det J_n linearised at q_lin above its floor: the smooth stand-in for kappa_f.
     PointRows(
         "singularity", ("singularity",),
@@ -371,6 +399,18 @@ def epigraph_rows() -> FloatArray:
                            for f in POINT_ROWS])
 
 
+def link_sum_families() -> tuple[PointRows, ...]:
+    """The point row families bounded as link sums (declared ``link_sum``), in order."""
+    return tuple(f for f in POINT_ROWS if f.link_sum is not None)
+
+
+def link_sum_rows() -> tuple[tuple[int, int], ...]:
+    """Per link-sum family, the positions among a waypoint's rows of its two rows (the term
+    of the link's end, taken at k + 1, and of its start, taken at k)."""
+    layout = point_row_layout()
+    return tuple((layout[f.name].start, layout[f.name].start + 1) for f in link_sum_families())
+
+
 def link_variables() -> tuple[str, ...]:
     """The variables the link rows bound, in the order of their rows on a link."""
     return tuple(dict.fromkeys(f.variable for f in LINK_ROWS))
@@ -388,5 +428,6 @@ def checks() -> dict[str, str]:
 
 
 __all__ = ["LINK_ROWS", "POINT_ROWS", "LinkContext", "LinkRows", "PointBounds", "PointRows",
-           "PointSymbols", "checks", "epigraph_rows", "link_families", "link_variables",
-           "point_labels", "point_row_count", "point_row_layout"]
+           "PointSymbols", "checks", "epigraph_rows", "link_families", "link_sum_families",
+           "link_sum_rows", "link_variables", "point_labels", "point_row_count",
+           "point_row_layout"]

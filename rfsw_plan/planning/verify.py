@@ -358,12 +358,16 @@ def _check_tilt(c: CheckInput) -> Margins:
 
 
 def _check_travel_speed(c: CheckInput) -> Margins:
-    """The predicted pin's travel between neighbouring weld waypoints within ``speed_tol`` of
-    the seam's: | (e_along,k+1 - e_along,k) / h_k | <= speed_tol for every weld link k of
-    travel h_k (the pin's mean speed over the link relative to the weld speed, minus 1).
+    """The predicted pin's travel over each weld link along the seam within ``speed_tol`` of
+    the seam's travel: | (q_{k+1} - q_k) . u_k + |p_{k+1} - p_k| - h_k | / h_k <= speed_tol
+    for every weld link k of travel h_k, q = FK_p + dX_p - p the pin against its seam point,
+    u_k the chord p_{k+1} - p_k normalised (the direction the seam point moves between the
+    waypoints, on which :func:`verify_samples` projects the pin's velocity): the pin's mean
+    speed along the seam over the link relative to the seam point's, minus 1, the chord's turn
+    included (on a corner of radius R, a pin e inside the seam: about -e / R).
 
-    The NLP's ``travel_speed`` rows ask for more (every pin within speed_tol x h_min / 2 of its
-    seam point along the track, which implies this); what the process needs is the speed, so
+    The NLP's ``travel_speed`` rows ask for more (each waypoint holds half of each of its
+    links, speed_tol h / 2, which implies this); what the process needs is the speed, so
     that is what is checked. The margin of link k is at its first waypoint (unit ``speed``:
     a ratio of the weld speed)."""
     m = c.task.n_start
@@ -371,10 +375,15 @@ def _check_travel_speed(c: CheckInput) -> Margins:
     margin = np.full(len(c.task), np.inf)
     if not len(travel):
         return []
-    moving = travel > 1e-12
-    de = np.diff(c.prediction.e_along[m:])
-    ratio = np.abs(de[moving]) / travel[moving]
-    margin[m + np.flatnonzero(moving)] = c.window.speed_tol - ratio
+    p = c.task.frames.p[m:]
+    pr = c.prediction
+    q = pr.T[m:, :3, 3] + pr.dX[m:, :3] - p
+    dp = np.diff(p, axis=0)
+    chord = np.linalg.norm(dp, axis=1)
+    moving = (travel > 1e-12) & (chord > 1e-12)
+    u = dp[moving] / chord[moving, None]
+    dev = np.einsum("ki,ki->k", np.diff(q, axis=0)[moving], u) + chord[moving] - travel[moving]
+    margin[m + np.flatnonzero(moving)] = c.window.speed_tol - np.abs(dev) / travel[moving]
     return [("travel_speed", margin, "speed")]
 
 
