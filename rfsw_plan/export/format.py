@@ -161,6 +161,8 @@ class ControllerFormat(abc.ABC):
         :func:`~rfsw_plan.export.config.configs_near`.)"""
         from rfsw_plan.export.config import configs_near
 
+        if point.config == self.posture(robot, q):  # the usual case: no boundary to nudge
+            return True
         return point.config in configs_near(self.posture, robot, q)
 
     def path_deviation(self, program: Program) -> FloatArray:

@@ -72,7 +72,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation, Slerp
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.numfmt import fixed
@@ -689,6 +688,8 @@ def _chord_fraction(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArr
 
 def _deviation(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
     """Position distance [m] and orientation angle [rad] of samples i..j from the LIN i -> j."""
+    from scipy.spatial.transform import Rotation, Slerp
+
     pos, f = _chord_fraction(P, i, j)
     R = Rotation.from_matrix(P[[i, j], :3, :3])
     slerp = Slerp([0.0, 1.0], R)
@@ -753,6 +754,8 @@ def _slerp_angles(P: FloatArray, segs: list[tuple[int, int]], fracs: list[FloatA
     (i, j) and chord fractions f (j - i + 1,), the angle of sample k from the slerp of
     R_i -> R_j at f_k, ``|log((R_i exp(f_k log(R_i^T R_j)))^T R_k)|`` (SciPy's ``Slerp``
     written out, element by element the same operations)."""
+    from scipy.spatial.transform import Rotation
+
     if not segs:
         return []
     first = np.array([i for i, _ in segs])
@@ -789,6 +792,8 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
     the next point in the same group): the controller then runs the pause into the next
     move at the speed that keeps the plan's time, instead of an exact stop and a wait in the
     material. A phase's last point stays."""
+    from scipy.spatial.transform import Rotation
+
     out = [int(idx[0])]
     for k in range(1, len(idx)):
         i, j = out[-1], int(idx[k])
@@ -807,6 +812,8 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
 
 def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
              tol: float, pin: FloatArray) -> list[Motion]:
+    from scipy.spatial.transform import Rotation
+
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)

@@ -35,7 +35,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.config import abb_confdata
@@ -74,6 +73,8 @@ SIGN_TOL = 1e-6
 def quat_wxyz(R: FloatArray) -> FloatArray:
     """Rotation matrix -> unit quaternion (w, x, y, z), the first component (in that order)
     larger than :data:`SIGN_TOL` in size positive (w >= 0 unless w is about 0)."""
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w = Rotation.from_matrix(R).as_quat()
     q = np.array([w, x, y, z])
     lead = q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]]
@@ -262,6 +263,8 @@ _CALL = re.compile(r"^\s*(\w+)\s*;\s*$")
 
 
 def _frame(vals: tuple[str, ...], where: str) -> FloatArray:
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w, qx, qy, qz = (float(v) for v in vals)
     n = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
     if abs(n - 1.0) > 1e-6:

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.robot.kinematics import Robot
@@ -78,6 +77,8 @@ def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     Raises:
         InfeasibleError: The number of points differs from the plan's.
     """
+    from scipy.spatial.transform import Rotation
+
     from rfsw_plan.export.config import ik_on_branch
 
     points = read.points

@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
@@ -59,6 +58,8 @@ def samples_of(trajectory: object, seam: FloatArray) -> Samples:
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
     """Write the stream CSV atomically (columns in the module docstring)."""
+    from scipy.spatial.transform import Rotation
+
     from rfsw_plan.planfiles.waypoints import EULER_COLUMNS, maker_euler
 
     conv = robot.description.convention
