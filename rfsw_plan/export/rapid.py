@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.export.config import abb_confdata
+from rfsw_plan.export.config import abb_confdata, abb_confdatas
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import chunks
 from rfsw_plan.export.program import Program, controller_name, number, speed_note
@@ -130,6 +130,9 @@ class RapidFormat(ControllerFormat):
 
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         return abb_confdata(robot, q)
+
+    def postures(self, robot: Robot, Q: FloatArray) -> list[Hashable]:
+        return list(abb_confdatas(robot, Q))
 
     def write(self, program: Program, folder: Path) -> list[Path]:
         return write_rapid(program, folder)
@@ -225,8 +228,9 @@ def write_rapid(program: Program, folder: str | Path, max_lines: int = MAX_LINES
     q0 = np.degrees(program.samples.q[0])
     out.append("  LOCAL CONST jointtarget jStart := [["
                + ",".join(number(x, 6) for x in q0) + "],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
+    confs = abb_confdatas(robot, program.samples.q[1:len(program.poses)])
     for k in range(1, len(program.poses)):
-        cf = abb_confdata(robot, program.samples.q[k])
+        cf = confs[k - 1]
         out.append(f"  LOCAL CONST robtarget p{k + 1} := {_pose(program.poses[k])[:-1]},"
                    f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
                    "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
