@@ -130,9 +130,11 @@ class StreamFormat(ControllerFormat):
         if not cols or "t_s" not in rows[0]:
             raise InputError(path, "header", "no t_s or joint columns", "a stream file")
         it = rows[0].index("t_s")
-        try:
-            q = np.radians([[float(r[i]) for i in cols] for r in rows[1:]])
-            t = np.array([float(r[it]) for r in rows[1:]])
+        columns = list(zip(*rows[1:], strict=False))  # as many as the shortest row has
+        try:  # every cell parsed as float() parses it; rows first, C order
+            q = np.radians(np.ascontiguousarray(
+                np.array([columns[i] for i in cols], dtype=float).T))
+            t = np.array(columns[it], dtype=float)
         except (ValueError, IndexError):
             raise InputError(path, "", "a malformed row", "numbers in every cell") from None
         dt = np.diff(t, prepend=t[0])
