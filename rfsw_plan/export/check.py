@@ -51,7 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram, format_for_file
-from rfsw_plan.export.program import Samples
+from rfsw_plan.export.program import Samples, sample_fk
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -406,7 +406,7 @@ def _exported_work(plan: Any, robot: Robot) -> FloatArray:
     from rfsw_plan.export.program import work_frame
 
     normal, depth, _, _ = plate_surface(plan.problem_file, plan.samples)
-    T = robot.batch_fk_jacobian(plan.samples.q)[0]
+    T = sample_fk(robot, plan.samples.q)
     return work_frame(plan.samples, T, robot.description.convention.base, normal, depth)[0]
 
 
@@ -462,7 +462,7 @@ def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
         return []
 
     def heights(samples: Samples) -> FloatArray:
-        pin = (model.robot.batch_fk_jacobian(samples.q)[0][:, :3, 3]
+        pin = (sample_fk(model.robot, samples.q)[:, :3, 3]
                + model.process_deflection(samples.q, samples.wrench, ref)[:, :3])
         return pin_heights(samples, pin, normal, depth)
 
@@ -560,7 +560,7 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     in the exported base), and run where the program's base puts them."""
     conv = robot.description.convention
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
-    T_plan = robot.batch_fk_jacobian(plan.q)[0]
+    T_plan = sample_fk(robot, plan.q)
     pts = read.points
     poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
     seg_t = _segment_times(read, poses)

@@ -474,7 +474,7 @@ def build_program(
                 stream=stream, cycle=cycle, depth=depth, pin=pin)
     if header.spacing <= 0:
         raise InputError("export_spacing", "", f"got {header.spacing * 1e3:g}", "> 0")
-    T = robot.batch_fk_jacobian(samples.q)[0]
+    T = sample_fk(robot, samples.q)
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool
     work, notes = work_frame(samples, T, conv.base, normal, depth)
@@ -950,6 +950,28 @@ def _with_hooks(motions: list[Motion], idx: NDArray[np.int_], h: FloatArray,
 # Checks of a program
 
 
+_FK: list[tuple[Robot, bytes, FloatArray]] = []
+
+
+def sample_fk(robot: Robot, q: FloatArray) -> FloatArray:
+    """TCP poses of joint values q [rad], (N, n), in the description's base frame, (N, 4, 4)
+    [m] (:meth:`Robot.batch_fk_jacobian`), read-only, remembered for the last few joint arrays
+    by their bytes and layout: a program, its rebuilt versions (the TP's shorter segments),
+    the path checks, the stream and ``check`` ask for the poses of the same verified samples
+    many times (issue 41)."""
+    a = np.asarray(q, dtype=float)
+    h = hashlib.blake2b(a.tobytes(), digest_size=16)
+    h.update(repr((a.shape, a.strides)).encode())
+    key = h.digest()
+    for r, k, T in _FK:
+        if r is robot and k == key:
+            return T
+    T = robot.batch_fk_jacobian(a)[0]
+    T.setflags(write=False)
+    _FK[:] = [*_FK[-3:], (robot, key, T)]
+    return T
+
+
 _POSES: list[tuple[Program, FloatArray]] = []
 
 
@@ -960,7 +982,7 @@ def sample_poses(program: Program) -> FloatArray:
         if src is program:
             return P
     P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
-        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+        sample_fk(program.robot, program.all_samples.q)
     P.setflags(write=False)
     _POSES[:] = [*_POSES[-7:], (program, P)]
     return P

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
-from rfsw_plan.export.program import Program, Samples
+from rfsw_plan.export.program import Program, Samples, sample_fk
 from rfsw_plan.files import atomic_path
 from rfsw_plan.numfmt import fixed_many
 from rfsw_plan.robot.kinematics import Robot
@@ -63,7 +63,7 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
     from rfsw_plan.planfiles.waypoints import EULER_COLUMNS, maker_euler
 
     conv = robot.description.convention
-    T = robot.batch_fk_jacobian(stream.q)[0]
+    T = sample_fk(robot, stream.q)
     T = np.linalg.inv(conv.base)[None] @ T
     quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()
     header = ["t_s", "t_plan_s", "phase", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
