@@ -645,10 +645,15 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
     :func:`rfsw_plan.export.check.run_as_controller`) differs from the plan's by w, and its
     speed along the seam by d(a . w)/dt, a the direction the seam point moves (work frame,
     ``to_work`` the base-to-work rotation). Split at the largest a . w, until no change
-    exceeds it."""
+    exceeds it. Each segment's verdict is remembered for the same poses, samples and frame
+    (:func:`_segment_memo`): a rebuilt program judges only the segments it has not seen."""
     rows = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
     if len(rows) < 3:
         return keep
+    inputs = hashlib.blake2b(digest_size=16)
+    for x in (samples.seam, samples.t, samples.s, to_work):
+        inputs.update(np.ascontiguousarray(x, dtype=float).tobytes())
+    memo = _segment_memo(P, "speed " + inputs.hexdigest(), SPEED_SPLIT)
     r0, r1 = int(rows[0]), int(rows[-1])
     t = samples.t
     a = np.gradient(np.asarray(samples.seam, float)[r0:r1 + 1], t[r0:r1 + 1], axis=0)
@@ -661,15 +666,18 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
         i, j = stack.pop()
         if j - i < 2:
             continue
-        _, f = _chord_fraction(P, i, j)
-        p0, p1 = P[i, :3, 3], P[j, :3, 3]
-        w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
-        along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
-        if np.max(np.abs(np.gradient(along, t[i:j + 1]))) > limit:
+        if (i, j) not in memo:
+            _, f = _chord_fraction(P, i, j)
+            p0, p1 = P[i, :3, 3], P[j, :3, 3]
+            w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
+            along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
             # split at the bulge's apex (as Douglas-Peucker does), not where it changes
             # fastest: that is at the segment's ends, and splitting there cascades into
             # one-sample moves
-            m = min(max(i + int(np.argmax(np.abs(along))), i + 1), j - 1)
+            memo[i, j] = (min(max(i + int(np.argmax(np.abs(along))), i + 1), j - 1)
+                          if np.max(np.abs(np.gradient(along, t[i:j + 1]))) > limit else -1)
+        m = memo[i, j]
+        if m >= 0:
             out.add(m)
             stack += [(i, m), (m, j)]
     return out
@@ -734,7 +742,8 @@ _MEMOS: list[tuple[bytes, dict[tuple[int, int], Any]]] = []
 def _segment_memo(P: FloatArray, what: str, *params: float) -> dict[tuple[int, int], Any]:
     """Remembered per-segment results (segment (i, j) -> result) of ``what`` for these poses
     and parameters: :func:`_refine`'s verdicts (the sample a segment is split at, -1 kept
-    whole), :func:`_chord_distances`' distances. The last few, by a hash of the poses'
+    whole), :func:`_speed_refine`'s (the same, its other inputs' hash in ``what``),
+    :func:`_chord_distances`' distances. The last few, by a hash of the poses'
     bytes: a rebuilt program (:meth:`Program.rebuilt`) has the same poses."""
     h = hashlib.blake2b(np.ascontiguousarray(P).tobytes(), digest_size=16)
     h.update(what.encode())

@@ -73,17 +73,26 @@ SIGN_TOL = 1e-6
 def quat_wxyz(R: FloatArray) -> FloatArray:
     """Rotation matrix -> unit quaternion (w, x, y, z), the first component (in that order)
     larger than :data:`SIGN_TOL` in size positive (w >= 0 unless w is about 0)."""
+    return quats_wxyz(np.asarray(R)[None])[0]
+
+
+def quats_wxyz(R: FloatArray) -> FloatArray:
+    """:func:`quat_wxyz` of every rotation matrix of R, (m, 3, 3) -> (m, 4) (one SciPy call;
+    each matrix converted as alone)."""
     from scipy.spatial.transform import Rotation
 
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    lead = q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]]
-    return q if lead >= 0 else -q
+    out = np.roll(Rotation.from_matrix(R).as_quat(), 1, axis=1)  # x, y, z, w -> w, x, y, z
+    for q in out:
+        if q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]] < 0:
+            q *= -1.0
+    return out
 
 
-def _pose(T: FloatArray) -> str:
+def _pose(T: FloatArray, q: FloatArray | None = None) -> str:
+    """``[[x, y, z], [qw, qx, qy, qz]]`` of a pose [m] in mm (``q``: its :func:`quat_wxyz`,
+    when known)."""
     p = T[:3, 3] * 1e3
-    q = quat_wxyz(T[:3, :3])
+    q = quat_wxyz(T[:3, :3]) if q is None else q
     return (f"[[{number(p[0], 4)},{number(p[1], 4)},{number(p[2], 4)}],"
             f"[{','.join(number(x, 9) for x in q)}]]")
 
@@ -229,9 +238,11 @@ def write_rapid(program: Program, folder: str | Path, max_lines: int = MAX_LINES
     out.append("  LOCAL CONST jointtarget jStart := [["
                + ",".join(number(x, 6) for x in q0) + "],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
     confs = abb_confdatas(robot, program.samples.q[1:len(program.poses)])
+    quats = quats_wxyz(program.poses[:, :3, :3])
     for k in range(1, len(program.poses)):
         cf = confs[k - 1]
-        out.append(f"  LOCAL CONST robtarget p{k + 1} := {_pose(program.poses[k])[:-1]},"
+        out.append(f"  LOCAL CONST robtarget p{k + 1} := "
+                   f"{_pose(program.poses[k], quats[k])[:-1]},"
                    f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
                    "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
     body = _motion_lines(program, range(len(program.motions)), zones)
