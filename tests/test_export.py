@@ -698,3 +698,30 @@ def test_the_batched_path_checks_are_the_one_segment_ones() -> None:
         pos, ref = _deviation(P, i, j)
         np.testing.assert_array_equal(ang, ref)
         np.testing.assert_array_equal(_chord_fraction(P, i, j)[0], pos)
+
+
+def test_remembered_work_gives_the_same_program(planned) -> None:
+    """build_program remembers the samples' poses (``sample_fk``) and every segment's verdict
+    (``_refine``, ``_speed_refine``) for the next build of the same samples (issue 41: the TP
+    rebuilds its program with shorter segments). A build that finds everything remembered
+    gives the same points, motions and TP program as one that computes everything, and the
+    remembered poses are the forward kinematics, read-only."""
+    import rfsw_plan.export.program as prog
+    from rfsw_plan.export.fanuc_tp import tp_program
+
+    out, robot, _ = planned
+    samples = _samples(out, robot)
+    _, _, header = synthetic()
+
+    def build() -> tuple[object, ...]:
+        p = build_program(robot, samples, header)
+        tp = tp_program(p)
+        return (p.sample_index.tolist(), p.motions, tp.sample_index.tolist(), tp.motions)
+
+    prog._MEMOS.clear()
+    prog._FK.clear()
+    fresh = build()
+    assert prog._MEMOS and prog._FK  # remembered
+    assert build() == fresh
+    T = prog.sample_fk(robot, samples.q)
+    assert np.array_equal(T, robot.batch_fk_jacobian(samples.q)[0]) and not T.flags.writeable

@@ -97,3 +97,60 @@ def test_flip_letter_is_the_sign_of_j5_on_every_fanuc_row() -> None:
     wrong = [r["case"] for r in rows if (r["expected"][0] == "F") != (float(r["j5_deg"]) > 0)]
     assert [w.split()[0] for w in wrong] == ["14.5"]
     assert len(rows) == 69
+
+
+# --------------------------------------------------------------------------------------------
+# Many joint vectors at once (issue 41): the same flags and encodings as one at a time
+
+
+@pytest.mark.parametrize("name", ["kuka_kr600_r2830", "fanuc_s900ib_400", "zk500"])
+def test_batch_postures_equal_one_at_a_time(name: str) -> None:
+    """The writers and the round trip encode many points with one pass of the batch forward
+    kinematics; across the whole joint range (every front/back, elbow and wrist side, joints
+    on both sides of a turn) each flag and each vendor encoding equals the single-point one,
+    whose frames come from Pinocchio's own forward kinematics."""
+    from rfsw_plan.export.config import (
+        abb_confdatas,
+        fanuc_configs,
+        kuka_status_turns,
+        postures,
+    )
+
+    robot = load_robot(name)
+    d = robot.description
+    rng = np.random.default_rng(7)
+    Q = rng.uniform(np.maximum(d.lower, -2 * np.pi), np.minimum(d.upper, 2 * np.pi),
+                    size=(400, 6))
+    one = [posture(robot, q) for q in Q]
+    assert postures(robot, Q) == one
+    assert len({(p.front, p.elbow_up, p.wrist_negative) for p in one}) >= 6  # both sides
+    assert kuka_status_turns(robot, Q) == [kuka_status_turn(robot, q) for q in Q]
+    assert fanuc_configs(robot, Q) == [fanuc_config(robot, q) for q in Q]
+    assert abb_confdatas(robot, Q) == [abb_confdata(robot, q) for q in Q]
+    assert postures(robot, Q[:0]) == []
+
+
+def test_seeded_on_branch_is_what_the_search_returns_first() -> None:
+    """The round trip's batch step returns, where the seeded solution has the stated posture,
+    the joint values :func:`ik_on_branch` returns (bit for bit: the same solve), and None
+    where it has not (a point stating another posture: the search goes on from there)."""
+    from rfsw_plan.export.config import ik_on_branch, kuka_status_turns, seeded_on_branch
+
+    robot = load_robot("kuka_kr600_r2830")
+    rng = np.random.default_rng(3)
+    base = np.radians([10.0, -80.0, 100.0, 20.0, 40.0, -30.0])
+    Q = base + rng.normal(0.0, 0.05, size=(12, 6))
+    targets = np.array([robot.fk(q + 1e-6) for q in Q])  # the written points: off by rounding
+    stated = [kuka_status_turn(robot, q) for q in Q]
+    s, t = stated[5]
+    stated[5] = (s ^ 4, t)  # the other wrist: the seeded solution does not have it
+    got = seeded_on_branch(robot, targets, stated, kuka_status_turns, Q)
+    for k, q in enumerate(got):
+        if k == 5:
+            assert q is None
+            continue
+        assert q is not None
+        want = ik_on_branch(robot, targets[k],
+                            lambda x, k=k: kuka_status_turn(robot, x) == stated[k], Q[k])
+        assert np.array_equal(q, want)
+        assert np.allclose(robot.fk(q), targets[k], atol=1e-9)

@@ -39,6 +39,7 @@ from rfsw_plan.export.program import (
     ProgramOptions,
     Samples,
     build_program,
+    sample_fk,
     tolerated_from_record,
 )
 from rfsw_plan.export.readback import RoundTrip, round_trip
@@ -212,7 +213,7 @@ def export_programs(
     model = ElastostaticModel(robot)
     ref: Any = reference
     deflection = np.asarray(model.process_deflection(samples.q, samples.wrench, ref))
-    pin = robot.batch_fk_jacobian(samples.q)[0][:, :3, 3] + deflection[:, :3]
+    pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", *fmts)) as stages:
         program = build_program(robot, samples, header, path_tol, normal=normal,

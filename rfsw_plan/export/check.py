@@ -51,7 +51,7 @@ from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram, format_for_file
-from rfsw_plan.export.program import Samples
+from rfsw_plan.export.program import Samples, sample_fk
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -406,7 +406,7 @@ def _exported_work(plan: Any, robot: Robot) -> FloatArray:
     from rfsw_plan.export.program import work_frame
 
     normal, depth, _, _ = plate_surface(plan.problem_file, plan.samples)
-    T = robot.batch_fk_jacobian(plan.samples.q)[0]
+    T = sample_fk(robot, plan.samples.q)
     return work_frame(plan.samples, T, robot.description.convention.base, normal, depth)[0]
 
 
@@ -462,7 +462,7 @@ def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
         return []
 
     def heights(samples: Samples) -> FloatArray:
-        pin = (model.robot.batch_fk_jacobian(samples.q)[0][:, :3, 3]
+        pin = (sample_fk(model.robot, samples.q)[:, :3, 3]
                + model.process_deflection(samples.q, samples.wrench, ref)[:, :3])
         return pin_heights(samples, pin, normal, depth)
 
@@ -560,7 +560,7 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     in the exported base), and run where the program's base puts them."""
     conv = robot.description.convention
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
-    T_plan = robot.batch_fk_jacobian(plan.q)[0]
+    T_plan = sample_fk(robot, plan.q)
     pts = read.points
     poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
     seg_t = _segment_times(read, poses)
@@ -612,29 +612,43 @@ def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: li
     """Model TCP poses (base frame) and joint values of the program's points: joint targets
     by FK, Cartesian points on their stated posture (IK seeded by the nearest plan sample); a
     stated posture without a joint solution is a finding (its point keeps the nearest
-    sample's joints)."""
-    from rfsw_plan.export.config import ik_on_branch
+    sample's joints; the seeded solutions' postures in one pass:
+    :func:`~rfsw_plan.export.config.seeded_on_branch`)."""
+    from rfsw_plan.export.config import ik_on_branch, seeded_on_branch
 
     conv = robot.description.convention
     poses = np.empty((len(pts), 4, 4))
     qs = np.empty((len(pts), robot.nq))
     findings: list[_Finding] = []
+    targets: dict[int, FloatArray] = {}
+    nearest: dict[int, int] = {}
+    for k, p in enumerate(pts):
+        if p.q is None:
+            assert p.pose is not None
+            T = targets[k] = conv.base @ read.work @ p.pose @ to_model
+            nearest[k] = int(np.argmin(np.linalg.norm(T_plan[:, :3, 3] - T[:3, 3], axis=1)))
+    cart = list(targets)
+    first = dict(zip(cart, seeded_on_branch(
+        robot, np.array([targets[k] for k in cart]), [pts[k].config for k in cart],
+        fmt.postures, plan.q[[nearest[k] for k in cart]]), strict=True))
     for k, p in enumerate(pts):
         if p.q is not None:
             qs[k] = p.q
             poses[k] = robot.fk(p.q)
             continue
-        assert p.pose is not None
-        T = conv.base @ read.work @ p.pose @ to_model
-        near = int(np.argmin(np.linalg.norm(T_plan[:, :3, 3] - T[:3, 3], axis=1)))
-        try:
-            qs[k] = ik_on_branch(robot, T, lambda x, p=p: fmt.matches(robot, p, x),
+        near = nearest[k]
+        q = first[k]
+        if q is None:  # at a boundary, on another branch, or none: the search
+            try:
+                q = ik_on_branch(robot, targets[k], lambda x, p=p: fmt.matches(robot, p, x),
                                  plan.q[near])
-        except InputError:
-            findings.append(_Finding(k, "posture", f"states the posture {p.config}, which "
-                                     "has no joint solution at this pose (the plan's is "
-                                     f"{fmt.posture(robot, plan.q[near])})"))
-            qs[k] = plan.q[near]
+            except InputError:
+                findings.append(_Finding(k, "posture", f"states the posture {p.config}, "
+                                         "which has no joint solution at this pose (the "
+                                         "plan's is "
+                                         f"{fmt.posture(robot, plan.q[near])})"))
+                q = plan.q[near]
+        qs[k] = q
         poses[k] = robot.fk(qs[k])
     return poses, [p.name for p in pts], qs, findings
 

@@ -62,7 +62,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.export.config import fanuc_config
+from rfsw_plan.export.config import fanuc_config, fanuc_configs
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import unwrap_angles
 from rfsw_plan.export.program import (
@@ -185,6 +185,9 @@ class FanucTpFormat(ControllerFormat):
 
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         return fanuc_config(robot, q)
+
+    def postures(self, robot: Robot, Q: FloatArray) -> list[Hashable]:
+        return list(fanuc_configs(robot, Q))
 
     def write(self, program: Program, folder: Path) -> list[Path]:
         return write_tp(tp_program(program), folder)
@@ -472,16 +475,18 @@ def write_tp(program: Program, folder: str | Path, stamp: datetime | None = None
     when = (stamp or STAMP).strftime("DATE %y-%m-%d  TIME %H:%M:%S")
     xyzwpr = np.array([frame_to_xyzwpr(p) for p in program.poses])
     xyzwpr[:, 3:] = unwrap_wpr(xyzwpr[:, 3:])  # along the whole program, across its parts
+    configs = ["", *fanuc_configs(program.robot, program.samples.q[1:len(program.poses)])]
     return [write_text(Path(folder) / f"{n}.ls",
-                       _listing(program, n, mn, when, xyzwpr, len(parts) == 1))
+                       _listing(program, n, mn, when, xyzwpr, configs, len(parts) == 1))
             for n, mn in parts]
 
 
 def _listing(program: Program, name: str, mn: list[str], when: str,
-             xyzwpr: FloatArray, whole: bool) -> str:
+             xyzwpr: FloatArray, configs: list[str], whole: bool) -> str:
     """The text of one ``.ls`` file: ``/PROG`` ... ``/END`` with every point (``whole``: the
     program is not split) or the points its ``/MN`` moves to (``xyzwpr``: every point's X, Y,
-    Z [mm], W, P, R [deg] in the plate frame)."""
+    Z [mm], W, P, R [deg] in the plate frame; ``configs``: every point's CONFIG, "" for the
+    first, a joint point)."""
     lines = [f"/PROG  {name}", "/ATTR", "OWNER\t\t= MNEDITOR;",
              f"COMMENT\t\t= \"{program.header.plan_id[:16]}\";", "PROG_SIZE\t= 0;"]
     lines += [f"CREATE\t\t= {when};", f"MODIFIED\t= {when};", "FILE_NAME\t= ;",
@@ -498,14 +503,16 @@ def _listing(program: Program, name: str, mn: list[str], when: str,
         used = list(range(1, len(xyzwpr) + 1))
     else:  # one of a split program's files: the points its /MN moves to
         used = sorted({int(m.group(1)) for t in mn if (m := _POINT.match(t)) is not None})
-    lines += [line for k in used for line in _position(program, k - 1, xyzwpr[k - 1])]
+    lines += [line for k in used
+              for line in _position(program, k - 1, xyzwpr[k - 1], configs[k - 1])]
     lines.append("/END")
     return "\n".join(lines) + "\n"
 
 
-def _position(program: Program, k: int, v: FloatArray) -> list[str]:
+def _position(program: Program, k: int, v: FloatArray, config: str) -> list[str]:
     """The ``/POS`` entry of point ``k`` (0-based): joint values for the first, else Cartesian
-    ``v`` (X, Y, Z [mm], W, P, R [deg]) in the plate frame with its CONFIG."""
+    ``v`` (X, Y, Z [mm], W, P, R [deg]) in the plate frame with its CONFIG (``config``, as
+    :func:`~rfsw_plan.export.config.fanuc_config` writes it)."""
     o = program.options
     frame = f"\tUF : {o.base_number}, UT : {o.tool_number},"
     if k == 0:
@@ -516,7 +523,7 @@ def _position(program: Program, k: int, v: FloatArray) -> list[str]:
                 "\t" + ",\t".join(f"J{j + 1}= {number(q0[j], 6):>12} deg" for j in range(3, 6)),
                 "};"]
     return [f"P[{k + 1}]{{", "   GP1:",
-            f"{frame}\t\tCONFIG : '{fanuc_config(program.robot, program.samples.q[k])}',",
+            f"{frame}\t\tCONFIG : '{config}',",
             f"\tX = {number(v[0], 4):>10}  mm,\tY = {number(v[1], 4):>10}  mm,"
             f"\tZ = {number(v[2], 4):>10}  mm,",
             f"\tW = {number(v[3], 5):>10} deg,\tP = {number(v[4], 5):>10} deg,"

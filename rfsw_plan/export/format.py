@@ -155,12 +155,19 @@ class ControllerFormat(abc.ABC):
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         """The posture a Cartesian point states for controller joint values q [rad], (n,)."""
 
+    def postures(self, robot: Robot, Q: FloatArray) -> list[Hashable]:
+        """:meth:`posture` of every row of Q [rad], (m, n) (a format overrides it where the
+        rows share one pass of the forward kinematics)."""
+        return [self.posture(robot, q) for q in Q]
+
     def matches(self, robot: Robot, point: ReadPoint, q: FloatArray) -> bool:
         """Does ``q`` have the posture ``point`` states? (Joint values at a boundary, where a
         sign or quadrant changes, match either side:
         :func:`~rfsw_plan.export.config.configs_near`.)"""
         from rfsw_plan.export.config import configs_near
 
+        if point.config == self.posture(robot, q):  # the usual case: no boundary to nudge
+            return True
         return point.config in configs_near(self.posture, robot, q)
 
     def path_deviation(self, program: Program) -> FloatArray:

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.export.config import kuka_status_turn
+from rfsw_plan.export.config import kuka_status_turn, kuka_status_turns
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.program import (
     Motion,
@@ -128,6 +128,9 @@ class KrlFormat(ControllerFormat):
 
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         return kuka_status_turn(robot, q)
+
+    def postures(self, robot: Robot, Q: FloatArray) -> list[Hashable]:
+        return list(kuka_status_turns(robot, Q))
 
     def write(self, program: Program, folder: Path) -> list[Path]:
         return write_krl(program, folder)
@@ -281,8 +284,9 @@ def write_krl(program: Program, folder: str | Path, max_lines: int = MAX_LINES) 
                + ",E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0}")
     v = np.array([frame_to_xyzabc(p) for p in program.poses])
     v[:, 3:] = unwrap_angles(v[:, 3:])
+    st = kuka_status_turns(robot, program.samples.q[1:len(program.poses)])
     for k in range(1, len(program.poses)):
-        s, t = kuka_status_turn(robot, program.samples.q[k])
+        s, t = st[k - 1]
         dat.append(f"DECL E6POS XP{k + 1}={{X {number(v[k, 0], 4)},Y {number(v[k, 1], 4)},"
                    f"Z {number(v[k, 2], 4)},A {number(v[k, 3], 5)},B {number(v[k, 4], 5)},"
                    f"C {number(v[k, 5], 5)},S {s},T {t},"

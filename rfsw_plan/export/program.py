@@ -72,7 +72,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation, Slerp
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.numfmt import fixed
@@ -475,7 +474,7 @@ def build_program(
                 stream=stream, cycle=cycle, depth=depth, pin=pin)
     if header.spacing <= 0:
         raise InputError("export_spacing", "", f"got {header.spacing * 1e3:g}", "> 0")
-    T = robot.batch_fk_jacobian(samples.q)[0]
+    T = sample_fk(robot, samples.q)
     conv = robot.description.convention
     tool = np.linalg.inv(conv.flange) @ robot.description.tool
     work, notes = work_frame(samples, T, conv.base, normal, depth)
@@ -646,10 +645,15 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
     :func:`rfsw_plan.export.check.run_as_controller`) differs from the plan's by w, and its
     speed along the seam by d(a . w)/dt, a the direction the seam point moves (work frame,
     ``to_work`` the base-to-work rotation). Split at the largest a . w, until no change
-    exceeds it."""
+    exceeds it. Each segment's verdict is remembered for the same poses, samples and frame
+    (:func:`_segment_memo`): a rebuilt program judges only the segments it has not seen."""
     rows = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
     if len(rows) < 3:
         return keep
+    inputs = hashlib.blake2b(digest_size=16)
+    for x in (samples.seam, samples.t, samples.s, to_work):
+        inputs.update(np.ascontiguousarray(x, dtype=float).tobytes())
+    memo = _segment_memo(P, "speed " + inputs.hexdigest(), SPEED_SPLIT)
     r0, r1 = int(rows[0]), int(rows[-1])
     t = samples.t
     a = np.gradient(np.asarray(samples.seam, float)[r0:r1 + 1], t[r0:r1 + 1], axis=0)
@@ -662,15 +666,18 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
         i, j = stack.pop()
         if j - i < 2:
             continue
-        _, f = _chord_fraction(P, i, j)
-        p0, p1 = P[i, :3, 3], P[j, :3, 3]
-        w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
-        along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
-        if np.max(np.abs(np.gradient(along, t[i:j + 1]))) > limit:
+        if (i, j) not in memo:
+            _, f = _chord_fraction(P, i, j)
+            p0, p1 = P[i, :3, 3], P[j, :3, 3]
+            w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
+            along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
             # split at the bulge's apex (as Douglas-Peucker does), not where it changes
             # fastest: that is at the segment's ends, and splitting there cascades into
             # one-sample moves
-            m = min(max(i + int(np.argmax(np.abs(along))), i + 1), j - 1)
+            memo[i, j] = (min(max(i + int(np.argmax(np.abs(along))), i + 1), j - 1)
+                          if np.max(np.abs(np.gradient(along, t[i:j + 1]))) > limit else -1)
+        m = memo[i, j]
+        if m >= 0:
             out.add(m)
             stack += [(i, m), (m, j)]
     return out
@@ -689,6 +696,8 @@ def _chord_fraction(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArr
 
 def _deviation(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:
     """Position distance [m] and orientation angle [rad] of samples i..j from the LIN i -> j."""
+    from scipy.spatial.transform import Rotation, Slerp
+
     pos, f = _chord_fraction(P, i, j)
     R = Rotation.from_matrix(P[[i, j], :3, :3])
     slerp = Slerp([0.0, 1.0], R)
@@ -733,7 +742,8 @@ _MEMOS: list[tuple[bytes, dict[tuple[int, int], Any]]] = []
 def _segment_memo(P: FloatArray, what: str, *params: float) -> dict[tuple[int, int], Any]:
     """Remembered per-segment results (segment (i, j) -> result) of ``what`` for these poses
     and parameters: :func:`_refine`'s verdicts (the sample a segment is split at, -1 kept
-    whole), :func:`_chord_distances`' distances. The last few, by a hash of the poses'
+    whole), :func:`_speed_refine`'s (the same, its other inputs' hash in ``what``),
+    :func:`_chord_distances`' distances. The last few, by a hash of the poses'
     bytes: a rebuilt program (:meth:`Program.rebuilt`) has the same poses."""
     h = hashlib.blake2b(np.ascontiguousarray(P).tobytes(), digest_size=16)
     h.update(what.encode())
@@ -753,6 +763,8 @@ def _slerp_angles(P: FloatArray, segs: list[tuple[int, int]], fracs: list[FloatA
     (i, j) and chord fractions f (j - i + 1,), the angle of sample k from the slerp of
     R_i -> R_j at f_k, ``|log((R_i exp(f_k log(R_i^T R_j)))^T R_k)|`` (SciPy's ``Slerp``
     written out, element by element the same operations)."""
+    from scipy.spatial.transform import Rotation
+
     if not segs:
         return []
     first = np.array([i for i, _ in segs])
@@ -789,6 +801,8 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
     the next point in the same group): the controller then runs the pause into the next
     move at the speed that keeps the plan's time, instead of an exact stop and a wait in the
     material. A phase's last point stays."""
+    from scipy.spatial.transform import Rotation
+
     out = [int(idx[0])]
     for k in range(1, len(idx)):
         i, j = out[-1], int(idx[k])
@@ -807,6 +821,8 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
 
 def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
              tol: float, pin: FloatArray) -> list[Motion]:
+    from scipy.spatial.transform import Rotation
+
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]
     seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -943,6 +959,28 @@ def _with_hooks(motions: list[Motion], idx: NDArray[np.int_], h: FloatArray,
 # Checks of a program
 
 
+_FK: list[tuple[Robot, bytes, FloatArray]] = []
+
+
+def sample_fk(robot: Robot, q: FloatArray) -> FloatArray:
+    """TCP poses of joint values q [rad], (N, n), in the description's base frame, (N, 4, 4)
+    [m] (:meth:`Robot.batch_fk_jacobian`), read-only, remembered for the last few joint arrays
+    by their bytes and layout: a program, its rebuilt versions (the TP's shorter segments),
+    the path checks, the stream and ``check`` ask for the poses of the same verified samples
+    many times (issue 41)."""
+    a = np.asarray(q, dtype=float)
+    h = hashlib.blake2b(a.tobytes(), digest_size=16)
+    h.update(repr((a.shape, a.strides)).encode())
+    key = h.digest()
+    for r, k, T in _FK:
+        if r is robot and k == key:
+            return T
+    T = robot.batch_fk_jacobian(a)[0]
+    T.setflags(write=False)
+    _FK[:] = [*_FK[-3:], (robot, key, T)]
+    return T
+
+
 _POSES: list[tuple[Program, FloatArray]] = []
 
 
@@ -953,7 +991,7 @@ def sample_poses(program: Program) -> FloatArray:
         if src is program:
             return P
     P = np.linalg.inv(program.base_pose(np.eye(4)))[None] @ \
-        program.robot.batch_fk_jacobian(program.all_samples.q)[0]
+        sample_fk(program.robot, program.all_samples.q)
     P.setflags(write=False)
     _POSES[:] = [*_POSES[-7:], (program, P)]
     return P

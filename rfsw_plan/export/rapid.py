@@ -35,10 +35,9 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
-from rfsw_plan.export.config import abb_confdata
+from rfsw_plan.export.config import abb_confdata, abb_confdatas
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import chunks
 from rfsw_plan.export.program import Program, controller_name, number, speed_note
@@ -74,15 +73,26 @@ SIGN_TOL = 1e-6
 def quat_wxyz(R: FloatArray) -> FloatArray:
     """Rotation matrix -> unit quaternion (w, x, y, z), the first component (in that order)
     larger than :data:`SIGN_TOL` in size positive (w >= 0 unless w is about 0)."""
-    x, y, z, w = Rotation.from_matrix(R).as_quat()
-    q = np.array([w, x, y, z])
-    lead = q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]]
-    return q if lead >= 0 else -q
+    return quats_wxyz(np.asarray(R)[None])[0]
 
 
-def _pose(T: FloatArray) -> str:
+def quats_wxyz(R: FloatArray) -> FloatArray:
+    """:func:`quat_wxyz` of every rotation matrix of R, (m, 3, 3) -> (m, 4) (one SciPy call;
+    each matrix converted as alone)."""
+    from scipy.spatial.transform import Rotation
+
+    out = np.roll(Rotation.from_matrix(R).as_quat(), 1, axis=1)  # x, y, z, w -> w, x, y, z
+    for q in out:
+        if q[np.flatnonzero(np.abs(q) > SIGN_TOL)[0]] < 0:
+            q *= -1.0
+    return out
+
+
+def _pose(T: FloatArray, q: FloatArray | None = None) -> str:
+    """``[[x, y, z], [qw, qx, qy, qz]]`` of a pose [m] in mm (``q``: its :func:`quat_wxyz`,
+    when known)."""
     p = T[:3, 3] * 1e3
-    q = quat_wxyz(T[:3, :3])
+    q = quat_wxyz(T[:3, :3]) if q is None else q
     return (f"[[{number(p[0], 4)},{number(p[1], 4)},{number(p[2], 4)}],"
             f"[{','.join(number(x, 9) for x in q)}]]")
 
@@ -129,6 +139,9 @@ class RapidFormat(ControllerFormat):
 
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         return abb_confdata(robot, q)
+
+    def postures(self, robot: Robot, Q: FloatArray) -> list[Hashable]:
+        return list(abb_confdatas(robot, Q))
 
     def write(self, program: Program, folder: Path) -> list[Path]:
         return write_rapid(program, folder)
@@ -224,9 +237,12 @@ def write_rapid(program: Program, folder: str | Path, max_lines: int = MAX_LINES
     q0 = np.degrees(program.samples.q[0])
     out.append("  LOCAL CONST jointtarget jStart := [["
                + ",".join(number(x, 6) for x in q0) + "],[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
+    confs = abb_confdatas(robot, program.samples.q[1:len(program.poses)])
+    quats = quats_wxyz(program.poses[:, :3, :3])
     for k in range(1, len(program.poses)):
-        cf = abb_confdata(robot, program.samples.q[k])
-        out.append(f"  LOCAL CONST robtarget p{k + 1} := {_pose(program.poses[k])[:-1]},"
+        cf = confs[k - 1]
+        out.append(f"  LOCAL CONST robtarget p{k + 1} := "
+                   f"{_pose(program.poses[k], quats[k])[:-1]},"
                    f"[{cf[0]},{cf[1]},{cf[2]},{cf[3]}],"
                    "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]];")
     body = _motion_lines(program, range(len(program.motions)), zones)
@@ -262,6 +278,8 @@ _CALL = re.compile(r"^\s*(\w+)\s*;\s*$")
 
 
 def _frame(vals: tuple[str, ...], where: str) -> FloatArray:
+    from scipy.spatial.transform import Rotation
+
     x, y, z, w, qx, qy, qz = (float(v) for v in vals)
     n = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)
     if abs(n - 1.0) > 1e-6:

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.robot.kinematics import Robot
@@ -67,7 +66,9 @@ def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     A joint target's values are taken as written; a Cartesian point goes through the robot
     model's inverse kinematics on the posture the program states (``fmt.matches``), started
     from the joint values planned for it (one or two Newton steps when the point is right; the
-    configuration branches are searched only when that solution has another posture).
+    postures of all these solutions in one pass of the forward kinematics,
+    :func:`~rfsw_plan.export.config.seeded_on_branch`; the configuration branches are searched
+    only where that solution has another posture).
 
     Args:
         robot: The robot.
@@ -78,7 +79,9 @@ def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     Raises:
         InfeasibleError: The number of points differs from the plan's.
     """
-    from rfsw_plan.export.config import ik_on_branch
+    from scipy.spatial.transform import Rotation
+
+    from rfsw_plan.export.config import ik_on_branch, seeded_on_branch
 
     points = read.points
     q_plan = expected.q
@@ -89,13 +92,23 @@ def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     # Model TCP = controller flange * flange^-1 * description tool.
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
     Q = np.empty_like(q_plan)
+    targets: dict[int, FloatArray] = {}
+    for k, p in enumerate(points):
+        if p.q is None:
+            assert p.pose is not None
+            targets[k] = conv.base @ read.work @ p.pose @ to_model
+    cart = list(targets)
+    first = dict(zip(cart, seeded_on_branch(
+        robot, np.array([targets[k] for k in cart]), [points[k].config for k in cart],
+        fmt.postures, q_plan[cart]), strict=True))
     for k, p in enumerate(points):
         if p.q is not None:
             Q[k] = p.q
-        else:
-            assert p.pose is not None
-            T = conv.base @ read.work @ p.pose @ to_model
-            Q[k] = ik_on_branch(robot, T, lambda x, p=p: fmt.matches(robot, p, x), q_plan[k])
+        elif (q := first[k]) is not None:  # on the stated posture from the planned joints
+            Q[k] = q
+        else:  # at a boundary or on another branch: the search
+            Q[k] = ik_on_branch(robot, targets[k], lambda x, p=p: fmt.matches(robot, p, x),
+                                q_plan[k])
     T_prog = robot.batch_fk_jacobian(Q)[0]
     T_plan = robot.batch_fk_jacobian(q_plan)[0]
     pos = np.linalg.norm(T_prog[:, :3, 3] - T_plan[:, :3, 3], axis=1)

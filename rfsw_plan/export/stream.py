@@ -31,11 +31,10 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
-from rfsw_plan.export.program import Program, Samples
+from rfsw_plan.export.program import Program, Samples, sample_fk
 from rfsw_plan.files import atomic_path
 from rfsw_plan.numfmt import fixed_many
 from rfsw_plan.robot.kinematics import Robot
@@ -59,10 +58,12 @@ def samples_of(trajectory: object, seam: FloatArray) -> Samples:
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
     """Write the stream CSV atomically (columns in the module docstring)."""
+    from scipy.spatial.transform import Rotation
+
     from rfsw_plan.planfiles.waypoints import EULER_COLUMNS, maker_euler
 
     conv = robot.description.convention
-    T = robot.batch_fk_jacobian(stream.q)[0]
+    T = sample_fk(robot, stream.q)
     T = np.linalg.inv(conv.base)[None] @ T
     quat = Rotation.from_matrix(T[:, :3, :3]).as_quat()
     header = ["t_s", "t_plan_s", "phase", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
@@ -129,9 +130,11 @@ class StreamFormat(ControllerFormat):
         if not cols or "t_s" not in rows[0]:
             raise InputError(path, "header", "no t_s or joint columns", "a stream file")
         it = rows[0].index("t_s")
-        try:
-            q = np.radians([[float(r[i]) for i in cols] for r in rows[1:]])
-            t = np.array([float(r[it]) for r in rows[1:]])
+        columns = list(zip(*rows[1:], strict=False))  # as many as the shortest row has
+        try:  # every cell parsed as float() parses it; rows first, C order
+            q = np.radians(np.ascontiguousarray(
+                np.array([columns[i] for i in cols], dtype=float).T))
+            t = np.array(columns[it], dtype=float)
         except (ValueError, IndexError):
             raise InputError(path, "", "a malformed row", "numbers in every cell") from None
         dt = np.diff(t, prepend=t[0])

@@ -275,11 +275,12 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
         raise InputError(p, f"byte {exc.start}", "not UTF-8 text", "waypoints.csv") from None
     rows = list(csv.reader(io.StringIO(text, newline="")))
     body, col, joints = _table_shape(p, rows, joint_columns)
+    columns = list(zip(*body, strict=True))  # the cells column by column (one pass in C)
 
     def num(names: list[str]) -> FloatArray:
         idx = [col[c] for c in names]
-        try:
-            out = np.array([[r[i] for i in idx] for r in body], dtype=float)
+        try:  # each cell parsed as before; rows first, C order, as the rows were read
+            out = np.ascontiguousarray(np.array([columns[i] for i in idx], dtype=float).T)
         except ValueError:
             out = np.array([[_cell(r[i]) for i in idx] for r in body])
         bad = ~np.isfinite(out) | (np.abs(out) > 1e12)
@@ -289,7 +290,7 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
                              f"'{body[k][idx[j]][:40]}' is not a finite number", "a number")
         return out
 
-    phase = np.array([r[col["phase"]] for r in body])
+    phase = np.array(columns[col["phase"]])
     bad = [k for k, ph in enumerate(phase) if ph not in PHASES]
     if bad:
         raise InputError(p, f"row {bad[0] + 2}, column phase", f"'{phase[bad[0]][:40]}'",

@@ -50,7 +50,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, write_bytes, write_figure
@@ -76,6 +75,8 @@ def maker_euler(R: FloatArray, convention: str) -> FloatArray:
     ``kuka_abc``: (A, B, C) with R = Rz(A) Ry(B) Rx(C). ``fanuc_wpr``: (W, P, R) with
     R = Rz(R) Ry(P) Rx(W) (fixed-axis x, y, z).
     """
+    from scipy.spatial.transform import Rotation
+
     zyx = Rotation.from_matrix(R).as_euler("ZYX")  # intrinsic z, y', x'' = (A, B, C)
     if convention == "kuka_abc":
         return zyx
@@ -87,6 +88,8 @@ def maker_euler(R: FloatArray, convention: str) -> FloatArray:
 def waypoint_table(result: PlanResult) -> tuple[list[str], NDArray[Any]]:
     """Header and rows (object array) of ``waypoints.csv``, predicted with the plan's own
     model (:attr:`PlanResult.model`)."""
+    from scipy.spatial.transform import Rotation
+
     model = result.model
     tr = result.trajectory
     task = result.task
