@@ -146,11 +146,18 @@ def test_rapid_passes_rapidchecker_as_written(plan_with_programs, problem) -> No
 
 
 def test_rapidchecker_catches_a_broken_module(plan_with_programs, tmp_path: Path) -> None:
+    """The checker fails the module as written with its first point declaration broken (the
+    ``:=`` left out), at that line: it parses what we write, not only accepts it. (A broken
+    move, after the module's 200 point declarations, is the same check at 8-20 s.)"""
     out, _ = plan_with_programs(PROBLEMS[0])
     text = _file(out, "rapid").read_text()
     bad = tmp_path / "bad.mod"
-    bad.write_text(re.sub(r"MoveL p(\d+),", r"MoveL p\1 p\1,", text, count=1))
-    assert _rapid_errors(bad)
+    broken, n = re.subn(r"(CONST robtarget p\d+) := ", r"\1 ", text, count=1)
+    assert n == 1
+    bad.write_text(broken)
+    line = text[:text.index("CONST robtarget")].count("\n") + 1
+    errors = _rapid_errors(bad)
+    assert errors and errors[0].startswith(f"{line}:")
 
 
 # --------------------------------------------------------------------------------------------
