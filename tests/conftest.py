@@ -71,16 +71,59 @@ def planned_result(plan_store: PlanStore):
     return get
 
 
+@pytest.fixture
+def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
+    """While the test runs, :func:`rfsw_plan.planning.api.plan` of a bundled problem as its
+    file has it (by name, or loaded and unchanged), with the problem's own options, spacing and
+    model, returns :func:`planned_result` (made once per session) instead of planning again;
+    every other call plans. For tests of what a command does with a plan (``rfsw-plan plan``
+    run in this process, ``compare``), not of the planner's work: planning is deterministic,
+    and ``tests/test_plan_cache.py`` checks that the stored plan writes a fresh plan's bytes."""
+    import pickle
+
+    import rfsw_plan.planning.api as api
+    from rfsw_plan.process.problem import bundled_problem_names, load_problem
+
+    real = api.plan
+    bundled = set(bundled_problem_names())
+
+    def bundled_as_is(problem: Any) -> str | None:
+        if isinstance(problem, str):
+            return problem if problem in bundled else None
+        name = getattr(problem, "name", None)
+        if name not in bundled:
+            return None
+        try:
+            same = pickle.dumps(problem) == pickle.dumps(load_problem(name))
+        except (pickle.PicklingError, TypeError, AttributeError):
+            same = False
+        return name if same else None
+
+    def plan(problem: Any, options: Any = None, spacing: float | None = None,
+             model: Any = None, compile_c: bool | None = None) -> Any:
+        name = bundled_as_is(problem)
+        if (name is not None and spacing is None and model is None and compile_c is None
+                and (options is None or options == load_problem(name).planning)):
+            return planned_result(name)
+        return real(problem, options, spacing=spacing, model=model, compile_c=compile_c)
+
+    monkeypatch.setattr(api, "plan", plan)
+
+
 @pytest.fixture(scope="session")
-def plan_folder(plan_store: PlanStore):
+def plan_folder(plan_store: PlanStore, planned_result: Any):
     """``plan_folder(problem, folder)`` -> ``folder``, holding what ``rfsw-plan -q plan PROBLEM
     -o folder`` writes, planned once per session (a plan folder is the same bytes wherever it
     is written: ``tests/test_plan_cache.py``). ``folder`` must not exist; it is the caller's
-    copy, to read or change. For tests that need a plan folder, not the ``plan`` command."""
-    from rfsw_plan.cli.main import main
+    copy, to read or change. For tests that need a plan folder, not the ``plan`` command.
+
+    The folder is written by the ``plan`` job (``PlanRequest(problem)``, what the command
+    runs) from the session's :func:`planned_result`, so the problem is planned once for both
+    (``tests/test_plan_cache.py`` checks that it is the bytes of a fresh plan's folder)."""
+    from rfsw_plan.planfiles.job import PlanRequest, PlanRun
 
     def make(folder: Path, problem: str) -> None:
-        assert main(["-q", "plan", problem, "-o", str(folder / "plan")]) == 0
+        PlanRun(PlanRequest(problem).prepare(), planned_result(problem)).write(folder / "plan")
 
     def get(problem: str, folder: Path) -> Path:
         stored = plan_store.folder(("plan -o", problem), lambda f: make(f, problem))

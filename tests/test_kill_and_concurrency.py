@@ -83,10 +83,9 @@ def _assert_honest(out: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def old_plan(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("old")
-    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
-    return out
+def old_plan(tmp_path_factory, plan_folder) -> Path:
+    """An earlier successful plan: the session's ``rfsw-plan -q plan PROBLEM -o DIR``."""
+    return plan_folder(PROBLEM, tmp_path_factory.mktemp("old") / "plan")
 
 
 #: (mode, signal) killed in the default run: a hard kill mid-row and a polite one at the rename;
