@@ -110,6 +110,36 @@ def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
     monkeypatch.setattr(api, "plan", plan)
 
 
+@pytest.fixture
+def child_stored_plan(planned_result: Any, tmp_path: Path):
+    """``child_stored_plan(problem)`` -> Python lines for a child process to run before
+    ``main``: there :func:`rfsw_plan.planning.api.plan` of ``problem`` with its own options
+    returns the session's :func:`planned_result` (pickled into ``tmp_path``), as
+    :func:`stored_plans` does in this process. For children that are about what ``plan`` does
+    after planning (a kill at the write, a signal while plotting)."""
+    import pickle
+
+    def code(problem: str) -> str:
+        path = tmp_path / f"{problem}.plan.pickle"
+        if not path.exists():
+            path.write_bytes(pickle.dumps(planned_result(problem)))
+        return (
+            "import pickle as _pickle\n"
+            "import rfsw_plan.planning.api as _api\n"
+            f"_STORED, _real_plan = _pickle.loads(open({str(path)!r}, 'rb').read()), _api.plan\n"
+            "from rfsw_plan.process.problem import load_problem as _load\n"
+            "def _stored_plan(problem, options=None, **kw):\n"
+            f"    as_is = _load({problem!r})  # the bundled problem as its file has it\n"
+            "    if (not any(kw.values()) and options in (None, as_is.planning) and (\n"
+            f"            problem == {problem!r}\n"
+            "            or _pickle.dumps(problem) == _pickle.dumps(as_is))):\n"
+            "        return _STORED\n"
+            "    return _real_plan(problem, options, **kw)\n"
+            "_api.plan = _stored_plan\n")
+
+    return code
+
+
 @pytest.fixture(scope="session")
 def plan_folder(plan_store: PlanStore, planned_result: Any):
     """``plan_folder(problem, folder)`` -> ``folder``, holding what ``rfsw-plan -q plan PROBLEM
