@@ -26,22 +26,22 @@ _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
 _RESULTS: dict[str, Any] = {}
 
 #: The longest test files first (by the sum of their ``--durations``, measured on the default
-#: run on 2 busy cores, 28 Nov 2026, after the plans shared by ``stored_plans``; the single
-#: longest test, test_plan_property's, early). xdist's ``loadfile`` hands out whole files in
-#: collection order (``--no-loadscope-reorder`` in pyproject: not by their number of tests), so
-#: a long file never starts last and runs alone while the other worker idles. Every other file
-#: follows in its usual order. The order changes no result: each file's tests stay together
-#: and in their order.
+#: run on 2 busy cores, 28 Nov 2026, with the plans shared by ``stored_plans``). xdist's
+#: ``loadfile`` hands out whole files in collection order (``--no-loadscope-reorder`` in
+#: pyproject: not by their number of tests), so a long file never starts last and runs alone
+#: while the other worker idles. Every other file follows in its usual order. The order
+#: changes no result: each file's tests stay together and in their order.
 LONGEST_FIRST = (
-    "test_export.py", "test_readme_commands.py", "test_placement.py", "test_examples.py",
-    "test_validate_weld.py", "test_plan_property.py", "test_robust_claim.py", "test_mission.py",
-    "test_program_checkers.py", "test_check_edits.py", "test_samples.py",
-    "test_validate_cli.py", "test_compare.py", "test_architecture.py", "test_plan_job.py",
-    "test_progress_cli.py", "test_reader_fuzz.py", "test_kill_and_concurrency.py",
-    "test_verdict.py", "test_plan_cli.py", "test_realdata.py", "test_strict_json.py",
-    "test_paper_checks.py", "test_programs_physical.py", "test_page3d_chromium.py",
-    "test_selection.py", "test_plan_cache.py", "test_nlp.py", "test_page3d.py",
-    "test_weld_envelope.py", "test_plan_forces.py",
+    "test_export.py", "test_readme_commands.py", "test_validate_weld.py", "test_placement.py",
+    "test_examples.py", "test_robust_claim.py", "test_plan_property.py", "test_mission.py",
+    "test_architecture.py", "test_program_checkers.py", "test_samples.py",
+    "test_check_edits.py", "test_progress_cli.py", "test_validate_cli.py",
+    "test_reader_fuzz.py", "test_kill_and_concurrency.py", "test_plan_job.py",
+    "test_compare.py", "test_verdict.py", "test_plan_forces.py", "test_docs.py",
+    "test_full_solver.py", "test_report.py", "test_property_campaigns.py",
+    "test_fuzz_campaign.py", "test_plan_cli.py", "test_page3d_chromium.py", "test_realdata.py",
+    "test_programs_physical.py", "test_plan_cache.py", "test_robustness.py",
+    "test_program_timing.py",
 )
 
 
