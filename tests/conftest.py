@@ -26,19 +26,22 @@ _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
 _RESULTS: dict[str, Any] = {}
 
 #: The longest test files first (by the sum of their ``--durations``, measured on the default
-#: run on 2 busy cores, 28 Nov 2026). xdist's ``loadfile`` hands out whole files in collection
-#: order (``--no-loadscope-reorder`` in pyproject: not by their number of tests), so a long
-#: file never starts last and runs alone while the other worker idles. Every other file
-#: follows in its usual order. The order changes no result: each file's tests stay together
-#: and in their order.
+#: run on 2 busy cores, 28 Nov 2026, with the plans shared by ``stored_plans``). xdist's
+#: ``loadfile`` hands out whole files in collection order (``--no-loadscope-reorder`` in
+#: pyproject: not by their number of tests), so a long file never starts last and runs alone
+#: while the other worker idles. Every other file follows in its usual order. The order
+#: changes no result: each file's tests stay together and in their order.
 LONGEST_FIRST = (
-    "test_export.py", "test_validate_weld.py", "test_readme_commands.py", "test_examples.py",
-    "test_placement.py", "test_plan_forces.py", "test_progress_cli.py",
-    "test_kill_and_concurrency.py", "test_mission.py", "test_plan_cache.py",
-    "test_robust_claim.py", "test_reader_fuzz.py", "test_weld_envelope.py",
-    "test_plan_property.py", "test_realdata.py", "test_check_edits.py",
-    "test_page3d_chromium.py", "test_validate_cli.py", "test_verdict.py", "test_plan_job.py",
-    "test_samples.py", "test_compare.py", "test_strict_json.py", "test_selection.py",
+    "test_export.py", "test_readme_commands.py", "test_validate_weld.py", "test_placement.py",
+    "test_examples.py", "test_robust_claim.py", "test_plan_property.py", "test_mission.py",
+    "test_architecture.py", "test_program_checkers.py", "test_samples.py",
+    "test_check_edits.py", "test_progress_cli.py", "test_validate_cli.py",
+    "test_reader_fuzz.py", "test_kill_and_concurrency.py", "test_plan_job.py",
+    "test_compare.py", "test_verdict.py", "test_plan_forces.py", "test_docs.py",
+    "test_full_solver.py", "test_report.py", "test_property_campaigns.py",
+    "test_fuzz_campaign.py", "test_plan_cli.py", "test_page3d_chromium.py", "test_realdata.py",
+    "test_programs_physical.py", "test_plan_cache.py", "test_robustness.py",
+    "test_program_timing.py",
 )
 
 
@@ -71,16 +74,89 @@ def planned_result(plan_store: PlanStore):
     return get
 
 
+@pytest.fixture
+def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
+    """While the test runs, :func:`rfsw_plan.planning.api.plan` of a bundled problem as its
+    file has it (by name, or loaded and unchanged), with the problem's own options, spacing and
+    model, returns :func:`planned_result` (made once per session) instead of planning again;
+    every other call plans. For tests of what a command does with a plan (``rfsw-plan plan``
+    run in this process, ``compare``), not of the planner's work: planning is deterministic,
+    and ``tests/test_plan_cache.py`` checks that the stored plan writes a fresh plan's bytes."""
+    import pickle
+
+    import rfsw_plan.planning.api as api
+    from rfsw_plan.process.problem import bundled_problem_names, load_problem
+
+    real = api.plan
+    bundled = set(bundled_problem_names())
+
+    def bundled_as_is(problem: Any) -> str | None:
+        if isinstance(problem, str):
+            return problem if problem in bundled else None
+        name = getattr(problem, "name", None)
+        if name not in bundled:
+            return None
+        try:
+            same = pickle.dumps(problem) == pickle.dumps(load_problem(name))
+        except (pickle.PicklingError, TypeError, AttributeError):
+            same = False
+        return name if same else None
+
+    def plan(problem: Any, options: Any = None, spacing: float | None = None,
+             model: Any = None, compile_c: bool | None = None) -> Any:
+        name = bundled_as_is(problem)
+        if (name is not None and spacing is None and model is None and compile_c is None
+                and (options is None or options == load_problem(name).planning)):
+            return planned_result(name)
+        return real(problem, options, spacing=spacing, model=model, compile_c=compile_c)
+
+    monkeypatch.setattr(api, "plan", plan)
+
+
+@pytest.fixture
+def child_stored_plan(planned_result: Any, tmp_path: Path):
+    """``child_stored_plan(problem)`` -> Python lines for a child process to run before
+    ``main``: there :func:`rfsw_plan.planning.api.plan` of ``problem`` with its own options
+    returns the session's :func:`planned_result` (pickled into ``tmp_path``), as
+    :func:`stored_plans` does in this process. For children that are about what ``plan`` does
+    after planning (a kill at the write, a signal while plotting)."""
+    import pickle
+
+    def code(problem: str) -> str:
+        path = tmp_path / f"{problem}.plan.pickle"
+        if not path.exists():
+            path.write_bytes(pickle.dumps(planned_result(problem)))
+        return (
+            "import pickle as _pickle\n"
+            "import rfsw_plan.planning.api as _api\n"
+            f"_STORED, _real_plan = _pickle.loads(open({str(path)!r}, 'rb').read()), _api.plan\n"
+            "from rfsw_plan.process.problem import load_problem as _load\n"
+            "def _stored_plan(problem, options=None, **kw):\n"
+            f"    as_is = _load({problem!r})  # the bundled problem as its file has it\n"
+            "    if (not any(kw.values()) and options in (None, as_is.planning) and (\n"
+            f"            problem == {problem!r}\n"
+            "            or _pickle.dumps(problem) == _pickle.dumps(as_is))):\n"
+            "        return _STORED\n"
+            "    return _real_plan(problem, options, **kw)\n"
+            "_api.plan = _stored_plan\n")
+
+    return code
+
+
 @pytest.fixture(scope="session")
-def plan_folder(plan_store: PlanStore):
+def plan_folder(plan_store: PlanStore, planned_result: Any):
     """``plan_folder(problem, folder)`` -> ``folder``, holding what ``rfsw-plan -q plan PROBLEM
     -o folder`` writes, planned once per session (a plan folder is the same bytes wherever it
     is written: ``tests/test_plan_cache.py``). ``folder`` must not exist; it is the caller's
-    copy, to read or change. For tests that need a plan folder, not the ``plan`` command."""
-    from rfsw_plan.cli.main import main
+    copy, to read or change. For tests that need a plan folder, not the ``plan`` command.
+
+    The folder is written by the ``plan`` job (``PlanRequest(problem)``, what the command
+    runs) from the session's :func:`planned_result`, so the problem is planned once for both
+    (``tests/test_plan_cache.py`` checks that it is the bytes of a fresh plan's folder)."""
+    from rfsw_plan.planfiles.job import PlanRequest, PlanRun
 
     def make(folder: Path, problem: str) -> None:
-        assert main(["-q", "plan", problem, "-o", str(folder / "plan")]) == 0
+        PlanRun(PlanRequest(problem).prepare(), planned_result(problem)).write(folder / "plan")
 
     def get(problem: str, folder: Path) -> Path:
         stored = plan_store.folder(("plan -o", problem), lambda f: make(f, problem))

@@ -31,6 +31,7 @@ def result(name: str) -> CompareResult:
     return compare(load_problem(name), CompareOptions())
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 @pytest.mark.parametrize("name", PROBLEMS)
 def test_seed000_shows_the_settling_transient_at_weld_start(name: str) -> None:
     """Seed 000 Fig. 21: several mm at the weld start, then inside the window."""
@@ -50,12 +51,14 @@ def test_seed000_shows_the_settling_transient_at_weld_start(name: str) -> None:
     assert res.main.metrics["none"].inside_window_fraction < 0.01
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 @pytest.mark.parametrize("name", PROBLEMS)
 def test_offline_is_inside_the_window_when_truth_equals_model(name: str) -> None:
     m = result(name).main.metrics["offline"]
     assert m.inside_window_fraction >= 0.99
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 @pytest.mark.parametrize("name", PROBLEMS)
 def test_hybrid_is_at_least_as_good_as_the_best_other_when_truth_differs(name: str) -> None:
     res = result(name)
@@ -73,6 +76,7 @@ def test_hybrid_is_at_least_as_good_as_the_best_other_when_truth_differs(name: s
     assert hidden.metrics["hybrid"].inside_window_fraction >= best_in - 0.005
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 @pytest.mark.parametrize("name", PROBLEMS)
 def test_simulator_reproduces_the_deviation_command_within_1_percent(name: str) -> None:
     c = result(name).consistency
@@ -81,6 +85,7 @@ def test_simulator_reproduces_the_deviation_command_within_1_percent(name: str) 
     assert c.max_time_difference <= 0.01 * c.deviation_max_abs_lateral
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_sensitivity_scenarios_are_all_run() -> None:
     names = [sc.name for sc in result(PROBLEMS[0]).sensitivity]
     assert names[0] == "stiffness_-20%"
@@ -153,6 +158,7 @@ def test_cli_json_and_files_realtime_only(
     assert json.loads((tmp_path / "compare.json").read_text())["strategies"] == data["strategies"]
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_cli_table_all_strategies(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     code, out, err = run_cli(
         ["fanuc_butt_1700mm", "-o", str(tmp_path), "--no-sensitivity", "--no-plot"], capsys)

@@ -35,17 +35,25 @@ def test_plan_my_seam_writes_a_verified_plan_folder(tmp_path: Path) -> None:
     assert len(samples.t) > 100
 
 
+@pytest.fixture(scope="module")
+def simulated_validation(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
+    """``validate_my_data.py "" zk500 DIR`` (a simulated campaign) run once for the module:
+    its stdout and DIR (read, never changed)."""
+    folder = tmp_path_factory.mktemp("validate_my_data")
+    return _run("validate_my_data.py", "", "zk500", str(folder)), folder
+
+
 def test_validate_my_data_names_the_hidden_effect_and_saves_a_loadable_robot(
-        tmp_path: Path) -> None:
-    out = _run("validate_my_data.py", "", "zk500", str(tmp_path))
+        simulated_validation: tuple[str, Path]) -> None:
+    out, folder = simulated_validation
     assert "verdict missing" in out and "with payload_gravity" in out
-    desc = load_robot_description(tmp_path / "improved_robot.toml")  # the strict reader
+    desc = load_robot_description(folder / "improved_robot.toml")  # the strict reader
     assert any(e.name == "payload_gravity" for e in desc.effects)
 
 
-def test_validate_my_data_reads_a_given_file(tmp_path: Path) -> None:
-    _run("validate_my_data.py", "", "zk500", str(tmp_path / "a"))
-    out = _run("validate_my_data.py", str(tmp_path / "a" / "campaign.csv"), "zk500",
+def test_validate_my_data_reads_a_given_file(tmp_path: Path,
+                                            simulated_validation: tuple[str, Path]) -> None:
+    out = _run("validate_my_data.py", str(simulated_validation[1] / "campaign.csv"), "zk500",
                str(tmp_path / "b"))
     assert "simulated" not in out and (tmp_path / "b" / "improved_robot.toml").is_file()
 

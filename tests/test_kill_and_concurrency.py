@@ -64,11 +64,12 @@ sys.exit(main(["-q", "plan", sys.argv[4], "-o", sys.argv[5]]))
 """
 
 
-def _child(mode: str, sig: int, flag: Path, out: Path, problem: str = PROBLEM
+def _child(mode: str, sig: int, flag: Path, out: Path, stored: str = ""
            ) -> subprocess.Popen[bytes]:
+    """The child plans PROBLEM (``stored``: lines run first, ``child_stored_plan``)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    return subprocess.Popen([sys.executable, "-c", CHILD, mode, str(int(sig)), str(flag),
-                             problem, str(out)], env=env, stdout=subprocess.PIPE,
+    return subprocess.Popen([sys.executable, "-c", stored + CHILD, mode, str(int(sig)), str(flag),
+                             PROBLEM, str(out)], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE)
 
 
@@ -83,10 +84,9 @@ def _assert_honest(out: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def old_plan(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("old")
-    assert main(["-q", "plan", PROBLEM, "-o", str(out)]) == 0
-    return out
+def old_plan(tmp_path_factory, plan_folder) -> Path:
+    """An earlier successful plan: the session's ``rfsw-plan -q plan PROBLEM -o DIR``."""
+    return plan_folder(PROBLEM, tmp_path_factory.mktemp("old") / "plan")
 
 
 #: (mode, signal) killed in the default run: a hard kill mid-row and a polite one at the rename;
@@ -97,13 +97,15 @@ _DEFAULT_KILLS = {("row", signal.SIGKILL), ("rename", signal.SIGTERM)}
 @pytest.mark.parametrize(("mode", "sig"), [
     pytest.param(m, s, marks=[] if (m, s) in _DEFAULT_KILLS else [pytest.mark.slow])
     for m in ("row", "rename") for s in (signal.SIGTERM, signal.SIGKILL, signal.SIGINT)])
-def test_killed_at_the_write_leaves_no_lie(tmp_path, old_plan, mode, sig) -> None:
+@pytest.mark.usefixtures("stored_plans")  # the next run's plan: the session's (conftest)
+def test_killed_at_the_write_leaves_no_lie(tmp_path, old_plan, mode, sig,
+                                           child_stored_plan) -> None:
     out = tmp_path / "out"
     out.mkdir()
     for p in old_plan.iterdir():  # an earlier successful plan in the folder
         (out / p.name).write_bytes(p.read_bytes())
     assert json.loads((out / "plan.json").read_text())["status"].startswith("optimal")
-    proc = _child(mode, sig, tmp_path / "flag", out)
+    proc = _child(mode, sig, tmp_path / "flag", out, child_stored_plan(PROBLEM))
     _, err = proc.communicate(timeout=300)
     assert proc.returncode != 0
     if sig != signal.SIGKILL:
@@ -121,10 +123,10 @@ def test_killed_at_the_write_leaves_no_lie(tmp_path, old_plan, mode, sig) -> Non
     assert not [p for p in out.iterdir() if ".tmp" in p.name]
 
 
-def test_two_writers_on_one_folder(tmp_path, capsys) -> None:
+def test_two_writers_on_one_folder(tmp_path, capsys, child_stored_plan) -> None:
     out = tmp_path / "out"
     flag = tmp_path / "flag"
-    first = _child("pause", 0, flag, out)
+    first = _child("pause", 0, flag, out, child_stored_plan(PROBLEM))
     t_end = time.monotonic() + 300
     while not flag.exists():  # the first writer is at its write, holding the folder
         assert first.poll() is None, first.communicate()[1].decode()
@@ -149,7 +151,8 @@ def test_a_plan_leaves_no_lock_and_no_temporary(old_plan) -> None:
     assert sorted(p.name for p in old_plan.iterdir() if p.name.startswith(".")) == []
 
 
-def test_interrupted_plan_leaves_the_incomplete_record_alone(tmp_path, old_plan) -> None:
+def test_interrupted_plan_leaves_the_incomplete_record_alone(tmp_path, old_plan,
+                                                            child_stored_plan) -> None:
     """SIGTERM after waypoints.csv has its name (during the programs' export or the commit):
     exit 130, and the data files it wrote are removed: an ``incomplete`` record alone, never a
     complete-looking waypoints.csv that nothing vouches for."""
@@ -164,6 +167,7 @@ def test_interrupted_plan_leaves_the_incomplete_record_alone(tmp_path, old_plan)
                           'if sum(s.endswith("plan.json") for s in seen) == 2:').replace(
         "orig_commit = files._commit_file", "orig_commit = files._commit_file\n    seen = []")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    child = child_stored_plan(PROBLEM) + child
     proc = subprocess.Popen([sys.executable, "-c", child, "rename", str(int(signal.SIGTERM)),
                              str(tmp_path / "flag"), PROBLEM, str(out)], env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import sys
 from pathlib import Path
@@ -22,13 +23,24 @@ from rfsw_plan.robot.kinematics import load_robot
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "paper_checks.py"
 
 
+#: The example's computations that several tests (and ``checks()``, which calls them all) read:
+#: each is deterministic and returns what its callers only read, so it runs once per module.
+SHARED = ("zk500_seam_check", "zk500_plunge_cases", "table3_eight_mm", "seed001_cases",
+          "fanuc_direction_cases", "eq10_readings", "eq10_scale_for_limit",
+          "kr600_forming_check")
+
+
 @pytest.fixture(scope="module")
 def paper() -> ModuleType:
+    """``examples/paper_checks.py`` loaded as a module, its :data:`SHARED` functions cached
+    (the module's own calls go through its globals, so ``checks()`` reuses them too)."""
     spec = importlib.util.spec_from_file_location("paper_checks", EXAMPLE)
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules["paper_checks"] = mod
     spec.loader.exec_module(mod)
+    for name in SHARED:
+        setattr(mod, name, functools.cache(getattr(mod, name)))
     return mod
 
 

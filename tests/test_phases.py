@@ -43,21 +43,15 @@ def _table(path: Path) -> dict[str, Any]:
     return out
 
 
-def _plan_folder(problem: str, root: Path) -> Path:
-    from rfsw_plan.cli.main import main
-
-    out = root / problem
-    assert main(["-q", "plan", problem, "-o", str(out)]) == 0
-    return out
-
-
 @pytest.fixture(scope="module")
-def written(tmp_path_factory: pytest.TempPathFactory):
+def written(tmp_path_factory: pytest.TempPathFactory, plan_folder: Any):
+    """``written(problem)`` -> the columns of ``waypoints.csv`` of the session's plan folder
+    (what ``rfsw-plan -q plan PROBLEM -o DIR`` writes, planned once per session)."""
     cache: dict[str, dict[str, Any]] = {}
 
     def get(problem: str) -> dict[str, Any]:
         if problem not in cache:
-            folder = _plan_folder(problem, tmp_path_factory.mktemp("phases"))
+            folder = plan_folder(problem, tmp_path_factory.mktemp("phases") / problem)
             cache[problem] = _table(folder / "waypoints.csv")
         return cache[problem]
 

@@ -159,6 +159,7 @@ def test_place_task_moves_points_frames_and_moment_rigidly():
 
 # -- proof on the bundled problems ---------------------------------------------------------------
 
+@pytest.mark.usefixtures("stored_plans")  # the given placement's plan: the session's
 @pytest.mark.parametrize("name", ["zk500_table6_seam",
                                   pytest.param("fanuc_butt_1700mm", marks=pytest.mark.slow),
                                   pytest.param("kr600_curved_seam", marks=pytest.mark.slow)])

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from rfsw_plan.planfiles.job import PlanRequest
+from rfsw_plan.planfiles.job import PlanRequest, PlanRun
 from rfsw_plan.planfiles.waypoints import write_waypoints_csv
 from rfsw_plan.planning import api
 from rfsw_plan.planning import nlp as nlp_module
@@ -48,20 +48,32 @@ def test_a_plan_with_warm_caches_is_the_plan_with_empty_ones(tmp_path, monkeypat
     assert warm == again == cold
 
 
-def _folder(folder: Path) -> dict[str, bytes]:
-    PlanRequest(PROBLEM).run().write(folder)
+@pytest.fixture(scope="module")
+def cold_run() -> PlanRun:
+    """``PlanRequest(PROBLEM).run()`` made after every in-memory cache was emptied (the
+    functions and solvers rebuilt; the caches are put back afterwards): the fresh plan the
+    session's stored plan and folder are compared with."""
+    with pytest.MonkeyPatch.context() as mp:
+        for cache in CACHES:
+            mp.setattr(nlp_module, cache, OrderedDict())
+        return PlanRequest(PROBLEM).run()
+
+
+def _files(folder: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
 
 
-def test_the_same_problem_writes_the_same_bytes_in_another_folder(tmp_path, monkeypatch) -> None:
+def test_the_same_problem_writes_the_same_bytes_in_another_folder(tmp_path, cold_run,
+                                                                  plan_folder) -> None:
     """Every file of the plan folder (``plan.json`` with its file list and provenance, the
     CSV, the page and the plots) is the same bytes when the same problem is planned again into
     another folder with the in-memory caches emptied: nothing in it depends on where or when it
-    was written (no wall times, no absolute paths of the folder or of a bundled file)."""
-    first = _folder(tmp_path / "a")
-    for cache in CACHES:
-        monkeypatch.setattr(nlp_module, cache, OrderedDict())
-    second = _folder(tmp_path / "elsewhere" / "b")
+    was written (no wall times, no absolute paths of the folder or of a bundled file). The
+    first folder is the session's (``plan_folder``: written in the test store, by whichever
+    worker planned first, and copied here), so the tests' stored folder is a fresh plan's."""
+    first = _files(plan_folder(PROBLEM, tmp_path / "a"))
+    cold_run.write(tmp_path / "elsewhere" / "b")
+    second = _files(tmp_path / "elsewhere" / "b")
     assert "plan.json" in first and "waypoints.csv" in first
     assert sorted(first) == sorted(second)
     assert [n for n in first if first[n] != second[n]] == []
@@ -90,8 +102,8 @@ def test_a_plan_compiled_afresh_is_the_plan_from_the_disk_cache(tmp_path) -> Non
     assert out["fresh"] == out["disk"]
 
 
-def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, tmp_path
-                                                                ) -> None:
+def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, cold_run,
+                                                                tmp_path) -> None:
     """The test session's plan store (``tests/_plan_store.py``: each bundled plan made once for
     every xdist worker, pickled and read back) stands for a fresh plan: its data files are the
     fresh plan's bytes."""
@@ -100,7 +112,7 @@ def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, 
     for name in ("stored", "fresh"):
         (tmp_path / name).mkdir()
     stored = write_plan_data(tmp_path / "stored", planned_result(PROBLEM))
-    fresh = write_plan_data(tmp_path / "fresh", api.plan(PROBLEM))
+    fresh = write_plan_data(tmp_path / "fresh", cold_run.result)
     assert [p.name for p in stored] == [p.name for p in fresh] == ["waypoints.csv", "plan.html"]
     for s, f in zip(stored, fresh, strict=True):
         assert s.read_bytes() == f.read_bytes(), s.name

@@ -16,6 +16,7 @@ from rfsw_plan.planfiles.folder import PlanFolder
 PROBLEM_TOML = Path(__file__).resolve().parent.parent / "problems" / "zk500_table6_seam.toml"
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_zk500_plan_keeps_every_weld_waypoint_in_the_window(tmp_path, capsys):
     out = tmp_path / "x"
     assert main(["plan", "zk500_table6_seam", "-o", str(out), "--json"]) == 0
@@ -104,6 +105,7 @@ def test_path_through_a_singularity_is_one_line_and_nonzero(tmp_path, capsys):
     assert json.loads((out / "plan.json").read_text())["constraint"] == "singularity"
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch):
     """The plots are drawn after plan.json has committed waypoints.csv and the programs: a plot
     that raises is one warning line, the plan folder checks out whole, exit 0 (README)."""
@@ -130,14 +132,13 @@ def test_a_failing_plot_never_costs_the_data_files(tmp_path, capsys, monkeypatch
     assert len(PlanFolder.open(out).samples.t) > 100
 
 
-def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
+def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch, planned_result):
     """When a plot file appears in the folder, plan.json already vouches for waypoints.csv (a
     killed or hung plot leaves a whole plan without pictures); afterwards it vouches for both
     plots. The plots are drawn in a forked process beside the data files, in memory, and
     written here: the same bytes as the plots drawn in this process after the commit."""
     import rfsw_plan.files as files
     import rfsw_plan.planfiles.waypoints as wp
-    from rfsw_plan.planning.api import plan
 
     seen = []
     real = files._commit_file
@@ -148,7 +149,7 @@ def test_plan_json_commits_the_data_before_the_plots(tmp_path, monkeypatch):
         return real(src, dst, anonymous)
 
     monkeypatch.setattr(files, "_commit_file", spy)
-    res = plan("zk500_table6_seam")
+    res = planned_result("zk500_table6_seam")  # the session's plan (conftest)
     path = wp.write_plan_folder(tmp_path / "p", res)
     assert [name for name, _ in seen] == list(wp.PLAN_PLOTS)
     for _, record in seen:

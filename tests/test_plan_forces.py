@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import csv
 import json
-from functools import cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -13,7 +13,6 @@ import pytest
 from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.force_series import read_force_series
-from rfsw_plan.planning.api import plan
 from rfsw_plan.process.force_fit import derive_force_uncertainty, fit_process_forces
 from rfsw_plan.process.problem import load_problem
 from rfsw_plan.realtime.compare import planned_waypoints
@@ -24,20 +23,22 @@ from rfsw_plan.robot.kinematics import load_robot
 PROBLEM = "zk500_table6_seam"
 
 
-@cache
-def trial_log(folder: str) -> Path:
+@pytest.fixture(scope="module")
+def trial_log(tmp_path_factory: pytest.TempPathFactory, planned_result: Any) -> Path:
+    """The force log of a virtual trial weld of the problem's plan (the session's
+    ``planned_result``), written once per module: tests read it, never change it."""
     pb = load_problem(PROBLEM)
     model = ElastostaticModel(load_robot(pb.robot))
-    tw = simulate_trial_weld(pb, planned_waypoints(plan(pb)), model)
-    return tw.write(folder)[0]
+    tw = simulate_trial_weld(pb, planned_waypoints(planned_result(PROBLEM)), model)
+    return tw.write(str(tmp_path_factory.mktemp("trial")))[0]
 
 
-def test_uncertainty_is_drift_plus_three_sigma_per_phase() -> None:
+def test_uncertainty_is_drift_plus_three_sigma_per_phase(planned_result: Any) -> None:
     """Noise-only log (no drift): the weld bound is ~3 x the sensor noise; with a 10 %
     drift the axial bound grows by about 10 % of the axial force."""
     pb = load_problem(PROBLEM)
     model = ElastostaticModel(load_robot(pb.robot))
-    wp = planned_waypoints(plan(pb))
+    wp = planned_waypoints(planned_result(PROBLEM))  # plan(PROBLEM), the session's
     frames = pb.frames()
     out = {}
     for amp in (0.0, 0.10):
@@ -56,9 +57,9 @@ def test_uncertainty_is_drift_plus_three_sigma_per_phase() -> None:
 
 
 def test_plan_with_forces_stores_uncertainty_next_to_the_plan(tmp_path: Path,
-                                                               capsys: pytest.CaptureFixture[str]
-                                                               ) -> None:
-    log = trial_log(str(tmp_path / "trial"))
+                                                               capsys: pytest.CaptureFixture[str],
+                                                               trial_log: Path) -> None:
+    log = trial_log
     out = tmp_path / "plan"
     assert main(["plan", PROBLEM, "--forces", str(log), "-o", str(out)]) == 0
     text = capsys.readouterr().out
@@ -93,11 +94,13 @@ def _rewrite(src: Path, dst: Path, fn: object) -> Path:
     return dst
 
 
+@pytest.mark.usefixtures("stored_plans")  # the unused log's plan is the problem's own
 def test_log_the_model_cannot_describe_is_not_used(tmp_path: Path,
-                                                   capsys: pytest.CaptureFixture[str]) -> None:
+                                                   capsys: pytest.CaptureFixture[str],
+                                                   trial_log: Path) -> None:
     """Times shifted by 1000 s: no sample falls in the problem's phases -> exit 2 (no load);
     times compressed so the weld phase is not found -> one line, the plan does not use it."""
-    log = trial_log(str(tmp_path / "trial"))
+    log = trial_log
     short = _rewrite(log, tmp_path / "short.csv",
                      lambda h, r: [f"{float(r[0]) * 0.12:.6f}", *r[1:]])
     out = tmp_path / "plan"
@@ -111,8 +114,9 @@ def test_log_the_model_cannot_describe_is_not_used(tmp_path: Path,
 
 
 def test_log_without_axial_force_is_one_line_exit_2(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
-    log = trial_log(str(tmp_path / "trial"))
+                                                    capsys: pytest.CaptureFixture[str],
+                                                    trial_log: Path) -> None:
+    log = trial_log
     series = read_force_series(log)
     # Zero the component along the (nearly vertical) tool axis: fz in the base frame.
     assert abs(series.force[len(series) // 2, 2]) > 1000.0

@@ -70,27 +70,33 @@ sys.exit(main(["-q", "plan", sys.argv[1], "-o", sys.argv[2]]))
 """
 
 
-def test_sigterm_while_plotting_into_a_new_folder_leaves_nothing(tmp_path) -> None:
+def test_sigterm_while_plotting_into_a_new_folder_leaves_nothing(tmp_path,
+                                                                 child_stored_plan) -> None:
     """Issue 39: a SIGTERM during ``plan`` into a new folder left waypoints.csv, plan.html and
     a plot without plan.json. Now the run ends with exit 130 and the folder it created is
     gone with everything in it."""
     out = tmp_path / "new" / "plan"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-c", CHILD, PROBLEM, str(out)], env=env,
+    # the child's plan is the session's (conftest: child_stored_plan): this is about plotting
+    proc = subprocess.run([sys.executable, "-c", child_stored_plan(PROBLEM) + CHILD, PROBLEM,
+                           str(out)], env=env,
                           capture_output=True, timeout=300)
     assert proc.returncode == 130, proc.stderr.decode()
     assert b"Traceback" not in proc.stderr
     assert not (tmp_path / "new").exists(), sorted(p.name for p in out.iterdir())
 
 
-def test_sigterm_while_plotting_into_a_kept_folder_keeps_the_committed_plan(tmp_path) -> None:
+def test_sigterm_while_plotting_into_a_kept_folder_keeps_the_committed_plan(
+        tmp_path, child_stored_plan) -> None:
     """The same SIGTERM into a folder that held files is the committed plan: plan.json vouches
     for the data files (plots pending), and the folder passes the strict reader."""
     out = tmp_path / "plan"
     out.mkdir()
     (out / "notes.txt").write_text("mine\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, "-c", CHILD, PROBLEM, str(out)], env=env,
+    # the child's plan is the session's (conftest: child_stored_plan): this is about plotting
+    proc = subprocess.run([sys.executable, "-c", child_stored_plan(PROBLEM) + CHILD, PROBLEM,
+                           str(out)], env=env,
                           capture_output=True, timeout=300)
     assert proc.returncode == 130, proc.stderr.decode()
     assert (out / "notes.txt").read_text() == "mine\n"

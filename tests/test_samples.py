@@ -117,6 +117,7 @@ def test_a_swinging_dwell_is_refused_naming_the_first_sample(planned_result) -> 
         sv.raise_if_failed()
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_robust_status_warning_and_robust_hard(tmp_path, capsys) -> None:
     out = tmp_path / "f"
     assert main(["-q", "plan", "fanuc_butt_1700mm", "-o", str(out)]) == 0

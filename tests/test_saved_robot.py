@@ -90,6 +90,7 @@ def test_identify_output_is_named_and_numbers_have_one_format(
     assert d.provenance["data_sha256"] == sha256_file(campaign)
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_plan_prints_the_robot_file_it_used(tmp_path: Path,
                                             capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["plan", "zk500_table6_seam", "-o", str(tmp_path)]) == 0

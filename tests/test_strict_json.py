@@ -19,6 +19,7 @@ def _strict(text: str) -> object:
     return json.loads(text, parse_constant=_reject)
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plans (conftest)
 def test_every_json_output_of_every_command_is_strict(tmp_path: Path, capsys) -> None:
     data = tmp_path / "m.csv"
     runs: list[list[str]] = [

@@ -4,10 +4,10 @@ a weld by a robot equal to the model validates as adequate."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from rfsw_plan.cli.main import main
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.io.force_series import read_force_series
 from rfsw_plan.io.weld_track import read_weld_track
@@ -18,9 +18,9 @@ from rfsw_plan.robot.kinematics import load_robot
 from rfsw_plan.validation.weld.workbench import validate_weld
 
 
-def test_truth_equal_to_model_is_adequate(tmp_path: Path) -> None:
+def test_truth_equal_to_model_is_adequate(tmp_path: Path, plan_folder: Any) -> None:
     name = "zk500_table6_seam"
-    assert main(["-q", "plan", name, "-o", str(tmp_path / "plan")]) == 0
+    plan_folder(name, tmp_path / "plan")  # rfsw-plan -q plan NAME -o plan, the session's
     pb = load_problem(name)
     model = ElastostaticModel(load_robot(pb.robot))
     rec = PlanFolder.open(tmp_path / "plan").rebuild()

@@ -8,6 +8,7 @@ import json
 import re
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -113,10 +114,12 @@ def test_no_is_the_first_line_exit_3_and_the_margin_keeps_its_unit(tmp_path: Pat
     assert not (out / ".rfsw-plan.lock").exists()
 
 
-def test_every_bundled_problem_plans_kr600_forming_contour(tmp_path: Path, capsys) -> None:
-    """The one bundled problem that did not plan (the others plan in test_robustness)."""
-    out = tmp_path / "f"
-    assert main(["-q", "plan", "kr600_forming_contour", "-o", str(out)]) == 0
+def test_every_bundled_problem_plans_kr600_forming_contour(tmp_path: Path,
+                                                           plan_folder: Any) -> None:
+    """The one bundled problem that did not plan (the others plan in test_robustness); its
+    folder is the session's ``rfsw-plan -q plan kr600_forming_contour -o DIR`` (the plan
+    test_robust_claim checks at its force box's vertices)."""
+    out = plan_folder("kr600_forming_contour", tmp_path / "f")
     rec = json.loads((out / "plan.json").read_text())
     assert rec["weld_speed_mm_s"] == pytest.approx(5.0)
     assert rec["max_feasible_weld_speed_mm_s"] > 5.0
