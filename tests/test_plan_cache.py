@@ -1,8 +1,8 @@
 """The planner's CasADi caches change nothing but the time (issue 41).
 
-The point functions run compiled to C from 200 waypoints on, or wherever their library is
-already compiled (in memory or on disk, ``nlp.auto_compile``), else in CasADi's virtual
-machine; the slow tests compile afresh and compare with the disk cache and with the virtual
+The point functions run compiled to C: with the compiler's optimisation from 200 waypoints on
+or wherever that library is already compiled, else without (``nlp.compile_level``); the slow
+tests compile afresh and compare with the disk cache, and every level with CasADi's virtual
 machine.
 
 The point functions, the NLP evaluation, the IPOPT solvers and the mapped functions are built
