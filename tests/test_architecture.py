@@ -6,6 +6,7 @@ folder, commands write through library jobs, and library errors name parameters,
 from __future__ import annotations
 
 import ast
+import functools
 import logging
 import re
 from pathlib import Path
@@ -16,6 +17,17 @@ import pytest
 import rfsw_plan
 
 PACKAGE = Path(rfsw_plan.__file__).parent
+
+
+def _tree(path: Path) -> ast.Module:
+    """The syntax tree of a source file, parsed once per text for all the tests that walk it
+    (the walks only read it; a file rewritten by a test's fixture is parsed again)."""
+    return _parse(path.read_text(), str(path))
+
+
+@functools.cache
+def _parse(text: str, name: str) -> ast.Module:
+    return ast.parse(text, name)
 
 #: Layers, lowest first: a module may import its own layer and the layers before it, never a
 #: later one (ARCHITECTURE.md draws the same order). Keys are subpackages or top-level modules
@@ -70,7 +82,7 @@ def _imports(path: Path, root: Path = PACKAGE) -> set[str]:
     name = _module_name(path, root)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
+    for node in ast.walk(_tree(path)):
         if isinstance(node, ast.Import):
             out |= {a.name for a in node.names if a.name.split(".")[0] == "rfsw_plan"}
         elif isinstance(node, ast.ImportFrom):
@@ -256,7 +268,7 @@ def paper_reproduction_imports(root: Path = PACKAGE, examples: Path = EXAMPLES) 
         where = str(path.relative_to(root))
         if path.stem in papers:
             found.append(f"{where} (a paper reproduction of examples/)")
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.Import):
                 mods = [a.name for a in node.names]
             elif isinstance(node, ast.ImportFrom) and not node.level:
@@ -335,7 +347,7 @@ def test_the_library_never_configures_logging():
     for path in PACKAGE.rglob("*.py"):
         if "cli" in path.relative_to(PACKAGE).parts:
             continue
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
                     and node.func.attr in calls):
                 found.append(f"{path.relative_to(PACKAGE)}:{node.lineno} {node.func.attr}")
@@ -354,7 +366,7 @@ def test_no_dispatch_on_effect_types_outside_the_effect_classes():
     for path in PACKAGE.rglob("*.py"):
         if path.parent == PACKAGE / "elastostatics" / "effects":
             continue
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
                     and node.func.id in ("isinstance", "issubclass") and len(node.args) == 2):
                 classes = node.args[1].elts if isinstance(node.args[1], ast.Tuple) else [
@@ -389,7 +401,7 @@ def effect_name_dispatches(root: Path = PACKAGE, names: set[str] | None = None) 
     for path in sorted(root.rglob("*.py")):
         if path.parent == root / "elastostatics" / "effects":
             continue
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.Compare):
                 hit = any(_names_an_effect(x, names) for x in (node.left, *node.comparators))
             elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
@@ -461,7 +473,7 @@ def plan_file_accesses(root: Path = PACKAGE) -> list[str]:
     for path in sorted(root.rglob("*.py")):
         if "planfiles" in path.relative_to(root).parts:
             continue
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if not isinstance(node, ast.Call) or _call_name(node) not in FILE_OPERATIONS:
                 continue
             named: set[str] = set()
@@ -511,7 +523,7 @@ def cli_file_writes(root: Path = PACKAGE) -> list[str]:
     (``plot_*``) or ``open(..., "w"/"a"/"x")``."""
     found = []
     for path in sorted((root / "cli").rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if not isinstance(node, ast.Call):
                 continue
             name = _call_name(node)
@@ -605,7 +617,7 @@ def flag_names_in_library(root: Path = PACKAGE) -> dict[str, list[str]]:
         rel = path.relative_to(root)
         if rel.parts[0] == "cli":
             continue
-        tree = ast.parse(path.read_text())
+        tree = _tree(path)
         skip = _docstring_nodes(tree) | _command_line_strings(tree)
         raised = {id(n) for r in ast.walk(tree) if isinstance(r, ast.Raise) for n in ast.walk(r)}
         for node in ast.walk(tree):
@@ -784,7 +796,7 @@ def cli_transaction_calls(root: Path = PACKAGE) -> list[str]:
     ``planning.api.plan``."""
     found = []
     for path in sorted((root / "cli").rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             if isinstance(node, ast.ImportFrom) and node.module:
                 for alias in node.names:
                     if alias.name in TRANSACTION_NAMES or (
@@ -854,7 +866,7 @@ def option_definitions(root: Path = PACKAGE) -> list[str]:
     found = []
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root).as_posix()
-        for node in ast.walk(ast.parse(path.read_text())):
+        for node in ast.walk(_tree(path)):
             defined = ((isinstance(node, (ast.ClassDef, ast.FunctionDef)) and node.name in names)
                        or (isinstance(node, ast.Assign) and any(
                            isinstance(t, ast.Name) and t.id in names for t in node.targets)))
