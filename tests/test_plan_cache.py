@@ -136,8 +136,7 @@ def test_a_small_problem_runs_optimised_only_where_that_library_is_on_disk(tmp_p
     assert nlp_module.compile_level(model, big, False) == "O1"
     assert nlp_module.compile_level(model, 78, False) == "O0"
     vm = nlp_module.point_functions(model, "", False)
-    lib = library_path([vm.info, vm.fg, vm.grad, vm.jac, vm.hess],
-                       nlp_module.COMPILE_LEVELS["O1"][0])
+    lib = library_path(vm.library, nlp_module.COMPILE_LEVELS["O1"][0])
     assert lib.parent == tmp_path
     lib.write_bytes(b"")  # where compile_functions keeps the optimised library
     monkeypatch.setattr(nlp_module, "_ON_DISK", {})

@@ -70,19 +70,18 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
         log.info("no C compiler; CasADi functions run in the virtual machine")
         return None
     so = library_path(fns, prefix)
-    tag = so.stem[len(prefix) + 1:]
     d = so.parent
     try:
         if not so.exists():
             d.mkdir(parents=True, exist_ok=True)
             t0 = time.perf_counter()
             with tempfile.TemporaryDirectory(dir=d) as tmp:
-                cg = ca.CodeGenerator(f"{prefix}_{tag}.c")
+                cg = ca.CodeGenerator(f"{so.stem}.c")
                 for f in fns:
                     cg.add(f)
                 cg.generate(tmp + os.sep)
                 out = Path(tmp) / so.name
-                src = str(Path(tmp) / f"{prefix}_{tag}.c")
+                src = str(Path(tmp) / f"{so.stem}.c")
                 subprocess.run([cc, optimise, "-shared", "-fPIC", src, "-o", str(out)],
                                check=True, capture_output=True, timeout=600)
                 os.replace(out, so)  # atomic: a concurrent process sees all or nothing

@@ -202,6 +202,13 @@ class PointFunctions:
     fg_vm: ca.Function
     fg_nlp: ca.Function
 
+    @property
+    def library(self) -> list[ca.Function]:
+        """The functions one compiled library holds, in its order (``info, fg, grad, jac,
+        hess``): of the virtual machine's functions, what
+        :func:`~rfsw_plan.planning.casadi_.library_path` hashes."""
+        return [self.info, self.fg, self.grad, self.jac, self.hess]
+
 
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
 _SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
@@ -338,8 +345,7 @@ def compile_level(model: ElastostaticModel, K: int, coupled: bool) -> str:
         return "O0"
     if (*key, coupled) not in _ON_DISK:
         vm = point_functions(model, "", coupled)
-        _ON_DISK[(*key, coupled)] = library_path(
-            [vm.info, vm.fg, vm.grad, vm.jac, vm.hess], COMPILE_LEVELS["O1"][0]).exists()
+        _ON_DISK[(*key, coupled)] = library_path(vm.library, COMPILE_LEVELS["O1"][0]).exists()
     return "O1" if _ON_DISK[(*key, coupled)] else "O0"
 
 
