@@ -437,3 +437,21 @@ def test_the_vertices_stacked_in_one_model_call_are_each_vertex_alone(planned_re
     single = verify.waypoint_claim(res.model, res.task, res.window, res.q)
     assert any(0 < lim.level < 1 for lim in stacked.limits.values())
     assert stacked.limits == single.limits
+
+
+def test_the_metrics_share_their_prediction_with_the_claim_bit_for_bit(planned_result) -> None:
+    """baselines.metrics_and_prediction evaluates the poses and the nominal deflection once for
+    the prediction and the waypoint claim (one set of pose caches): the claim, the metrics and
+    the pin errors are those of the separate calls, bit for bit (issue 41)."""
+    from rfsw_plan.planning import baselines, verify
+
+    res = planned_result("zk500_table6_seam")
+    fresh = verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    m, pred = baselines.metrics_and_prediction("nlp", res.model, res.task, res.q, res.window,
+                                               0.2)
+    assert any(0 < lim.level < 1 for lim in fresh.limits.values())
+    assert m.claim is not None and m.claim.limits == fresh.limits
+    assert m.to_dict() == baselines.metrics("nlp", res.model, res.task, res.q, res.window,
+                                            0.2).to_dict()
+    np.testing.assert_array_equal(pred.e_lat,
+                                  verify.predict(res.model, res.task, res.q, 0.0).e_lat)

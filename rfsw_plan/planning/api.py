@@ -36,6 +36,7 @@ from rfsw_plan.planning.baselines import (
     commanded_poses,
     ik_paths,
     metrics,
+    metrics_and_prediction,
     mirror_compensation,
     no_compensation,
 )
@@ -510,10 +511,12 @@ def _plan_task(
     # The baselines judged as the plan: the pin speed where the written weld runs at constant
     # speed (not while the tool accelerates and the traverse force ramps).
     steady = out.samples.constant_speed
-    m_none = metrics("none", model, task, base.taught.q, window, opts.force_uncertainty,
-                     constant_speed=steady)
-    m_mirror = metrics("mirror", model, task, base.mirror.q, window, opts.force_uncertainty,
-                       constant_speed=steady)
+    # (Their predictions give the baselines' pin errors: e_lat does not depend on the
+    # uncertainty.)
+    m_none, p_none = metrics_and_prediction("none", model, task, base.taught.q, window,
+                                            opts.force_uncertainty, constant_speed=steady)
+    m_mirror, p_mirror = metrics_and_prediction("mirror", model, task, base.mirror.q, window,
+                                                opts.force_uncertainty, constant_speed=steady)
     out, sampled = dominant(model, task, window, opts, out, base.mirror, m_mirror.tolerated,
                             timing)
     m_mirror = sampled or m_mirror
@@ -531,8 +534,7 @@ def _plan_task(
         window=window, options=opts, q=out.q, offsets=out.offsets,
         tool_rotation=tool_rotation_of(robot, task, out.q), verification=out.verification,
         baselines=(m_none, m_mirror, out.metrics),
-        e_none=predict(model, task, base.taught.q, 0.0).e_lat,
-        e_mirror=predict(model, task, base.mirror.q, 0.0).e_lat, branch=choice.name,
+        e_none=p_none.e_lat, e_mirror=p_mirror.e_lat, branch=choice.name,
         branches=choice.branches,
         solver_status=sol.status if out.source == "nlp" else
         f"{sol.status}; the mirror baseline tolerates more and is written",

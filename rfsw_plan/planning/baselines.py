@@ -21,7 +21,13 @@ from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import UnreachableError
-from rfsw_plan.planning.verify import RobustClaim, SampleVerification, predict, waypoint_claim
+from rfsw_plan.planning.verify import (
+    Prediction,
+    RobustClaim,
+    SampleVerification,
+    predict,
+    waypoint_claim,
+)
 from rfsw_plan.process.frames import tcp_orientation
 from rfsw_plan.process.task import PlanTask, offsets3
 from rfsw_plan.process.window import WeldWindow
@@ -421,6 +427,16 @@ def metrics(
     uncertainty: float, samples: SampleVerification | None = None,
     constant_speed: tuple[float, float] | None = None,
 ) -> BaselineMetrics:
+    """:func:`metrics_and_prediction` without the prediction."""
+    return metrics_and_prediction(name, model, task, q, window, uncertainty, samples,
+                                  constant_speed)[0]
+
+
+def metrics_and_prediction(
+    name: str, model: ElastostaticModel, task: PlanTask, q: FloatArray, window: WeldWindow,
+    uncertainty: float, samples: SampleVerification | None = None,
+    constant_speed: tuple[float, float] | None = None,
+) -> tuple[BaselineMetrics, Prediction]:
     """Metrics of joint values q (K, n) [rad] at the task's waypoints (all in the material),
     and with ``samples`` (the plan's :func:`~rfsw_plan.planning.verify.verify_samples`) at
     every written in-material sample too.
@@ -431,8 +447,14 @@ def metrics(
     (:func:`~rfsw_plan.planning.verify.robust_claim` at the waypoints, and at the samples),
     the pin speed judged within ``constant_speed`` (first, last arc length [m] of the
     constant-speed weld samples; by default the samples' own).
+
+    Returns the metrics and the numeric prediction of q at unit force uncertainty
+    (:func:`~rfsw_plan.planning.verify.predict`; its pin errors are those of any
+    uncertainty). The prediction's poses and deflection are the claim's too (one model call
+    and one set of pose caches for both).
     """
-    pred = predict(model, task, q, 1.0)
+    batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
+    pred = predict(model, task, q, 1.0, batch=batch)
     e, R = pred.e_lat, pred.worst
     if samples is not None and samples.contact.any():
         c = samples.contact
@@ -447,13 +469,13 @@ def metrics(
     robust = np.minimum(e_all - r - window.lower, window.upper - (e_all + r))
     if samples is not None and constant_speed is None:
         constant_speed = samples.constant_speed
-    claim = waypoint_claim(model, task, window, q, constant_speed)
+    claim = waypoint_claim(model, task, window, q, constant_speed, (batch, pred.dX))
     if samples is not None and samples.claim is not None:
         claim = samples.claim.combined(claim)
     return BaselineMetrics(name, float(np.max(np.abs(e_all))), float(np.sqrt(np.mean(e ** 2))),
                            float(np.max(worst)), float(np.min(pred.lateral_stiffness)),
                            float(np.mean(inside)), float(np.min(robust)), claim.tolerated,
-                           samples is not None, claim)
+                           samples is not None, claim), pred
 
 
 @dataclass(frozen=True)

@@ -105,7 +105,7 @@ class Prediction:
 
 def predict(
     model: ElastostaticModel, task: PlanTask, q: FloatArray, uncertainty: float = 0.2,
-    length_scale: float = 1.0,
+    length_scale: float = 1.0, batch: PoseBatch | None = None,
 ) -> Prediction:
     """Predicted pin errors of joint values q (K, n) [rad] on a task, numerically.
 
@@ -113,10 +113,12 @@ def predict(
     :meth:`~rfsw_plan.robot.kinematics.Robot.batch_fk_jacobian`, equal to Pinocchio's to
     1e-12) for the commanded pose and the model's process deflection
     (:meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection_batch`: every
-    physical effect, the task's seam reference) for the deflection.
+    physical effect, the task's seam reference) for the deflection. ``batch``: the poses of q
+    (``model.batch(q)``) when the caller has them, so that their effects' pose caches are
+    shared with its other model calls.
     """
     Q = np.atleast_2d(np.asarray(q, dtype=float))
-    batch = model.batch(Q)
+    batch = model.batch(Q) if batch is None else batch
     T = batch.T
     F = task.wrench_base
     dX = model.process_deflection_batch(batch, F, task.reference)
@@ -1204,18 +1206,22 @@ def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
 
 
 def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
-                   q: FloatArray, constant_speed: tuple[float, float] | None = None
-                   ) -> RobustClaim:
+                   q: FloatArray, constant_speed: tuple[float, float] | None = None,
+                   prediction: tuple[PoseBatch, FloatArray] | None = None) -> RobustClaim:
     """:func:`robust_claim` of joint values q (K, n) [rad] at the task's waypoints (every one in
     the material but the plunge start; the pin's velocity along the seam per unit of travel
     over the weld waypoints (:func:`_quantities`), only those within ``constant_speed``
     (first, last arc length [m] of the constant-speed weld samples) where given: a waypoint
     has no time, so the acceleration and deceleration are judged on written samples only):
     how a baseline without written samples (the mirror) is judged, and the plan's waypoints
-    beside its samples."""
-    batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
+    beside its samples. ``prediction``: the poses of q and their process deflection [m, rad]
+    (K, 6) when the caller has them (:func:`predict` with ``batch``), else computed here."""
     W = task.wrench_base
-    dX = model.process_deflection_batch(batch, W, task.reference)
+    if prediction is None:
+        batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
+        dX = model.process_deflection_batch(batch, W, task.reference)
+    else:
+        batch, dX = prediction
     fr = task.frames
     travel = task.phase == "weld"
     if constant_speed is not None:
