@@ -1,7 +1,7 @@
 """Benchmark of the planner: time, peak memory, ratio to the mirror baseline, objective gap.
 
 Run: ``.venv/bin/python benchmarks/benchmark_planner.py [--sizes 100 1000 4000 16000]
-[--problem zk500_table6_seam] [--repeats 3] [--no-gap]``
+[--problem zk500_table6_seam] [--repeats 3] [--no-gap] [--no-cli] [--stages]``
 
 For each size the problem is planned with the waypoint spacing that gives that many weld
 waypoints (plus the stationary plunge/dwell waypoints and the refined force ramp). Each size
@@ -21,7 +21,12 @@ runs in its own process, so the peak memory (``ru_maxrss``) is that size's. Prin
   stiffness [%] (the default plan stays within 0.05 mm and 0.5 %);
 * ``method``: how the fine plan was obtained (``coarse``, or ``coarse+full`` if the fine
   projection failed a row and the full NLP was solved);
-* the growth exponent d log t / d log n between successive sizes.
+* the growth exponent d log t / d log n between successive sizes;
+* with ``--stages``, below each size's line: the CPU time of the pipeline's stages (branch
+  choice, baselines, the NLP solves and IPOPT alone, the fine projection, verification,
+  timing, the sample check, the robust claims, the metrics) in the fastest of ``--repeats``
+  plans, in a process of their own (the profile issue 41 asks for, without cProfile's
+  overhead, which inflates Python-heavy stages about 2x against IPOPT).
 
 Then the two targets of issue 32 with their ratio to the mirror baseline in the same run:
 ``plan()`` at 1000 weld waypoints (<= 0.5 s on an idle machine; the 1000 row above) and the
@@ -127,6 +132,63 @@ def one_size(problem_name: str, n: int, solver: str, repeats: int) -> dict[str, 
     }
 
 
+#: The pipeline's stages whose CPU time ``--stages`` prints: (module, function) of
+#: rfsw_plan.planning, each wrapped where the pipeline calls it (nested ones counted in their
+#: callers too; a function wrapped in two modules is one stage).
+STAGES = (("api", "choose_branch"), ("api", "_baselines"), ("api", "solve_plan"),
+          ("api", "solve_plan_nlp"), ("api", "project_fine"), ("api", "build_plan_nlp"),
+          ("api", "written_plan"), ("api", "verify_plan"), ("api", "time_parameterise"),
+          ("api", "pin_track"), ("api", "verify_samples"), ("api", "metrics_and_prediction"),
+          ("baselines", "metrics_and_prediction"), ("verify", "robust_claim"))
+
+
+def stage_profile(problem_name: str, n: int, repeats: int) -> None:
+    """Print the CPU time of each stage of :data:`STAGES` in the fastest of ``repeats`` plans
+    (after one warm-up), and of the whole plan (called in a child process)."""
+    from collections import Counter, defaultdict
+
+    import rfsw_plan.planning.api as api
+    import rfsw_plan.planning.baselines as baselines
+    import rfsw_plan.planning.verify as verify
+    from rfsw_plan.process.problem import load_problem
+
+    spent: defaultdict[str, float] = defaultdict(float)
+    calls: Counter[str] = Counter()
+    def timed(fn: Any, key: str) -> Any:
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            c0 = time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                spent[key] += time.process_time() - c0
+                calls[key] += 1
+        return wrapper
+
+    for mod_name, name in STAGES:
+        mod = {"api": api, "baselines": baselines, "verify": verify}[mod_name]
+        if hasattr(mod, name):  # (an older checkout may lack one)
+            setattr(mod, name, timed(getattr(mod, name), name))
+    problem = load_problem(problem_name)
+    spacing = problem.seam.length / (n - 1)
+    opts = api.options_from_problem(problem)
+    api.plan(problem, opts, spacing=spacing)
+    best: tuple[float, dict[str, float], Counter[str]] | None = None
+    for _ in range(repeats):
+        spent.clear()
+        calls.clear()
+        c0 = time.process_time()
+        api.plan(problem, opts, spacing=spacing)
+        total = time.process_time() - c0
+        if best is None or total < best[0]:
+            best = (total, dict(spent), Counter(calls))
+    assert best is not None
+    total, by_stage, count = best
+    print(f"{problem_name} at {n} weld waypoints: plan() {total:.3f} s CPU (the fastest of "
+          f"{repeats}); its stages (CPU s, calls; nested stages count in their callers too):")
+    for key, t in sorted(by_stage.items(), key=lambda kv: -kv[1]):
+        print(f"  {key:24s} {t:7.3f}  x{count[key]}")
+
+
 def _child(problem: str, n: int, solver: str, repeats: int) -> dict[str, Any]:
     out = subprocess.run(
         [sys.executable, __file__, "--one", str(n), "--solver", solver, "--problem", problem,
@@ -169,12 +231,18 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-gap", action="store_true", help="skip the full NLP")
     ap.add_argument("--no-cli", action="store_true", help="skip the CLI wall-time figure")
+    ap.add_argument("--stages", action="store_true",
+                    help="also print the CPU time of the pipeline's stages at each size")
     ap.add_argument("--one", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--one-mirror", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--one-stages", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--solver", default="coarse", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one is not None:
         print(json.dumps(one_size(args.problem, args.one, args.solver, args.repeats)))
+        return
+    if args.one_stages is not None:
+        stage_profile(args.problem, args.one_stages, args.repeats)
         return
     if args.one_mirror:
         from rfsw_plan.process.problem import load_problem
@@ -211,6 +279,13 @@ def main() -> None:
         print(f"{n:>8} {r['K']:>6} {r['plan_s']:>8.3f} {r['mirror_s']:>9.3f} "
               f"{r['plan_s'] / r['mirror_s']:>6.2f} {r['peak_mb']:>8.0f} {gap:>8.3f} "
               f"{de:>7.4f} {dk:>6.3f} {t_full:>7.1f} {r['method']:>11} {growth:>7.2f}", flush=True)
+        if args.stages:
+            out = subprocess.run(
+                [sys.executable, __file__, "--one-stages", str(n), "--problem", args.problem,
+                 "--repeats", str(args.repeats)], capture_output=True, text=True, check=False)
+            print(out.stdout.rstrip() if out.returncode == 0 else
+                  f"{n:>8} stages failed: {(out.stderr.strip().splitlines() or ['?'])[-1]}",
+                  flush=True)
     at_1000 = [r for r in rows if r["n"] == 1000]
     if at_1000:
         r = at_1000[0]
