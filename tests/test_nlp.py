@@ -89,6 +89,7 @@ def test_point_derivatives_match_finite_differences(robot_name, coupled):
         # a weld waypoint between two links: the seam chords (scaled) and their offsets [mm]
         "travel_in": rng.normal(0, 0.5, 3), "travel_out": rng.normal(0, 0.5, 3),
         "travel_at": rng.normal(0, 1e-3, 2),
+        "t_along": [0.0, 0.9998, 0.02],  # the in-plane tangent (the frame's t tilted)
     })[0]
     assert par.size == n_par(n)
     glob = GLOBALS.pack(1, {
