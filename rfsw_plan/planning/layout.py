@@ -124,13 +124,14 @@ def point_layout(n: int) -> Layout:
     objective centres the depth on [mm] (``depth_at``: 0, or under the coupled axial law the
     depth window's centre, see :func:`~rfsw_plan.planning.nlp.depth_targets`), and the
     travel-speed rows' seam chords and their offsets [mm]
-    (:func:`~rfsw_plan.planning.nlp.travel_parameters`)."""
+    (:func:`~rfsw_plan.planning.nlp.travel_parameters`), and the in-plane seam tangent the
+    along-track error is measured along (:func:`~rfsw_plan.planning.verify.along_tangents`)."""
     return Layout((("target", 3), ("t", 3), ("l", 3), ("n", 3), ("wrench", 6),
                    ("force_spread", 3), ("correction", 3), ("det_sign", 1), ("det_floor", 1),
                    ("det_value", 1), ("q_lin", n), ("det_grad", n), ("weld", 1),
                    ("depth_on", 1), ("surface_on", 1), ("standing", 1), ("stand_at", 1),
                    ("standing_full", 1), ("depth_at", 1), ("travel_in", 3),
-                   ("travel_out", 3), ("travel_at", 2)))
+                   ("travel_out", 3), ("travel_at", 2), ("t_along", 3)))
 
 
 #: Global scalars passed to every waypoint: the objective weights, the lateral compliance

@@ -16,11 +16,13 @@ compliance of the symbolic model (joint and tilting compliance; seed 000 eq. 11,
 
 * FK_p(q_k) = p_k + o_lat l_k + o_norm n_k + o_along t_k and R(q_k) e_z . t_k =
   R(q_k) e_z . l_k = 0, R(q_k) e_z . n_k <= -1/2 (the TCP z axis is -n_k);
-* along the track the predicted pin is on the seam point: t_k . (FK_p(q_k) + [C_X(q_k) F_k]_p
-  - p_k) + c_t,k = 0. The process model gives F_k for the pin at s_k (the traverse force ramps
-  up over the first millimetre of *pin* travel); with this row the pin is there, the lag of
-  the pin behind the TCP (several mm while the ramp winds it up) is in o_along, and the weld is
-  timed on s_k directly (:mod:`rfsw_plan.timing.trajectory`);
+* along the track the predicted pin is on the seam point: t_p,k . (FK_p(q_k) + [C_X(q_k) F_k]_p
+  - p_k) + c_t,k = 0, t_p the seam tangent in the plate's plane
+  (:func:`~rfsw_plan.planning.verify.along_tangents`: the pin stays on its seam point in the
+  plate whatever its depth along the tilted tool axis). The process model gives F_k for the pin
+  at s_k (the traverse force ramps up over the first millimetre of *pin* travel); with this
+  row the pin is there, the lag of the pin behind the TCP (several mm while the ramp winds it
+  up) is in o_along, and the weld is timed on s_k directly (:mod:`rfsw_plan.timing.trajectory`);
 * the pin's travel over each weld link along the seam chord u_k within half the speed
   tolerance of the seam's travel h_k, the chord's turn included (:func:`travel_parameters`:
   one row per link, the sum of a term of each end, scaled by h_min / h_k to the bound
@@ -123,6 +125,7 @@ from rfsw_plan.planning.rows import (
     point_row_layout,
 )
 from rfsw_plan.planning.symbolic import symbolic_cartesian_compliance, symbolic_chain
+from rfsw_plan.planning.verify import along_tangents
 from rfsw_plan.process.plan_options import PlanOptions
 from rfsw_plan.process.task import (
     STANDING_DEPTH_TOL,
@@ -238,8 +241,9 @@ def _point_symbols(model: ElastostaticModel, v: dict[str, Any], pp: dict[str, An
         v=v, par=pp, position=pos, axis=ch.R[:, 2],
         error=1e3 * ca.dot(l, pin_err) + corr["lateral"],
         normal_error=1e3 * ca.dot(nn, pin_err) + corr["normal"],
-        along_error=1e3 * ca.dot(t, pin_err) + corr["along"],
-        pin=1e3 * pin_err + corr["lateral"] * l + corr["normal"] * nn + corr["along"] * t,
+        along_error=1e3 * ca.dot(pp["t_along"], pin_err) + corr["along"],
+        pin=(1e3 * pin_err + corr["lateral"] * l + corr["normal"] * nn
+             + corr["along"] * pp["t_along"]),
         worst=ca.sum1(ca.sqrt(proj ** 2 + ABS_EPS ** 2)), compliance=cll)
     return sym, dX, tuple(skipped)
 
@@ -919,6 +923,7 @@ def _parameters(model: ElastostaticModel, task: PlanTask, window: WeldWindow, q_
         "standing": task.standing.astype(float), "stand_at": window.centre * 1e3,
         "standing_full": task.standing_full.astype(float),
         "depth_at": depth_targets(task, window) * 1e3, **travel_parameters(task),
+        "t_along": along_tangents(task),
     })
     cll0 = np.einsum("ki,kij,kj->k", fr.l, model.cartesian_compliance(model.batch(q_init))
                      [:, :3, :3], fr.l) * 1e6

@@ -79,9 +79,10 @@ class PointSymbols:
         axis: The TCP z axis R(q) e_z, base frame, (3,).
         error: Lateral pin error e = l . (FK_p + [C F]_p - p) + c_lat [mm].
         normal_error: n . (FK_p + [C F]_p - p) + c_norm [mm].
-        along_error: t . (FK_p + [C F]_p - p) + c_along [mm].
+        along_error: t_p . (FK_p + [C F]_p - p) + c_along [mm], t_p the seam tangent in
+            the plate's plane (:func:`~rfsw_plan.planning.verify.along_tangents`).
         pin: The predicted pin against the target, FK_p + [C F]_p - p + c_lat l + c_norm n
-            + c_along t [mm], base frame, (3,).
+            + c_along t_p [mm], base frame, (3,).
         worst: Worst case over the force box, r = sum_i u |f_i| |l^T C_tt b_i| (smooth |.|)
             [mm].
         compliance: Lateral compliance l^T C_tt l [mm/kN].
