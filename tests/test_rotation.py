@@ -113,3 +113,22 @@ def test_using_it_never_loads_the_spatial_package() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, cwd=PACKAGE.parent, timeout=120).stdout.splitlines()
     assert out == [f"[{rotation.BACKEND!r}]", "True", "True"]
+
+
+def test_a_backend_that_changed_its_calls_is_not_used() -> None:
+    """SciPy's backend answers the calls :class:`Rotation` makes; one whose functions take
+    other arguments or give other results (another SciPy) is refused, so the public class is
+    used instead of an error."""
+    import types
+
+    assert rotation._answers(rotation.backend())
+
+    def refuses(*args, **kwargs):
+        raise TypeError("unexpected keyword argument 'assume_valid'")
+
+    wrong = types.SimpleNamespace(**{f: refuses for f in rotation.BACKEND_FUNCTIONS})
+    assert not rotation._answers(wrong)
+    real = rotation.backend()
+    transposed = types.SimpleNamespace(**{f: getattr(real, f) for f in rotation.BACKEND_FUNCTIONS})
+    transposed.from_rotvec = lambda rotvec, degrees: real.from_rotvec(rotvec + 1.0, degrees=degrees)
+    assert not rotation._answers(transposed)

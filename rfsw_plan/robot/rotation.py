@@ -12,8 +12,9 @@ algebra and special functions, about 0.25 s of CPU at every start of ``export`` 
 issue 41); this module loads the backend's extension file alone, under its own name, so a later
 ``import scipy.spatial`` uses that same module.
 
-Where the backend is not found as this SciPy lays it out, or lacks a function, every method
-gives SciPy's public class instead (same numbers, the slower start).
+Where the backend is not found as this SciPy lays it out, or does not answer the calls
+:class:`Rotation` makes (checked once on the identity), every method gives SciPy's public
+class instead (same numbers, the slower start).
 ``tests/test_rotation.py`` compares both, bit for bit, on random rotations.
 """
 
@@ -70,7 +71,28 @@ def _load() -> Any:
                 raise
         except (ImportError, OSError):
             return None
-    return mod if all(hasattr(mod, f) for f in BACKEND_FUNCTIONS) else None
+    return mod if _answers(mod) else None
+
+
+def _answers(mod: Any) -> bool:
+    """Whether ``mod`` has every function of :data:`BACKEND_FUNCTIONS`, takes the arguments
+    :class:`Rotation` passes and turns the identity into the identity (a SciPy whose backend
+    changed its calls gets the public class, not an error)."""
+    try:
+        eye = mod.from_matrix(np.eye(3)[None], assume_valid=False)
+        got = [mod.as_matrix(eye)[0], mod.as_rotvec(eye, degrees=False)[0],
+               mod.as_quat(eye, canonical=False, scalar_first=False)[0],
+               mod.as_euler(eye, "ZYX", degrees=False, suppress_warnings=False)[0],
+               mod.magnitude(eye), mod.inv(eye)[0], mod.compose_quat(eye, eye)[0],
+               mod.from_quat(eye, normalize=True, copy=False, scalar_first=False)[0],
+               mod.from_rotvec(np.zeros((1, 3)), degrees=False)[0]]
+        want = [np.eye(3), np.zeros(3), eye[0], np.zeros(3), np.zeros(1), eye[0], eye[0],
+                eye[0], eye[0]]
+        return bool(np.allclose(eye, [[0.0, 0.0, 0.0, 1.0]]) and all(
+            np.shape(g) == np.shape(w) and np.allclose(g, w) for g, w in zip(got, want,
+                                                                              strict=True)))
+    except Exception:  # any failure of another SciPy's backend: the public class
+        return False
 
 
 def _public() -> Any:
