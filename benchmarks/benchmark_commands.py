@@ -6,12 +6,15 @@ Run: ``.venv/bin/python benchmarks/benchmark_commands.py [--runs 5] [--vs OTHER_
 Each command runs as its own process, ``python -c 'from rfsw_plan.cli.main import console;
 console()' ARGS`` (what the ``rfsw-plan`` script does) with the checkout on ``PYTHONPATH``,
 from a temporary folder that receives every output. After one warm-up run (not counted: it
-fills the disk cache and writes the plan the later commands read), each command runs ``--runs``
-times, every run into a new output folder; the table gives the median wall time and the
-spread (min-max):
+fills the disk cache, the compiled CasADi functions and the fitted penetration law, and writes
+the plan the later commands read), each command runs ``--runs`` times, every run into a new
+output folder; the table gives the median wall time and the spread (min-max):
 
 * ``import floor``: ``python -c 'import numpy, scipy, casadi, pinocchio, toppra, ruckig'``,
   the time the dependencies alone take to import;
+* ``reader floor``: ``python -c 'import numpy, pinocchio'``, what ``export`` and ``check``
+  import at least (they need neither CasADi, TOPPRA nor Ruckig; their rotations add SciPy's
+  rotation backend, ``rfsw_plan.robot.rotation``);
 * ``plan zk500``: ``plan zk500_table6_seam -q``;
 * ``export zk500``: that plan's programs in 4 formats (``krl,fanuc_tp,rapid,stream``);
 * ``check zk500``: ``check`` of its KRL ``.src`` against the plan;
@@ -51,6 +54,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 CLI = "import sys; from rfsw_plan.cli.main import console; sys.argv[0] = 'rfsw-plan'; console()"
 IMPORTS = "import numpy, scipy, casadi, pinocchio, toppra, ruckig"
+#: What ``export`` and ``check`` cannot start without: NumPy and Pinocchio (the kinematics);
+#: their rotations add SciPy's rotation backend (``rfsw_plan.robot.rotation``).
+READER_IMPORTS = "import numpy, pinocchio"
 PLAN = "zk500_table6_seam"
 
 
@@ -66,6 +72,7 @@ class Command:
 
 COMMANDS = (
     Command("import floor", ("-c", IMPORTS), f"python -c '{IMPORTS}'"),
+    Command("reader floor", ("-c", READER_IMPORTS), f"python -c '{READER_IMPORTS}'"),
     Command("plan zk500", ("-c", CLI, "plan", PLAN, "-q", "-o", "{out}"),
             f"rfsw-plan plan {PLAN} -q"),
     Command("export zk500", ("-c", CLI, "export", "{plan}", "-q", "-o", "{out}", "--format",

@@ -33,6 +33,7 @@ __all__ = [
     "LOCK_NAME",
     "OutputLock",
     "atomic_path",
+    "cache_dir",
     "figures_in_memory",
     "prepare_output_dir",
     "prepare_output_file",
@@ -258,6 +259,15 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
     finally:
         if fd is not None:
             os.close(fd)
+
+
+def cache_dir() -> Path:
+    """Folder of the on-disk caches (CasADi's compiled libraries, fitted penetration laws):
+    ``$RFSW_PLAN_CACHE``, else ``$XDG_CACHE_HOME/rfsw_plan``, else ``~/.cache/rfsw_plan``.
+    A cache only saves time: every entry is keyed by a hash of all it depends on."""
+    root = os.environ.get("RFSW_PLAN_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "rfsw_plan")
+    return Path(root)
 
 
 def write_bytes(target: str | Path, data: bytes) -> Path:

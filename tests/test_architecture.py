@@ -679,6 +679,12 @@ def test_the_flag_check_sees_a_flag_in_a_fixture(tmp_path):
 #: plan holds the joint values, so neither the NLP (CasADi), the timing (TOPPRA, Ruckig) nor
 #: the plots (matplotlib) are on their path (issue 41: each command at its import floor).
 PLAN_READER_FORBIDDEN = ("casadi", "toppra", "ruckig", "matplotlib")
+#: SciPy's packages they never load either: the rotations come from SciPy's compiled backend
+#: alone (``robot/rotation.py``, not the ``scipy.spatial`` package with its k-d trees, Qhull,
+#: sparse matrices and linear algebra), and the penetration law's fit (``scipy.optimize``) from
+#: the disk cache once fitted (``process/deviation.py``).
+PLAN_READER_FORBIDDEN_SCIPY = ("scipy.spatial", "scipy.sparse", "scipy.linalg", "scipy.optimize",
+                               "scipy.special", "scipy.interpolate")
 
 
 def modules_loaded_by(imports: list[str], then: str = "") -> set[str]:
@@ -710,25 +716,31 @@ def test_export_and_check_never_import_the_planner():
 
 def test_check_and_export_commands_run_without_the_planner(plan_with_programs, tmp_path):
     """Not only their imports: ``check`` of the zk500 ``.src`` and ``export`` of its plan, run
-    as the CLI runs them (the task rebuilt, the penetration law fitted, the programs written
-    and checked), load none of :data:`PLAN_READER_FORBIDDEN` (issue 41)."""
+    as the CLI runs them (the task rebuilt, the penetration law read from the disk cache, the
+    programs written and checked), load none of :data:`PLAN_READER_FORBIDDEN` and none of
+    :data:`PLAN_READER_FORBIDDEN_SCIPY` (issue 41)."""
     import subprocess
     import sys
 
+    from rfsw_plan.planfiles.folder import PlanFolder
+
     folder, _ = plan_with_programs("zk500_table6_seam")
+    PlanFolder.open(folder).rebuild().task()  # the penetration law fitted once, or on disk
     src = folder / "rfsw_zk500_table6_seam.src"
     for argv in (["check", str(src), "--plan", str(folder)],
                  ["export", str(folder), "-q", "-o", str(tmp_path / "p"), "--format",
                   "krl,fanuc_tp,rapid,stream"]):
         code = ("import sys\nfrom rfsw_plan.cli.main import main\n"
                 f"assert main({argv!r}) == 0\n"
-                "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))")
+                "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))\n"
+                f"print(' '.join(m for m in {PLAN_READER_FORBIDDEN_SCIPY!r} if m in sys.modules))")
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                              check=True, cwd=PACKAGE.parent, timeout=300).stdout
-        loaded = set(out.splitlines()[-1].split())
-        assert "rfsw_plan" in loaded and "pinocchio" in loaded, argv[0]
+        loaded = set(out.splitlines()[-2].split())
+        assert "rfsw_plan" in loaded and "pinocchio" in loaded and "scipy" in loaded, argv[0]
         assert not loaded & set(PLAN_READER_FORBIDDEN), (argv[0], sorted(
             loaded & set(PLAN_READER_FORBIDDEN)))
+        assert out.splitlines()[-1] == "", (argv[0], out.splitlines()[-1])
 
 
 def test_plan_readers_never_import_the_timing_or_scipy_interpolate():

@@ -47,12 +47,12 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram, format_for_file
 from rfsw_plan.export.program import Samples, sample_fk
 from rfsw_plan.robot.kinematics import Robot
+from rfsw_plan.robot.rotation import Rotation
 
 FloatArray = NDArray[np.float64]
 

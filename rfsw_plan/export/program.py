@@ -763,7 +763,7 @@ def _slerp_angles(P: FloatArray, segs: list[tuple[int, int]], fracs: list[FloatA
     (i, j) and chord fractions f (j - i + 1,), the angle of sample k from the slerp of
     R_i -> R_j at f_k, ``|log((R_i exp(f_k log(R_i^T R_j)))^T R_k)|`` (SciPy's ``Slerp``
     written out, element by element the same operations)."""
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     if not segs:
         return []
@@ -801,7 +801,7 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
     the next point in the same group): the controller then runs the pause into the next
     move at the speed that keeps the plan's time, instead of an exact stop and a wait in the
     material. A phase's last point stays."""
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     out = [int(idx[0])]
     for k in range(1, len(idx)):
@@ -821,7 +821,7 @@ def _without_stops(samples: Samples, P: FloatArray, idx: NDArray[np.int_]) -> ND
 
 def _motions(samples: Samples, P: FloatArray, idx: NDArray[np.int_],
              tol: float, pin: FloatArray) -> list[Motion]:
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     motions = [Motion("joint", 0, str(samples.phase[idx[0]]))]
     pts = P[idx, :3, 3]

@@ -79,7 +79,7 @@ def quat_wxyz(R: FloatArray) -> FloatArray:
 def quats_wxyz(R: FloatArray) -> FloatArray:
     """:func:`quat_wxyz` of every rotation matrix of R, (m, 3, 3) -> (m, 4) (one SciPy call;
     each matrix converted as alone)."""
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     out = np.roll(Rotation.from_matrix(R).as_quat(), 1, axis=1)  # x, y, z, w -> w, x, y, z
     for q in out:
@@ -278,7 +278,7 @@ _CALL = re.compile(r"^\s*(\w+)\s*;\s*$")
 
 
 def _frame(vals: tuple[str, ...], where: str) -> FloatArray:
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     x, y, z, w, qx, qy, qz = (float(v) for v in vals)
     n = math.sqrt(w * w + qx * qx + qy * qy + qz * qz)

@@ -79,9 +79,8 @@ def round_trip(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     Raises:
         InfeasibleError: The number of points differs from the plan's.
     """
-    from scipy.spatial.transform import Rotation
-
     from rfsw_plan.export.config import ik_on_branch, seeded_on_branch
+    from rfsw_plan.robot.rotation import Rotation
 
     points = read.points
     q_plan = expected.q

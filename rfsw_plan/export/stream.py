@@ -58,9 +58,8 @@ def samples_of(trajectory: object, seam: FloatArray) -> Samples:
 
 def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) -> Path:
     """Write the stream CSV atomically (columns in the module docstring)."""
-    from scipy.spatial.transform import Rotation
-
     from rfsw_plan.planfiles.waypoints import EULER_COLUMNS, maker_euler
+    from rfsw_plan.robot.rotation import Rotation
 
     conv = robot.description.convention
     T = sample_fk(robot, stream.q)

@@ -75,7 +75,7 @@ def maker_euler(R: FloatArray, convention: str) -> FloatArray:
     ``kuka_abc``: (A, B, C) with R = Rz(A) Ry(B) Rx(C). ``fanuc_wpr``: (W, P, R) with
     R = Rz(R) Ry(P) Rx(W) (fixed-axis x, y, z).
     """
-    from scipy.spatial.transform import Rotation
+    from rfsw_plan.robot.rotation import Rotation
 
     zyx = Rotation.from_matrix(R).as_euler("ZYX")  # intrinsic z, y', x'' = (A, B, C)
     if convention == "kuka_abc":

@@ -31,10 +31,11 @@ log = logging.getLogger(__name__)
 
 
 def cache_dir() -> Path:
-    """Folder of the compiled libraries: ``$RFSW_PLAN_CACHE`` or ``~/.cache/rfsw_plan``."""
-    root = os.environ.get("RFSW_PLAN_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "rfsw_plan")
-    return Path(root)
+    """Folder of the compiled libraries: ``$RFSW_PLAN_CACHE`` or ``~/.cache/rfsw_plan``
+    (:func:`rfsw_plan.files.cache_dir`, shared with the fitted penetration laws)."""
+    from rfsw_plan.files import cache_dir as shared
+
+    return shared()
 
 
 def library_path(fns: Sequence[ca.Function], prefix: str) -> Path:

@@ -17,16 +17,20 @@ start or end, weld samples interpolate the taught joints linearly in arc length)
 from __future__ import annotations
 
 import hashlib
+import json
+import logging
 import pickle
 from collections import OrderedDict
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
-from rfsw_plan.exceptions import InputError
+from rfsw_plan.exceptions import InputError, OutputPathError
+from rfsw_plan.files import cache_dir, write_text
 from rfsw_plan.process.cosim import (
     CosimResult,
     PenetrationFit,
@@ -39,7 +43,10 @@ from rfsw_plan.process.frames import FloatArray, LoadSchedule, SeamFrames
 from rfsw_plan.process.problem import Coupling, Problem
 from rfsw_plan.process.taught import joints_at, taught_path
 from rfsw_plan.process.window import WeldWindow
+from rfsw_plan.robot.description import UrdfChain
 from rfsw_plan.robot.kinematics import load_robot
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -316,7 +323,11 @@ def problem_penetration_law(problem: Problem) -> PenetrationLaw:
     key = _law_key(problem)
     if key is not None and key in _LAW_CACHE:
         return _LAW_CACHE[key]
-    law = _fit_problem_law(problem, coupling)
+    law = _read_law(key) if key is not None else None
+    if law is None:
+        law = _fit_problem_law(problem, coupling)
+        if key is not None:
+            _write_law(key, law)
     if key is not None:
         _LAW_CACHE[key] = law
         while len(_LAW_CACHE) > _LAW_CACHE_SIZE:
@@ -332,15 +343,114 @@ _LAW_CACHE_SIZE = 16
 
 
 def _law_key(problem: Problem) -> bytes | None:
-    """The SHA-256 of the pickled problem (robot, seam, process, coupling, options: every input
-    of the fit), or None for a problem that does not pickle (then the law is not cached).
+    """The SHA-256 of everything the fitted law depends on, or None for a problem that does
+    not pickle (then the law is not cached):
+
+    * the pickled problem (robot description, seam, process, coupling, options: every input
+      of the fit, as values);
+    * the bytes of the files the robot is built from at fit time: the robot file and its
+      URDF (effect plugin files are named in the description with their SHA-256, which
+      loading them checks);
+    * the version of the code that fits it (:func:`_fit_code_version`).
 
     Pickling is a faithful serialisation, so two problems with one key hold the same inputs;
     two equal problems with different keys only miss the cache."""
     try:
-        return hashlib.sha256(pickle.dumps(problem, protocol=5)).digest()
+        h = hashlib.sha256(pickle.dumps(problem, protocol=5))
     except (pickle.PicklingError, TypeError, AttributeError):
         return None
+    robot = problem.robot
+    urdf = robot.chain.path if isinstance(robot.chain, UrdfChain) else None
+    for f in (robot.path, urdf):
+        h.update(b"\0file\0")
+        if f is not None:
+            try:
+                h.update(Path(f).read_bytes())
+            except OSError:
+                return None
+    h.update(_fit_code_version())
+    return h.digest()
+
+
+#: The packages whose code the fit runs (the problem, the robot and its kinematics, the
+#: elastostatic model and its effects, the taught path, the schedule, the co-simulation and
+#: the fit itself), relative to the package; the package's top-level modules too.
+LAW_CODE = ("process", "elastostatics", "robot")
+_CODE_VERSION: list[bytes] = []
+
+
+def _fit_code_version() -> bytes:
+    """:func:`code_digest` of this installation of the package (computed once per process, a
+    few milliseconds)."""
+    if not _CODE_VERSION:
+        _CODE_VERSION.append(code_digest(Path(__file__).resolve().parents[1]))
+    return _CODE_VERSION[0]
+
+
+def code_digest(root: Path) -> bytes:
+    """SHA-256 of the code that fits the law: the source of every module of :data:`LAW_CODE`
+    and the top-level modules of the package in ``root`` (path and bytes, in path order), and
+    the versions of Python, NumPy, Pinocchio and SciPy (its ``version.py``, found without
+    importing SciPy). Any change of that code is a new key, so a cached law is never one an
+    older fit gave."""
+    import importlib.util
+    import sys
+
+    import pinocchio
+
+    files = sorted([*root.glob("*.py"), *(f for d in LAW_CODE for f in (root / d).rglob("*.py"))])
+    h = hashlib.sha256(f"{sys.version}\0{np.__version__}\0{pinocchio.__version__}".encode())
+    spec = importlib.util.find_spec("scipy")
+    if spec is not None and spec.origin is not None:
+        files.append(Path(spec.origin).parent / "version.py")
+    for f in files:
+        h.update(f"\0{f.relative_to(root) if f.is_relative_to(root) else f.name}\0".encode())
+        try:
+            h.update(f.read_bytes())
+        except OSError:
+            h.update(b"\0missing")
+    return h.digest()
+
+
+#: What a cache file of a fitted law says it is (a file that does not is ignored).
+LAW_CACHE_FORMAT = "rfsw_plan penetration law"
+
+
+def _law_file(key: bytes) -> Path:
+    """The cache file of the law with ``key``: ``penetration_law_<hash>.json`` in
+    :func:`rfsw_plan.files.cache_dir`."""
+    return cache_dir() / f"penetration_law_{key.hex()[:32]}.json"
+
+
+def _read_law(key: bytes) -> PenetrationLaw | None:
+    """The law cached on disk under ``key``, or None: no file, or one that is not a whole
+    cache file of this key (damaged, truncated, another key's, another format) is ignored and
+    the law fitted again. The floats are stored in hexadecimal, bit for bit."""
+    path = _law_file(key)
+    try:
+        rec = json.loads(path.read_bytes())
+        if (not isinstance(rec, dict) or rec.get("format") != LAW_CACHE_FORMAT
+                or rec.get("key") != key.hex()):
+            return None
+        return PenetrationLaw(*(float.fromhex(rec[k]) for k in _LAW_FIELDS))
+    except (OSError, ValueError, TypeError, KeyError, InputError):
+        return None
+
+
+_LAW_FIELDS = ("stiffness", "ref_penetration", "ref_force")
+
+
+def _write_law(key: bytes, law: PenetrationLaw) -> None:
+    """Keep a fitted law on disk under ``key`` (written atomically; a cache that cannot be
+    written is only a cache: the law is returned all the same)."""
+    path = _law_file(key)
+    rec = {"format": LAW_CACHE_FORMAT, "key": key.hex(),
+           **{k: float(getattr(law, k)).hex() for k in _LAW_FIELDS}}
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text(path, json.dumps(rec, indent=1) + "\n")
+    except (OSError, OutputPathError) as exc:
+        log.info("penetration law not cached in %s (%s)", path, exc)
 
 
 def _fit_problem_law(problem: Problem, coupling: Coupling) -> PenetrationLaw:
