@@ -25,25 +25,24 @@ PROGRAM_CASES = [("zk500_table6_seam", "zk500_seed001"), ("fanuc_butt_1700mm", "
 _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
 _RESULTS: dict[str, Any] = {}
 
-#: The longest test files first (by the sum of their ``--durations`` on the default run on 2
-#: busy cores, 28 Nov 2026, 15305e3, less what issue 41's suite-CPU changes took from the files
-#: they changed). xdist's
+#: The longest test files first (by the sum of their ``--durations``, measured on the default
+#: run on 2 cores shared with other jobs, 28 Nov 2026, with this order's previous estimate and
+#: issue 41's suite-CPU changes). xdist's
 #: ``loadfile`` hands out whole files in collection order (``--no-loadscope-reorder`` in
 #: pyproject: not by their number of tests), so a long file never starts last and runs alone
 #: while the other worker idles. Every other file follows in its usual order. The order
 #: changes no result: each file's tests stay together and in their order.
 LONGEST_FIRST = (
-    "test_export.py", "test_readme_commands.py", "test_robust_claim.py", "test_mission.py",
-    "test_reader_fuzz.py", "test_examples.py", "test_validate_weld.py", "test_plan_property.py",
-    "test_validate_cli.py", "test_placement.py", "test_kill_and_concurrency.py",
-    "test_verdict.py", "test_progress_cli.py", "test_compare.py", "test_check_edits.py",
-    "test_architecture.py", "test_plan_job.py", "test_program_checkers.py", "test_realdata.py",
-    "test_samples.py", "test_plan_cli.py", "test_plan_cache.py", "test_programs_physical.py",
-    "test_report.py", "test_trial_weld.py", "test_fuzz_campaign.py", "test_plan_forces.py",
-    "test_selection.py", "test_page3d_chromium.py", "test_property_campaigns.py",
-    "test_paper_checks.py", "test_page3d.py", "test_nlp.py", "test_docs.py",
-    "test_strict_json.py", "test_waypoints.py", "test_weld_envelope.py", "test_robustness.py",
-    "test_program_timing.py",
+    "test_export.py", "test_validate_weld.py", "test_examples.py", "test_mission.py",
+    "test_readme_commands.py", "test_placement.py", "test_robust_claim.py", "test_check_edits.py",
+    "test_plan_property.py", "test_reader_fuzz.py", "test_progress_cli.py", "test_architecture.py",
+    "test_program_checkers.py", "test_kill_and_concurrency.py", "test_validate_cli.py",
+    "test_samples.py", "test_strict_json.py", "test_compare.py", "test_verdict.py", "test_docs.py",
+    "test_realdata.py", "test_plan_job.py", "test_lost_motion_lab.py", "test_plan_cli.py",
+    "test_coarse.py", "test_weld_envelope.py", "test_page3d_chromium.py", "test_waypoints.py",
+    "test_full_solver.py", "test_page3d.py", "test_plan_forces.py", "test_realdata_ur10.py",
+    "test_plan_cache.py", "test_lost_motion.py", "test_numfmt.py", "test_paper_checks.py",
+    "test_program_timing.py", "test_programs_physical.py", "test_nlp.py", "test_plan_folder.py",
 )
 
 
