@@ -26,22 +26,23 @@ _PLANS: dict[str, tuple[Path, dict[str, Any]]] = {}
 _RESULTS: dict[str, Any] = {}
 
 #: The longest test files first (by the sum of their ``--durations``, measured on the default
-#: run on 2 busy cores, 28 Nov 2026, with the plans shared by ``stored_plans``). xdist's
+#: run on 2 cores shared with other jobs, 28 Nov 2026, with this order's previous estimate and
+#: issue 41's suite-CPU changes). xdist's
 #: ``loadfile`` hands out whole files in collection order (``--no-loadscope-reorder`` in
 #: pyproject: not by their number of tests), so a long file never starts last and runs alone
 #: while the other worker idles. Every other file follows in its usual order. The order
 #: changes no result: each file's tests stay together and in their order.
 LONGEST_FIRST = (
-    "test_export.py", "test_readme_commands.py", "test_validate_weld.py", "test_placement.py",
-    "test_examples.py", "test_robust_claim.py", "test_plan_property.py", "test_mission.py",
-    "test_architecture.py", "test_program_checkers.py", "test_samples.py",
-    "test_check_edits.py", "test_progress_cli.py", "test_validate_cli.py",
-    "test_reader_fuzz.py", "test_kill_and_concurrency.py", "test_plan_job.py",
-    "test_compare.py", "test_verdict.py", "test_plan_forces.py", "test_docs.py",
-    "test_full_solver.py", "test_report.py", "test_property_campaigns.py",
-    "test_fuzz_campaign.py", "test_plan_cli.py", "test_page3d_chromium.py", "test_realdata.py",
-    "test_programs_physical.py", "test_plan_cache.py", "test_robustness.py",
-    "test_program_timing.py",
+    "test_export.py", "test_validate_weld.py", "test_examples.py", "test_mission.py",
+    "test_readme_commands.py", "test_placement.py", "test_robust_claim.py", "test_check_edits.py",
+    "test_plan_property.py", "test_reader_fuzz.py", "test_progress_cli.py", "test_architecture.py",
+    "test_program_checkers.py", "test_kill_and_concurrency.py", "test_validate_cli.py",
+    "test_samples.py", "test_strict_json.py", "test_compare.py", "test_verdict.py", "test_docs.py",
+    "test_realdata.py", "test_plan_job.py", "test_lost_motion_lab.py", "test_plan_cli.py",
+    "test_coarse.py", "test_weld_envelope.py", "test_page3d_chromium.py", "test_waypoints.py",
+    "test_full_solver.py", "test_page3d.py", "test_plan_forces.py", "test_realdata_ur10.py",
+    "test_plan_cache.py", "test_lost_motion.py", "test_numfmt.py", "test_paper_checks.py",
+    "test_program_timing.py", "test_programs_physical.py", "test_nlp.py", "test_plan_folder.py",
 )
 
 
@@ -74,14 +75,8 @@ def planned_result(plan_store: PlanStore):
     return get
 
 
-@pytest.fixture
-def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
-    """While the test runs, :func:`rfsw_plan.planning.api.plan` of a bundled problem as its
-    file has it (by name, or loaded and unchanged), with the problem's own options, spacing and
-    model, returns :func:`planned_result` (made once per session) instead of planning again;
-    every other call plans. For tests of what a command does with a plan (``rfsw-plan plan``
-    run in this process, ``compare``), not of the planner's work: planning is deterministic,
-    and ``tests/test_plan_cache.py`` checks that the stored plan writes a fresh plan's bytes."""
+def _stored_plan_function(planned_result: Any) -> Any:
+    """The stand-in for :func:`rfsw_plan.planning.api.plan` of :func:`stored_plans`."""
     import pickle
 
     import rfsw_plan.planning.api as api
@@ -110,7 +105,20 @@ def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
             return planned_result(name)
         return real(problem, options, spacing=spacing, model=model, compile_c=compile_c)
 
-    monkeypatch.setattr(api, "plan", plan)
+    return plan
+
+
+@pytest.fixture
+def stored_plans(monkeypatch: pytest.MonkeyPatch, planned_result: Any) -> None:
+    """While the test runs, :func:`rfsw_plan.planning.api.plan` of a bundled problem as its
+    file has it (by name, or loaded and unchanged), with the problem's own options, spacing and
+    model, returns :func:`planned_result` (made once per session) instead of planning again;
+    every other call plans. For tests of what a command does with a plan (``rfsw-plan plan``
+    run in this process, ``compare``), not of the planner's work: planning is deterministic,
+    and ``tests/test_plan_cache.py`` checks that the stored plan writes a fresh plan's bytes."""
+    import rfsw_plan.planning.api as api
+
+    monkeypatch.setattr(api, "plan", _stored_plan_function(planned_result))
 
 
 @pytest.fixture
@@ -167,18 +175,23 @@ def plan_folder(plan_store: PlanStore, planned_result: Any):
 
 
 @pytest.fixture(scope="session")
-def plan_with_programs(tmp_path_factory: pytest.TempPathFactory, plan_store: PlanStore):
+def plan_with_programs(tmp_path_factory: pytest.TempPathFactory, plan_store: PlanStore,
+                       planned_result: Any):
     """``plan_with_programs(problem)`` -> (folder, plan.json) of ``rfsw-plan plan PROBLEM
-    --export`` with every registered format, planned once per session (the folder is this
-    worker's copy of the store's)."""
+    --export`` with every registered format, run once per session on the session's plan
+    (:func:`planned_result`, as :func:`stored_plans` gives it; the folder is this worker's copy
+    of the store's)."""
+    import rfsw_plan.planning.api as api
     from rfsw_plan.cli.main import main
     from rfsw_plan.export.format import format_names
 
     formats = ",".join(format_names())
 
     def make(folder: Path, problem: str) -> None:
-        assert main(["-q", "plan", problem, "-o", str(folder / "plan"), "--export",
-                     formats]) == 0
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(api, "plan", _stored_plan_function(planned_result))
+            assert main(["-q", "plan", problem, "-o", str(folder / "plan"), "--export",
+                         formats]) == 0
 
     def get(problem: str) -> tuple[Path, dict[str, Any]]:
         if problem not in _PLANS:
@@ -190,6 +203,32 @@ def plan_with_programs(tmp_path_factory: pytest.TempPathFactory, plan_store: Pla
         return _PLANS[problem]
 
     return get
+
+
+@pytest.fixture(scope="session")
+def validate_my_data_example(plan_store: PlanStore, tmp_path_factory: pytest.TempPathFactory):
+    """``python examples/validate_my_data.py "" zk500 DIR`` (a simulated campaign validated
+    and the improved robot saved), run once per session for every worker, as written (its own
+    process, from the repository's root): ``(stdout, DIR)``, DIR this worker's copy (for
+    ``tests/test_examples.py`` and ``tests/test_selection.py``, which read the same run)."""
+    import os
+    import subprocess
+    import sys
+
+    root = Path(__file__).resolve().parents[1]
+
+    def make(folder: Path) -> None:
+        env = {**os.environ, "PYTHONPATH": str(root)}
+        proc = subprocess.run([sys.executable, str(root / "examples" / "validate_my_data.py"),
+                               "", "zk500", str(folder / "out")], capture_output=True,
+                              text=True, env=env, cwd=root, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        (folder / "stdout.txt").write_text(proc.stdout)
+
+    stored = plan_store.folder(("examples/validate_my_data.py", "", "zk500"), make)
+    out = tmp_path_factory.mktemp("validate_my_data") / "out"
+    shutil.copytree(stored / "out", out)
+    return (stored / "stdout.txt").read_text(), out
 
 
 @pytest.fixture(scope="module")

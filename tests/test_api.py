@@ -6,6 +6,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
 import rfsw_plan
 
@@ -15,6 +16,7 @@ def test_import_does_not_load_casadi() -> None:
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
 
+@pytest.mark.usefixtures("stored_plans")  # the session's plan of it (conftest), by this name
 def test_plan_returns_a_verified_typed_result() -> None:
     result = rfsw_plan.plan("zk500_table6_seam")
     assert isinstance(result, rfsw_plan.PlanResult)

@@ -36,11 +36,10 @@ def test_plan_my_seam_writes_a_verified_plan_folder(tmp_path: Path) -> None:
 
 
 @pytest.fixture(scope="module")
-def simulated_validation(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, Path]:
-    """``validate_my_data.py "" zk500 DIR`` (a simulated campaign) run once for the module:
-    its stdout and DIR (read, never changed)."""
-    folder = tmp_path_factory.mktemp("validate_my_data")
-    return _run("validate_my_data.py", "", "zk500", str(folder)), folder
+def simulated_validation(validate_my_data_example: tuple[str, Path]) -> tuple[str, Path]:
+    """``validate_my_data.py "" zk500 DIR`` (a simulated campaign) run once for the session
+    (conftest): its stdout and DIR (read, never changed)."""
+    return validate_my_data_example
 
 
 def test_validate_my_data_names_the_hidden_effect_and_saves_a_loadable_robot(

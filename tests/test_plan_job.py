@@ -20,14 +20,30 @@ ROOT = Path(__file__).resolve().parents[1]
 PROBLEM = "zk500_table6_seam"
 
 
-def test_the_job_writes_the_folder_the_cli_writes(tmp_path) -> None:
+def test_the_job_writes_the_folder_the_cli_writes(tmp_path, monkeypatch) -> None:
     """``PlanRequest(...).run().write(folder)`` and ``rfsw-plan plan`` give the same
     ``waypoints.csv`` and a ``plan.json`` that vouches for every file beside it."""
+    import pickle
+
+    import rfsw_plan.planning.api as api
+
+    real, made = api.plan, {}
+
+    def once(*args, **kwargs):
+        # the same arguments are planned once (planning is deterministic): this is about what
+        # the job and the command write, and that the command asks for the job's plan
+        key = pickle.dumps((args, kwargs))
+        if key not in made:
+            made[key] = real(*args, **kwargs)
+        return made[key]
+
+    monkeypatch.setattr(api, "plan", once)
     written = PlanRequest(PROBLEM, overrides={"max_iter": 200}).run().write(tmp_path / "job")
     assert written.files[-1] == tmp_path / "job" / "plan.json"
     rec = PlanFolder.open(tmp_path / "job").record
     assert {"waypoints.csv", "plan.html"} <= set(rec["sha256"])
     assert main(["-q", "plan", PROBLEM, "-o", str(tmp_path / "cli"), "--set", "max_iter=200"]) == 0
+    assert len(made) == 1  # the command planned what the job planned: the same request
     assert ((tmp_path / "job" / "waypoints.csv").read_bytes()
             == (tmp_path / "cli" / "waypoints.csv").read_bytes())
 

@@ -17,6 +17,11 @@ that reads the real measurement data in ``../shared/``); blocks that
 cannot run here are in NOT_RUN with the reason; a block that reads what another block writes
 names it in NEEDS, which runs first when its output is not there yet. Keys are the first
 command line of a block (up to 60 characters, comments removed).
+
+A block that plans a bundled problem it names, as its file has it, gets the session's plan of
+it (``stored_plans_for``; planning is deterministic) instead of planning it again in each
+block's fresh process: the command runs as written, from its parsing to what it writes and
+prints.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ import subprocess
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -253,10 +259,40 @@ def fresh_copy(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return work
 
 
-def _run(block: Block, cwd: Path) -> str:
-    """Run one block in ``cwd``; its stdout and stderr, merged."""
+#: The child-side hook that answers ``plan`` of a bundled problem with the session's plan.
+CHILD_SITE = Path(__file__).resolve().parent / "_child_site"
+
+
+@pytest.fixture(scope="module")
+def stored_plans_for(tmp_path_factory: pytest.TempPathFactory, planned_result: Any):
+    """``stored_plans_for(block)`` -> the environment under which the block's commands plan
+    each bundled problem it names with the session's plan (``planned_result``, conftest),
+    not again in each block: ``tests/_child_site/sitecustomize.py``. The command still runs
+    as written, from its parsing to the files it writes and what it prints."""
+    import pickle
+
+    from rfsw_plan.process.problem import bundled_problem_names
+
+    folder = tmp_path_factory.mktemp("stored_plans")
+    names = bundled_problem_names()
+
+    def get(block: Block) -> dict[str, str]:
+        for name in names:
+            path = folder / f"{name}.plan.pickle"
+            if re.search(rf"\b{re.escape(name)}\b", block.code) and not path.exists():
+                path.write_bytes(pickle.dumps(planned_result(name)))
+        return {"RFSW_TEST_STORED_PLANS": str(folder)}
+
+    return get
+
+
+def _run(block: Block, cwd: Path, stored: dict[str, str] | None = None) -> str:
+    """Run one block in ``cwd``; its stdout and stderr, merged. ``stored``: the environment
+    of :func:`stored_plans_for` (the session's plans), or None (every command plans)."""
     env = {**os.environ, "PYTHONPATH": str(cwd),
            "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
+    if stored is not None:
+        env.update(stored, PYTHONPATH=f"{CHILD_SITE}{os.pathsep}{cwd}")
     if block.lang == "python":
         cmd = [sys.executable, "-c", block.code]
     else:
@@ -370,13 +406,14 @@ def test_readme_stays_short_and_lists_every_folder() -> None:
 
 
 @pytest.mark.parametrize("block", _cases())
-def test_block_runs(block: Block, fresh_copy: Path) -> None:
+def test_block_runs(block: Block, fresh_copy: Path, stored_plans_for: Any) -> None:
     if "../shared/" in block.code and not (fresh_copy.parent / "shared").exists():
         pytest.skip("../shared (the real measurement data) is not beside the repository")
     need = next((v for k, v in NEEDS.items() if block.key.startswith(k)), None)
     if need and not (fresh_copy / need[1]).exists():
-        _run(next(b for b in all_blocks() if b.code.startswith(need[0])), fresh_copy)
-    out = _run(block, fresh_copy)
+        first = next(b for b in all_blocks() if b.code.startswith(need[0]))
+        _run(first, fresh_copy, stored_plans_for(first))
+    out = _run(block, fresh_copy, stored_plans_for(block))
     if block.output is not None:
         missing = output_matches(block.output, out)
         if missing is not None and os.environ.get("RFSW_REQUOTE"):

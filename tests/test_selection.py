@@ -6,9 +6,6 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -80,13 +77,10 @@ def test_the_guides_two_effects_are_named_in_order_down_to_the_floor(
     assert "--add payload_gravity --add joint_backlash:j2" in html
 
 
-def test_validate_my_data_names_both_and_its_robot_is_at_the_floor(tmp_path: Path) -> None:
-    env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.run([sys.executable, str(ROOT / "examples" / "validate_my_data.py"), "",
-                           "zk500", str(tmp_path)], capture_output=True, text=True, env=env,
-                          cwd=ROOT, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    out = proc.stdout
+def test_validate_my_data_names_both_and_its_robot_is_at_the_floor(
+        validate_my_data_example: tuple[str, Path]) -> None:
+    # ``python examples/validate_my_data.py "" zk500 DIR``, run once for the session (conftest)
+    out, tmp_path = validate_my_data_example
     assert "step 1: + payload_gravity" in out and "step 2: + joint_backlash:j2" in out
     assert "with payload_gravity + joint_backlash:j2" in out and "verdict adequate" in out
     # The saved robot, loaded by the strict reader, predicts the campaign to its noise.

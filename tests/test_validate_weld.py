@@ -37,6 +37,14 @@ def weld(tmp_path_factory: pytest.TempPathFactory, plan_folder: Any) -> tuple[Pa
     return softer_joint1_weld(tmp_path_factory.mktemp("weld"), PROBLEM, plan_folder)
 
 
+@pytest.fixture(scope="module")
+def planned_forces_validation(weld: tuple[Path, Path, Path]) -> Any:
+    """``validate_weld`` of the session's weld without its force log (the planned forces),
+    computed once for the tests that read it (they never change it)."""
+    plan, _, track = weld
+    return validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
+
+
 @pytest.mark.parametrize("name,joint,hidden", [
     # the hidden effect in the default run; the softer joint (same loop, ~12 s) under -m slow
     pytest.param(*d, marks=[] if d[2] else [pytest.mark.slow])
@@ -84,6 +92,9 @@ def test_cli_outputs_report_pngs_and_strict_json(
                  "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "verdict: missing" in text and "next: rfsw-plan validate-weld" in text
+    # The next command names the file after the robot it will hold: under out/ and without a
+    # colon in the file name (issue 33, wall 5; the robot it writes: test_save_robot_...).
+    assert "--save-robot out/robots/zk500_seed001+joint_compliance-j1.toml" in text
     assert "identifies together: j1" in text
     data = _strict((out / "validate_weld.json").read_text())
     assert isinstance(data, dict)
@@ -199,9 +210,8 @@ def test_bad_input_is_one_line_and_exit_2(
     assert "unknown column" in _one_line(capsys, [*base, "--track", str(extra)])
 
 
-def test_without_force_log_the_planned_forces_are_used(weld: tuple[Path, Path, Path]) -> None:
-    plan, _, track = weld
-    res = validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
+def test_without_force_log_the_planned_forces_are_used(planned_forces_validation: Any) -> None:
+    res = planned_forces_validation
     assert res.forces_source == "planned"
     assert any("planned forces" in n for n in res.notes)
     # The softer joint still dominates the residual.
@@ -220,12 +230,7 @@ def test_save_robot_is_named_compact_and_says_where_it_came_from(
     from rfsw_plan.robot.description import load_robot_description
 
     plan, forces, track = weld
-    # The next command names the file after the robot it will hold.
-    assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
-                 str(forces), "-o", str(tmp_path / "v0")]) == 0
-    # Under out/ and without a colon in the file name (issue 33, wall 5).
-    assert ("--save-robot out/robots/zk500_seed001+joint_compliance-j1.toml"
-            in capsys.readouterr().out)
+    # The next command that names this file: test_cli_outputs_report_pngs_and_strict_json.
     saved = tmp_path / "robots" / "zk500_seed001+joint_compliance-j1.toml"  # folder made on the way
     assert main(["-q", "validate-weld", str(plan), "--track", str(track), "--forces",
                  str(forces), "-o", str(tmp_path / "v1"), "--add", "joint_compliance:j1",
@@ -282,14 +287,13 @@ def _texts_inside(fig: Any) -> list[str]:
     return out
 
 
-def test_weld_report_plots_say_what_they_show(weld: tuple[Path, Path, Path], tmp_path: Path,
+def test_weld_report_plots_say_what_they_show(planned_forces_validation: Any, tmp_path: Path,
                                               monkeypatch: pytest.MonkeyPatch) -> None:
     """weld_residual.png was titled "residual: missing" (issue 33, wall 10): its title says
     what is plotted and the verdict with its best candidate; no text of either plot is clipped."""
     from rfsw_plan.validation.report import validate_weld as weld_report
 
-    plan, _, track = weld
-    res = validate_weld(PlanFolder.open(plan).rebuild(), read_weld_track(track))
+    res = planned_forces_validation
     figs: dict[str, Any] = {}
     real = weld_report.write_figure
 
