@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import ast
 import contextlib
+import functools
 import importlib
 import logging
 import os
@@ -21,12 +22,15 @@ from typing import Any, NoReturn
 from rfsw_plan.exceptions import RfswError
 
 
-def _command_specs() -> list[tuple[str, str, str]]:
+@functools.cache
+def _command_specs() -> tuple[tuple[str, str, str], ...]:
     """``(NAME, HELP, module)`` of every command module, sorted by module name.
 
     NAME and HELP are read from the module's source (string literals) without importing it, so
     ``rfsw-plan --help`` imports no command and none of the heavy libraries; a module whose
-    NAME or HELP is not a literal is imported to read them."""
+    NAME or HELP is not a literal is imported to read them. Read once per process (the
+    installed command modules do not change while it runs): a program or a test that calls
+    :func:`main` many times parses the 16 sources once, not 22 ms of CPU at every call."""
     import rfsw_plan.cli.commands as pkg
 
     specs = []
@@ -39,7 +43,7 @@ def _command_specs() -> list[tuple[str, str, str]]:
             mod = importlib.import_module(modname)
             found = {"NAME": mod.NAME, "HELP": mod.HELP}
         specs.append((found["NAME"], found["HELP"], modname))
-    return specs
+    return tuple(specs)
 
 
 def _literal_names(path: Path) -> dict[str, str]:
