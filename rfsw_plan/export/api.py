@@ -32,7 +32,7 @@ import numpy as np
 from rfsw_plan import __version__
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, OutputPathError
-from rfsw_plan.export.format import formats, get_format, parse_formats
+from rfsw_plan.export.format import formats, get_format, min_move, parse_formats
 from rfsw_plan.export.program import (
     Program,
     ProgramHeader,
@@ -218,7 +218,8 @@ def export_programs(
     with Stages("export", ("points", *fmts)) as stages:
         program = build_program(robot, samples, header, path_tol, normal=normal,
                                 payload=model.tool_payload(), options=options,
-                                stream=stream, cycle=cycle, depth=depth, pin=pin)
+                                stream=stream, cycle=cycle, depth=depth, pin=pin,
+                                min_move=min_move())
         deviation = 0.0
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
             dev = get_format(name).path_deviation(program)

@@ -121,6 +121,11 @@ class ControllerFormat(abc.ABC):
         limits: The controller's limits.
         order: Where the format stands in :func:`formats` (lowest first, then by name): the
             order of ``--format``'s default and of the written files.
+        cycle: The controller's interpolation cycle [s]: no move or wait of a program is
+            shorter (a shorter one cannot run as written; the controller slows down or
+            stops), 0 for a format without moves (the stream). The export builds one program
+            for every format, so every program respects the longest cycle of the registered
+            formats (:func:`min_move`).
     """
 
     name: ClassVar[str] = ""
@@ -129,6 +134,7 @@ class ControllerFormat(abc.ABC):
     maker: ClassVar[str] = ""
     limits: ClassVar[FormatLimits] = FormatLimits()
     order: ClassVar[int] = 100
+    cycle: ClassVar[float] = 0.0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
@@ -201,6 +207,13 @@ def formats() -> dict[str, type[ControllerFormat]]:
         if not mod.name.startswith("_") and mod.name not in SUPPORT_MODULES:
             importlib.import_module(f"{package.__name__}.{mod.name}")
     return dict(sorted(FORMATS.items(), key=lambda kv: (kv[1].order, kv[0])))
+
+
+def min_move() -> float:
+    """The shortest move or wait of an exported program [s]: the longest interpolation cycle
+    of the registered formats (:attr:`ControllerFormat.cycle`). One value for all, so a
+    program's bytes do not depend on which other formats are written with it."""
+    return max((c.cycle for c in formats().values()), default=0.0)
 
 
 def format_names() -> tuple[str, ...]:
