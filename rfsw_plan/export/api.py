@@ -32,7 +32,7 @@ import numpy as np
 from rfsw_plan import __version__
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, OutputPathError
-from rfsw_plan.export.format import formats, get_format, min_move, parse_formats
+from rfsw_plan.export.format import formats, get_format, parse_formats
 from rfsw_plan.export.program import (
     Program,
     ProgramHeader,
@@ -216,13 +216,21 @@ def export_programs(
     pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", *fmts)) as stages:
-        program = build_program(robot, samples, header, path_tol, normal=normal,
-                                payload=model.tool_payload(), options=options,
-                                stream=stream, cycle=cycle, depth=depth, pin=pin,
-                                min_move=min_move())
+        # one program per interpolation cycle: no move or wait of a format's file is shorter
+        built: dict[float, Program] = {}
+        programs: dict[str, Program] = {}
+        for name in fmts:
+            c = get_format(name).cycle
+            if c not in built:
+                built[c] = build_program(robot, samples, header, path_tol, normal=normal,
+                                         payload=model.tool_payload(), options=options,
+                                         stream=stream, cycle=cycle, depth=depth, pin=pin,
+                                         min_move=c)
+            programs[name] = built[c]
+        program = programs[fmts[0]]
         deviation = 0.0
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
-            dev = get_format(name).path_deviation(program)
+            dev = get_format(name).path_deviation(programs[name])
             k = int(np.argmax(dev))
             deviation = max(deviation, float(dev[k]))
             if dev[k] > path_tol * (1 + 1e-9):
@@ -240,7 +248,7 @@ def export_programs(
                                   f"cannot stage the programs ({exc.strerror}); set TMPDIR to "
                                   "a writable folder") from None
         try:
-            staged, trips = _write_all(program, fmts, stage, check, stages)
+            staged, trips = _write_all(programs, fmts, stage, check, stages)
             for f in staged:
                 _refuse_collision(out / f.name, problem)
             final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
@@ -272,15 +280,17 @@ def _refuse_collision(path: Path, problem: str) -> None:
             return
 
 
-def _write_all(program: Program, fmts: Sequence[str], stage: Path,
+def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path,
                check: SampleCheck | None, stages: Stages) -> tuple[list[Path],
                                                                    dict[str, RoundTrip]]:
-    """Write every format into ``stage``, re-read it and take it through the model."""
+    """Write every format's program into ``stage``, re-read it and take it through the
+    model."""
     staged: list[Path] = []
     trips: dict[str, RoundTrip] = {}
     for name in fmts:
         stages.start(name)
         fmt = get_format(name)
+        program = programs[name]
         files = fmt.write(program, stage)
         expected = fmt.expected(program)
         trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)

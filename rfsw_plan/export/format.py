@@ -123,9 +123,9 @@ class ControllerFormat(abc.ABC):
             order of ``--format``'s default and of the written files.
         cycle: The controller's interpolation cycle [s]: no move or wait of a program is
             shorter (a shorter one cannot run as written; the controller slows down or
-            stops), 0 for a format without moves (the stream). The export builds one program
-            for every format, so every program respects the longest cycle of the registered
-            formats (:func:`min_move`).
+            stops), 0 for a format without moves (the stream). The export builds the
+            vendor-neutral program once per cycle (``build_program(min_move=cycle)``), so a
+            format's file does not depend on which other formats are written with it.
     """
 
     name: ClassVar[str] = ""
@@ -207,13 +207,6 @@ def formats() -> dict[str, type[ControllerFormat]]:
         if not mod.name.startswith("_") and mod.name not in SUPPORT_MODULES:
             importlib.import_module(f"{package.__name__}.{mod.name}")
     return dict(sorted(FORMATS.items(), key=lambda kv: (kv[1].order, kv[0])))
-
-
-def min_move() -> float:
-    """The shortest move or wait of an exported program [s]: the longest interpolation cycle
-    of the registered formats (:attr:`ControllerFormat.cycle`). One value for all, so a
-    program's bytes do not depend on which other formats are written with it."""
-    return max((c.cycle for c in formats().values()), default=0.0)
 
 
 def format_names() -> tuple[str, ...]:

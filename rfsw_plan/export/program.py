@@ -671,16 +671,29 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
     a = np.where(n > 0, a / np.maximum(n, 1e-300), 0.0) @ to_work.T
     limit = SPEED_SPLIT * float(np.max(np.gradient(samples.s[r0:r1 + 1], t[r0:r1 + 1])))
     out = set(keep) | {r0, r1}
+
+    def change(i: int, j: int) -> tuple[FloatArray, FloatArray]:
+        """a . w over the chord i -> j [m] and its rate [m/s]."""
+        _, f = _chord_fraction(P, i, j)
+        p0, p1 = P[i, :3, 3], P[j, :3, 3]
+        w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
+        along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
+        return along, np.gradient(along, t[i:j + 1])
+
     stack = list(itertools.pairwise(sorted(i for i in out if r0 <= i <= r1)))
+    if min_move > 0:
+        for i, j in stack:
+            if j - i >= 2:
+                if (i, j) not in memo:
+                    memo[i, j] = _cycle_cuts(change, t, i, j, limit, min_move)
+                out |= set(memo[i, j])
+        return out
     while stack:
         i, j = stack.pop()
         if j - i < 2:
             continue
         if (i, j) not in memo:
-            _, f = _chord_fraction(P, i, j)
-            p0, p1 = P[i, :3, 3], P[j, :3, 3]
-            w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
-            along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
+            along, _ = change(i, j)
             # split at the bulge's apex (as Douglas-Peucker does), not where it changes
             # fastest: that is at the segment's ends, and splitting there cascades into
             # one-sample moves; only where both parts last a cycle at least
@@ -695,6 +708,38 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
             out.add(m)
             stack += [(i, m), (m, j)]
     return out
+
+
+def _cycle_cuts(change: Any, t: FloatArray, i: int, j: int, limit: float, min_move: float
+                ) -> tuple[int, ...]:
+    """The cuts of segment i..j (samples, times t [s]) into moves of at least ``min_move``
+    [s] whose largest speed change (``change(i, j)[1]``, [m/s]) is smallest, and as few moves
+    as reach that (a change below ``limit`` counts as ``limit``): a shortest-path search over
+    the samples (minimax), each move at most :data:`CUT_SAMPLES` samples long unless the
+    segment is kept whole."""
+    worst0 = float(np.max(np.abs(change(i, j)[1])))
+    if worst0 <= limit or t[j] - t[i] < 2 * min_move - 1e-9:
+        return ()
+    n = j - i
+    best: list[tuple[float, int, int]] = [(0.0, 0, -1)] + [(math.inf, 0, -1)] * n
+    for k in range(1, n + 1):
+        for m in range(max(0, k - CUT_SAMPLES), k):
+            if t[i + k] - t[i + m] < min_move - 1e-9 or best[m][0] == math.inf:
+                continue
+            e = max(best[m][0], max(limit, float(np.max(np.abs(change(i + m, i + k)[1])))))
+            if (e, best[m][1] + 1) < best[k][:2]:
+                best[k] = (e, best[m][1] + 1, m)
+    if best[n][0] >= max(worst0, limit):
+        return ()
+    cuts, k = [], n
+    while best[k][2] > 0:
+        k = best[k][2]
+        cuts.append(i + k)
+    return tuple(sorted(cuts))
+
+
+#: Longest move :func:`_cycle_cuts` considers [samples].
+CUT_SAMPLES = 40
 
 
 def _at_least_one_cycle(samples: Samples, idx: NDArray[np.int_], min_move: float,
