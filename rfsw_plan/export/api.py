@@ -60,13 +60,17 @@ class ExportResult:
     Attributes:
         files: The files written, final names.
         round_trips: Per format, the re-read points against the plan.
-        n_points: Number of program points.
+        n_points: Number of program points (of the first format written that has moves: the
+            program is built once per interpolation cycle, so formats of another cycle may
+            have others, ``points_per_format``).
         points_per_format: Points (rows, for a stream) each format wrote.
         header: The program header.
         sample_check: What checked the re-read points and stream rows (empty: none).
         max_path_deviation: Largest bound of a verified sample's distance to the path the
             controller runs, blending included [m].
         notes: What the programmer must know (payload, frames), also in every header.
+        n_moved: Of ``n_points``, the points a motion moves to (the others are held by a
+            wait); -1: not known.
     """
 
     files: tuple[Path, ...]
@@ -77,6 +81,7 @@ class ExportResult:
     sample_check: str = ""
     max_path_deviation: float = 0.0
     notes: tuple[str, ...] = ()
+    n_moved: int = -1
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units). ``files`` are named inside the folder they were
@@ -227,7 +232,8 @@ def export_programs(
                                          stream=stream, cycle=cycle, depth=depth, pin=pin,
                                          min_move=c)
             programs[name] = built[c]
-        program = programs[fmts[0]]
+        lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
+        program = programs[lead]
         deviation = 0.0
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
             dev = get_format(name).path_deviation(programs[name])
@@ -257,7 +263,8 @@ def export_programs(
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
     rows = {name: len(trip.q) for name, trip in trips.items()}
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
-                        checked.strip(), deviation, program.header.notes)
+                        checked.strip(), deviation, program.header.notes,
+                        len(trips[lead].q))
 
 
 def _refuse_collision(path: Path, problem: str) -> None:

@@ -20,7 +20,11 @@ Points (:func:`build_program`):
 
 Motions: a linear move to every point after the first, with the speed that keeps the plan's
 time on that segment (chord length / planned duration); a segment over which the pose does not
-change (below 1 um and 0.001 deg) is a wait for its planned duration.
+change (below 1 um and 0.001 deg) is a wait for its planned duration. No move or wait is
+shorter than the controller's interpolation cycle (``min_move``, the format's
+:attr:`~rfsw_plan.export.format.ControllerFormat.cycle`): the speed split cuts at least a
+cycle apart (:func:`_cycle_cuts`) and a shorter move or hold left over is merged into its
+neighbour (:func:`_at_least_one_cycle`).
 
 Blending (:func:`blend_distance`), the model of every vendor's approximation used here: the
 controller leaves the programmed polyline at most ``d`` before a blended point and rejoins it
@@ -640,7 +644,10 @@ def _timed_refine(P: FloatArray, t: FloatArray, keep: set[int], rows: NDArray[np
 #: of the weld speed costs it 0.6 points), 0.5 % at +-2.73 %, 0.25 % at +-2.77 %, 0.1 % holds
 #: the claim on both (split at the bulge's apex: zk500 96 -> 206 KRL points, fanuc 144 ->
 #: 192). The moves it makes can be one 10 ms sample long (fanuc's weld start, where the
-#: claim's slack is smallest): a shortest move of 20 ms left fanuc's programs at +-2.62 %.
+#: claim's slack is smallest): a shortest move of 20 ms left fanuc's programs at +-2.62 %
+#: (apex splits), +-2.73 % with :func:`_cycle_cuts`' minimax cuts, which the KRL and RAPID
+#: programs need (12 ms cycle: ``check`` fails them on the three FANUC plans; the TP, 8 ms,
+#: keeps the 10 ms moves and holds).
 SPEED_SPLIT = 0.001
 
 
