@@ -221,17 +221,9 @@ def export_programs(
     pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", *fmts)) as stages:
-        # one program per interpolation cycle: no move or wait of a format's file is shorter
-        built: dict[float, Program] = {}
-        programs: dict[str, Program] = {}
-        for name in fmts:
-            c = get_format(name).cycle
-            if c not in built:
-                built[c] = build_program(robot, samples, header, path_tol, normal=normal,
-                                         payload=model.tool_payload(), options=options,
-                                         stream=stream, cycle=cycle, depth=depth, pin=pin,
-                                         min_move=c)
-            programs[name] = built[c]
+        programs = _programs_per_cycle(fmts, lambda c: build_program(
+            robot, samples, header, path_tol, normal=normal, payload=model.tool_payload(),
+            options=options, stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=c))
         lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
         program = programs[lead]
         deviation = 0.0
@@ -265,6 +257,21 @@ def export_programs(
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
                         checked.strip(), deviation, program.header.notes,
                         len(trips[lead].q))
+
+
+def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
+                        ) -> dict[str, Program]:
+    """Per format, its program: ``build(cycle)`` once per interpolation cycle
+    (:attr:`ControllerFormat.cycle`), so no move or wait of a format's file is shorter than
+    its controller's cycle and a file does not depend on the other formats written."""
+    built: dict[float, Program] = {}
+    out: dict[str, Program] = {}
+    for name in fmts:
+        c = get_format(name).cycle
+        if c not in built:
+            built[c] = build(c)
+        out[name] = built[c]
+    return out
 
 
 def _refuse_collision(path: Path, problem: str) -> None:
