@@ -60,13 +60,17 @@ class ExportResult:
     Attributes:
         files: The files written, final names.
         round_trips: Per format, the re-read points against the plan.
-        n_points: Number of program points.
+        n_points: Number of program points (of the first format written that has moves: the
+            program is built once per interpolation cycle, so formats of another cycle may
+            have others, ``points_per_format``).
         points_per_format: Points (rows, for a stream) each format wrote.
         header: The program header.
         sample_check: What checked the re-read points and stream rows (empty: none).
         max_path_deviation: Largest bound of a verified sample's distance to the path the
             controller runs, blending included [m].
         notes: What the programmer must know (payload, frames), also in every header.
+        n_moved: Of ``n_points``, the points a motion moves to (the others are held by a
+            wait); -1: not known.
     """
 
     files: tuple[Path, ...]
@@ -77,6 +81,7 @@ class ExportResult:
     sample_check: str = ""
     max_path_deviation: float = 0.0
     notes: tuple[str, ...] = ()
+    n_moved: int = -1
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units). ``files`` are named inside the folder they were
@@ -216,12 +221,14 @@ def export_programs(
     pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", *fmts)) as stages:
-        program = build_program(robot, samples, header, path_tol, normal=normal,
-                                payload=model.tool_payload(), options=options,
-                                stream=stream, cycle=cycle, depth=depth, pin=pin)
+        programs = _programs_per_cycle(fmts, lambda c: build_program(
+            robot, samples, header, path_tol, normal=normal, payload=model.tool_payload(),
+            options=options, stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=c))
+        lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
+        program = programs[lead]
         deviation = 0.0
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
-            dev = get_format(name).path_deviation(program)
+            dev = get_format(name).path_deviation(programs[name])
             k = int(np.argmax(dev))
             deviation = max(deviation, float(dev[k]))
             if dev[k] > path_tol * (1 + 1e-9):
@@ -239,7 +246,7 @@ def export_programs(
                                   f"cannot stage the programs ({exc.strerror}); set TMPDIR to "
                                   "a writable folder") from None
         try:
-            staged, trips = _write_all(program, fmts, stage, check, stages)
+            staged, trips = _write_all(programs, fmts, stage, check, stages)
             for f in staged:
                 _refuse_collision(out / f.name, problem)
             final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
@@ -248,7 +255,23 @@ def export_programs(
     checked = "" if check is None else f"passed: {getattr(check, '__doc__', '') or 'check'}"
     rows = {name: len(trip.q) for name, trip in trips.items()}
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
-                        checked.strip(), deviation, program.header.notes)
+                        checked.strip(), deviation, program.header.notes,
+                        len(trips[lead].q))
+
+
+def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
+                        ) -> dict[str, Program]:
+    """Per format, its program: ``build(cycle)`` once per interpolation cycle
+    (:attr:`ControllerFormat.cycle`), so no move or wait of a format's file is shorter than
+    its controller's cycle and a file does not depend on the other formats written."""
+    built: dict[float, Program] = {}
+    out: dict[str, Program] = {}
+    for name in fmts:
+        c = get_format(name).cycle
+        if c not in built:
+            built[c] = build(c)
+        out[name] = built[c]
+    return out
 
 
 def _refuse_collision(path: Path, problem: str) -> None:
@@ -271,15 +294,17 @@ def _refuse_collision(path: Path, problem: str) -> None:
             return
 
 
-def _write_all(program: Program, fmts: Sequence[str], stage: Path,
+def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path,
                check: SampleCheck | None, stages: Stages) -> tuple[list[Path],
                                                                    dict[str, RoundTrip]]:
-    """Write every format into ``stage``, re-read it and take it through the model."""
+    """Write every format's program into ``stage``, re-read it and take it through the
+    model."""
     staged: list[Path] = []
     trips: dict[str, RoundTrip] = {}
     for name in fmts:
         stages.start(name)
         fmt = get_format(name)
+        program = programs[name]
         files = fmt.write(program, stage)
         expected = fmt.expected(program)
         trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)

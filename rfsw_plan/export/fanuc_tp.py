@@ -86,6 +86,11 @@ MAX_LINES = 9999
 #: Position registers the program writes the user frame and tool frame into.
 PR_UFRAME = 91
 PR_UTOOL = 92
+#: FANUC's interpolation period (ITP) [s]: 8 ms on R-30iA, R-30iB, R-30iB Plus (public
+#: source: industrialmonitordirect.com knowledge base, "FANUC Robot Cycle Time Deviation:
+#: ITP-Based Resolution": a motion's time is rounded up to whole ITPs, 16 ms selectable).
+#: No move or WAIT of a program is shorter (:attr:`ControllerFormat.cycle`).
+ITP_CYCLE = 0.008
 #: Joint speed of the move to the approach point [%].
 J_PERCENT = 10
 #: CREATE/MODIFIED stamp (fixed: the same plan gives the same bytes on every machine).
@@ -179,6 +184,7 @@ class FanucTpFormat(ControllerFormat):
     suffix = ".ls"
     maker = "FANUC"
     limits = FormatLimits(name_length=36, max_lines=MAX_LINES)
+    cycle = ITP_CYCLE
 
     def file_name(self, program: Program) -> str:
         return tp_name(program.header.name) + ".ls"

@@ -121,6 +121,11 @@ class ControllerFormat(abc.ABC):
         limits: The controller's limits.
         order: Where the format stands in :func:`formats` (lowest first, then by name): the
             order of ``--format``'s default and of the written files.
+        cycle: The controller's interpolation cycle [s]: no move or wait of a program is
+            shorter (a shorter one cannot run as written; the controller slows down or
+            stops), 0 for a format without moves (the stream). The export builds the
+            vendor-neutral program once per cycle (``build_program(min_move=cycle)``), so a
+            format's file does not depend on which other formats are written with it.
     """
 
     name: ClassVar[str] = ""
@@ -129,6 +134,7 @@ class ControllerFormat(abc.ABC):
     maker: ClassVar[str] = ""
     limits: ClassVar[FormatLimits] = FormatLimits()
     order: ClassVar[int] = 100
+    cycle: ClassVar[float] = 0.0
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -20,7 +20,11 @@ Points (:func:`build_program`):
 
 Motions: a linear move to every point after the first, with the speed that keeps the plan's
 time on that segment (chord length / planned duration); a segment over which the pose does not
-change (below 1 um and 0.001 deg) is a wait for its planned duration.
+change (below 1 um and 0.001 deg) is a wait for its planned duration. No move or wait is
+shorter than the controller's interpolation cycle (``min_move``, the format's
+:attr:`~rfsw_plan.export.format.ControllerFormat.cycle`): the speed split cuts at least a
+cycle apart (:func:`_cycle_cuts`) and a shorter move or hold left over is merged into its
+neighbour (:func:`_at_least_one_cycle`).
 
 Blending (:func:`blend_distance`), the model of every vendor's approximation used here: the
 controller leaves the programmed polyline at most ``d`` before a blended point and rejoins it
@@ -443,7 +447,7 @@ def build_program(
     angle_tol: float = math.radians(0.01), normal: FloatArray | None = None,
     payload: Payload | None = None, options: ProgramOptions | None = None,
     stream: Samples | None = None, cycle: float = 0.0, extra: frozenset[int] = frozenset(),
-    depth: float = 0.0, pin: FloatArray | None = None,
+    depth: float = 0.0, pin: FloatArray | None = None, min_move: float = 0.0,
 ) -> Program:
     """Select points, motions, blending and hooks from verified samples (module docstring).
 
@@ -468,10 +472,14 @@ def build_program(
         pin: The predicted (loaded) pin tip of every sample, base frame [m], (N, 3): the
             TCP plus the model's process deflection (``waypoints.csv`` x + dx). None: the
             TCP (no deflection known). The hooks are placed by it (:func:`_with_hooks`).
+        min_move: The shortest move or wait the controllers run as written [s] (their
+            interpolation cycle, :attr:`ControllerFormat.cycle`): no two points closer in
+            plan time (:func:`_speed_refine` cuts at least this far apart,
+            :func:`_at_least_one_cycle` merges what is left). 0: no minimum.
     """
     args = dict(robot=robot, samples=samples, header=header, path_tol=path_tol,
                 angle_tol=angle_tol, normal=normal, payload=payload, options=options,
-                stream=stream, cycle=cycle, depth=depth, pin=pin)
+                stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=min_move)
     if header.spacing <= 0:
         raise InputError("export_spacing", "", f"got {header.spacing * 1e3:g}", "> 0")
     T = sample_fk(robot, samples.q)
@@ -483,12 +491,15 @@ def build_program(
     h = pin_heights(samples, T[:, :3, 3] if pin is None else pin, (conv.base @ work)[:3, 2],
                     depth)
 
-    keep = _anchor_points(samples, header.spacing) | _hook_points(samples, h)
+    hooks = _hook_points(samples, h)
+    keep = _anchor_points(samples, header.spacing) | hooks
     keep = _refine(P, keep | {int(i) for i in extra}, 0.5 * path_tol, angle_tol)
     keep = _timed_refine(P, samples.t, keep, np.flatnonzero(samples.phase == "stop"),
                          0.5 * path_tol)
-    keep = _speed_refine(P, samples, keep, np.asarray(to_work[:3, :3], dtype=float))
+    keep = _speed_refine(P, samples, keep, np.asarray(to_work[:3, :3], dtype=float),
+                         min_move)
     idx = _without_stops(samples, P, np.array(sorted(keep), dtype=int))
+    idx = _at_least_one_cycle(samples, idx, min_move, hooks)
     motions = _motions(samples, P, idx, path_tol, T[:, :3, 3] if pin is None else pin)
     motions = _with_hooks(motions, idx, h, samples)
     if payload is None:
@@ -633,27 +644,33 @@ def _timed_refine(P: FloatArray, t: FloatArray, keep: set[int], rows: NDArray[np
 #: of the weld speed costs it 0.6 points), 0.5 % at +-2.73 %, 0.25 % at +-2.77 %, 0.1 % holds
 #: the claim on both (split at the bulge's apex: zk500 96 -> 206 KRL points, fanuc 144 ->
 #: 192). The moves it makes can be one 10 ms sample long (fanuc's weld start, where the
-#: claim's slack is smallest): a shortest move of 20 ms left fanuc's programs at +-2.62 %.
+#: claim's slack is smallest): a shortest move of 20 ms left fanuc's programs at +-2.62 %
+#: (apex splits), +-2.73 % with :func:`_cycle_cuts`' minimax cuts, which the KRL and RAPID
+#: programs need (12 ms cycle: ``check`` fails them on the three FANUC plans; the TP, 8 ms,
+#: keeps the 10 ms moves and holds).
 SPEED_SPLIT = 0.001
 
 
-def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: FloatArray
-                  ) -> set[int]:
+def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: FloatArray,
+                  min_move: float = 0.0) -> set[int]:
     """Split the travel's segments (accelerate, weld, decelerate) where the chord changes
     the TCP's speed along the seam by more than :data:`SPEED_SPLIT` of the weld speed: the
     TCP on the chord at the fraction nearest to the plan's (as the controller runs a LIN, see
     :func:`rfsw_plan.export.check.run_as_controller`) differs from the plan's by w, and its
     speed along the seam by d(a . w)/dt, a the direction the seam point moves (work frame,
     ``to_work`` the base-to-work rotation). Split at the largest a . w, until no change
-    exceeds it. Each segment's verdict is remembered for the same poses, samples and frame
-    (:func:`_segment_memo`): a rebuilt program judges only the segments it has not seen."""
+    exceeds it. A cut leaves at least ``min_move`` [s] of plan time on either side (the
+    controller's interpolation cycle: the apex among the samples that do; a segment shorter
+    than two cycles is not cut). Each segment's verdict is remembered for the same poses,
+    samples, frame and ``min_move`` (:func:`_segment_memo`): a rebuilt program judges only the
+    segments it has not seen."""
     rows = np.flatnonzero(np.isin(samples.phase, WELD_PHASES))
     if len(rows) < 3:
         return keep
     inputs = hashlib.blake2b(digest_size=16)
     for x in (samples.seam, samples.t, samples.s, to_work):
         inputs.update(np.ascontiguousarray(x, dtype=float).tobytes())
-    memo = _segment_memo(P, "speed " + inputs.hexdigest(), SPEED_SPLIT)
+    memo = _segment_memo(P, "speed " + inputs.hexdigest(), SPEED_SPLIT, min_move)
     r0, r1 = int(rows[0]), int(rows[-1])
     t = samples.t
     a = np.gradient(np.asarray(samples.seam, float)[r0:r1 + 1], t[r0:r1 + 1], axis=0)
@@ -661,26 +678,102 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
     a = np.where(n > 0, a / np.maximum(n, 1e-300), 0.0) @ to_work.T
     limit = SPEED_SPLIT * float(np.max(np.gradient(samples.s[r0:r1 + 1], t[r0:r1 + 1])))
     out = set(keep) | {r0, r1}
+
+    def change(i: int, j: int) -> tuple[FloatArray, FloatArray]:
+        """a . w over the chord i -> j [m] and its rate [m/s]."""
+        _, f = _chord_fraction(P, i, j)
+        p0, p1 = P[i, :3, 3], P[j, :3, 3]
+        w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
+        along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
+        return along, np.gradient(along, t[i:j + 1])
+
     stack = list(itertools.pairwise(sorted(i for i in out if r0 <= i <= r1)))
+    if min_move > 0:
+        for i, j in stack:
+            if j - i >= 2:
+                if (i, j) not in memo:
+                    memo[i, j] = _cycle_cuts(change, t, i, j, limit, min_move)
+                out |= set(memo[i, j])
+        return out
     while stack:
         i, j = stack.pop()
         if j - i < 2:
             continue
         if (i, j) not in memo:
-            _, f = _chord_fraction(P, i, j)
-            p0, p1 = P[i, :3, 3], P[j, :3, 3]
-            w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
-            along = np.einsum("ki,ki->k", a[i - r0:j - r0 + 1], w)
+            along, _ = change(i, j)
             # split at the bulge's apex (as Douglas-Peucker does), not where it changes
             # fastest: that is at the segment's ends, and splitting there cascades into
-            # one-sample moves
-            memo[i, j] = (min(max(i + int(np.argmax(np.abs(along))), i + 1), j - 1)
-                          if np.max(np.abs(np.gradient(along, t[i:j + 1]))) > limit else -1)
+            # one-sample moves; only where both parts last a cycle at least
+            tt = t[i:j + 1]
+            ok = (tt - tt[0] >= min_move - 1e-9) & (tt[-1] - tt >= min_move - 1e-9)
+            ok[0] = ok[-1] = False
+            memo[i, j] = (i + int(np.argmax(np.where(ok, np.abs(along), -1.0)))
+                          if ok.any() and np.max(np.abs(np.gradient(along, tt))) > limit
+                          else -1)
         m = memo[i, j]
         if m >= 0:
             out.add(m)
             stack += [(i, m), (m, j)]
     return out
+
+
+def _cycle_cuts(change: Any, t: FloatArray, i: int, j: int, limit: float, min_move: float
+                ) -> tuple[int, ...]:
+    """The cuts of segment i..j (samples, times t [s]) into moves of at least ``min_move``
+    [s] whose largest speed change (``change(i, j)[1]``, [m/s]) is smallest, and as few moves
+    as reach that (a change below ``limit`` counts as ``limit``): a shortest-path search over
+    the samples (minimax), each move at most :data:`CUT_SAMPLES` samples long unless the
+    segment is kept whole."""
+    worst0 = float(np.max(np.abs(change(i, j)[1])))
+    if worst0 <= limit or t[j] - t[i] < 2 * min_move - 1e-9:
+        return ()
+    n = j - i
+    best: list[tuple[float, int, int]] = [(0.0, 0, -1)] + [(math.inf, 0, -1)] * n
+    for k in range(1, n + 1):
+        for m in range(max(0, k - CUT_SAMPLES), k):
+            if t[i + k] - t[i + m] < min_move - 1e-9 or best[m][0] == math.inf:
+                continue
+            e = max(best[m][0], max(limit, float(np.max(np.abs(change(i + m, i + k)[1])))))
+            if (e, best[m][1] + 1) < best[k][:2]:
+                best[k] = (e, best[m][1] + 1, m)
+    if best[n][0] >= max(worst0, limit):
+        return ()
+    cuts, k = [], n
+    while best[k][2] > 0:
+        k = best[k][2]
+        cuts.append(i + k)
+    return tuple(sorted(cuts))
+
+
+#: Longest move :func:`_cycle_cuts` considers [samples].
+CUT_SAMPLES = 40
+
+
+def _at_least_one_cycle(samples: Samples, idx: NDArray[np.int_], min_move: float,
+                        hooks: set[int]) -> NDArray[np.int_]:
+    """The points without those that end a move or wait shorter than ``min_move`` [s] of
+    plan time (the controller's interpolation cycle: a shorter move cannot run as written,
+    the controller slows down or stops). Of two points closer than that the later goes,
+    unless it must stay (the first and last sample, a phase's last sample, a hook's point:
+    :func:`_hook_points`), then the earlier; the merged move runs at the speed that keeps
+    the plan's time between its ends. Two points that must both stay are kept (the export's
+    checks judge the result)."""
+    if min_move <= 0 or len(idx) < 3:
+        return idx
+    ph, t = samples.phase, samples.t
+    n = len(samples)
+    fixed = {0, n - 1} | set(hooks) | {int(i) for i in np.flatnonzero(ph[:-1] != ph[1:])}
+    out = [int(idx[0])]
+    for j in (int(x) for x in idx[1:]):
+        if t[j] - t[out[-1]] >= min_move - 1e-9:
+            out.append(j)
+        elif j not in fixed:
+            continue
+        elif out[-1] not in fixed and len(out) > 1:
+            out[-1] = j
+        else:
+            out.append(j)
+    return np.array(out, dtype=int)
 
 
 def _chord_fraction(P: FloatArray, i: int, j: int) -> tuple[FloatArray, FloatArray]:

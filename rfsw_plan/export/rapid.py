@@ -48,6 +48,12 @@ FloatArray = NDArray[np.float64]
 
 #: Joint-move speed to the approach point.
 MOVEJ_SPEED = "v100"
+#: ABB's path interpolation cycle [s], ASSUMED: no public source found gives the IRC5 /
+#: OmniCore path planner's cycle (the only public ABB figure found is EGM's 4 ms, 250 Hz,
+#: position update: abb-motion-program-exec docs, "EGM Support"), so the program is held to
+#: KUKA's 12 ms IPO (:data:`rfsw_plan.export.krl.IPO_CYCLE`), the longer of the two. No move
+#: or WaitTime of a program is shorter (:attr:`ControllerFormat.cycle`).
+PATH_CYCLE = 0.012
 #: Lines of the procedure above which the motions move into sub-procedures.
 MAX_LINES = 5000
 #: Default hook comments.
@@ -133,6 +139,7 @@ class RapidFormat(ControllerFormat):
     suffix = ".mod"
     maker = "ABB"
     limits = FormatLimits(name_length=32, max_lines=MAX_LINES)
+    cycle = PATH_CYCLE
 
     def file_name(self, program: Program) -> str:
         return rapid_name(program.header.name) + ".mod"

@@ -210,7 +210,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     # The round trips and `check` count the points a motion moves to; a point held by a wait
     # (the dwell) is one of the program's points but not a move: both numbers, named.
-    moved = min((len(t.q) for t in res.round_trips.values()), default=res.n_points)
+    moved = res.n_moved if res.n_moved >= 0 else \
+        min((len(t.q) for t in res.round_trips.values()), default=res.n_points)
     held = res.n_points - moved
     points = f"{res.n_points} points" + (f" ({moved} moved to, {held} held by a wait)"
                                          if 0 < held < res.n_points else "")
