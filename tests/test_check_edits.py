@@ -178,6 +178,21 @@ def test_a_program_of_another_plan_is_refused_by_its_plan_id(zk500: Path, capsys
     assert f"is a program of plan {m.group(1)}-{other}, not of this plan {m.group(0)[9:]}" in out
 
 
+def test_a_tp_of_another_plan_is_refused_by_its_wrapped_plan_id(zk500: Path, capsys) -> None:
+    """The TP's remarks wrap the header (``! plan id: ;`` then the id on the next line):
+    check reads the id there too (it once missed it and checked a TP of another plan)."""
+    ls = _file(zk500, ".ls")
+    text = ls.read_text()
+    pid = re.search(r"(zk500_table6_seam)-([0-9a-f]{12})", text)
+    assert pid is not None and not re.search(r"plan id: zk500", text)  # wrapped
+    other = "0" * 12 if pid.group(2) != "0" * 12 else "1" * 12
+    ls.write_text(text.replace(pid.group(0), f"{pid.group(1)}-{other}"))
+    code, out = _check(capsys, ls)
+    assert code == 3, out
+    assert f"is a program of plan {pid.group(1)}-{other}, not of this plan {pid.group(0)}" \
+        in out, out
+
+
 def test_a_touch_up_inside_the_plan_folder_is_reverified(zk500: Path, capsys) -> None:
     """The documented workflow: edit the exported program where it is; check re-verifies it
     and says what changed (it used to refuse: "changed since plan.json was written")."""

@@ -23,7 +23,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +32,14 @@ import numpy as np
 from rfsw_plan import __version__
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, OutputPathError
-from rfsw_plan.export.format import formats, get_format, parse_formats
+from rfsw_plan.export.check import CLAIM_TOL, PlanBasis, judge_program
+from rfsw_plan.export.format import (
+    ControllerFormat,
+    ReadProgram,
+    formats,
+    get_format,
+    parse_formats,
+)
 from rfsw_plan.export.program import (
     Program,
     ProgramHeader,
@@ -71,6 +78,10 @@ class ExportResult:
         notes: What the programmer must know (payload, frames), also in every header.
         n_moved: Of ``n_points``, the points a motion moves to (the others are held by a
             wait); -1: not known.
+        held_as_run: Per program format judged as its controller runs it
+            (:func:`~rfsw_plan.export.check.judge_program`), the force uncertainty it holds
+            and the quantity that limits it first.
+        plan_tolerated: The plan's own tolerated force uncertainty (the header's level).
     """
 
     files: tuple[Path, ...]
@@ -82,6 +93,18 @@ class ExportResult:
     max_path_deviation: float = 0.0
     notes: tuple[str, ...] = ()
     n_moved: int = -1
+    held_as_run: dict[str, tuple[float, str]] = field(default_factory=dict)
+    plan_tolerated: float = math.nan
+
+    def below_plan(self) -> list[str]:
+        """The formats whose program as run holds less force uncertainty than the plan, one
+        line each: ``krl: as its controller runs it the program holds +-2.73 % force
+        uncertainty (speed first), below the plan's +-2.83 %; its header states it``."""
+        return [f"{name}: as its controller runs it the program holds +-{100 * u:.2f} % force "
+                f"uncertainty ({by} first), below the plan's +-{100 * self.plan_tolerated:.2f} "
+                "%; its header states it"
+                for name, (u, by) in self.held_as_run.items()
+                if u < self.plan_tolerated * (1.0 - CLAIM_TOL)]
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units). ``files`` are named inside the folder they were
@@ -101,6 +124,9 @@ class ExportResult:
                                "max_angle_error_deg": math.degrees(float(np.max(r.angle_error))),
                                "max_joint_error_deg": math.degrees(float(np.max(r.joint_error)))}
                            for k, r in self.round_trips.items()},
+            **({"held_as_run": {k: {"tolerated_pct": _pct(u), "limited_by": by}
+                                for k, (u, by) in self.held_as_run.items()}}
+               if self.held_as_run else {}),
         }
 
 
@@ -182,7 +208,7 @@ def export_programs(
     plan_sha256: str, spacing: float | None = None, path_tol: float = 1e-5,
     check: SampleCheck | None = None, stream: Samples | None = None, cycle: float = 0.0,
     options: ProgramOptions | None = None, normal: np.ndarray | None = None,
-    depth: float | None = None, reference: str | None = None,
+    depth: float | None = None, reference: str | None = None, basis: PlanBasis | None = None,
 ) -> ExportResult:
     """Write the programs of a plan (see the module docstring).
 
@@ -205,6 +231,17 @@ def export_programs(
             seam, on the plate surface), and ``reference`` the seam reference of the
             predicted pin's deflection; None: from the record's problem file
             (:func:`plate_surface`).
+        basis: The plan's model, task and window: each program format's file (a controller
+            cycle, :attr:`~rfsw_plan.export.format.ControllerFormat.cycle`) is judged as its
+            controller runs it (:func:`~rfsw_plan.export.check.judge_program`, what
+            ``rfsw-plan check`` does). A program that breaks the weld envelope, a hook's
+            rule, or the plan's GO (it holds less than the requested uncertainty) is refused;
+            one that holds less than the plan's level, which already was below the request,
+            is written with that level in its header (:attr:`ExportResult.held_as_run`).
+            None (a plan without its problem, in tests): not judged.
+
+    Raises:
+        InfeasibleError: A program that does not reproduce the plan or is refused as run.
     """
     problem = str(record.get("problem", "plan"))
     spacing = plan_spacing(record) if spacing is None else spacing
@@ -246,7 +283,7 @@ def export_programs(
                                   f"cannot stage the programs ({exc.strerror}); set TMPDIR to "
                                   "a writable folder") from None
         try:
-            staged, trips = _write_all(programs, fmts, stage, check, stages)
+            staged, trips, held = _write_all(programs, fmts, stage, check, stages, basis)
             for f in staged:
                 _refuse_collision(out / f.name, problem)
             final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
@@ -256,7 +293,7 @@ def export_programs(
     rows = {name: len(trip.q) for name, trip in trips.items()}
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
                         checked.strip(), deviation, program.header.notes,
-                        len(trips[lead].q))
+                        len(trips[lead].q), held, program.header.tolerated_uncertainty)
 
 
 def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
@@ -295,27 +332,72 @@ def _refuse_collision(path: Path, problem: str) -> None:
 
 
 def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path,
-               check: SampleCheck | None, stages: Stages) -> tuple[list[Path],
-                                                                   dict[str, RoundTrip]]:
-    """Write every format's program into ``stage``, re-read it and take it through the
-    model."""
+               check: SampleCheck | None, stages: Stages, basis: PlanBasis | None,
+               ) -> tuple[list[Path], dict[str, RoundTrip], dict[str, tuple[float, str]]]:
+    """Write every format's program into ``stage``, re-read it, take it through the model
+    and (with ``basis``) judge it as its controller runs it."""
     staged: list[Path] = []
     trips: dict[str, RoundTrip] = {}
+    held: dict[str, tuple[float, str]] = {}
     for name in fmts:
         stages.start(name)
         fmt = get_format(name)
         program = programs[name]
-        files = fmt.write(program, stage)
-        expected = fmt.expected(program)
-        trip = round_trip(program.robot, fmt, fmt.read(files[0]), expected)
-        if not trip.ok:
-            raise InfeasibleError(f"{name} program does not reproduce the verified plan: "
-                                  f"{trip.summary()}", None, "round_trip", None)
-        if check is not None:
-            check(replace(expected, q=trip.q))
+        files, read, trip = _write_read(fmt, program, stage, check)
+        if basis is not None and fmt.cycle > 0:
+            held[name], restated = _judged(name, fmt, program, files[0], read, basis, stage)
+            if restated is not None:  # the same moves, the header states the level as run
+                files, read, trip = _write_read(fmt, restated, stage, check)
         staged += files
         trips[name] = trip
-    return staged, trips
+    return staged, trips, held
+
+
+def _write_read(fmt: ControllerFormat, program: Program, stage: Path,
+                check: SampleCheck | None) -> tuple[list[Path], ReadProgram, RoundTrip]:
+    """Write one format's program into ``stage``, re-read it and take it through the
+    model: its points reproduce the verified samples and (``check``) pass the sample check."""
+    files = fmt.write(program, stage)
+    expected = fmt.expected(program)
+    read = fmt.read(files[0])
+    trip = round_trip(program.robot, fmt, read, expected)
+    if not trip.ok:
+        raise InfeasibleError(f"{fmt.name} program does not reproduce the verified plan: "
+                              f"{trip.summary()}", None, "round_trip", None)
+    if check is not None:
+        check(replace(expected, q=trip.q))
+    return files, read, trip
+
+
+def _judged(name: str, fmt: ControllerFormat, program: Program, path: Path, read: ReadProgram,
+            basis: PlanBasis, stage: Path) -> tuple[tuple[float, str], Program | None]:
+    """The force uncertainty a staged program holds as its controller runs it, and the
+    program to write again with that level in its header (None: it holds the plan's).
+
+    Raises:
+        InfeasibleError: The program as run breaks the weld envelope, a hook's rule or the
+            timing; or the plan holds the requested uncertainty (GO) and the program does not.
+    """
+    res = judge_program(path, stage, read, replace(basis, work=program.work))
+    if not res.holds and res.failure != "claim":
+        raise InfeasibleError(f"{name} program as its controller runs it: {res.line()}", None,
+                              res.failure, None)
+    u, by = res.held
+    if res.failure != "claim":
+        return res.held, None
+    header = program.header
+    requested = header.requested_uncertainty
+    cause = (f"{name} program as its controller runs it ({1e3 * fmt.cycle:g} ms interpolation "
+             f"cycle) holds +-{100 * u:.2f} % force uncertainty ({by} first), below the plan's "
+             f"+-{100 * header.tolerated_uncertainty:.2f} %")
+    if header.tolerated_uncertainty >= requested and u < requested * (1.0 - CLAIM_TOL):
+        raise InfeasibleError(f"{cause} and the requested +-{100 * requested:.3g} % the plan "
+                              "holds (GO): write a format of a shorter cycle or the stream, or "
+                              f"plan for at most +-{100 * u:.2f} % force uncertainty", None,
+                              "claim", u - requested)
+    return res.held, replace(program, header=replace(
+        header, tolerated_uncertainty=u, plan_tolerated=header.tolerated_uncertainty,
+        held_by=by))
 
 
 def export_plan_folder(
@@ -349,10 +431,13 @@ def export_plan_folder(
         record = record.without("export").with_keys(sha256={
             k: v for k, v in record.sha256.items() if k not in {Path(f).name for f in old}})
         plan.write_record(record)
+    rebuilt = plan.rebuild()
+    basis = PlanBasis(plan.samples, plan.record, plan.problem_file, ElastostaticModel(robot),
+                      rebuilt.task(), rebuilt.problem.window)
     res = export_programs(robot, plan.samples, plan.record, fmts, target,
                           plan_sha256=plan.waypoints_sha256, spacing=spacing,
                           path_tol=path_tol, options=options, normal=normal, depth=depth,
-                          reference=reference)
+                          reference=reference, basis=basis)
     if why:
         res = replace(res, notes=(*res.notes, f"plate normal not known: {why}"))
     plan_ref = "." if inside else os.path.relpath(folder.resolve(), target.resolve())
@@ -364,6 +449,11 @@ def export_plan_folder(
         summary["sha256"] = {f.name: sha256_file(f) for f in res.files}
         write_json(target / "export.json", summary)
     return res
+
+
+def _pct(u: float) -> float | None:
+    """A relative level as percent for JSON (None: unbounded)."""
+    return 100.0 * u if math.isfinite(u) else None
 
 
 def _number(v: Any) -> float:

@@ -124,8 +124,11 @@ class CheckResult:
         held: The largest uniform relative force uncertainty every weld quantity holds at
             with the program as run (:func:`~rfsw_plan.planning.verify.robust_claim` on the
             run's samples), and the quantity that limits it first; (NaN, "") if not computed.
-        claimed: The level the plan's verdict claims (``plan.json``
-            ``tolerated_force_uncertainty``), NaN if it names none.
+        claimed: The level the program claims: the plan's verdict's (``plan.json``
+            ``tolerated_force_uncertainty``), or the lower level the program's header states
+            (the export writes it where the program as run holds less than the plan); NaN if
+            neither names one.
+        plan_claimed: The plan's verdict's level, NaN if it names none.
     """
 
     program: Path
@@ -151,20 +154,35 @@ class CheckResult:
     quantity: str = ""
     held: tuple[float, str] = (math.nan, "")
     claimed: float = math.nan
+    plan_claimed: float = math.nan
 
     @property
     def below_claim(self) -> bool:
-        """The program as run holds less force uncertainty than the plan claims
+        """The program as run holds less force uncertainty than it claims
         (:data:`CLAIM_TOL`)."""
         return bool(self.held[0] < self.claimed * (1.0 - CLAIM_TOL))
 
+    @property
+    def states_less(self) -> bool:
+        """The program's header states a lower level than the plan's (the export found it
+        as run)."""
+        return bool(self.claimed < self.plan_claimed * (1.0 - CLAIM_TOL))
+
     def claim_text(self) -> str:
         """``; as run it holds +-3.66 % force uncertainty (speed first), below the plan's
-        +-4.55 %`` where :attr:`below_claim`, else ""."""
-        if not self.below_claim:
-            return ""
-        return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
-                f"({self.held[1]} first), below the plan's +-{100 * self.claimed:.2f} %")
+        +-4.55 %`` where :attr:`below_claim`; ``; as run it holds +-2.73 % (speed first),
+        the level this program states (the plan's +-2.83 %)`` where the program states less
+        than its plan; else ""."""
+        whose = (f"the +-{100 * self.claimed:.3g} % this program states"
+                 if self.states_less else f"the plan's +-{100 * self.claimed:.2f} %")
+        if self.below_claim:
+            return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
+                    f"({self.held[1]} first), below {whose}")
+        if self.states_less:
+            return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
+                    f"({self.held[1]} first), the level this program states (the plan's "
+                    f"+-{100 * self.plan_claimed:.2f} %)")
+        return ""
 
     def line(self) -> str:
         """One line for the terminal."""
@@ -207,6 +225,7 @@ class CheckResult:
                 "edited_files": list(self.edited), "quantity": self.quantity,
                 "held_pct": _pct(self.held[0]), "held_limited_by": self.held[1],
                 "claimed_pct": _pct(self.claimed), "below_claim": self.below_claim,
+                "plan_claimed_pct": _pct(self.plan_claimed),
                 "line": self.line()}
 
 
@@ -256,11 +275,10 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
     from rfsw_plan.planfiles.folder import PlanFolder
     from rfsw_plan.planning.verify import verify_samples
 
-    fmt = format_for_file(path)
     plan, robot = PlanFolder.open_with_robot(folder)  # own files: touched_programs
     edited = tuple(sorted(n for n, changed in own.items() if changed))
     plan_id = f"{plan.record.get('problem', '')}-{plan.waypoints_sha256[:12]}"
-    stated = _stated_plan_id(path)
+    stated = _stated(path).get("plan id")
     if stated is not None and stated != plan_id:
         return CheckResult(path, folder, False, len(read.points), 0, 0.0, failure="plan_id",
                            detail=f"is a program of plan {stated}, not of this plan "
@@ -272,20 +290,71 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
         raise InputError(folder, "", "the plan's own samples do not verify with the model "
                          "rebuilt from its files (robot or problem file changed?)",
                          "the robot and problem files the plan was made with")
-    run = run_as_controller(robot, fmt, read, plan.samples, _exported_work(plan, robot))
+    basis = PlanBasis(plan.samples, plan.record, plan.problem_file, model, task, window,
+                      _exported_work(plan, robot))
+    return judge_program(path, folder, read, basis, edited)
+
+
+@dataclass(frozen=True)
+class PlanBasis:
+    """What a program is judged against (:func:`judge_program`).
+
+    Attributes:
+        samples: The plan's verified samples (``waypoints.csv``).
+        record: The plan's record (``plan.json``; while ``plan --export`` writes the
+            programs, the summary it is about to commit).
+        problem_file: The plan's problem file (the plate surface for the hooks).
+        model: The plan's elastostatic model.
+        task: The plan's task (seam frames, seam reference).
+        window: The weld window.
+        work: The work object the plan's programs are exported with, controller base frame,
+            (4, 4) [m] (None: not known; a program's base is then taken as exported).
+    """
+
+    samples: Samples
+    record: Any
+    problem_file: str
+    model: Any
+    task: Any
+    window: Any
+    work: FloatArray | None = None
+
+
+def judge_program(path: Path, folder: Path, read: ReadProgram, basis: PlanBasis,
+                  edited: tuple[str, ...] = ()) -> CheckResult:
+    """Judge a program file as its controller runs it against its plan (module docstring):
+    the weld envelope at every sample of the run, the hooks where the predicted pin is, the
+    postures and the timing, and the force uncertainty the run holds against the level the
+    program states in its header (the plan's, unless the export wrote the lower level this
+    program holds as run).
+
+    Args:
+        path: The program file (its format from the suffix).
+        folder: The plan folder (named in the result).
+        read: The program as its format's reader reads it.
+        basis: The plan it was exported from.
+        edited: The program's files changed since the plan vouched for them.
+    """
+    from rfsw_plan.planning.verify import verify_samples
+
+    fmt = format_for_file(path)
+    robot, plan = basis.model.robot, basis
+    model, task, window = basis.model, basis.task, basis.window
+    run = run_as_controller(robot, fmt, read, plan.samples, basis.work)
     ver = verify_samples(model, task, window, run.samples)
     lines = _motion_lines(read.files, run.names)
     held = ((ver.claim.tolerated, ver.claim.limiting.quantity) if ver.claim is not None
             else (math.nan, ""))
-    claimed = plan.record.get("tolerated_force_uncertainty")
+    plan_claim = plan.record.get("tolerated_force_uncertainty")
+    plan_claimed = float(plan_claim) if isinstance(plan_claim, (int, float)) else math.nan
     res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
                       window=(window.lower, window.upper), min_margin=ver.min_margin,
                       edited=edited, edits=_edits(run, lines, plan.record, fmt.name),
-                      held=held, claimed=float(claimed) if isinstance(claimed, (int, float))
-                      else math.nan)
+                      held=held, claimed=_stated_claim(path, plan_claimed),
+                      plan_claimed=plan_claimed)
     # (point, check, text, sample, failure, quantity)
     texts: list[tuple[int, str, str, int, Any, str]] = []
-    for f in [*run.findings, *_hook_findings(read.files, run, model, plan)]:
+    for f in [*run.findings, *_hook_findings(read.files, run, model, basis)]:
         texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None,
                       "hook" if f.check.startswith("hook") else f.check))
     for f in _reported(ver):
@@ -337,16 +406,38 @@ def _own_files(folder: Path, files: tuple[Path, ...]) -> dict[str, bool]:
     return out
 
 
-def _stated_plan_id(path: Path) -> str | None:
-    """The ``plan id:`` of the program's header (None: not stated)."""
+def _stated(path: Path) -> dict[str, str]:
+    """The ``plan id`` and the ``verified tolerated force uncertainty`` (``+-2.83`` or
+    ``unbounded``) the program's header states; a key is missing where it states none. The
+    header's comment lines are read as one text (a TP comment wraps a line over several)."""
     import re
 
+    strip = re.compile(r"^\s*(?:\d+:)?\s*[;!]?\s*|\s*;\s*$")
     with path.open(encoding="utf-8", errors="replace") as fh:
-        for _, line in zip(range(80), fh, strict=False):
-            m = re.search(r"plan id:\s*([\w.-]+)", line)
-            if m is not None:
-                return m.group(1)
-    return None
+        text = " ".join(strip.sub("", line) for _, line in zip(range(80), fh, strict=False))
+    out: dict[str, str] = {}
+    for key, value in (("plan id", r"[\w.-]+"),
+                       ("verified tolerated force uncertainty", r"\+-[0-9.]+|unbounded")):
+        m = re.search(rf"{key}:\s*({value})", text)
+        if m is not None:
+            out[key] = m.group(1)
+    return out
+
+
+def _stated_claim(path: Path, plan_claimed: float) -> float:
+    """The force uncertainty the program states it holds: the plan's level (exact) where its
+    header states the plan's (as the export writes it to 3 digits), else the level it states
+    (the lower one the export found as run, or a programmer's edit), else the plan's."""
+    text = _stated(path).get("verified tolerated force uncertainty", "")
+    if not text.startswith("+-"):
+        return plan_claimed
+    try:
+        stated = float(text[2:]) / 100.0
+    except ValueError:
+        return plan_claimed
+    if math.isfinite(plan_claimed) and f"{100 * plan_claimed:.3g}" == text[2:]:
+        return plan_claimed
+    return stated
 
 
 def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[str, int]]:

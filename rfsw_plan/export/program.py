@@ -218,6 +218,9 @@ class ProgramHeader:
         notes: Extra lines: what the tool cannot know and the programmer must check.
         set_force: The axial set force of a force-controlled plan [N] (``plan.json``
             ``envelope.set_force_N``); 0: the plan is in position control.
+        plan_tolerated: NaN, or the plan's own tolerated uncertainty when
+            ``tolerated_uncertainty`` is the lower level this program holds as its controller
+            runs it (:func:`rfsw_plan.export.check.judge_program`), limited by ``held_by``.
     """
 
     name: str
@@ -234,11 +237,16 @@ class ProgramHeader:
     spacing: float
     notes: tuple[str, ...] = ()
     set_force: float = 0.0
+    plan_tolerated: float = math.nan
+    held_by: str = ""
 
     def lines(self) -> list[str]:
         """Header lines (without comment markers), the same for every vendor."""
         tol = self.tolerated_uncertainty
         tol_s = "unbounded" if not math.isfinite(tol) else f"+-{100 * tol:.3g} %"
+        if not math.isnan(self.plan_tolerated):  # the program as run holds less than the plan
+            tol_s += (f" as this program runs ({self.held_by} first; the plan's samples hold "
+                      f"+-{100 * self.plan_tolerated:.3g} %)")
         return [
             f"rfsw-plan program {self.name}",
             f"rfsw-plan version: {self.version}",

@@ -103,6 +103,7 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
     if args.export is None:
         return None
     from rfsw_plan.export.api import export_programs, plate_surface
+    from rfsw_plan.export.check import PlanBasis
     from rfsw_plan.export.format import parse_formats
     from rfsw_plan.files import sha256_file
     from rfsw_plan.planfiles.folder import read_plan_samples
@@ -116,11 +117,13 @@ def export_plan_result(args: argparse.Namespace, result: PlanResult, out: Path,
                                 (d.lower, d.upper))
     normal, depth, reference, _ = plate_surface(str(record.get("problem_file") or args.problem),
                                                 samples)
+    basis = PlanBasis(samples, record, str(record.get("problem_file") or args.problem),
+                      result.model, result.task, result.window)
     res = export_programs(result.model.robot, samples, record, formats, out,
                           plan_sha256=sha256_file(out / "waypoints.csv"), spacing=spacing,
                           path_tol=tol, check=_plan_check(result), stream=stream,
                           cycle=cycle, options=_options(args), normal=normal, depth=depth,
-                          reference=reference)
+                          reference=reference, basis=basis)
     for note in res.notes:
         if note.startswith(("PAYLOAD UNKNOWN", "WORK OBJECT")):
             print(f"rfsw-plan plan: note: {note}", file=sys.stderr)
@@ -208,6 +211,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(strict_json(record), end="")
         return 0
+    for line in res.below_plan():  # what the controller will run, said first
+        print(line)
     # The round trips and `check` count the points a motion moves to; a point held by a wait
     # (the dwell) is one of the program's points but not a move: both numbers, named.
     moved = res.n_moved if res.n_moved >= 0 else \
@@ -219,7 +224,9 @@ def run(args: argparse.Namespace) -> int:
           f"path within {res.max_path_deviation * 1e3:.4f} mm of the verified samples "
           f"(tolerance {tol * 1e3:.3g} mm, blending included)")
     for fmt, trip in res.round_trips.items():
-        print(f"  {fmt:<9} round trip: {trip.summary()}")
+        u = res.held_as_run.get(fmt)
+        run = "" if u is None else f"; as run it holds +-{100 * u[0]:.2f} % ({u[1]} first)"
+        print(f"  {fmt:<9} round trip: {trip.summary()}{run}")
     for f in res.files:
         print(f"  wrote {f}")
     return 0

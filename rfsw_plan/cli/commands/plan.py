@@ -114,6 +114,8 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
     """The verdict first, then the levers, the strategy table, the trade-off and the files."""
     verdict = result.verdict()
     print(verdict.line)
+    for line in _programs_below_plan(summary):
+        print(f"  {line}")
     if verdict.depth_note:
         print(f"  {verdict.depth_note}")
     if verdict.held:
@@ -154,6 +156,23 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
           f"{len(written)} files in {out}:")
     for f in written:
         print(f"  {f}")
+
+
+def _programs_below_plan(summary: dict[str, Any]) -> list[str]:
+    """``krl program as run: holds +-2.73 % (speed first), below the plan's +-2.83 %; its
+    header states it`` for every exported program whose controller runs it holding less
+    force uncertainty than the plan (``plan.json`` ``export.held_as_run``)."""
+    from rfsw_plan.export.check import CLAIM_TOL
+
+    exp = summary.get("export") or {}
+    plan = summary.get("tolerated_force_uncertainty")
+    if not isinstance(plan, float):
+        return []
+    return [f"{name} program as its controller runs it: holds +-{d['tolerated_pct']:.2f} % "
+            f"({d['limited_by']} first), below the plan's +-{100 * plan:.2f} %; its header "
+            "states it" for name, d in (exp.get("held_as_run") or {}).items()
+            if d.get("tolerated_pct") is not None
+            and d["tolerated_pct"] < 100 * plan * (1.0 - CLAIM_TOL)]
 
 
 def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
