@@ -193,6 +193,24 @@ def test_a_tp_of_another_plan_is_refused_by_its_wrapped_plan_id(zk500: Path, cap
         in out, out
 
 
+def test_a_wait_shorter_than_the_interpolation_cycle_is_named(zk500: Path, capsys) -> None:
+    """A programmer's ``WAIT SEC 0.005`` after a weld point: 5 ms moves the segment's time by
+    far less than the timing tolerance, but the KUKA's 12 ms IPO cycle cannot run it as
+    written: check names the point and the line, exit 3."""
+    src = _file(zk500, ".src")
+    xp = weld_point(src, 2)
+    text = src.read_text()
+    m = re.search(rf"^\s*LIN {xp}\b.*$", text, re.M)
+    assert m is not None
+    src.write_text(text[:m.end()] + "\n  WAIT SEC 0.005" + text[m.end():])
+    code, out = _check(capsys, src)
+    assert code == 3, out
+    line_no = text.count("\n", 0, m.start()) + 1
+    assert out.startswith(f"{src.name}: {xp} (weld") and f"line {line_no})" in out, out
+    assert "the wait after it lasts 5.0 ms, below the controller's 12 ms interpolation cycle" \
+        in out, out
+
+
 def test_a_touch_up_inside_the_plan_folder_is_reverified(zk500: Path, capsys) -> None:
     """The documented workflow: edit the exported program where it is; check re-verifies it
     and says what changed (it used to refuse: "changed since plan.json was written")."""

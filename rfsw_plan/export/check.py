@@ -30,6 +30,9 @@ forces, the joint limits) on the path the controller will run:
   motion time, or wait) over its programmed length; a segment whose time differs from the
   plan's by more than :data:`TIMING_TOL` fails with the point, the line, the programmed and
   planned times, and the re-timed samples are verified (the envelope's speed rows see it).
+  A move or wait shorter than the controller's interpolation cycle
+  (:attr:`~rfsw_plan.export.format.ControllerFormat.cycle`) fails too: the controller
+  cannot run it as written.
 * **Checks.** Every failure :func:`~rfsw_plan.planning.verify.verify_samples` returns, except
   the joint velocity, acceleration and jerk (the controller's own motion planner enforces
   them on the path it runs).
@@ -82,6 +85,9 @@ BASE_ANGLE_TOL = 1e-3
 #: The order in which failures are named: the physical quantities of the weld first, then
 #: the hooks, the postures, the timing and any other check.
 ORDER = ("depth", "lateral", "clearance", "tilt", "speed", "hook", "posture", "timing")
+#: A move or wait is said to be shorter than the controller's interpolation cycle below this
+#: share of it under the cycle (the files round lengths to 0.1 um and speeds to 0.1 um/s).
+CYCLE_TOL = 1e-3
 #: A hook's rule holds within this [m] (a few plan samples at the plunge speed).
 HOOK_TOL = 1e-4
 #: The program as run is said to hold less force uncertainty than the plan claims when its
@@ -354,7 +360,8 @@ def judge_program(path: Path, folder: Path, read: ReadProgram, basis: PlanBasis,
                       plan_claimed=plan_claimed)
     # (point, check, text, sample, failure, quantity)
     texts: list[tuple[int, str, str, int, Any, str]] = []
-    for f in [*run.findings, *_hook_findings(read.files, run, model, basis)]:
+    for f in [*run.findings, *_hook_findings(read.files, run, model, basis),
+              *_below_cycle(read, fmt.cycle)]:
         texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None,
                       "hook" if f.check.startswith("hook") else f.check))
     for f in _reported(ver):
@@ -757,6 +764,37 @@ def _posture_changes(q: FloatArray, q_plan: FloatArray, names: list[str],
                                 f"{math.degrees(q[k, j]):+.1f} deg where the plan has "
                                 f"{math.degrees(q_plan[k, j]):+.1f} deg "
                                 f"({math.degrees(d[j]):+.1f} deg: a turn or a branch)"))
+    return out
+
+
+def _below_cycle(read: ReadProgram, cycle: float) -> list[_Finding]:
+    """Moves and waits shorter than the controller's interpolation cycle ``cycle`` [s]: the
+    controller cannot run them as written (it slows down or stops), so the timing checked is
+    not the timing run. A move's time is its programmed duration, or the length between its
+    Cartesian points (the program's own coordinates) over its programmed speed."""
+    out: list[_Finding] = []
+    if cycle <= 0:
+        return out
+    prev: ReadPoint | None = None
+    k = -1
+    for m in read.motions:
+        if m.kind == "wait":
+            if 0 < m.duration < cycle * (1.0 - CYCLE_TOL) and k >= 0:
+                out.append(_Finding(k, "timing", f"timing: the wait after it lasts "
+                                    f"{m.duration * 1e3:.1f} ms, below the controller's "
+                                    f"{cycle * 1e3:g} ms interpolation cycle: it cannot run "
+                                    "as written"))
+            continue
+        k += 1
+        t = m.duration
+        if t <= 0 and m.speed > 0 and prev is not None and m.pose is not None \
+                and prev.pose is not None:
+            t = float(np.linalg.norm(m.pose[:3, 3] - prev.pose[:3, 3])) / m.speed
+        if prev is not None and 0 < t < cycle * (1.0 - CYCLE_TOL):
+            out.append(_Finding(k, "timing", f"timing: the move to it takes {t * 1e3:.1f} ms, "
+                                f"below the controller's {cycle * 1e3:g} ms interpolation "
+                                "cycle: it cannot run as written"))
+        prev = m
     return out
 
 
