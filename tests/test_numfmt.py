@@ -249,3 +249,48 @@ def test_cell_many_is_cell_for_every_number() -> None:
         rng.normal(size=500) * 10.0 ** rng.integers(-9, 5, 500)])
     for digits in (0, 3, 6):
         assert cell_many(values, digits) == [cell(v, digits) for v in values], digits
+
+
+def _near_halves(digits: int, rng: np.random.Generator) -> np.ndarray:
+    """Values whose scaled fraction is at or next to one half (the integer conversion's only
+    doubtful case), the doubles on both sides of each, large and tiny ones, both signs."""
+    base = (rng.integers(-10**8, 10**8, 3000) + 0.5) / 10.0 ** digits
+    return np.concatenate([base, np.nextafter(base, np.inf), np.nextafter(base, -np.inf),
+                           [2.0 ** 52 / 10 ** digits, -(2.0 ** 52) / 10 ** digits, 1e20, -1e20,
+                            5e-324, -5e-324, 9.9999999999, -9.99999999, 99999.9999999]])
+
+
+def test_fixed_codes_are_pythons_conversion_digit_for_digit() -> None:
+    """The array conversion (integers for the digits, Python for the doubtful values) gives
+    Python's correctly rounded text, never ``-0``, at the halves and next to them, for huge
+    and subnormal values and every magnitude in between."""
+    from rfsw_plan.numfmt import cell, fixed_texts
+
+    rng = np.random.default_rng(5)
+    for digits in (0, 1, 3, 6, 9, 12):
+        values = np.concatenate([_near_halves(digits, rng), [0.0, -0.0, np.nan, np.inf],
+                                 rng.normal(size=3000) * 10.0 ** rng.integers(-12, 12, 3000)])
+        assert fixed_texts(values, digits).tolist() == [cell(v, digits) for v in values], digits
+
+
+def test_table_bytes_is_the_csv_modules_table(tmp_path: Path) -> None:
+    """``waypoints.csv``'s body, built as arrays, is byte for byte what ``csv.writer`` writes
+    from :func:`cell` texts; a text cell that needs quoting is refused (the writer then uses
+    the csv module)."""
+    import csv
+    import io
+
+    from rfsw_plan.numfmt import cell, table_bytes
+
+    rng = np.random.default_rng(6)
+    n = 400
+    columns: list[Any] = [rng.normal(size=n) * 10.0 ** rng.integers(-9, 6, n),
+                          [("weld", "", "plunge", "x y")[k % 4] for k in range(n)],
+                          np.where(rng.random(n) < 0.2, np.nan, rng.normal(size=n)),
+                          _near_halves(6, rng)[:n]]
+    ref = io.StringIO(newline="")
+    csv.writer(ref).writerows(
+        [[c[k] if isinstance(c, list) else cell(c[k], 6) for c in columns] for k in range(n)])
+    assert table_bytes(columns, 6) == ref.getvalue().encode("ascii")
+    with pytest.raises(ValueError, match="quoting"):
+        table_bytes([np.zeros(2), ["a,b", "c"]], 6)

@@ -118,17 +118,21 @@ def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
 
 @dataclass(frozen=True)
 class CsvTable:
-    """``waypoints.csv`` as read for the page: its header and text cells (rows, columns)."""
+    """``waypoints.csv`` as read for the page: its header and text cells (rows)."""
 
     path: Path
     header: list[str]
-    cells: NDArray[np.str_]
+    rows: list[list[str]]
 
-    def col(self, name: str) -> FloatArray:
-        """A numeric column (NaN for an empty cell)."""
+    def _cells(self, name: str, at: NDArray[np.int_] | None) -> list[str]:
         if name not in self.header:
             raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
-        c = self.cells[:, self.header.index(name)]
+        j = self.header.index(name)
+        return [r[j] for r in self.rows] if at is None else [self.rows[k][j] for k in at]
+
+    def col(self, name: str, at: NDArray[np.int_] | None = None) -> FloatArray:
+        """A numeric column (NaN for an empty cell), at the rows ``at`` (default: all)."""
+        c = np.array(self._cells(name, at), dtype=str)
         out = np.full(c.shape, np.nan)
         given = c != ""
         try:
@@ -140,17 +144,23 @@ class CsvTable:
 
     def text(self, name: str) -> list[str]:
         """A text column."""
-        if name not in self.header:
-            raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
-        return [str(v) for v in self.cells[:, self.header.index(name)]]
+        return self._cells(name, None)
 
 
 def read_table(path: Path) -> CsvTable:
-    """The header and cells of a written ``waypoints.csv``."""
-    rows = list(csv.reader(io.StringIO(path.read_text(encoding="utf-8"), newline="")))
+    """The header and cells of a written ``waypoints.csv`` (a file without quotes, as
+    ``rfsw-plan plan`` writes it, is split at its commas and CRLF line ends: what the
+    ``csv`` module reads from it, faster)."""
+    text = path.read_text(encoding="utf-8")
+    if '"' not in text and text.count("\n") == text.count("\r\n") == text.count("\r"):
+        rows = [line.split(",") for line in text.split("\r\n")]
+        if rows and rows[-1] == [""]:
+            rows.pop()
+    else:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
     if len(rows) < 3 or any(len(r) != len(rows[0]) for r in rows):
         raise InputError(path, "", "not a table of at least two samples", "a waypoints.csv")
-    return CsvTable(path, rows[0], np.array(rows[1:], dtype=str))
+    return CsvTable(path, rows[0], rows[1:])
 
 
 def shown_samples(phase: Sequence[str], worst: int | None, limit: int = MAX_SAMPLES
@@ -263,23 +273,23 @@ def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArr
     worst = int(np.flatnonzero(contact)[np.argmin(margin[contact])]) if contact.any() else None
     idx = shown_samples(phase, worst)
     cols = robot.description.convention.column_names()
-    q = np.deg2rad(np.column_stack([tab.col(c) for c in cols]))[idx]
-    s_mm = tab.col("s_mm")[idx]
+    q = np.deg2rad(np.column_stack([tab.col(c, idx) for c in cols]))
+    s_mm = tab.col("s_mm", idx)
     fr = frames_at(s_mm * 1e-3)
-    seam = np.column_stack([tab.col(f"seam_{a}_mm") for a in "xyz"])[idx]
-    tcp = np.column_stack([tab.col(f"{a}_mm") for a in "xyz"])[idx]
-    defl = np.column_stack([tab.col(f"d{a}_mm") for a in "xyz"])[idx]
-    force = np.column_stack([tab.col(f"f{a}_N") for a in "xyz"])[idx]
+    seam = np.column_stack([tab.col(f"seam_{a}_mm", idx) for a in "xyz"])
+    tcp = np.column_stack([tab.col(f"{a}_mm", idx) for a in "xyz"])
+    defl = np.column_stack([tab.col(f"d{a}_mm", idx) for a in "xyz"])
+    force = np.column_stack([tab.col(f"f{a}_N", idx) for a in "xyz"])
     pin = tcp + defl
     # The nominal target: the commanded TCP without its fake-target offsets along l, n, t (the
     # seam point, raised along n before and while plunging).
-    off = np.column_stack([tab.col(f"off_{a}_mm") for a in ("lat", "norm", "along")])[idx]
+    off = np.column_stack([tab.col(f"off_{a}_mm", idx) for a in ("lat", "norm", "along")])
     target = tcp - (off[:, :1] * fr.l + off[:, 1:2] * fr.n + off[:, 2:] * fr.t)
     ph = [phase[k] for k in idx]
-    e_lat = tab.col("e_lat_mm")[idx]
+    e_lat = tab.col("e_lat_mm", idx)
     depth_col = next((c for c in DEPTH_COLUMNS if c in tab.header), None)
     if depth_col is not None:
-        e_depth = tab.col(depth_col)[idx]
+        e_depth = tab.col(depth_col, idx)
         depth_note = f"Depth error: column {depth_col} of waypoints.csv."
     else:
         e_depth = np.where(np.isfinite(margin[idx]),
@@ -310,7 +320,7 @@ def plan_page(waypoints: str | Path, robot: Robot, frames_at: Callable[[FloatArr
         "row": "[" + ",".join(str(int(r)) for r in rows) + "]",
         "phases": json.dumps(phases),
         "phase": "[" + ",".join(str(phases.index(p)) for p in ph) + "]",
-        "t": _nums(tab.col("t_s")[idx], 3), "s": _nums(s_mm, 3),
+        "t": _nums(tab.col("t_s", idx), 3), "s": _nums(s_mm, 3),
         "e_lat": _nums(e_lat, 4), "e_depth": _nums(e_depth, 4),
         "margin": _nums(margin[idx], 4),
         "colour": json.dumps(margin_colours(margin[idx], 0.5 * (hi - lo))),

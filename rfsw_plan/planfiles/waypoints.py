@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, write_bytes, write_figure
-from rfsw_plan.numfmt import canonical_quaternion, cell, cell_many
+from rfsw_plan.numfmt import canonical_quaternion, cell, cell_many, table_bytes
 from rfsw_plan.planfiles.record import PlanRecord
 from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
@@ -148,11 +148,28 @@ def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
     deflections and errors of the model the plan was made with."""
     header, rows = waypoint_table(result)
     p = Path(path)
+    columns = [_typed(rows[:, j]) for j in range(rows.shape[1])]
+    try:  # the numbers as cell() writes them, built as arrays (numfmt.table_bytes)
+        body = table_bytes(columns, 6)
+    except ValueError:  # a text cell that needs quoting: the csv module's own quoting
+        body = b""
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(header)
-        wr.writerows(zip(*(_column(rows[:, j]) for j in range(rows.shape[1])), strict=True))
+        if body or not len(rows):
+            fh.flush()
+            fh.buffer.write(body)
+        else:
+            wr.writerows(zip(*(_column(rows[:, j]) for j in range(rows.shape[1])),
+                             strict=True))
     return p
+
+
+def _typed(values: NDArray[Any]) -> Any:
+    """One column of ``waypoints.csv`` as numbers (a float array) or text (a list of str)."""
+    if len(values) and isinstance(values[0], str | np.str_):
+        return [str(v) for v in values]
+    return values.astype(float)
 
 
 def _column(values: NDArray[Any]) -> list[str]:
