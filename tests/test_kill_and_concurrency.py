@@ -38,15 +38,14 @@ mode, sig, flag = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 # A child started from a background job inherits SIGINT ignored (POSIX shells without job
 # control); a user's foreground Ctrl-C reaches Python's default handler, so restore it.
 signal.signal(signal.SIGINT, signal.default_int_handler)
-if mode == "row":
-    orig_fmt, n = wp._fmt, [0]
-    def fmt(v):
-        n[0] += 1
-        if n[0] == 200 * 30:
-            os.kill(os.getpid(), sig)
-            time.sleep(5)
-        return orig_fmt(v)
-    wp._fmt = fmt
+if mode == "row":  # the header written, the rows being formatted
+    orig_table = wp.table_bytes
+    def table(*args, **kwargs):
+        body = orig_table(*args, **kwargs)
+        os.kill(os.getpid(), sig)
+        time.sleep(5)
+        return body
+    wp.table_bytes = table
 else:
     orig_commit = files._commit_file
     def commit(src, dst, anonymous):

@@ -247,3 +247,24 @@ def test_plots_are_drawn_here_when_the_drawing_process_dies(tmp_path, planned_re
     written, failed = wp.write_plan_plots(tmp_path, res, wp.PlotDrawing(tmp_path, res))
     assert failed == [] and [p.name for p in written] == list(wp.PLAN_PLOTS)
     assert {p.name: p.read_bytes() for p in written} == drawn[0]
+
+
+def test_a_warm_drawing_process_draws_the_same_bytes(tmp_path, planned_result) -> None:
+    """``rfsw-plan plan`` forks the drawing process before planning (it imports matplotlib
+    meanwhile) and hands it the plan through the pipe: the images are the bytes drawn here;
+    a warm process that is never given a plan (planning failed) ends when closed."""
+    import rfsw_plan.planfiles.waypoints as wp
+    from rfsw_plan.files import figures_in_memory
+
+    res = planned_result("zk500_table6_seam")
+    warm = wp.PlotDrawing.warm()
+    drawn = warm.draw(tmp_path, res).images()
+    assert drawn is not None and drawn[1] == []
+    with figures_in_memory() as here:
+        wp._draw_plots(tmp_path, res)
+    assert drawn[0] == {p.name: data for p, data in here.items()}
+    idle = wp.PlotDrawing.warm()
+    proc = idle._proc
+    assert proc is not None and proc.is_alive()
+    assert idle.images() is None  # no plan given: the caller draws here
+    assert not proc.is_alive() and idle._proc is None

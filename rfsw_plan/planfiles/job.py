@@ -137,16 +137,34 @@ class PreparedPlan:
     options: PlanOptions
     spacing: float | None
 
-    def run(self) -> PlanRun:
-        """Plan (with the force log's uncertainty when it has one)."""
-        if self.force_log is None:
-            from rfsw_plan.planning.api import plan
+    def run(self, draw_ahead: bool = False) -> PlanRun:
+        """Plan (with the force log's uncertainty when it has one).
 
-            return PlanRun(self, plan(self.problem, self.options, spacing=self.spacing), None)
-        from rfsw_plan.planning.force_log import plan_with_force_log
+        Args:
+            draw_ahead: Fork the plots' drawing process before planning
+                (:meth:`~rfsw_plan.planfiles.waypoints.PlotDrawing.warm`: it imports
+                matplotlib on another core meanwhile) for :meth:`PlanRun.write`, which then
+                hands it the plan; it is stopped if planning fails.
+        """
+        drawing = None
+        if draw_ahead:
+            from rfsw_plan.planfiles.waypoints import PlotDrawing
 
-        result, check = plan_with_force_log(self.force_log, self.options, self.spacing)
-        return PlanRun(self, result, check)
+            drawing = PlotDrawing.warm()
+        try:
+            if self.force_log is None:
+                from rfsw_plan.planning.api import plan
+
+                result = plan(self.problem, self.options, spacing=self.spacing)
+                return PlanRun(self, result, None, drawing)
+            from rfsw_plan.planning.force_log import plan_with_force_log
+
+            result, check = plan_with_force_log(self.force_log, self.options, self.spacing)
+            return PlanRun(self, result, check, drawing)
+        except BaseException:
+            if drawing is not None:
+                drawing.close()
+            raise
 
 
 @dataclass(frozen=True)
@@ -174,11 +192,14 @@ class PlanRun:
         prepared: The checked request it was made from.
         result: The plan.
         check: The plan's check under the measured force box (with ``forces``), or None.
+        drawing: The plots' drawing process forked before planning (``run(draw_ahead=True)``),
+            or None: :meth:`write` forks it with the plan.
     """
 
     prepared: PreparedPlan
     result: PlanResult
     check: Any = None
+    drawing: Any = field(default=None, compare=False, repr=False)
 
     def write(self, folder: str | Path, programs: ProgramsStep | None = None) -> PlanWritten:
         """Write the plan folder: ``waypoints.csv``, ``plan.html``, the programs of
@@ -206,7 +227,8 @@ class PlanRun:
             summary = result.summary()
             summary["robot_file"] = str(problem.robot.path)
             # The plots are drawn in another process while the data files are written here.
-            drawing = PlotDrawing(out, result)
+            drawing = (self.drawing.draw(out, result) if self.drawing is not None
+                       else PlotDrawing(out, result))
             # The planner's own bar has closed; writing and plotting gets a bar of its own.
             with contextlib.closing(drawing), Stages("plan", ("files", "plots")) as stages:
                 written = write_plan_data(out, result, problem.seam)

@@ -149,13 +149,13 @@ def write_waypoints_csv(path: str | Path, result: PlanResult) -> Path:
     header, rows = waypoint_table(result)
     p = Path(path)
     columns = [_typed(rows[:, j]) for j in range(rows.shape[1])]
-    try:  # the numbers as cell() writes them, built as arrays (numfmt.table_bytes)
-        body = table_bytes(columns, 6)
-    except ValueError:  # a text cell that needs quoting: the csv module's own quoting
-        body = b""
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(header)
+        try:  # the numbers as cell() writes them, built as arrays (numfmt.table_bytes)
+            body = table_bytes(columns, 6)
+        except ValueError:  # a text cell that needs quoting: the csv module's own quoting
+            body = b""
         if body or not len(rows):
             fh.flush()
             fh.buffer.write(body)
@@ -287,14 +287,20 @@ class PlotDrawing:
     the same bytes (the same functions on the same plan). Where a process cannot be forked (a
     platform without ``fork``, a daemonic process) or the child ends without an answer,
     :func:`write_plan_plots` draws them here.
+
+    ``PlotDrawing(folder, result)`` forks with the plan. :meth:`warm` forks before the plan
+    exists, so the child imports matplotlib while this process plans, and :meth:`draw` hands
+    it the plan (pickled through the pipe, the same numbers); ``rfsw-plan plan`` draws that
+    way.
     """
 
-    def __init__(self, folder: str | Path, result: PlanResult) -> None:
+    def __init__(self, folder: str | Path | None = None, result: PlanResult | None = None
+                 ) -> None:
         import multiprocessing
 
-        self._folder = Path(folder)
         self._proc: Any = None
         self._conn: Any = None
+        self._request: Any = None
         if ("fork" not in multiprocessing.get_all_start_methods()
                 or multiprocessing.current_process().daemon):
             return
@@ -303,22 +309,48 @@ class PlotDrawing:
             with contextlib.suppress(Exception):
                 stream.flush()
         recv, send = ctx.Pipe(duplex=False)
+        job_recv, job_send = ctx.Pipe(duplex=False)
+        job = None if result is None else (Path(folder or "."), result)
         try:
             self._proc = ctx.Process(target=_draw_in_child,
-                                     args=(send, recv, self._folder, result), daemon=True)
+                                     args=(send, recv, job_recv, job_send, job), daemon=True)
             self._proc.start()
         except OSError:  # no process to spare: draw here
             self._proc = None
             recv.close()
+            job_send.close()
         else:
             self._conn = recv
+            self._request = job_send if job is None else None
+            if job is not None:
+                job_send.close()
         finally:
             send.close()
+            job_recv.close()
+
+    @classmethod
+    def warm(cls) -> PlotDrawing:
+        """Fork the drawing process now, before the plan exists (it imports matplotlib
+        meanwhile); :meth:`draw` gives it the plan."""
+        return cls()
+
+    def draw(self, folder: str | Path, result: PlanResult) -> PlotDrawing:
+        """Hand a :meth:`warm` process the plan to draw; returns self."""
+        if self._request is not None:
+            try:
+                self._request.send((Path(folder), result))
+            except (OSError, ValueError):  # the child is gone: images() says so, draw here
+                self.close()
+            else:
+                self._request.close()
+                self._request = None
+        return self
 
     def images(self) -> tuple[dict[str, bytes], list[str]] | None:
         """The images by file name and the failure lines, once the child has drawn them;
         None if it could not (then draw here)."""
-        if self._proc is None:
+        if self._proc is None or self._request is not None:  # not given a plan: draw here
+            self.close()
             return None
         try:
             names, failed = self._conn.recv()
@@ -329,9 +361,13 @@ class PlotDrawing:
             self.close()
 
     def close(self) -> None:
-        """Stop the child if it still runs (an interrupted write) and release the pipe."""
+        """Stop the child if it still runs (an interrupted write, a plan that failed) and
+        release the pipes."""
         if self._proc is None:
             return
+        if self._request is not None:
+            self._request.close()
+            self._request = None
         if self._proc.is_alive():
             self._proc.terminate()
         self._proc.join()
@@ -339,23 +375,40 @@ class PlotDrawing:
         self._proc = None
 
 
-def _draw_in_child(conn: Any, parents_end: Any, folder: Path, result: PlanResult) -> None:
+def _draw_in_child(conn: Any, parents_end: Any, jobs: Any, parents_jobs: Any,
+                   job: tuple[Path, PlanResult] | None) -> None:
     """The forked child of :class:`PlotDrawing`: draw in memory, send (name, bytes) pairs
-    and the failure lines.
+    and the failure lines. Without ``job`` (a warm child) it first imports what drawing needs,
+    then waits for the folder and the plan on ``jobs``; the parent closing that pipe without
+    a plan ends it.
 
-    It first closes its copy of the pipe's reading end: with the parent killed (SIGKILL), the
-    send then fails at once (no reader left) and the child ends, instead of blocking forever on
-    a full pipe that only it could read, holding the parent's terminal or pipes open."""
+    It first closes its copies of the parent's ends of the pipes: with the parent killed
+    (SIGKILL), the send then fails at once (no reader left) and the wait for a plan ends (no
+    writer left), so the child ends instead of blocking forever, holding the parent's terminal
+    or pipes open."""
     import signal
 
     from rfsw_plan.files import OutputLock, figures_in_memory
 
     parents_end.close()
+    parents_jobs.close()
 
     # Ctrl-C is the parent's to handle (it stops this child); SIGTERM ends it silently.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     OutputLock.close_inherited()
+    if job is None:
+        import matplotlib.backends.backend_agg
+        import matplotlib.figure  # noqa: F401
+
+        import rfsw_plan.planfiles.tradeoff_plot  # noqa: F401
+
+        try:
+            job = jobs.recv()
+        except (EOFError, OSError):  # the parent planned nothing to draw, or is gone
+            return
+    jobs.close()
+    folder, result = job
     with figures_in_memory() as images:
         _, failed = _draw_plots(folder, result)
     conn.send(([(p.name, data) for p, data in images.items()], failed))

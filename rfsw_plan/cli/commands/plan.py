@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
     with OutputLock(out):  # taken before planning: a second writer is refused at once
         try:
-            run_ = prepared.run()
+            run_ = prepared.run(draw_ahead=True)
         except RfswError as exc:  # the refusal is recorded (verdict NO), printed first
             record = write_refusal(out, problem.name, exc, prepared.options.force_uncertainty)
             if isinstance(exc, InfeasibleError) and not args.json:
