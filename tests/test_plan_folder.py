@@ -248,3 +248,19 @@ def test_every_status_the_planner_writes_for_a_verified_plan_reads(tmp_path: Pat
     rec = json.loads((folder / "plan.json").read_text())
     (folder / "plan.json").write_text(json.dumps({**rec, "status": status}))
     assert read_plan_folder(folder).status == status
+
+
+def test_csv_rows_are_the_csv_modules_rows() -> None:
+    """The plan readers split a quote-free CRLF ``waypoints.csv`` at its commas and line
+    ends: the rows the csv module reads, blank lines, empty cells and a missing last line end
+    included; any other text (quotes, LF or CR line ends) goes to the csv module."""
+    import io
+    import random
+
+    from rfsw_plan.planfiles.folder import csv_rows
+
+    rnd = random.Random(7)
+    pieces = ["1.5", "", "-0.000001", "weld", ",", "\r\n", "\n", "\r", '"a,b"', "x y", "\t"]
+    for _ in range(3000):
+        text = "".join(rnd.choice(pieces) for _ in range(rnd.randint(0, 12)))
+        assert csv_rows(text) == list(csv.reader(io.StringIO(text, newline=""))), repr(text)

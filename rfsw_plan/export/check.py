@@ -44,6 +44,7 @@ quantity (exit 3 in the CLI); every failure is in :meth:`CheckResult.to_dict`.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -723,9 +724,13 @@ def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: li
     for k, p in enumerate(pts):
         if p.q is None:
             assert p.pose is not None
-            T = targets[k] = conv.base @ read.work @ p.pose @ to_model
-            nearest[k] = int(np.argmin(np.linalg.norm(T_plan[:, :3, 3] - T[:3, 3], axis=1)))
+            targets[k] = conv.base @ read.work @ p.pose @ to_model
     cart = list(targets)
+    plan_p = np.ascontiguousarray(T_plan[:, :3, 3])
+    for rows, dist in _distance_rows(np.array([targets[k][:3, 3] for k in cart]).reshape(-1, 3),
+                                     plan_p):
+        for r, d in zip(rows, dist, strict=True):
+            nearest[cart[r]] = int(np.argmin(d))
     first = dict(zip(cart, seeded_on_branch(
         robot, np.array([targets[k] for k in cart]), [pts[k].config for k in cart],
         fmt.postures, plan.q[[nearest[k] for k in cart]]), strict=True))
@@ -842,8 +847,14 @@ def _match(poses: FloatArray, T_plan: FloatArray, t_plan: FloatArray,
     apart by the previous point's time plus the programmed segment time."""
     idx = np.zeros(len(poses), dtype=int)
     start = 0
+    plan_p = np.ascontiguousarray(T_plan[:, :3, 3])
+    chunks = _distance_rows(np.ascontiguousarray(poses[:, :3, 3]), plan_p)
+    rows: range = range(0)
+    dist = np.zeros((0, len(plan_p)))
     for k in range(len(poses)):
-        d = np.linalg.norm(T_plan[start:, :3, 3] - poses[k, :3, 3], axis=1)
+        if k not in rows:
+            rows, dist = next(chunks)
+        d = dist[k - rows.start, start:]
         near = np.flatnonzero(d <= d.min() + TIE)
         if k == 0 or seg_t[k] <= 0:
             j = int(near[0])
@@ -853,6 +864,20 @@ def _match(poses: FloatArray, T_plan: FloatArray, t_plan: FloatArray,
         idx[k] = start + j
         start = idx[k]
     return idx
+
+
+def _distance_rows(points: FloatArray, plan_p: FloatArray, cells: int = 2_000_000
+                   ) -> Iterator[tuple[range, FloatArray]]:
+    """The distances of ``points`` (m, 3) to every plan sample position ``plan_p`` (N, 3) [m],
+    a block of rows at a time (at most ``cells`` distances): each row is exactly
+    ``np.linalg.norm(plan_p - point, axis=1)`` (the same operations on the same numbers)."""
+    step = max(1, cells // max(len(plan_p), 1))
+    x, y, z = (np.ascontiguousarray(plan_p[:, i]) for i in range(3))
+    for a in range(0, len(points), step):
+        b = points[a:a + step]
+        dx, dy, dz = x - b[:, :1], y - b[:, 1:2], z - b[:, 2:3]
+        # norm's own sum, in its order: (dx^2 + dy^2) + dz^2, then the square root
+        yield range(a, a + len(b)), np.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def _retime(seg_t: FloatArray, idx: NDArray[np.int_], t_plan: FloatArray) -> FloatArray:

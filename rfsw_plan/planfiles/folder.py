@@ -261,6 +261,18 @@ def _check_vouched(folder: Path, name: str, digest: Any) -> None:
 # waypoints.csv
 
 
+def csv_rows(text: str) -> list[list[str]]:
+    """The rows of a CSV text as the ``csv`` module reads them (``newline=""``). A text
+    without quotes and with CRLF line ends only, as ``rfsw-plan plan`` writes
+    ``waypoints.csv``, is split at its commas and line ends: the same rows, faster."""
+    if '"' not in text and text.count("\n") == text.count("\r\n") == text.count("\r"):
+        rows = [line.split(",") for line in text.split("\r\n")]
+        if rows[-1] == [""]:  # the last line's end
+            rows.pop()
+        return [[] if r == [""] else r for r in rows]  # a blank line: csv's empty row
+    return list(csv.reader(io.StringIO(text, newline="")))
+
+
 def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
                       limits: tuple[FloatArray, FloatArray] | None = None) -> PlanSamples:
     """The samples of a ``waypoints.csv``, re-verified as numbers (see the module docstring).
@@ -273,7 +285,7 @@ def read_plan_samples(path: str | Path, joint_columns: list[str] | None = None,
         text = p.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(p, f"byte {exc.start}", "not UTF-8 text", "waypoints.csv") from None
-    rows = list(csv.reader(io.StringIO(text, newline="")))
+    rows = csv_rows(text)
     body, col, joints = _table_shape(p, rows, joint_columns)
     columns = list(zip(*body, strict=True))  # the cells column by column (one pass in C)
 

@@ -23,9 +23,7 @@ and the seam, so ``rfsw-plan view PLAN_FOLDER`` rebuilds the same bytes from a p
 from __future__ import annotations
 
 import base64
-import csv
 import html
-import io
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -148,16 +146,11 @@ class CsvTable:
 
 
 def read_table(path: Path) -> CsvTable:
-    """The header and cells of a written ``waypoints.csv`` (a file without quotes, as
-    ``rfsw-plan plan`` writes it, is split at its commas and CRLF line ends: what the
-    ``csv`` module reads from it, faster)."""
-    text = path.read_text(encoding="utf-8")
-    if '"' not in text and text.count("\n") == text.count("\r\n") == text.count("\r"):
-        rows = [line.split(",") for line in text.split("\r\n")]
-        if rows and rows[-1] == [""]:
-            rows.pop()
-    else:
-        rows = list(csv.reader(io.StringIO(text, newline="")))
+    """The header and cells of a written ``waypoints.csv``
+    (:func:`~rfsw_plan.planfiles.folder.csv_rows`)."""
+    from rfsw_plan.planfiles.folder import csv_rows
+
+    rows = csv_rows(path.read_text(encoding="utf-8"))
     if len(rows) < 3 or any(len(r) != len(rows[0]) for r in rows):
         raise InputError(path, "", "not a table of at least two samples", "a waypoints.csv")
     return CsvTable(path, rows[0], rows[1:])
