@@ -406,3 +406,21 @@ def test_the_force_uncertainty_held_as_run_is_reported_against_the_claim(
     assert after["below_claim"] and after["held_limited_by"] == "depth"
     assert after["failure"] == "claim" and after["quantity"] == "depth"
     assert f"below the plan's +-{claimed:.2f} %" in out, out
+
+
+def test_a_tp_header_cut_inside_the_plan_id_is_read_whole(tmp_path: Path) -> None:
+    """A long problem name puts the plan id over two TP remarks, cut inside the word
+    (``! kr600_forming_contour-b68bd740 ;`` then ``! 712c ;``): check read the first part
+    only and refused the program as one of another plan; the remarks are joined again."""
+    from rfsw_plan.export.check import _stated
+    from rfsw_plan.export.fanuc_tp import FanucTpFormat, remarks
+
+    pid = "kr600_forming_contour-b68bd740712c"
+    lines = [*remarks(f"plan id: {pid}"), *remarks("robot: kuka_kr600_r2830"),
+             *remarks("verified tolerated force uncertainty: +-23.7 %")]
+    assert len(lines) >= 4 and pid not in " ".join(lines)  # the id is cut
+    ls = tmp_path / "RFSW_X.ls"
+    ls.write_text("/PROG RFSW_X\n/MN\n" + "".join(f"{k + 1:4d}:  {r} ;\n"
+                                                for k, r in enumerate(lines)))
+    assert pid in FanucTpFormat().header_text(ls)
+    assert _stated(ls) == {"plan id": pid, "verified tolerated force uncertainty": "+-23.7"}

@@ -420,9 +420,7 @@ def _stated(path: Path) -> dict[str, str]:
     header's comment lines are read as one text (a TP comment wraps a line over several)."""
     import re
 
-    strip = re.compile(r"^\s*(?:\d+:)?\s*[;!]?\s*|\s*;\s*$")
-    with path.open(encoding="utf-8", errors="replace") as fh:
-        text = " ".join(strip.sub("", line) for _, line in zip(range(80), fh, strict=False))
+    text = format_for_file(path).header_text(path)
     out: dict[str, str] = {}
     for key, value in (("plan id", r"[\w.-]+"),
                        ("verified tolerated force uncertainty", r"\+-[0-9.]+|unbounded")):

@@ -189,6 +189,25 @@ class FanucTpFormat(ControllerFormat):
     def file_name(self, program: Program) -> str:
         return tp_name(program.header.name) + ".ls"
 
+    def header_text(self, path: Path, lines: int = 80) -> str:
+        """The remarks of the first ``lines`` lines as one text; a remark that
+        :func:`remarks` cut inside a word (:data:`REMARK_LEN` characters, no space after the
+        eighth) is joined to the next one without a space (the plan id of a long problem
+        name spans two remarks)."""
+
+        remark = re.compile(r"^\s*(?:\d+:)?\s*!\s?(.*?)\s*;?\s*$")
+        text = ""
+        cut = False
+        with Path(path).open(encoding="ascii", errors="replace") as fh:
+            for _, line in zip(range(lines), fh, strict=False):
+                m = remark.match(line)
+                if m is None:
+                    continue
+                part = m.group(1)
+                text += ("" if cut or not text else " ") + part
+                cut = len(part) == REMARK_LEN and " " not in part[8:]
+        return text
+
     def posture(self, robot: Robot, q: FloatArray) -> Hashable:
         return fanuc_config(robot, q)
 

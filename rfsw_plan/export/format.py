@@ -194,6 +194,18 @@ class ControllerFormat(abc.ABC):
         """The main file's name."""
         return program.header.name + self.suffix
 
+    def header_text(self, path: Path, lines: int = 80) -> str:
+        """The text of the program's first ``lines`` lines as one string, comment markers
+        (``;``, ``!``, a TP line number and its ``;`` end) taken off and the lines joined by
+        a space: what ``check`` reads the header's ``plan id`` and level from. A format
+        whose comments cut a long word over two lines overrides it and joins them again."""
+        import re
+
+        strip = re.compile(r"^\s*(?:\d+:)?\s*[;!]?\s*|\s*;\s*$")
+        with Path(path).open(encoding="utf-8", errors="replace") as fh:
+            return " ".join(strip.sub("", line) for _, line in zip(range(lines), fh,
+                                                                    strict=False))
+
 
 def formats() -> dict[str, type[ControllerFormat]]:
     """The registry (name -> class, by :attr:`ControllerFormat.order` then name), with every
