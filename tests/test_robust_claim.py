@@ -532,3 +532,44 @@ def test_the_claims_exact_savings_change_no_bit(planned_result, monkeypatch, nam
                                     res.options.margin, res.q)
     assert res.samples.claim is not None and samples.claim is not None
     assert _claim_bits(res.samples.claim) == _claim_bits(samples.claim)
+
+
+def test_vertices_that_stop_early_leave_the_others_their_own_steps(planned_result,
+                                                                   monkeypatch) -> None:
+    """Stacked coupled vertices where one stops after its first step (the axial response
+    spread by -100 %: no axial force, nothing to solve) and the other steps on: once the
+    first has stopped, only the stepping vertex's rows are evaluated (a call on fewer rows
+    than the stack), and every vertex is the one solved alone, bit for bit; the same with a
+    vertex given twice (its rows evaluated once)."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planning import verify
+
+    res = planned_result("zk500_table6_seam")
+    got: list[Any] = []
+    claim = verify.robust_claim
+    monkeypatch.setattr(verify, "robust_claim",
+                        lambda *a, **k: got.append(a) or claim(*a, **k))
+    verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    model, task, _window, c = got[0][:4]
+    dW = verify._component_steps(task, c)
+    ax = verify._axial_coupling(model, task, c, verify._component_deflections(model, task, c,
+                                                                             dW)[1])
+    N = len(c.t)
+    limp = np.tile([1.0, -1.0, -1.0], (N, 1))  # axial response -100 %: f = 0 at once
+    hard = np.tile([-1.0, 1.0, 1.0], (N, 1))  # +100 %: several steps
+    sizes: list[int] = []
+    evaluate = ElastostaticModel.process_deflection_batch
+
+    def counted(self, batch, wrench, reference="taught"):
+        sizes.append(len(batch))
+        return evaluate(self, batch, wrench, reference)
+
+    monkeypatch.setattr(ElastostaticModel, "process_deflection_batch", counted)
+    for signs in ([limp, hard], [hard, limp, hard]):
+        alone = [verify.coupled_deflections(model, task, c, ax, dW, [s], 1.0)[0]
+                 for s in signs]
+        sizes.clear()
+        stacked = verify.coupled_deflections(model, task, c, ax, dW, signs, 1.0)
+        assert sizes[0] == 2 * N and N in sizes[1:], sizes  # one stopped, one steps on
+        for a, b in zip(alone, stacked, strict=True):
+            assert a.tobytes() == b.tobytes()

@@ -1366,7 +1366,9 @@ class TiledVertices:
     mostly coincide) have the same wrench at every step while both vertices step, so the
     model is evaluated once per distinct (point, signs) row: ``batch`` holds those rows,
     ``first`` the first tiled row of each and ``inverse`` each tiled row's (both None when
-    every row is distinct: ``batch`` is then the tiled batch itself).
+    every row is distinct: ``batch`` is then the tiled batch itself). Once some vertices have
+    stopped, only the rows of those still stepping are evaluated (``parts``: per set of
+    stepping vertices their rows' poses, kept across the calls at several u).
 
     Attributes:
         batch: The distinct rows' poses (``c.batch`` itself for one vertex).
@@ -1396,6 +1398,8 @@ class TiledVertices:
     compliance: FloatArray
     cross_t: FloatArray
     cross_l: FloatArray
+    parts: dict[bytes, tuple[PoseBatch, NDArray[np.int_], NDArray[np.int_]]] = field(
+        default_factory=dict, compare=False, repr=False)
 
 
 def tiled_vertices(c: ClaimInput, ax: AxialCoupling, dW: list[FloatArray],
@@ -1452,15 +1456,16 @@ def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
                                           else np.flatnonzero(np.repeat(live, N)))
         Wf = W.copy()
         Wf[:, :3] += (f - f0)[:, None] * n_dir
-        if tv.first is None or tv.inverse is None:
-            dX[rows] = model.process_deflection_batch(batch, Wf, task.reference)[rows]
+        if not live.all():
+            # The rows of the vertices still stepping, each distinct one once, its wrench
+            # from a tiled row of it that still steps (a stopped vertex keeps its values).
+            part, rep, pos = _stepping_part(tv, live, N)
+            dX[rows] = model.process_deflection_batch(part, Wf[rep], task.reference)[pos]
+        elif tv.first is None or tv.inverse is None:
+            dX[:] = model.process_deflection_batch(batch, Wf, task.reference)
         else:
-            # Each distinct row's wrench from a tiled row of it that still steps (the rows
-            # of a stopped vertex keep their own values).
-            rep = tv.first if live.all() else _stepping_rows(tv.first, tv.inverse,
-                                                             np.repeat(live, N))
-            dX[rows] = model.process_deflection_batch(batch, Wf[rep],
-                                                      task.reference)[tv.inverse][rows]
+            dX[:] = model.process_deflection_batch(batch, Wf[tv.first],
+                                                   task.reference)[tv.inverse]
         dp = -np.einsum("ki,ki->k", dX[rows, :3] - dX0[rows, :3], n_dir[rows])
         r[rows] = np.where(f0[rows] > 0, scale[rows] * np.maximum(0.0, f0[rows]
                                                                     + k_p[rows] * dp),
@@ -1484,14 +1489,25 @@ def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
     return [out[v * N:(v + 1) * N] for v in range(V)]
 
 
-def _stepping_rows(first: NDArray[np.int_], inverse: NDArray[np.int_],
-                   stepping: NDArray[np.bool_]) -> NDArray[np.int_]:
-    """Per distinct row of :class:`TiledVertices` the first of its tiled rows that is still
-    ``stepping`` (its first row where none is)."""
-    n = len(inverse)
-    at = np.full(len(first), n)
-    np.minimum.at(at, inverse, np.where(stepping, np.arange(n), n))
-    return np.where(at < n, at, first)
+def _stepping_part(tv: TiledVertices, live: NDArray[np.bool_], N: int
+                   ) -> tuple[PoseBatch, NDArray[np.int_], NDArray[np.int_]]:
+    """The rows of the ``live`` vertices of :class:`TiledVertices` (N points each) that the
+    model evaluates: their poses (each distinct row once), the tiled row whose wrench each
+    takes (the first of its tiled rows that still steps) and, per tiled row of a live vertex
+    in order, its row among them; kept in ``tv.parts`` per set of live vertices."""
+    key = live.tobytes()
+    if key not in tv.parts:
+        stepping = np.repeat(live, N)
+        rows = np.flatnonzero(stepping)
+        if tv.inverse is None:
+            tv.parts[key] = (tv.batch.rows(rows), rows, np.arange(len(rows)))
+        else:
+            ids, pos = np.unique(tv.inverse[rows], return_inverse=True)
+            n = len(tv.inverse)
+            at = np.full(len(ids), n)
+            np.minimum.at(at, pos, rows)
+            tv.parts[key] = (tv.batch.rows(ids), at, pos)
+    return tv.parts[key]
 
 
 def _take_coupling(ax: AxialCoupling, idx: NDArray[np.int_]) -> AxialCoupling:
