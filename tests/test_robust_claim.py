@@ -455,3 +455,121 @@ def test_the_metrics_share_their_prediction_with_the_claim_bit_for_bit(planned_r
                                             0.2).to_dict()
     np.testing.assert_array_equal(pred.e_lat,
                                   verify.predict(res.model, res.task, res.q, 0.0).e_lat)
+
+
+def _claim_bits(claim: Any) -> tuple:
+    """Everything a claim holds, floats as their exact hex (NaN equal to NaN)."""
+    def bits(v: Any) -> Any:
+        return float(v).hex() if isinstance(v, float) else v
+    return ([(q, *(bits(v) for v in dataclasses.astuple(lim)))
+             for q, lim in claim.limits.items()],
+            bits(claim.axial_force_control), claim.linear, bits(claim.penetration_stiffness),
+            claim.lateral_per_unit.tobytes())
+
+
+def _plain_evaluations(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The claim's evaluations as they were before issue 41's exact savings: every coupled
+    vertex solved alone (no stacking, no shared rows), every force-box vertex on every point
+    (no rows shared between vertices), the phase gradient over the whole array first, the
+    spring frames gathered at every call."""
+    from rfsw_plan.elastostatics import springs
+    from rfsw_plan.planning import verify
+
+    stacked = verify.coupled_deflections
+
+    def alone(model, task, c, ax, dW, signs, u, tiled=None):
+        return [stacked(model, task, c, ax, dW, [s], u)[0] for s in signs]
+
+    def every_point(model, task, batch, wrench, sgn, done):
+        return model.process_deflection_batch(batch, wrench, task.reference)
+
+    def phase_gradient(y, x, phase):
+        g = np.gradient(y, x, axis=0)
+        cut = np.flatnonzero(phase[1:] != phase[:-1]) + 1
+        for a, b in zip(np.r_[0, cut], np.r_[cut, len(x)], strict=True):
+            if b - a >= 2:
+                g[a:b] = np.gradient(y[a:b], x[a:b], axis=0)
+        return g
+
+    def stack(batch, sp):
+        frames = batch.frames[:, [s.joint for s in sp]]
+        return (frames[..., :3, :3], batch.T[:, None, :3, 3] - frames[..., :3, 3],
+                np.stack([s.local_compliance() for s in sp]))
+
+    monkeypatch.setattr(verify, "coupled_deflections", alone)
+    monkeypatch.setattr(verify, "_vertex_deflection", every_point)
+    monkeypatch.setattr(verify, "phase_gradient", phase_gradient)
+    monkeypatch.setattr(springs, "_stack", stack)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_the_claims_exact_savings_change_no_bit(planned_result, monkeypatch, name: str) -> None:
+    """The plan's claim on its written samples and the waypoint claim of its joint values are
+    those of the plain evaluations (:func:`_plain_evaluations`) bit for bit, on every bundled
+    problem (issue 41: shared vertex rows evaluated once, the level's gathers hoisted, the
+    spring frames cached, the phase gradient without its overwritten whole-array pass); and
+    where the model is not linear in the wrench the savings are taken: fewer model rows."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planning import verify
+
+    res = planned_result(name)
+    rows = [0]
+    evaluate = ElastostaticModel.process_deflection_batch
+
+    def counted(self, batch, wrench, reference="taught"):
+        rows[0] += len(batch)
+        return evaluate(self, batch, wrench, reference)
+
+    monkeypatch.setattr(ElastostaticModel, "process_deflection_batch", counted)
+    fast = verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    fast_rows, rows[0] = rows[0], 0
+    _plain_evaluations(monkeypatch)
+    plain = verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    assert _claim_bits(fast) == _claim_bits(plain)
+    if not fast.linear:
+        assert fast_rows < rows[0]
+    samples = verify.verify_samples(res.model, res.task, res.window, res.trajectory,
+                                    res.options.margin, res.q)
+    assert res.samples.claim is not None and samples.claim is not None
+    assert _claim_bits(res.samples.claim) == _claim_bits(samples.claim)
+
+
+def test_vertices_that_stop_early_leave_the_others_their_own_steps(planned_result,
+                                                                   monkeypatch) -> None:
+    """Stacked coupled vertices where one stops after its first step (the axial response
+    spread by -100 %: no axial force, nothing to solve) and the other steps on: once the
+    first has stopped, only the stepping vertex's rows are evaluated (a call on fewer rows
+    than the stack), and every vertex is the one solved alone, bit for bit; the same with a
+    vertex given twice (its rows evaluated once)."""
+    from rfsw_plan.elastostatics.model import ElastostaticModel
+    from rfsw_plan.planning import verify
+
+    res = planned_result("zk500_table6_seam")
+    got: list[Any] = []
+    claim = verify.robust_claim
+    monkeypatch.setattr(verify, "robust_claim",
+                        lambda *a, **k: got.append(a) or claim(*a, **k))
+    verify.waypoint_claim(res.model, res.task, res.window, res.q)
+    model, task, _window, c = got[0][:4]
+    dW = verify._component_steps(task, c)
+    ax = verify._axial_coupling(model, task, c, verify._component_deflections(model, task, c,
+                                                                             dW)[1])
+    N = len(c.t)
+    limp = np.tile([1.0, -1.0, -1.0], (N, 1))  # axial response -100 %: f = 0 at once
+    hard = np.tile([-1.0, 1.0, 1.0], (N, 1))  # +100 %: several steps
+    sizes: list[int] = []
+    evaluate = ElastostaticModel.process_deflection_batch
+
+    def counted(self, batch, wrench, reference="taught"):
+        sizes.append(len(batch))
+        return evaluate(self, batch, wrench, reference)
+
+    monkeypatch.setattr(ElastostaticModel, "process_deflection_batch", counted)
+    for signs in ([limp, hard], [hard, limp, hard]):
+        alone = [verify.coupled_deflections(model, task, c, ax, dW, [s], 1.0)[0]
+                 for s in signs]
+        sizes.clear()
+        stacked = verify.coupled_deflections(model, task, c, ax, dW, signs, 1.0)
+        assert sizes[0] == 2 * N and N in sizes[1:], sizes  # one stopped, one steps on
+        for a, b in zip(alone, stacked, strict=True):
+            assert a.tobytes() == b.tobytes()

@@ -61,10 +61,18 @@ def _stack(batch: PoseBatch, springs: Sequence[JointSprings]) -> tuple[
     FloatArray, FloatArray, FloatArray
 ]:
     """Joint rotations R (m, E, 3, 3), TCP-minus-joint-origin r (m, E, 3) [m] and the local
-    compliances C_l (E, 3, 3) of E spring effects."""
-    frames = batch.frames[:, [s.joint for s in springs]]  # (m, E, 4, 4)
-    R = frames[..., :3, :3]
-    r = batch.T[:, None, :3, 3] - frames[..., :3, 3]
+    compliances C_l (E, 3, 3) of E spring effects.
+
+    R and r depend on the poses alone: they are kept in the batch's cache
+    (:attr:`PoseBatch.cache`, keyed by the springs' joints), so the many evaluations of one
+    batch under different wrenches (the robust claim's force-box vertices, identification
+    iterations) gather the joint frames once."""
+    joints = tuple(s.joint for s in springs)
+    key = f"spring_frames{joints}"
+    if key not in batch.cache:
+        frames = batch.frames[:, list(joints)]  # (m, E, 4, 4)
+        batch.cache[key] = (frames[..., :3, :3], batch.T[:, None, :3, 3] - frames[..., :3, 3])
+    R, r = batch.cache[key]
     Cl = np.stack([s.local_compliance() for s in springs])
     return R, r, Cl
 

@@ -892,10 +892,13 @@ def phase_gradient(y: FloatArray, x: FloatArray, phase: NDArray[np.str_]) -> Flo
     """d y / d x (np.gradient, along the first axis) within each run of one phase, so no
     difference spans a phase change (the last weld sample's is not averaged with the
     deceleration's first step); a run of one point takes the difference across its
-    neighbours."""
-    g = np.gradient(y, x, axis=0)
+    neighbours (the whole array's gradient is taken only then: every run of two or more
+    points overwrites its share of it)."""
     cut = np.flatnonzero(phase[1:] != phase[:-1]) + 1
-    for a, b in zip(np.r_[0, cut], np.r_[cut, len(x)], strict=True):
+    runs = list(zip(np.r_[0, cut], np.r_[cut, len(x)], strict=True))
+    whole = not all(b - a >= 2 for a, b in runs)
+    g: FloatArray = np.gradient(y, x, axis=0) if whole else np.empty(np.shape(y))
+    for a, b in runs:
         if b - a >= 2:
             g[a:b] = np.gradient(y[a:b], x[a:b], axis=0)
     return g
@@ -1169,6 +1172,31 @@ def _halved(vertices: Callable[[float], tuple[FloatArray, FloatArray]], u: float
     return lo_u, int(idx[int(np.argmin(margin)) % len(idx)])
 
 
+def _vertex_deflection(model: ElastostaticModel, task: PlanTask, batch: PoseBatch,
+                       wrench: FloatArray, sgn: FloatArray,
+                       done: list[tuple[FloatArray, FloatArray]]) -> FloatArray:
+    """The model's process deflection at a vertex (signs ``sgn`` (n, 3), wrench (n, 6)),
+    evaluated only at the points where no vertex of ``done`` (signs, deflection) of the same
+    level u has the same signs (the same wrench: the tilt's work- and travel-angle vertices
+    mostly coincide); the model is evaluated point by point, so each point's deflection is
+    the one a call on every point gives."""
+    if not done:
+        return model.process_deflection_batch(batch, wrench, task.reference)
+    dX = np.empty((len(batch), 6))
+    todo = np.ones(len(batch), dtype=bool)
+    for sg, dx in done:
+        same = todo & np.all(sg == sgn, axis=1)
+        dX[same] = dx[same]
+        todo &= ~same
+    if todo.all():
+        return model.process_deflection_batch(batch, wrench, task.reference)
+    if todo.any():
+        rows = np.flatnonzero(todo)
+        dX[rows] = model.process_deflection_batch(batch.rows(rows), wrench[rows],
+                                                  task.reference)
+    return dX
+
+
 def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
                   c: ClaimInput, dW: list[FloatArray], q: str, u_k: FloatArray, u0: float,
                   gains: list[FloatArray]) -> tuple[float, int]:
@@ -1203,10 +1231,12 @@ def _vertex_level(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
         """Worst margin and worst change of q over the vertices at u, per point."""
         margin = np.full(len(value), np.inf)
         change = np.zeros(len(value))
+        done: list[tuple[FloatArray, FloatArray]] = []
         for sgn, on in sets:
             Wv = sub.wrench + u * sum((sgn[:, i, None] * dWs[i] for i in range(3)),
                                       np.zeros_like(sub.wrench))
-            dX = model.process_deflection_batch(sub.batch, Wv, task.reference)
+            dX = _vertex_deflection(model, task, sub.batch, Wv, sgn, done)
+            done.append((sgn, dX))
             v = _quantities(sub, window, dX, q)[q][0]
             margin = np.where(on, np.minimum(margin, np.minimum(v - lo, hi - v)), margin)
             change = np.where(on, np.maximum(change, np.abs(v - value)), change)
@@ -1324,27 +1354,96 @@ def coupled_deflection(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
     return coupled_deflections(model, task, c, ax, dW, [sgn], u)[0]
 
 
+@dataclass(frozen=True)
+class TiledVertices:
+    """The claim's points repeated once per vertex of :func:`coupled_deflections` (row
+    v N + k: vertex v at point k), with what does not depend on the level u gathered once, so
+    a caller that evaluates the same vertices at several u (:func:`_coupled_vertex_level`)
+    gathers them once and the effects' pose caches (:attr:`PoseBatch.cache`) live across the
+    calls.
+
+    Two rows of one point with the same signs (the tilt's work- and travel-angle vertices
+    mostly coincide) have the same wrench at every step while both vertices step, so the
+    model is evaluated once per distinct (point, signs) row: ``batch`` holds those rows,
+    ``first`` the first tiled row of each and ``inverse`` each tiled row's (both None when
+    every row is distinct: ``batch`` is then the tiled batch itself). Once some vertices have
+    stopped, only the rows of those still stepping are evaluated (``parts``: per set of
+    stepping vertices their rows' poses, kept across the calls at several u).
+
+    Attributes:
+        batch: The distinct rows' poses (``c.batch`` itself for one vertex).
+        first: The first tiled row of each distinct row (U,), or None.
+        inverse: The distinct row of each tiled row (V N,), or None.
+        sgn: Sign per row and seam-frame component (V N, 3).
+        wrench, dW_t, dW_l: The nominal wrench and the traverse and lateral changes at u = 1
+            [N, N m] (V N, 6).
+        n_dir: Tool-axis direction (V N, 3).
+        deflection: Nominal deflection dX0 [m, rad] (V N, 6).
+        force, stiffness, per_newton, compliance, cross_t, cross_l: :class:`AxialCoupling`'s
+            fields, repeated.
+    """
+
+    batch: PoseBatch
+    first: NDArray[np.int_] | None
+    inverse: NDArray[np.int_] | None
+    sgn: FloatArray
+    wrench: FloatArray
+    dW_t: FloatArray
+    dW_l: FloatArray
+    n_dir: FloatArray
+    deflection: FloatArray
+    force: FloatArray
+    stiffness: FloatArray
+    per_newton: FloatArray
+    compliance: FloatArray
+    cross_t: FloatArray
+    cross_l: FloatArray
+    parts: dict[bytes, tuple[PoseBatch, NDArray[np.int_], NDArray[np.int_]]] = field(
+        default_factory=dict, compare=False, repr=False)
+
+
+def tiled_vertices(c: ClaimInput, ax: AxialCoupling, dW: list[FloatArray],
+                   signs: list[FloatArray]) -> TiledVertices:
+    """:class:`TiledVertices` of the vertices ``signs`` (each (N, 3)) at the points of ``c``."""
+    V, N = len(signs), len(c.t)
+    tile = np.tile(np.arange(N), V)
+    sgn = np.concatenate(signs)
+    first: NDArray[np.int_] | None = None
+    inverse: NDArray[np.int_] | None = None
+    if V > 1 and np.all(np.abs(sgn) == 1.0):
+        # One key per (point, signs): the point and a bit per positive component.
+        key = tile * 8 + (sgn > 0) @ np.array([1, 2, 4])
+        first, inverse = np.unique(key, return_index=True, return_inverse=True)[1:]
+        if len(first) == len(key):
+            first = inverse = None
+    batch = (c.batch if V == 1 else c.batch.rows(tile) if first is None
+             else c.batch.rows(tile[first]))
+    return TiledVertices(batch, first, inverse, sgn,
+                         c.wrench[tile], dW[0][tile], dW[1][tile], c.n_dir[tile],
+                         c.deflection[tile], ax.force[tile], ax.stiffness[tile],
+                         ax.per_newton[tile], ax.compliance[tile], ax.cross[tile, 0],
+                         ax.cross[tile, 1])
+
+
 def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
                         ax: AxialCoupling, dW: list[FloatArray], signs: list[FloatArray],
-                        u: float, tiled: PoseBatch | None = None) -> list[FloatArray]:
+                        u: float, tiled: TiledVertices | None = None) -> list[FloatArray]:
     """:func:`coupled_deflection` at several vertices (each ``signs[v]`` (N, 3)) with one model
     call per step for all of them: every vertex keeps its own steps and its own stop (the
     model is evaluated point by point, so the result is each vertex's alone).
 
-    ``tiled``: ``c.batch`` repeated once per vertex (``c.batch.rows(np.tile(arange(N), V))``),
-    built once by a caller that evaluates the same vertices at several u, so the effects'
-    pose caches (:attr:`PoseBatch.cache`) live across the calls."""
+    ``tiled``: :func:`tiled_vertices` of the same points and vertices, built once by a caller
+    that evaluates them at several u."""
     V, N = len(signs), len(c.t)
-    sgn = np.concatenate(signs)
-    tile = np.tile(np.arange(N), V)
-    batch = c.batch if V == 1 else tiled if tiled is not None else c.batch.rows(tile)
-    n_dir, dX0, f0 = c.n_dir[tile], c.deflection[tile], ax.force[tile]
-    k_p, A = ax.stiffness[tile], ax.per_newton[tile]
+    tv = tiled if tiled is not None else tiled_vertices(c, ax, dW, signs)
+    batch, sgn = tv.batch, tv.sgn
+    n_dir, dX0, f0 = tv.n_dir, tv.deflection, tv.force
+    k_p, A = tv.stiffness, tv.per_newton
     scale = np.maximum(0.0, 1.0 + sgn[:, 2] * u)
-    W = c.wrench[tile] + u * (sgn[:, 0, None] * dW[0][tile] + sgn[:, 1, None] * dW[1][tile])
-    slope = 1.0 + scale * k_p * ax.compliance[tile]
+    W = tv.wrench + u * (sgn[:, 0, None] * tv.dW_t + sgn[:, 1, None] * tv.dW_l)
+    slope = 1.0 + scale * k_p * tv.compliance
     # The linear answer first (exact for a wrench-linear model).
-    tl = u * (sgn[:, 0] * ax.cross[tile, 0] + sgn[:, 1] * ax.cross[tile, 1])
+    tl = u * (sgn[:, 0] * tv.cross_t + sgn[:, 1] * tv.cross_l)
     f = np.maximum(0.0, f0 + ((scale - 1.0) * f0 - scale * k_p * tl) / slope)
     dX = dX0.copy()
     r = np.zeros(len(f))
@@ -1357,7 +1456,16 @@ def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
                                           else np.flatnonzero(np.repeat(live, N)))
         Wf = W.copy()
         Wf[:, :3] += (f - f0)[:, None] * n_dir
-        dX[rows] = model.process_deflection_batch(batch, Wf, task.reference)[rows]
+        if not live.all():
+            # The rows of the vertices still stepping, each distinct one once, its wrench
+            # from a tiled row of it that still steps (a stopped vertex keeps its values).
+            part, rep, pos = _stepping_part(tv, live, N)
+            dX[rows] = model.process_deflection_batch(part, Wf[rep], task.reference)[pos]
+        elif tv.first is None or tv.inverse is None:
+            dX[:] = model.process_deflection_batch(batch, Wf, task.reference)
+        else:
+            dX[:] = model.process_deflection_batch(batch, Wf[tv.first],
+                                                   task.reference)[tv.inverse]
         dp = -np.einsum("ki,ki->k", dX[rows, :3] - dX0[rows, :3], n_dir[rows])
         r[rows] = np.where(f0[rows] > 0, scale[rows] * np.maximum(0.0, f0[rows]
                                                                     + k_p[rows] * dp),
@@ -1379,6 +1487,27 @@ def coupled_deflections(model: ElastostaticModel, task: PlanTask, c: ClaimInput,
     # the vertices' tolerance.
     out = dX + A * (r / slope)[:, None]
     return [out[v * N:(v + 1) * N] for v in range(V)]
+
+
+def _stepping_part(tv: TiledVertices, live: NDArray[np.bool_], N: int
+                   ) -> tuple[PoseBatch, NDArray[np.int_], NDArray[np.int_]]:
+    """The rows of the ``live`` vertices of :class:`TiledVertices` (N points each) that the
+    model evaluates: their poses (each distinct row once), the tiled row whose wrench each
+    takes (the first of its tiled rows that still steps) and, per tiled row of a live vertex
+    in order, its row among them; kept in ``tv.parts`` per set of live vertices."""
+    key = live.tobytes()
+    if key not in tv.parts:
+        stepping = np.repeat(live, N)
+        rows = np.flatnonzero(stepping)
+        if tv.inverse is None:
+            tv.parts[key] = (tv.batch.rows(rows), rows, np.arange(len(rows)))
+        else:
+            ids, pos = np.unique(tv.inverse[rows], return_inverse=True)
+            n = len(tv.inverse)
+            at = np.full(len(ids), n)
+            np.minimum.at(at, pos, rows)
+            tv.parts[key] = (tv.batch.rows(ids), at, pos)
+    return tv.parts[key]
 
 
 def _take_coupling(ax: AxialCoupling, idx: NDArray[np.int_]) -> AxialCoupling:
@@ -1467,8 +1596,8 @@ def _coupled_vertex_level(model: ElastostaticModel, task: PlanTask, window: Weld
     mask = mask & np.tile(np.isin(idx, cand), M // N)
     sets = _vertex_sets(q, gains, idx, N, M // N)
     signs = [sg for sg, _ in sets]
-    tiled = sub.batch.rows(np.tile(np.arange(n), len(sets)))
     dWs = [d[idx] for d in dW]
+    tiled = tiled_vertices(sub, sub_ax, dWs, signs)
 
     def vertices(u: float) -> tuple[FloatArray, FloatArray]:
         """Worst margin over the vertices at u, and the secant level through u = 0 of each
