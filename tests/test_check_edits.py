@@ -424,3 +424,25 @@ def test_a_tp_header_cut_inside_the_plan_id_is_read_whole(tmp_path: Path) -> Non
                                                 for k, r in enumerate(lines)))
     assert pid in FanucTpFormat().header_text(ls)
     assert _stated(ls) == {"plan id": pid, "verified tolerated force uncertainty": "+-23.7"}
+
+
+def test_the_sample_index_answers_as_the_full_search() -> None:
+    """check's nearest-sample queries (the IK seed of every Cartesian point, the in-order
+    match with its ties at rest) prune by a slab along the samples' longest axis: the
+    answers are the full search's, ties and repeated positions included."""
+    from rfsw_plan.export.check import _SampleIndex
+
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        n = int(rng.integers(50, 2000))
+        p = np.cumsum(rng.normal(size=(n, 3)) * rng.choice([0.0, 1e-3, 1e-2], size=(n, 1)),
+                      axis=0)
+        p[rng.integers(0, n, n // 5)] = p[0]  # the tool at rest: samples at one place
+        index = _SampleIndex(p)
+        for _ in range(100):
+            q = p[rng.integers(0, n)] + rng.normal(size=3) * rng.choice([0.0, 1e-7, 1e-3, 1.0])
+            guess, start = (int(v) for v in rng.integers(0, n, 2))
+            assert index.nearest(q, guess) == int(np.argmin(np.linalg.norm(p - q, axis=1)))
+            d = np.linalg.norm(p[start:] - q, axis=1)
+            assert np.array_equal(index.within_tie(q, start, 3e-6),
+                                  start + np.flatnonzero(d <= d.min() + 3e-6))

@@ -44,7 +44,6 @@ quantity (exit 3 in the CLI); every failure is in :meth:`CheckResult.to_dict`.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -724,11 +723,10 @@ def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: li
             assert p.pose is not None
             targets[k] = conv.base @ read.work @ p.pose @ to_model
     cart = list(targets)
-    plan_p = np.ascontiguousarray(T_plan[:, :3, 3])
-    for rows, dist in _distance_rows(np.array([targets[k][:3, 3] for k in cart]).reshape(-1, 3),
-                                     plan_p):
-        for r, d in zip(rows, dist, strict=True):
-            nearest[cart[r]] = int(np.argmin(d))
+    index = _SampleIndex(T_plan[:, :3, 3])
+    prev = 0
+    for k in cart:
+        nearest[k] = prev = index.nearest(targets[k][:3, 3], prev)
     first = dict(zip(cart, seeded_on_branch(
         robot, np.array([targets[k] for k in cart]), [pts[k].config for k in cart],
         fmt.postures, plan.q[[nearest[k] for k in cart]]), strict=True))
@@ -845,37 +843,61 @@ def _match(poses: FloatArray, T_plan: FloatArray, t_plan: FloatArray,
     apart by the previous point's time plus the programmed segment time."""
     idx = np.zeros(len(poses), dtype=int)
     start = 0
-    plan_p = np.ascontiguousarray(T_plan[:, :3, 3])
-    chunks = _distance_rows(np.ascontiguousarray(poses[:, :3, 3]), plan_p)
-    rows: range = range(0)
-    dist = np.zeros((0, len(plan_p)))
+    index = _SampleIndex(T_plan[:, :3, 3])
     for k in range(len(poses)):
-        if k not in rows:
-            rows, dist = next(chunks)
-        d = dist[k - rows.start, start:]
-        near = np.flatnonzero(d <= d.min() + TIE)
+        near = index.within_tie(poses[k, :3, 3], start, TIE)  # sample indices, ascending
         if k == 0 or seg_t[k] <= 0:
             j = int(near[0])
         else:
             expect = t_plan[idx[k - 1]] + seg_t[k]
-            j = int(near[np.argmin(np.abs(t_plan[start + near] - expect))])
-        idx[k] = start + j
-        start = idx[k]
+            j = int(near[np.argmin(np.abs(t_plan[near] - expect))])
+        idx[k] = start = j
     return idx
 
 
-def _distance_rows(points: FloatArray, plan_p: FloatArray, cells: int = 2_000_000
-                   ) -> Iterator[tuple[range, FloatArray]]:
-    """The distances of ``points`` (m, 3) to every plan sample position ``plan_p`` (N, 3) [m],
-    a block of rows at a time (at most ``cells`` distances): each row is exactly
-    ``np.linalg.norm(plan_p - point, axis=1)`` (the same operations on the same numbers)."""
-    step = max(1, cells // max(len(plan_p), 1))
-    x, y, z = (np.ascontiguousarray(plan_p[:, i]) for i in range(3))
-    for a in range(0, len(points), step):
-        b = points[a:a + step]
-        dx, dy, dz = x - b[:, :1], y - b[:, 1:2], z - b[:, 2:3]
-        # norm's own sum, in its order: (dx^2 + dy^2) + dz^2, then the square root
-        yield range(a, a + len(b)), np.sqrt(dx * dx + dy * dy + dz * dz)
+class _SampleIndex:
+    """Exact nearest-sample queries on the plan's sample positions (N, 3) [m], the same
+    answers as ``np.linalg.norm(p - q, axis=1)`` over every sample (the same distances, the
+    first index among equal ones) without computing them all: a sample nearer to q than a
+    known distance d lies in the slab |p_a - q_a| <= d on the axis a of the samples' largest
+    extent, found by bisection in the samples sorted along it."""
+
+    def __init__(self, p: FloatArray) -> None:
+        p = np.asarray(p, dtype=float)
+        self._xyz = tuple(np.ascontiguousarray(p[:, i]) for i in range(3))
+        self._axis = int(np.argmax(np.ptp(p, axis=0))) if len(p) else 0
+        self._order = np.argsort(p[:, self._axis], kind="stable")
+        self._sorted = p[self._order, self._axis]
+
+    def _dist(self, idx: NDArray[np.int_], q: FloatArray) -> FloatArray:
+        x, y, z = (c[idx] for c in self._xyz)
+        dx, dy, dz = x - q[0], y - q[1], z - q[2]
+        # np.linalg.norm's own sum, in its order: (dx^2 + dy^2) + dz^2, then the square root
+        return np.asarray(np.sqrt(dx * dx + dy * dy + dz * dz))
+
+    def _slab(self, q: FloatArray, radius: float, start: int) -> NDArray[np.int_]:
+        """Every sample index >= start within ``radius`` of q along the axis (a superset of
+        those within ``radius`` of q), ascending."""
+        r = radius * (1.0 + 1e-12) + 1e-15  # the rounding of the distances
+        a = np.searchsorted(self._sorted, q[self._axis] - r, side="left")
+        b = np.searchsorted(self._sorted, q[self._axis] + r, side="right")
+        idx = np.sort(self._order[a:b])
+        return idx[idx >= start]
+
+    def nearest(self, q: FloatArray, guess: int) -> int:
+        """The index of the sample nearest to q (the first of equal ones); ``guess`` is any
+        sample index, a near one prunes most."""
+        d0 = float(self._dist(np.array([guess]), q)[0])
+        cand = self._slab(q, d0, 0)
+        return int(cand[np.argmin(self._dist(cand, q))])
+
+    def within_tie(self, q: FloatArray, start: int, tie: float) -> NDArray[np.int_]:
+        """The sample indices >= start whose distance to q is within ``tie`` of the nearest
+        one's among them, ascending."""
+        d0 = float(self._dist(np.array([start]), q)[0])
+        cand = self._slab(q, d0 + tie, start)
+        d = self._dist(cand, q)
+        return cand[d <= d.min() + tie]
 
 
 def _retime(seg_t: FloatArray, idx: NDArray[np.int_], t_plan: FloatArray) -> FloatArray:
