@@ -719,6 +719,46 @@ def test_the_batched_path_checks_are_the_one_segment_ones() -> None:
         np.testing.assert_array_equal(_chord_fraction(P, i, j)[0], pos)
 
 
+def test_the_stacked_move_rates_are_the_one_move_ones() -> None:
+    """Issue 41: ``_cycle_cuts`` takes every move's largest speed change from one stacked
+    computation (``program._window_rates``); each is bit for bit what ``_speed_refine``'s
+    ``change`` gives the move alone (chord fraction, a . w, numpy.gradient over the move's
+    own times, even and uneven steps, a chord of zero length), so the cuts are the same."""
+    from rfsw_plan.export.program import (
+        CUT_SAMPLES,
+        _chord_fraction,
+        _cycle_cuts,
+        _window_rates,
+    )
+
+    rng = np.random.default_rng(11)
+    n = 160
+    P = np.tile(np.eye(4), (n, 1, 1))
+    P[:, :3, 3] = np.cumsum(rng.normal(scale=1e-3, size=(n, 3)), axis=0)
+    P[60:64, :3, 3] = P[60, :3, 3]  # a chord of zero length
+    t = np.arange(n) * 0.01  # steps that are not all the same float
+    t[100:] = 1.0 + np.arange(n - 100) * 0.0078125  # exact even steps
+    a = rng.normal(size=(n, 3))
+    a /= np.linalg.norm(a, axis=1, keepdims=True)
+
+    def change(i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
+        _, f = _chord_fraction(P, i, j)
+        p0, p1 = P[i, :3, 3], P[j, :3, 3]
+        w = P[i:j + 1, :3, 3] - (p0 + f[:, None] * (p1 - p0))
+        along = np.einsum("ki,ki->k", a[i:j + 1], w)
+        return along, np.gradient(along, t[i:j + 1])
+
+    for i, j in [(0, 159), (55, 70), (90, 140), (3, 5)]:
+        table = _window_rates(P, a[i:j + 1], t, i, j, CUT_SAMPLES)
+        for k in range(1, j - i + 1):
+            for m in range(max(0, k - CUT_SAMPLES), k):
+                assert table[k, k - m] == np.max(np.abs(change(i + m, i + k)[1])), (i, m, k)
+        rates = lambda i, j: _window_rates(P, a[i:j + 1], t, i, j, CUT_SAMPLES)  # noqa: E731
+        for limit in (1e-4, 1e-3):
+            assert _cycle_cuts(change, t, i, j, limit, 0.03, rates) == \
+                _cycle_cuts(change, t, i, j, limit, 0.03)
+
+
 def test_remembered_work_gives_the_same_program(planned) -> None:
     """build_program remembers the samples' poses (``sample_fk``) and every segment's verdict
     (``_refine``, ``_speed_refine``) for the next build of the same samples (issue 41: the TP

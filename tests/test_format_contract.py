@@ -157,3 +157,27 @@ def test_a_new_format_module_is_discovered_without_any_list(tmp_path: Path,
         FORMATS.pop("toy_discovered", None)
         sys.modules.pop("rfsw_plan.export.toy_discovered", None)
     assert "toy_discovered" not in format_names()
+
+
+def test_the_stream_rows_are_the_csv_writers_cells() -> None:
+    """Issue 41: the stream file's rows are formatted one row at a time
+    (``stream._rows_text``); the text is what the CSV writer made of the cells
+    (``stream._column_text``: ``fixed(x, 6)``, never ``-0.000000``), the rounding edges
+    included, and a text cell the writer would quote goes back to the writer."""
+    import csv
+    import io
+
+    from rfsw_plan.export.stream import _column_text, _rows_text
+
+    rng = np.random.default_rng(3)
+    edges = np.array([0.0, -0.0, -4e-7, -5e-7, -5.000001e-7, -6e-7, 5e-7, -1e-6, 1e-6,
+                      -0.0000004999999, 123456.0000005, -2.5e-7, -1e-300])
+    nums = np.concatenate([edges, rng.normal(scale=100.0, size=200 - len(edges))])
+    cols = [nums, np.array(["weld", "plunge"] * 100), np.arange(200), nums[::-1] * 1e-6,
+            np.where(nums > 0, "1", "0")]
+    want = io.StringIO()
+    csv.writer(want).writerows(zip(*[_column_text(c) for c in cols], strict=True))
+    assert _rows_text(cols) == want.getvalue()
+    assert _rows_text([nums, np.array(["a,b"] * 200)]) is None
+    with pytest.raises(ValueError, match="non-finite"):
+        _rows_text([np.array([1.0, np.nan])])

@@ -115,6 +115,30 @@ def test_using_it_never_loads_the_spatial_package() -> None:
     assert out == [f"[{rotation.BACKEND!r}]", "True", "True"]
 
 
+def test_loading_the_backend_leaves_scipys_util_and_random_alone() -> None:
+    """Issue 41: the backend loads without SciPy's ``_lib._util`` (its array-API layer and,
+    through NumPy's lazy attributes, ``numpy.f2py``: a stand-in lends the two names the
+    backend's ``random`` takes from it); afterwards ``scipy._lib._util`` is SciPy's own
+    module, and ``Rotation.random`` gives in that process what it gives in one that imported
+    ``scipy.spatial`` alone, ``rng`` and ``random_state`` both."""
+    draw = ("from scipy.spatial.transform import Rotation as R\n"
+            "print(R.random(3, rng=5).as_quat().tobytes().hex())\n"
+            "print(R.random(2, random_state=np.random.RandomState(4)).as_quat().tobytes().hex())\n")
+    code = ("import sys, numpy as np\n"
+            "from rfsw_plan.robot import rotation\n"
+            "assert rotation.backend() is not None\n"
+            "print(sorted(m for m in ('scipy._lib._util', 'numpy.f2py') if m in sys.modules))\n"
+            + draw + "print(sys.modules['scipy._lib._util'].__file__.endswith('_util.py'))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, cwd=PACKAGE.parent, timeout=120).stdout.splitlines()
+    alone = subprocess.run([sys.executable, "-c", "import numpy as np\n" + draw],
+                           capture_output=True, text=True, check=True, cwd=PACKAGE.parent,
+                           timeout=120).stdout.splitlines()
+    assert out[0] == "[]"
+    assert out[1:3] == alone and len(alone) == 2
+    assert out[3] == "True"
+
+
 def test_a_backend_that_changed_its_calls_is_not_used() -> None:
     """SciPy's backend answers the calls :class:`Rotation` makes; one whose functions take
     other arguments or give other results (another SciPy) is refused, so the public class is

@@ -918,11 +918,12 @@ def _batch_ik(robot: Robot, target: FloatArray, q0: FloatArray) -> FloatArray:
     """Joint values reaching ``target`` (m, 4, 4) from ``q0`` (m, n): damped Newton steps on
     all samples at once (the targets are within millimetres of the planned poses)."""
     q = np.array(q0, dtype=float)
+    goal = Rotation.from_matrix(target[:, :3, :3])  # the same every step
     for _ in range(NEWTON_STEPS):
         T, J = robot.batch_fk_jacobian(q)
         err = np.concatenate([target[:, :3, 3] - T[:, :3, 3],
-                              (Rotation.from_matrix(target[:, :3, :3])
-                               * Rotation.from_matrix(T[:, :3, :3]).inv()).as_rotvec()], axis=1)
+                              (goal * Rotation.from_matrix(T[:, :3, :3]).inv()).as_rotvec()],
+                             axis=1)
         JJt = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(6)
         q += np.einsum("kji,kj->ki", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
     return q

@@ -700,7 +700,10 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
         for i, j in stack:
             if j - i >= 2:
                 if (i, j) not in memo:
-                    memo[i, j] = _cycle_cuts(change, t, i, j, limit, min_move)
+                    memo[i, j] = _cycle_cuts(
+                        change, t, i, j, limit, min_move,
+                        lambda i, j: _window_rates(P, a[i - r0:j - r0 + 1], t, i, j,
+                                                   CUT_SAMPLES))
                 out |= set(memo[i, j])
         return out
     while stack:
@@ -725,23 +728,36 @@ def _speed_refine(P: FloatArray, samples: Samples, keep: set[int], to_work: Floa
     return out
 
 
-def _cycle_cuts(change: Any, t: FloatArray, i: int, j: int, limit: float, min_move: float
-                ) -> tuple[int, ...]:
+def _cycle_cuts(change: Any, t: FloatArray, i: int, j: int, limit: float, min_move: float,
+                rates: Any = None) -> tuple[int, ...]:
     """The cuts of segment i..j (samples, times t [s]) into moves of at least ``min_move``
     [s] whose largest speed change (``change(i, j)[1]``, [m/s]) is smallest, and as few moves
     as reach that (a change below ``limit`` counts as ``limit``): a shortest-path search over
     the samples (minimax), each move at most :data:`CUT_SAMPLES` samples long unless the
-    segment is kept whole."""
+    segment is kept whole. ``rates(i, j)``, if given, is every move's largest change at once
+    (:func:`_window_rates`, the same numbers as ``change``)."""
     worst0 = float(np.max(np.abs(change(i, j)[1])))
     if worst0 <= limit or t[j] - t[i] < 2 * min_move - 1e-9:
         return ()
     n = j - i
+    if rates is not None:
+        table = rates(i, j)
+        return _minimax_cuts(t, i, n, limit, min_move, worst0,
+                             lambda m, k: float(table[k, k - m]))
+    return _minimax_cuts(t, i, n, limit, min_move, worst0,
+                         lambda m, k: float(np.max(np.abs(change(i + m, i + k)[1]))))
+
+
+def _minimax_cuts(t: FloatArray, i: int, n: int, limit: float, min_move: float,
+                  worst0: float, worst: Any) -> tuple[int, ...]:
+    """:func:`_cycle_cuts`' search over samples i..i+n; ``worst(m, k)`` the largest speed
+    change [m/s] of the move from sample i+m to i+k."""
     best: list[tuple[float, int, int]] = [(0.0, 0, -1)] + [(math.inf, 0, -1)] * n
     for k in range(1, n + 1):
         for m in range(max(0, k - CUT_SAMPLES), k):
             if t[i + k] - t[i + m] < min_move - 1e-9 or best[m][0] == math.inf:
                 continue
-            e = max(best[m][0], max(limit, float(np.max(np.abs(change(i + m, i + k)[1])))))
+            e = max(best[m][0], max(limit, worst(m, k)))
             if (e, best[m][1] + 1) < best[k][:2]:
                 best[k] = (e, best[m][1] + 1, m)
     if best[n][0] >= max(worst0, limit):
@@ -755,6 +771,57 @@ def _cycle_cuts(change: Any, t: FloatArray, i: int, j: int, limit: float, min_mo
 
 #: Longest move :func:`_cycle_cuts` considers [samples].
 CUT_SAMPLES = 40
+
+
+def _window_rates(P: FloatArray, a: FloatArray, t: FloatArray, i: int, j: int,
+                  longest: int) -> FloatArray:
+    """Every move's largest speed change [m/s] in segment i..j, the numbers of
+    :func:`_speed_refine`'s ``change(m, k)`` (``max |d(a . w)/dt|``, w the samples' offset
+    from the chord at :func:`_chord_fraction`'s fractions, the rate as :func:`numpy.gradient`
+    takes it over the move's own times) for all moves m -> k, ``k - m <= longest``, at once:
+    the moves of one length are stacked and take the same operations element by element
+    (the chord products through the same BLAS calls, one per move, by ``matmul`` on the
+    stack). ``a``: the unit directions of samples i..j, (j - i + 1, 3).
+
+    Returns:
+        (j - i + 1, longest + 1): entry [k, l] the move from sample i + k - l to i + k
+        (NaN where there is none).
+    """
+    n = j - i
+    out = np.full((n + 1, longest + 1), np.nan)
+    p_all = np.ascontiguousarray(P[i:j + 1, :3, 3])
+    tt = t[i:j + 1]
+    dt = np.diff(tt)
+    # numpy.gradient's coefficients at each interior sample (uneven steps)
+    dx1, dx2 = dt[:-1], dt[1:]
+    ca = -(dx2) / (dx1 * (dx1 + dx2))
+    cb = (dx2 - dx1) / (dx1 * dx2)
+    cc = dx1 / (dx2 * (dx1 + dx2))
+    for length in range(1, min(longest, n) + 1):
+        idx = np.arange(n - length + 1)[:, None] + np.arange(length + 1)[None, :]
+        p = p_all[idx]  # (moves, length + 1, 3)
+        p0, p1 = p[:, 0], p[:, -1]
+        d = p1 - p0
+        L2 = (d[:, None, :] @ d[:, :, None])[:, 0, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            f = np.clip(((p - p0[:, None]) @ d[:, :, None])[..., 0] / L2[:, None], 0.0, 1.0)
+        still = ~(L2 > 0)
+        if still.any():
+            f[still] = np.linspace(0.0, 1.0, length + 1)
+        w = p - (p0[:, None] + f[..., None] * (p1 - p0)[:, None])
+        along = np.einsum("mki,mki->mk", a[idx], w)
+        steps = dt[idx[:, :-1]]
+        grad = np.empty_like(along)
+        grad[:, 0] = (along[:, 1] - along[:, 0]) / steps[:, 0]
+        grad[:, -1] = (along[:, -1] - along[:, -2]) / steps[:, -1]
+        if length >= 2:
+            mid = idx[:, 1:-1] - 1
+            grad[:, 1:-1] = np.where(
+                (steps == steps[:, :1]).all(axis=1)[:, None],
+                (along[:, 2:] - along[:, :-2]) / (2.0 * steps[:, :1]),
+                ca[mid] * along[:, :-2] + cb[mid] * along[:, 1:-1] + cc[mid] * along[:, 2:])
+        out[np.arange(length, n + 1), length] = np.max(np.abs(grad), axis=1)
+    return out
 
 
 def _at_least_one_cycle(samples: Samples, idx: NDArray[np.int_], min_move: float,

@@ -77,13 +77,55 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
     if stream.spindle_rpm is not None and stream.spindle_on is not None:
         header += ["spindle_on", "spindle_rpm"]
         cols += [np.where(stream.spindle_on, "1", "0"), stream.spindle_rpm]
-    text = [_column_text(c) for c in cols]  # the same text as fixed(x, 6), column by column
+    body = _rows_text(cols)
     p = Path(path)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        w.writerows(zip(*text, strict=True))
+        if body is None:  # a text cell the CSV writer quotes: cell by cell
+            text = [_column_text(c) for c in cols]
+            w.writerows(zip(*text, strict=True))
+        else:
+            fh.write(body)
     return p
+
+
+#: Characters that make the CSV writer quote a cell (its delimiter, quote and line ends).
+_QUOTED = frozenset(',"\r\n')
+
+
+def _rows_text(cols: list[Any]) -> str | None:
+    """The rows as :func:`csv.writer` writes them (``\\r\\n`` after each row), numbers as
+    :func:`~rfsw_plan.numfmt.fixed` with 6 decimals (``%.6f`` is the same text as
+    ``{:.6f}``; a number that would read ``-0.000000`` is written as 0): one format per
+    row instead of one call per cell. None where a text cell would be quoted (then the
+    caller writes cell by cell).
+
+    Raises:
+        ValueError: A number is NaN or infinite (as :func:`_column_text`).
+    """
+    kinds: list[str] = []
+    values: list[list[Any]] = []
+    for column in cols:
+        a = np.asarray(column)
+        if a.dtype.kind in "USO":
+            cells = [str(v) for v in a.tolist()]
+            if any(_QUOTED.intersection(c) for c in set(cells)):
+                return None
+            kinds.append("%s")
+            values.append(cells)
+            continue
+        if not np.isfinite(a).all():
+            raise ValueError(f"cannot write the non-finite number {a[~np.isfinite(a)][0]!r} "
+                             "as text")
+        a = np.array(a, dtype=float).ravel()
+        for k in np.flatnonzero((a <= 0.0) & (a > -1e-6)).tolist():
+            if f"{a[k]:.6f}" == "-0.000000":
+                a[k] = 0.0
+        kinds.append("%.6f")
+        values.append(a.tolist())
+    row = ",".join(kinds) + "\r\n"
+    return "".join([row % cells for cells in zip(*values, strict=True)])
 
 
 def _column_text(column: Any) -> list[str]:

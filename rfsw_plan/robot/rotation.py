@@ -11,6 +11,9 @@ runs the ``scipy.spatial`` package first (k-d trees, Qhull, distances, sparse ma
 algebra and special functions, about 0.25 s of CPU at every start of ``export`` and ``check``,
 issue 41); this module loads the backend's extension file alone, under its own name, so a later
 ``import scipy.spatial`` uses that same module.
+Its initialisation takes two names from ``scipy._lib._util``, whose import runs SciPy's
+array-API layer (and ``numpy.f2py``), as long again: a stand-in lends them while it loads
+(:func:`_util_stand_in`).
 
 Where the backend is not found as this SciPy lays it out, or does not answer the calls
 :class:`Rotation` makes (checked once on the identity), every method gives SciPy's public
@@ -64,14 +67,65 @@ def _load() -> Any:
                 return None
             mod = importlib.util.module_from_spec(spec)
             sys.modules[BACKEND] = mod  # the one copy: scipy.spatial imports this one later
+            stand_in = _util_stand_in()
             try:
                 loader.exec_module(mod)
             except BaseException:
                 del sys.modules[BACKEND]
                 raise
+            finally:
+                if stand_in is not None and sys.modules.get(UTIL) is stand_in:
+                    del sys.modules[UTIL]
         except (ImportError, OSError):
             return None
     return mod if _answers(mod) else None
+
+
+#: The SciPy module the backend's initialisation imports from: ``check_random_state`` and the
+#: decorator ``_transition_to_rng``, both for its ``random`` only (which :class:`Rotation`
+#: does not offer).
+UTIL = "scipy._lib._util"
+
+
+def _util_stand_in() -> Any:
+    """While the backend loads, a stand-in for :data:`UTIL` (None where it is loaded already):
+    importing that module runs SciPy's array-API layer, which through NumPy's lazy attributes
+    imports ``numpy.f2py`` and ``numpy.random`` (about 0.13 s of CPU, as long as the rest of
+    the load). The stand-in's two names defer to SciPy's own, imported at the first call of
+    the backend's ``random`` (the same function, decorated by SciPy's decorator then, so
+    ``scipy.spatial``'s ``Rotation.random`` is unchanged); the caller removes the stand-in
+    once the backend is loaded, so any later import of :data:`UTIL` gets SciPy's module."""
+    if UTIL in sys.modules:
+        return None
+    import functools
+    import types
+
+    def check_random_state(seed: Any) -> Any:
+        """SciPy's ``check_random_state`` (imported on first use)."""
+        from scipy._lib._util import check_random_state as scipy_check
+
+        return scipy_check(seed)
+
+    def _transition_to_rng(*args: Any, **kwargs: Any) -> Any:
+        """SciPy's decorator, applied at the decorated function's first call."""
+        def decorate(fun: Any) -> Any:
+            done: list[Any] = []
+
+            @functools.wraps(fun)
+            def run(*a: Any, **k: Any) -> Any:
+                if not done:
+                    from scipy._lib._util import _transition_to_rng as scipy_transition
+
+                    done.append(scipy_transition(*args, **kwargs)(fun))
+                return done[0](*a, **k)
+            return run
+        return decorate
+
+    stand_in = types.ModuleType(UTIL, "stand-in while the rotation backend loads")
+    stand_in.check_random_state = check_random_state  # type: ignore[attr-defined]
+    stand_in._transition_to_rng = _transition_to_rng  # type: ignore[attr-defined]
+    sys.modules[UTIL] = stand_in
+    return stand_in
 
 
 def _answers(mod: Any) -> bool:
