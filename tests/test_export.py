@@ -390,12 +390,13 @@ def test_export_with_default_options(planned, tmp_path: Path,
     # the records name their files inside their folder: the same bytes wherever it is
     assert sorted(rec["files"]) == sorted(written - {"export.json"})
     assert all("/" not in f for f in json.loads((out / "plan.json").read_text())["export"]["files"])
-    assert main(["-q", "export", str(out), "-o", str(tmp_path / "elsewhere" / "o")]) == 0
-    other = json.loads((tmp_path / "elsewhere" / "o" / "export.json").read_text())
     assert not Path(rec["plan"]).is_absolute()  # the plan folder, from export.json's
     assert (tmp_path / "o" / rec["plan"]).resolve() == out.resolve()
-    assert {**other, "plan": ""} == {**rec, "plan": ""}
-    if robot.name.startswith("zk500"):
+    if robot.name.startswith("zk500"):  # where the folder is changes no byte (one robot: the
+        # record's names do not depend on the robot; each export of kr600 costs 8 s of CPU)
+        assert main(["-q", "export", str(out), "-o", str(tmp_path / "elsewhere" / "o")]) == 0
+        other = json.loads((tmp_path / "elsewhere" / "o" / "export.json").read_text())
+        assert {**other, "plan": ""} == {**rec, "plan": ""}
         import shutil
 
         copy = tmp_path / "plan"
