@@ -4,7 +4,9 @@ Every program is first written into a private staging folder in the system's tem
 directory by its format (:mod:`rfsw_plan.export.format`), re-read by the same format and taken
 through the robot model (:func:`rfsw_plan.export.readback.round_trip`): the re-read points must
 reproduce the plan samples they were written from to 0.01 mm and 0.01 deg on the configuration
-the program states, and (``check``) pass the planner's sample-by-sample verification. Only then
+the program states, (``check``) pass the planner's sample-by-sample verification, and
+(``basis``) hold as their controller runs them what their header claims
+(:func:`rfsw_plan.export.check.judge_program`, ``rfsw-plan check``'s judgement). Only then
 is each file written under its name in the output folder, atomically
 (:func:`rfsw_plan.files.write_bytes`: an unnamed file that gets its name when whole). A failure
 leaves nothing in the output folder and raises :class:`~rfsw_plan.exceptions.InfeasibleError`
