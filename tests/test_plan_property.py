@@ -176,8 +176,41 @@ def _run(n: int, tmp_path_factory: Any, monkeypatch: Any, capsys: Any) -> None:
     assert tally.outside == 0, tally.line()
 
 
+def _default_cases(n: int = 6, seed: int = 0) -> list[tuple[Any, ...]]:
+    """The default run's seams: CASES' ranges drawn by a seeded NumPy generator, each robot
+    twice. (Hypothesis mixes number constants of the modules already imported into its draws,
+    derandomised or not, so its six seams depended on which tests ran before on the same
+    worker: a seam below its mirror came up alone and not in the suite.)"""
+    rng = np.random.default_rng(seed)
+    return [(PROBLEMS[k % len(PROBLEMS)], str(rng.choice(["line", "arc"])),
+             float(rng.uniform(30.0, 800.0)), float(rng.uniform(-30.0, 30.0)),
+             float(rng.choice([-60.0, -30.0, 30.0, 60.0])), float(rng.uniform(0.0, 5.0)),
+             str(rng.choice(["cw", "ccw"])), bool(rng.integers(2)),
+             float(rng.uniform(1.0, 1.95))) for k in range(n)]
+
+
 def test_random_seams_written_or_refused(tmp_path_factory, monkeypatch, capsys) -> None:
-    _run(6, tmp_path_factory, monkeypatch, capsys)
+    tally = Tally()
+    cases = _default_cases()
+    for case in cases:
+        _check_one(tmp_path_factory.mktemp("seam"), tally, monkeypatch, capsys, case)
+    with capsys.disabled():
+        print("\n" + tally.line())
+    assert tally.written + tally.refused >= len(cases) // 2  # most seams are reachable
+    assert tally.outside == 0, tally.line()
+
+
+#: A seam whose plan holds less force uncertainty than its mirror baseline (+-3.54 % against
+#: +-5.38 %), found by the property search (a reversed zk500 arc of 410 mm; shrinking finds
+#: arcs of 333-410 mm): issue 24's dominance does not hold there. Kept as a strict expected
+#: failure until the planner is fixed: it fails the day the plan holds its mirror.
+BELOW_MIRROR = ("zk500_table6_seam", "arc", 409.8, 0.0002, 30.0, 3.54, "cw", True, 1.0)
+
+
+@pytest.mark.xfail(strict=True, reason="known defect: the plan holds less than its mirror on "
+                   "this reversed zk500 arc (issue 24's dominance)")
+def test_a_reversed_zk500_arc_holds_at_least_its_mirror(tmp_path, monkeypatch, capsys) -> None:
+    _check_one(tmp_path, Tally(), monkeypatch, capsys, BELOW_MIRROR)
 
 
 @pytest.mark.slow
