@@ -20,10 +20,12 @@ import sys
 from pathlib import Path
 
 import rfsw_plan
-from rfsw_plan.realtime.compare import CompareOptions, compare, format_table
 
 
 def main(problem_path: str | None) -> None:
+    # imported here, not at the top: ``--help`` answers without loading the simulator
+    from rfsw_plan.realtime.compare import CompareOptions, compare, format_table
+
     if problem_path is None:
         import plan_my_seam  # the example beside this one writes a small problem file
 

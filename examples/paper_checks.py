@@ -40,7 +40,6 @@ from rfsw_plan.elastostatics.workspace import (
 )
 from rfsw_plan.process.deviation import DeviationResult, problem_deviation
 from rfsw_plan.process.problem import Problem, load_problem
-from rfsw_plan.realtime.compare import CompareOptions, compare
 from rfsw_plan.robot.description import ModifiedDH, load_robot_description
 from rfsw_plan.robot.ik import solve_ik
 from rfsw_plan.robot.kinematics import Robot, load_robot
@@ -760,6 +759,9 @@ class FormingCheck:
 
 def kr600_forming_check() -> FormingCheck:
     """``compare kr600_forming_contour`` with ``none`` and ``realtime_seed002``."""
+    # imported here, not at the top: ``--help`` answers without loading the simulator
+    from rfsw_plan.realtime.compare import CompareOptions, compare
+
     problem = load_problem(FORMING)
     res = compare(problem, CompareOptions(strategies=("none", "realtime_seed002")))
     mae, mx = {}, {}

@@ -33,7 +33,6 @@ from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import RfswError
 from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.process.problem import load_problem
-from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
 
 PROBLEM = "zk500_table6_seam"
@@ -95,6 +94,9 @@ def _cli(args: list[str]) -> None:
 def run_loop(folder: Path, name: str, joint: int | None, hidden: str | None,
              problem: str = PROBLEM) -> LoopResult:
     """Run the loop of the module docstring in ``folder`` for one truth difference."""
+    # imported here, not at the top: ``--help`` answers without loading the simulator
+    from rfsw_plan.realtime.trial_weld import simulate_trial_weld
+
     pb = load_problem(problem)
     model = ElastostaticModel(load_robot(pb.robot))
     truth = model.copy()

@@ -28,7 +28,6 @@ import numpy as np
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import RfswError
 from rfsw_plan.planfiles.folder import PlanFolder
-from rfsw_plan.realtime.trial_weld import simulate_trial_weld
 from rfsw_plan.robot.kinematics import load_robot
 
 
@@ -52,6 +51,9 @@ def main(argv: list[str] | None = None) -> int:
         c = np.array(truth.joint_compliance.params, dtype=float)
         c[args.softer_joint - 1] /= 0.8
         truth.joint_compliance.params = c
+        # imported here, not at the top: ``--help`` answers without loading the simulator
+        from rfsw_plan.realtime.trial_weld import simulate_trial_weld
+
         weld = simulate_trial_weld(record.problem, record.waypoints, model, truth, seed=args.seed)
         forces, track = weld.write(args.out_dir)
     except RfswError as exc:

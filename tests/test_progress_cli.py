@@ -6,6 +6,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import pickle
 import pty
 import select
 import struct
@@ -14,6 +15,7 @@ import sys
 import tempfile
 import termios
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -30,9 +32,14 @@ def campaign(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_measurements(tmp_path_factory.mktemp("c") / "campaign.csv", c.data)
 
 
-def _run(args: list[str], tty: bool) -> tuple[int, str, str]:
-    """Run the CLI with stdout a pipe and stderr a pseudo-terminal (``tty``) or a pipe."""
+def _run(args: list[str], tty: bool, stored: Path | None = None) -> tuple[int, str, str]:
+    """Run the CLI with stdout a pipe and stderr a pseudo-terminal (``tty``) or a pipe.
+    ``stored``: a folder of ``PROBLEM.plan.pickle`` files, the session's plans, which the child
+    returns instead of planning a bundled problem again (``tests/_child_site/sitecustomize.py``)."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    if stored is not None:
+        env.update(RFSW_TEST_STORED_PLANS=str(stored),
+                   PYTHONPATH=f"{Path(__file__).parent / '_child_site'}{os.pathsep}{ROOT}")
     cmd = [sys.executable, "-m", "rfsw_plan.cli.main", *args]
     if not tty:
         p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=600)
@@ -109,16 +116,26 @@ def test_compare_bar_counts_welds(tmp_path: Path) -> None:
     assert json.loads(out)["problem"] == "my_weld"
 
 
-def test_plan_stage_bar_and_quiet_after_the_subcommand(tmp_path: Path) -> None:
+def test_plan_stage_bar_and_quiet_after_the_subcommand(tmp_path: Path,
+                                                      planned_result: Any) -> None:
     problem = str(ROOT / "problems" / "zk500_table6_seam.toml")
     rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "a"), "--json"], tty=True)
     assert rc == 0, err
     assert "plan: branches" in err and "plan: NLP" in err  # the stage bar, on stderr
     assert "plan: plots" in err  # writing and plotting after the planner has its own bar
     json.loads(out)
-    rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "b"), "--json", "-q"], tty=True)
+    # -q after the subcommand: no bar at all, the writing's and plotting's included (drawn
+    # above without -q). The plan is the session's (the planner's stages ran above; -q is the
+    # same switch for every bar): the child does not plan the problem again.
+    stored = tmp_path / "stored"
+    stored.mkdir()
+    (stored / "zk500_table6_seam.plan.pickle").write_bytes(
+        pickle.dumps(planned_result("zk500_table6_seam")))
+    rc, out, err = _run(["plan", problem, "-o", str(tmp_path / "b"), "--json", "-q"], tty=True,
+                        stored=stored)
     assert rc == 0 and "plan: NLP" not in err and "plan: branches" not in err
-    json.loads(out)
+    assert "plan: files" not in err and "plan: plots" not in err, err
+    assert json.loads(out)["problem"] == "zk500_table6_seam"
 
 
 def test_validate_stages_from_the_first_step_to_the_report(campaign: Path,

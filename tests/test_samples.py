@@ -8,7 +8,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rfsw_plan import write_plan
 from rfsw_plan.cli.main import main
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planfiles.folder import PlanFolder
@@ -24,15 +23,11 @@ def _reject(c: str) -> float:
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory, planned_result):
-    """Every bundled plan written by ``rfsw_plan.write_plan`` (what ``rfsw-plan plan -o``
-    calls; tests/test_examples.py shows both write the same files)."""
-    out = {}
-    for name in BUNDLED:
-        d = tmp_path_factory.mktemp(name)
-        write_plan(d, planned_result(name))
-        out[name] = d
-    return out
+def planned(tmp_path_factory, plan_folder):
+    """Every bundled plan folder as ``rfsw-plan -q plan NAME -o DIR`` writes it, the session's
+    (``plan_folder``: written once per session from the session's plan, for every test that
+    reads it; ``rfsw_plan.write_plan`` writes the same files: tests/test_examples.py)."""
+    return {name: plan_folder(name, tmp_path_factory.mktemp(name) / "plan") for name in BUNDLED}
 
 
 @pytest.mark.parametrize("name", BUNDLED)
