@@ -5,8 +5,9 @@ tolerates at least its mirror baseline's force uncertainty at +-20 % and +-10 % 
 Seams: straight lines and arcs (spline through points on a circle) through the bundled seam's
 midpoint, 30-800 mm long, turned up to +-30 deg in the surface plane, tilt 0-5 deg, both
 spindle rotation senses and travel directions, window widths down to 1 mm. Coarse waypoint
-spacing and 20 ms samples keep it fast. The default run tries 6 seams (seeded, derandomised);
-``-m slow`` tries 60. A seam out of reach is counted apart (exit 2, the unreachable message).
+spacing and 20 ms samples keep it fast. The default run tries 3 seams, one per robot (a seeded
+NumPy draw); ``-m slow`` tries 60 (Hypothesis, derandomised). A seam out of reach is counted
+apart (exit 2, the unreachable message).
 """
 
 from __future__ import annotations
@@ -176,11 +177,12 @@ def _run(n: int, tmp_path_factory: Any, monkeypatch: Any, capsys: Any) -> None:
     assert tally.outside == 0, tally.line()
 
 
-def _default_cases(n: int = 6, seed: int = 0) -> list[tuple[Any, ...]]:
-    """The default run's seams: CASES' ranges drawn by a seeded NumPy generator, each robot
-    twice. (Hypothesis mixes number constants of the modules already imported into its draws,
-    derandomised or not, so its six seams depended on which tests ran before on the same
-    worker: a seam below its mirror came up alone and not in the suite.)"""
+def _default_cases(n: int = 3, seed: int = 0) -> list[tuple[Any, ...]]:
+    """The default run's seams: CASES' ranges drawn by a seeded NumPy generator, one per
+    robot (``-m slow`` tries 60 with Hypothesis). (Hypothesis mixes number constants of the
+    modules already imported into its draws, derandomised or not, so its six seams depended
+    on which tests ran before on the same worker: a seam below its mirror came up alone and
+    not in the suite.)"""
     rng = np.random.default_rng(seed)
     return [(PROBLEMS[k % len(PROBLEMS)], str(rng.choice(["line", "arc"])),
              float(rng.uniform(30.0, 800.0)), float(rng.uniform(-30.0, 30.0)),
