@@ -99,14 +99,8 @@ class ExportResult:
     plan_tolerated: float = math.nan
 
     def below_plan(self) -> list[str]:
-        """The formats whose program as run holds less force uncertainty than the plan, one
-        line each: ``krl: as its controller runs it the program holds +-2.73 % force
-        uncertainty (speed first), below the plan's +-2.83 %; its header states it``."""
-        return [f"{name}: as its controller runs it the program holds +-{100 * u:.2f} % force "
-                f"uncertainty ({by} first), below the plan's +-{100 * self.plan_tolerated:.2f} "
-                "%; its header states it"
-                for name, (u, by) in self.held_as_run.items()
-                if u < self.plan_tolerated * (1.0 - CLAIM_TOL)]
+        """:func:`below_plan_lines` of this export."""
+        return below_plan_lines(self.held_as_run, self.plan_tolerated)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (file units). ``files`` are named inside the folder they were
@@ -130,6 +124,19 @@ class ExportResult:
                                 for k, (u, by) in self.held_as_run.items()}}
                if self.held_as_run else {}),
         }
+
+
+def below_plan_lines(held: Mapping[str, tuple[float, str]], plan_tolerated: float
+                     ) -> list[str]:
+    """The formats whose program as its controller runs it holds less force uncertainty
+    than the plan (``held``: format -> (level, limiting quantity), as
+    :attr:`ExportResult.held_as_run` and ``plan.json``'s ``export.held_as_run``), one line
+    each: ``krl: as its controller runs it the program holds +-2.73 % force uncertainty
+    (speed first), below the plan's +-2.83 %; its header states it``."""
+    return [f"{name}: as its controller runs it the program holds +-{100 * u:.2f} % force "
+            f"uncertainty ({by} first), below the plan's +-{100 * plan_tolerated:.2f} %; "
+            "its header states it"
+            for name, (u, by) in held.items() if u < plan_tolerated * (1.0 - CLAIM_TOL)]
 
 
 def plan_spacing(record: Mapping[str, Any]) -> float:

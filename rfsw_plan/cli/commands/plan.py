@@ -159,20 +159,18 @@ def _print_text(problem: Any, result: Any, summary: dict[str, Any], written: lis
 
 
 def _programs_below_plan(summary: dict[str, Any]) -> list[str]:
-    """``krl program as run: holds +-2.73 % (speed first), below the plan's +-2.83 %; its
-    header states it`` for every exported program whose controller runs it holding less
-    force uncertainty than the plan (``plan.json`` ``export.held_as_run``)."""
-    from rfsw_plan.export.check import CLAIM_TOL
-
-    exp = summary.get("export") or {}
+    """The exported programs whose controller runs them holding less force uncertainty than
+    the plan (``plan.json``'s ``export.held_as_run``,
+    :func:`~rfsw_plan.export.api.below_plan_lines`)."""
+    held = (summary.get("export") or {}).get("held_as_run") or {}
     plan = summary.get("tolerated_force_uncertainty")
-    if not isinstance(plan, float):
+    if not held or not isinstance(plan, float):
         return []
-    return [f"{name} program as its controller runs it: holds +-{d['tolerated_pct']:.2f} % "
-            f"({d['limited_by']} first), below the plan's +-{100 * plan:.2f} %; its header "
-            "states it" for name, d in (exp.get("held_as_run") or {}).items()
-            if d.get("tolerated_pct") is not None
-            and d["tolerated_pct"] < 100 * plan * (1.0 - CLAIM_TOL)]
+    from rfsw_plan.export.api import below_plan_lines
+
+    return below_plan_lines({k: (d["tolerated_pct"] / 100.0, d["limited_by"])
+                             for k, d in held.items() if d.get("tolerated_pct") is not None},
+                            plan)
 
 
 def _print_plunge(problem: Any, env: dict[str, Any]) -> None:
