@@ -46,10 +46,12 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     req = by["requested"]
     ax.axhline(100 * req.tolerated, color="k", lw=0.8, ls=":",
                label=f"requested +-{100 * req.tolerated:.3g} %")
+    unwritten = {b.name: b.unwritten for b in result.baselines if b.unwritten}
     for p in finite:
         marker, colour, label = STYLE.get(p.name, ("x", "0.3", p.name))
         x, y = p.min_lateral_stiffness * 1e-3, 100 * p.tolerated
-        held = f"+-{y:.3g} %" if y > 0 else "holds none (nominal error outside)"
+        held = (f"+-{y:.3g} %" if y > 0 else "holds none: cannot be written"
+                if unwritten.get(p.name) else "holds none (nominal error outside)")
         ax.plot(x, y, marker, color=colour, ms=14 if marker == "*" else 9, clip_on=False,
                 label=f"{label}: {held} at {x:.0f} N/mm", ls="none")
     ax.set_xlim(left=0)

@@ -453,35 +453,42 @@ def written_plan(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
 
 
 def dominant(model: ElastostaticModel, task: PlanTask, window: WeldWindow, opts: PlanOptions,
-             plan: Written, mirror: BaselinePlan, mirror_tolerated: float,
-             timing: TimingLimits | None) -> tuple[Written, BaselineMetrics | None]:
+             plan: Written, mirror: BaselinePlan, mirror_metrics: BaselineMetrics,
+             timing: TimingLimits | None) -> tuple[Written, BaselineMetrics]:
     """The plan, or the mirror baseline written as the plan when that tolerates more.
 
     Robust first (:mod:`rfsw_plan.planning.robustness`), the written plan must tolerate at
-    least the mirror baseline's force uncertainty on the same waypoints, less
-    :data:`~rfsw_plan.planning.robustness.DOMINANCE_TOL`. If the NLP's plan does not (a local
-    optimum), the mirror fixed point is verified, timed and sample-checked like the plan and
-    written instead when it tolerates more (by more than ``DOMINANCE_TOL``).
+    least the mirror baseline's force uncertainty, less
+    :data:`~rfsw_plan.planning.robustness.DOMINANCE_TOL`. The mirror's waypoints alone are
+    judged first (``mirror_metrics``); if the NLP's plan holds less than they do, the mirror
+    fixed point is verified, timed and sample-checked like the plan, so both are judged on
+    what would be written: it is written instead when it tolerates more (by more than
+    ``DOMINANCE_TOL``). A mirror that cannot be written (a written sample leaves the window
+    between its waypoints, or another check the plan passed fails) holds nothing: its
+    metrics then say why (``unwritten``) with a tolerated level of 0.
 
     Returns:
-        The plan to write, and the mirror's metrics over its own written samples when it was
-        sample-checked (the same computation as the plan's: waypoints and samples), else None.
+        The plan to write, and the mirror's metrics: ``mirror_metrics`` if the plan held at
+        least its waypoints' level, else those of its written samples, or of its refusal.
     """
     if (not opts.robust_first
-            or plan.metrics.tolerated >= mirror_tolerated - DOMINANCE_TOL):
-        return plan, None
+            or plan.metrics.tolerated >= mirror_metrics.tolerated - DOMINANCE_TOL):
+        return plan, mirror_metrics
     try:
         alt = written_plan(model, task, window, opts, mirror.q, mirror.offsets, timing, "mirror",
                            reference_offsets=mirror.offsets)
     except InfeasibleError as exc:
-        log.info("the mirror baseline tolerates more but cannot be written: %s", exc)
-        return plan, None
+        why = str(exc).split("; levers:")[0]
+        log.info("the mirror baseline tolerates more at its waypoints but cannot be written: %s",
+                 why)
+        return plan, replace(mirror_metrics, tolerated=0.0, samples=True,
+                             unwritten=why)
     # Written only when it tolerates more by more than the tolerance the trigger allows
     # (a level both share, such as the pin speed at the weld start, does not swap the plan).
     better = alt.metrics.tolerated > plan.metrics.tolerated + DOMINANCE_TOL
     log.info("the NLP plan tolerates %.4g, the mirror written and sample-checked %.4g "
              "(%.4g on its waypoints): writing the %s", plan.metrics.tolerated,
-             alt.metrics.tolerated, mirror_tolerated, "mirror" if better else "NLP plan")
+             alt.metrics.tolerated, mirror_metrics.tolerated, "mirror" if better else "NLP plan")
     return (alt if better else plan), replace(alt.metrics, name="mirror")
 
 
@@ -517,9 +524,7 @@ def _plan_task(
                                             opts.force_uncertainty, constant_speed=steady)
     m_mirror, p_mirror = metrics_and_prediction("mirror", model, task, base.mirror.q, window,
                                                 opts.force_uncertainty, constant_speed=steady)
-    out, sampled = dominant(model, task, window, opts, out, base.mirror, m_mirror.tolerated,
-                            timing)
-    m_mirror = sampled or m_mirror
+    out, m_mirror = dominant(model, task, window, opts, out, base.mirror, m_mirror, timing)
     verify_time = time.perf_counter() - t0 - out.timing_time
     held = out.metrics.tolerated >= opts.force_uncertainty * (1 - 1e-9)
     if opts.robust_hard and not held:

@@ -390,8 +390,13 @@ class BaselineMetrics:
             quantity (lateral error, depth, work and travel angle, pin speed) holds at every
             vertex of the force box at every point (:func:`~rfsw_plan.planning.verify.
             robust_claim`; inf if no uncertain force moves any, 0 if one fails nominally).
-        samples: The figures include the written samples (the plan).
+        samples: The figures include the written samples (the plan, and a baseline that was
+            written to be compared with it).
         claim: The tolerated level per quantity behind ``tolerated``.
+        unwritten: Why this baseline cannot be written ('' if it can, or was not tried): the
+            first check its verified, timed and sampled path fails, as the plan's would be
+            refused. Its ``tolerated`` is then 0: what cannot run holds no force uncertainty,
+            whatever its waypoints alone hold (``claim``, the waypoints' levels).
     """
 
     name: str
@@ -404,6 +409,7 @@ class BaselineMetrics:
     tolerated: float = float("nan")
     samples: bool = False
     claim: RobustClaim | None = None
+    unwritten: str = ""
 
     def to_dict(self) -> dict[str, float | str | bool | dict[str, float] | None]:
         """File units: mm, N/mm and percent (the tolerated force uncertainty)."""
@@ -416,9 +422,14 @@ class BaselineMetrics:
             "inside_window_fraction": self.inside_fraction,
             "worst_case_window_margin_mm": self.robust_margin * 1e3,
             "tolerated_force_uncertainty_pct": self.tolerated * 100,
-            "tolerated_force_uncertainty_by_quantity_pct": None if self.claim is None else {
-                q: u * 100 for q, u in self.claim.levels.items()},
+            "tolerated_force_uncertainty_by_quantity_pct":
+                None if self.claim is None or self.unwritten else {
+                    q: u * 100 for q, u in self.claim.levels.items()},
             "includes_written_samples": self.samples,
+            **({} if not self.unwritten else {
+                "cannot_be_written": self.unwritten,
+                "tolerated_at_waypoints_pct":
+                    None if self.claim is None else self.claim.tolerated * 100}),
         }
 
 

@@ -225,7 +225,8 @@ def _print_table(result: Any) -> None:
         print(f"{names.get(b.name, b.name):<10} {d['max_abs_lateral_mm']:>10.3f} "
               f"{d['rms_lateral_mm']:>8.3f} {d['worst_case_lateral_mm']:>9.3f} "
               f"{d['worst_case_window_margin_mm']:>16.3f} "
-              f"{d['min_lateral_stiffness_N_mm']:>11.1f}  {_held(b.tolerated):<22}")
+              f"{d['min_lateral_stiffness_N_mm']:>11.1f}  "
+              f"{'holds none: cannot be written' if b.unwritten else _held(b.tolerated):<22}")
     req = next(p for p in result.tradeoff() if p.name == "requested")
     k_need = ("" if req.min_lateral_stiffness != req.min_lateral_stiffness
               else f"{req.min_lateral_stiffness * 1e-3:.1f}")
@@ -235,6 +236,10 @@ def _print_table(result: Any) -> None:
           "worst case to the window, negative = outside; held: the largest uniform +-u on the "
           "seam-frame force components for which lateral error, depth, tilt and pin speed hold "
           "at every in-material waypoint, and for the plan every written sample)")
+    for b in result.baselines:
+        if b.unwritten and b.claim is not None:
+            print(f"{names.get(b.name, b.name)}: {_held(b.claim.tolerated)} at its waypoints "
+                  f"alone, but cannot be written: {b.unwritten}")
 
 
 def _held(u: float) -> str:
