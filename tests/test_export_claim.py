@@ -86,16 +86,26 @@ def test_check_holds_a_program_to_its_header(plan_with_programs, tmp_path: Path,
 def test_a_program_that_breaks_the_go_is_refused(tmp_path: Path, capsys) -> None:
     """Planned for +-2.8 %, the FANUC plan holds +-2.83 % (GO); its KRL as run holds less
     than +-2.8 %: plan --export refuses it (exit 3, one line naming the format, both levels
-    and what to do) and writes no program."""
+    and what to do) and writes no program. The folder records the refusal as a planner's
+    (verdict NO, saying the plan holds and its program does not), not an unfinished plan, and
+    the command prints that verdict first."""
     out = tmp_path / "go"
-    code = main(["-q", "plan", FANUC, "--force-uncertainty", "2.8%", "--export", "krl",
+    code = main(["plan", FANUC, "--force-uncertainty", "2.8%", "--export", "krl",
                  "-o", str(out)])
-    err = capsys.readouterr().err.strip().splitlines()
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
     assert code == 3, err
     assert len(err) == 1 and err[0].startswith("rfsw-plan plan: error: krl program as its "
                                                "controller runs it (12 ms"), err
     assert "the requested +-2.8 % the plan holds (GO)" in err[0], err
     assert not list(out.glob("*.src"))
+    rec = json.loads((out / "plan.json").read_text())
+    assert rec["status"] == "infeasible" and rec["verdict"] == "NO", rec
+    assert rec["verdict_text"] == ("NO: the plan holds, but a program written from it does not "
+                                   "as its controller runs it: " + rec["message"])
+    assert err[0].endswith(rec["message"])
+    assert captured.out.splitlines() == [rec["verdict_text"]]
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json"]
     page = (Path(__file__).parents[1] / "docs" / "guide" / "programs.md").read_text()
     quoted = page.split("tests/test_export_claim.py runs it", 1)[1].split("```")[1]
     assert quoted.strip() == err[0]  # the manual shows what the command prints

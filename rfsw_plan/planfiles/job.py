@@ -247,10 +247,11 @@ class PlanRun:
 
 
 def write_refusal(folder: str | Path, problem: str, exc: Exception,
-                  force_uncertainty: float) -> PlanRecord:
+                  force_uncertainty: float, what: str = "") -> PlanRecord:
     """Record a plan the planner refused in ``folder``: an earlier run's outputs are marked
     stale and removed, ``plan.json`` says ``infeasible`` (verdict NO) or ``failed``
-    (:meth:`~rfsw_plan.planfiles.record.PlanRecord.refused`).
+    (:meth:`~rfsw_plan.planfiles.record.PlanRecord.refused`; ``what``: what is refused when
+    it is not the plan).
 
     Returns:
         The record written.
@@ -259,7 +260,7 @@ def write_refusal(folder: str | Path, problem: str, exc: Exception,
 
     with _transaction(folder) as out:
         mark_outputs_stale(out, problem, PLAN_OUTPUTS)
-        record = PlanRecord.refused(problem, exc, force_uncertainty)
+        record = PlanRecord.refused(problem, exc, force_uncertainty, what)
         record.write(out / "plan.json")
     return record
 

@@ -148,15 +148,17 @@ class PlanRecord(Mapping[str, Any]):
         return cls({**result.summary(), **keys})
 
     @classmethod
-    def refused(cls, problem: str, exc: Exception, force_uncertainty: float) -> PlanRecord:
+    def refused(cls, problem: str, exc: Exception, force_uncertainty: float,
+                what: str = "") -> PlanRecord:
         """The record of a plan the planner refused: ``infeasible`` (with the verdict NO, the
         waypoint, the constraint and its margin with its unit in the key) for an
-        :class:`InfeasibleError`, ``failed`` for any other error."""
+        :class:`InfeasibleError`, ``failed`` for any other error; ``what`` says what is
+        refused when it is not the plan (:func:`~rfsw_plan.planning.verdict.no_plan`)."""
         body: dict[str, Any] = {"status": "failed", "problem": problem, "message": str(exc)}
         if isinstance(exc, InfeasibleError):
             from rfsw_plan.planning.verdict import no_plan
 
-            verdict = no_plan(str(exc), force_uncertainty)
+            verdict = no_plan(str(exc), force_uncertainty, what)
             body = {**verdict.to_dict(), **body, "status": "infeasible",
                     "waypoint": None if exc.waypoint is None else exc.waypoint + 1,
                     "constraint": exc.constraint, **margin_entry(exc)}

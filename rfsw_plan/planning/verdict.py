@@ -26,7 +26,7 @@ lateral stiffness k_plan y / x: the ``requested`` point of the trade-off table a
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -132,6 +132,7 @@ class Verdict:
         robust_first: The plan maximised robustness before stiffness.
         levers: The three levers (HOLDS NOMINALLY), in the order to try them.
         reason: Why there is no plan (NO).
+        refused: What is refused (NO): no plan, or the programs of a plan that holds.
     """
 
     word: str
@@ -143,12 +144,13 @@ class Verdict:
     reason: str = ""
     claim: RobustClaim | None = None
     position_control: bool = True
+    refused: str = "no plan holds the weld envelope"
 
     @property
     def line(self) -> str:
         """The first line of ``rfsw-plan plan``."""
         if self.word == NO:
-            return f"NO: no plan holds the weld envelope: {self.reason}"
+            return f"NO: {self.refused}: {self.reason}"
         every = "holds the weld envelope at every written sample"
         if self.word == GO:
             upto = ("under any force uncertainty" if self.tolerated == np.inf
@@ -302,10 +304,18 @@ def verdict_of(baselines: tuple[BaselineMetrics, ...], requested: float,
                    claim=plan.claim, position_control=position_control)
 
 
-def no_plan(reason: str, requested: float) -> Verdict:
-    """The verdict when the planner refuses (exit 3)."""
-    return Verdict(NO, float("nan"), requested, reason=reason)
+#: What a NO refuses when the plan holds but a program of it, as its controller runs it, does
+#: not hold what the plan verified (``export``'s judgement).
+PROGRAM_REFUSED = ("the plan holds, but a program written from it does not as its controller "
+                   "runs it")
 
 
-__all__ = ["GO", "HOLDS_NOMINALLY", "NO", "Lever", "TradeoffPoint", "Verdict", "levers",
-           "no_plan", "pct", "tradeoff", "verdict_of"]
+def no_plan(reason: str, requested: float, refused: str = "") -> Verdict:
+    """The verdict when the planner refuses (exit 3); ``refused`` says what is refused when
+    it is not the plan itself (:data:`PROGRAM_REFUSED`)."""
+    v = Verdict(NO, float("nan"), requested, reason=reason)
+    return replace(v, refused=refused) if refused else v
+
+
+__all__ = ["GO", "HOLDS_NOMINALLY", "NO", "PROGRAM_REFUSED", "Lever", "TradeoffPoint", "Verdict",
+           "levers", "no_plan", "pct", "tradeoff", "verdict_of"]

@@ -75,21 +75,27 @@ def run(args: argparse.Namespace) -> int:
     from rfsw_plan.cli.commands.export import check_export_arguments, export_plan_result
     from rfsw_plan.files import OutputLock, prepare_output_dir, strict_json
     from rfsw_plan.planfiles.job import write_refusal
+    from rfsw_plan.planning.verdict import PROGRAM_REFUSED
 
     check_export_arguments(args)
     prepared = request(args).prepare()
     problem, flog = prepared.problem, prepared.force_log
     out = prepare_output_dir(args.output if args.output else default_output(problem.name))
     with OutputLock(out):  # taken before planning: a second writer is refused at once
+        what = ""
         try:
             run_ = prepared.run(draw_ahead=True)
+            # A program that cannot hold what the plan verified (export's judgement) refuses
+            # the request: recorded and printed as a planner's refusal is, saying what failed.
+            what = PROGRAM_REFUSED
+            written = run_.write(out, lambda result, folder, record:
+                                 export_plan_result(args, result, folder, record))
         except RfswError as exc:  # the refusal is recorded (verdict NO), printed first
-            record = write_refusal(out, problem.name, exc, prepared.options.force_uncertainty)
+            record = write_refusal(out, problem.name, exc, prepared.options.force_uncertainty,
+                                   what)
             if isinstance(exc, InfeasibleError) and not args.json:
                 print(record["verdict_text"])
             raise
-        written = run_.write(out, lambda result, folder, record:
-                             export_plan_result(args, result, folder, record))
     result, check, summary = run_.result, run_.check, written.record
     for line in written.failed_plots:  # the plan is whole without its plots: exit 0
         print(f"rfsw-plan plan: warning: {line}; the data files and plan.json are complete",
