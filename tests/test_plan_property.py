@@ -28,6 +28,7 @@ import rfsw_plan.planning.api as api
 from rfsw_plan.cli.main import main
 from rfsw_plan.planfiles.folder import PlanFolder
 from rfsw_plan.planfiles.waypoints import Q_RESOLUTION
+from rfsw_plan.planning.baselines import metrics
 from rfsw_plan.planning.robustness import DOMINANCE_TOL
 from rfsw_plan.planning.verify import CONTACT_PHASES, verify_samples
 from rfsw_plan.process.problem import resolve_problem_path
@@ -236,6 +237,12 @@ def test_a_mirror_that_cannot_be_written_holds_nothing(tmp_path, monkeypatch, ca
     assert d["tolerated_force_uncertainty_by_quantity_pct"] is None
     assert refused[0].startswith(d["cannot_be_written"]), d
     assert res.source == "nlp" and res.plan_metrics.tolerated > 0.03
+    # Judged on the same basis the plan dominates either way: at the waypoints alone it holds
+    # more than the mirror's waypoints (+-7.37 % against +-5.38 %), at the written samples
+    # the mirror holds nothing.
+    at_waypoints = metrics("nlp", res.model, res.task, res.q, res.window,
+                           res.options.force_uncertainty)
+    assert 100 * at_waypoints.tolerated >= d["tolerated_at_waypoints_pct"] + 1.0
     capsys.readouterr()
     main(["plan", str(tmp_path / "zk500_table6_seam.toml"), "-o", str(tmp_path / "o2")])
     lines = capsys.readouterr().out.splitlines()
