@@ -354,7 +354,8 @@ def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path
         program = programs[name]
         files, read, trip = _write_read(fmt, program, stage, check)
         if basis is not None and fmt.cycle > 0:
-            held[name], restated = _judged(name, fmt, program, files[0], read, basis, stage)
+            held[name], restated = _judged(name, fmt, program, files[0], read, basis, stage,
+                                           trip)
             if restated is not None:  # the same moves, the header states the level as run
                 files, read, trip = _write_read(fmt, restated, stage, check)
         staged += files
@@ -379,15 +380,19 @@ def _write_read(fmt: ControllerFormat, program: Program, stage: Path,
 
 
 def _judged(name: str, fmt: ControllerFormat, program: Program, path: Path, read: ReadProgram,
-            basis: PlanBasis, stage: Path) -> tuple[tuple[float, str], Program | None]:
+            basis: PlanBasis, stage: Path, trip: RoundTrip | None = None,
+            ) -> tuple[tuple[float, str], Program | None]:
     """The force uncertainty a staged program holds as its controller runs it, and the
     program to write again with that level in its header (None: it holds the plan's).
+    ``trip``: the round trip of the same re-read program, whose joint values the judge takes
+    for the points it seeds alike (the same solve, done once).
 
     Raises:
         InfeasibleError: The program as run breaks the weld envelope, a hook's rule or the
             timing; or the plan holds the requested uncertainty (GO) and the program does not.
     """
-    res = judge_program(path, stage, read, replace(basis, work=program.work))
+    solved = None if trip is None else (fmt.expected(program).q, trip.q)
+    res = judge_program(path, stage, read, replace(basis, work=program.work), solved=solved)
     if not res.holds and res.failure != "claim":
         raise InfeasibleError(f"{name} program as its controller runs it: {res.line()}", None,
                               res.failure, None)

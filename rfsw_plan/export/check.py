@@ -58,6 +58,9 @@ from rfsw_plan.robot.kinematics import Robot
 from rfsw_plan.robot.rotation import Rotation
 
 FloatArray = NDArray[np.float64]
+#: Joint values of a program's points solved from known seeds: (seeds, joint values) [rad],
+#: each (P, n), in the order of the program's points (:func:`judge_program`).
+Solved = tuple[FloatArray, FloatArray]
 
 #: Failures of verify_samples not reported: the joint derivative limits (the controller's
 #: motion planner enforces them) and the pin's travel speed on the re-timed samples. The
@@ -296,8 +299,8 @@ def _check(path: Path, folder: Path, read: ReadProgram, own: dict[str, bool]) ->
         raise InputError(folder, "", "the plan's own samples do not verify with the model "
                          "rebuilt from its files (robot or problem file changed?)",
                          "the robot and problem files the plan was made with")
-    basis = PlanBasis(plan.samples, plan.record, plan.problem_file, model, task, window,
-                      _exported_work(plan, robot))
+    basis = PlanBasis(plan.samples, plan.record, plan.problem_file, model, task, window)
+    basis = replace(basis, work=_exported_work(basis, robot))
     return judge_program(path, folder, read, basis, edited)
 
 
@@ -324,10 +327,24 @@ class PlanBasis:
     task: Any
     window: Any
     work: FloatArray | None = None
+    #: What every program of the plan is judged with that depends on the plan alone (its
+    #: plate surface, the predicted pin's spindle clearance), computed once for all the
+    #: programs judged against this basis and its copies (:func:`dataclasses.replace` keeps
+    #: it): ``export`` judges one program per format against the same plan.
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    def surface(self) -> tuple[FloatArray | None, float, str, str]:
+        """:func:`~rfsw_plan.export.api.plate_surface` of the plan's problem and samples."""
+        if "surface" not in self.memo:
+            from rfsw_plan.export.api import plate_surface
+
+            self.memo["surface"] = plate_surface(self.problem_file, self.samples)
+        out: tuple[FloatArray | None, float, str, str] = self.memo["surface"]
+        return out
 
 
 def judge_program(path: Path, folder: Path, read: ReadProgram, basis: PlanBasis,
-                  edited: tuple[str, ...] = ()) -> CheckResult:
+                  edited: tuple[str, ...] = (), solved: Solved | None = None) -> CheckResult:
     """Judge a program file as its controller runs it against its plan (module docstring):
     the weld envelope at every sample of the run, the hooks where the predicted pin is, the
     postures and the timing, and the force uncertainty the run holds against the level the
@@ -340,13 +357,17 @@ def judge_program(path: Path, folder: Path, read: ReadProgram, basis: PlanBasis,
         read: The program as its format's reader reads it.
         basis: The plan it was exported from.
         edited: The program's files changed since the plan vouched for them.
+        solved: The joint values of the program's points already solved from known seeds
+            (the export's round trip of the same re-read program,
+            :func:`~rfsw_plan.export.readback.round_trip`): a point seeded by the same joint
+            values takes them instead of solving again (:func:`run_as_controller`).
     """
     from rfsw_plan.planning.verify import verify_samples
 
     fmt = format_for_file(path)
     robot, plan = basis.model.robot, basis
     model, task, window = basis.model, basis.task, basis.window
-    run = run_as_controller(robot, fmt, read, plan.samples, basis.work)
+    run = run_as_controller(robot, fmt, read, plan.samples, basis.work, solved)
     ver = verify_samples(model, task, window, run.samples)
     lines = _motion_lines(read.files, run.names)
     held = ((ver.claim.tolerated, ver.claim.limiting.quantity) if ver.claim is not None
@@ -450,7 +471,7 @@ def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[
     the pendant numbers it: the ``/MN`` line number, not the file's)."""
     import re
 
-    want = set(names)
+    want = {x.upper(): x for x in reversed(names)}  # the first name of each spelling
     out: dict[str, tuple[str, int]] = {}
     move = re.compile(r"^\s*(?:\d+:)?\s*(?:LIN|PTP|CIRC|[JLC]\s|Move\w*)\s*(\w+(?:\[\d+\])?)")
     for f in files:
@@ -464,9 +485,8 @@ def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[
             if (tp := re.match(r"^\s*(\d+):", line)) is not None:
                 n = int(tp.group(1))  # a TP line as the pendant numbers it (/MN)
             name = m.group(1)
-            if name.upper() in {x.upper() for x in want} and name not in out:
-                key = next(x for x in want if x.upper() == name.upper())
-                out.setdefault(key, (f.name, n))
+            if name.upper() in want and name not in out:
+                out.setdefault(want[name.upper()], (f.name, n))
             elif line.strip().startswith("MoveAbsJ"):
                 out.setdefault("jStart", (f.name, n))
     return out
@@ -494,14 +514,13 @@ def _edits(run: ControllerRun, lines: dict[str, tuple[str, int]], record: Any,
     return tuple(out)
 
 
-def _exported_work(plan: Any, robot: Robot) -> FloatArray:
+def _exported_work(plan: PlanBasis, robot: Robot) -> FloatArray:
     """The work object the plan's programs were exported with (controller base frame, (4, 4)
     [m]): the plate frame on the surface at the first weld sample
     (:func:`rfsw_plan.export.program.work_frame`, from the plan's problem file)."""
-    from rfsw_plan.export.api import plate_surface
     from rfsw_plan.export.program import work_frame
 
-    normal, depth, _, _ = plate_surface(plan.problem_file, plan.samples)
+    normal, depth, _, _ = plan.surface()
     T = sample_fk(robot, plan.samples.q)
     return work_frame(plan.samples, T, robot.description.convention.base, normal, depth)[0]
 
@@ -543,17 +562,16 @@ def _hook_positions(files: tuple[Path, ...]) -> dict[str, int]:
 
 
 def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
-                   plan: Any) -> list[_Finding]:
+                   plan: PlanBasis) -> list[_Finding]:
     """Hooks the program places where the predicted pin (the controller's run, deflected by
     the process wrench) breaks their rule: the spindle starts with the tip above the
     surface and stops with it clear by the spindle clearance; force control goes on at or
     below the surface and off with the pin still in
     (:func:`rfsw_plan.export.program.pin_heights`)."""
-    from rfsw_plan.export.api import plate_surface
     from rfsw_plan.export.program import pin_heights, spindle_clearance
 
     pos = _hook_positions(files)
-    normal, depth, ref, _ = plate_surface(plan.problem_file, plan.samples)
+    normal, depth, ref, _ = plan.surface()
     if not pos or normal is None:
         return []
 
@@ -563,7 +581,10 @@ def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
         return pin_heights(samples, pin, normal, depth)
 
     h_run = heights(run.samples)
-    clear = spindle_clearance(plan.samples, heights(plan.samples))
+    if plan.memo.get("clearance_model") is not model:  # the plan's, once per model
+        plan.memo["clearance"] = spindle_clearance(plan.samples, heights(plan.samples))
+        plan.memo["clearance_model"] = model
+    clear = float(plan.memo["clearance"])
     rules = {"spindle_start": (lambda h: h > 0.0, "the spindle starts with the pin tip "
                                "{h} from the surface (it must be above it)"),
              "spindle_stop": (lambda h: h >= clear - HOOK_TOL, "the spindle stops with the "
@@ -647,18 +668,21 @@ class ControllerRun:
 
 
 def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
-                      plan: Samples, work: FloatArray | None = None) -> ControllerRun:
+                      plan: Samples, work: FloatArray | None = None,
+                      solved: Solved | None = None) -> ControllerRun:
     """The samples the controller runs for a (possibly edited) program (module docstring).
 
     ``work`` is the work object (base) the plan's programs were exported with, controller base
     frame [m], (4, 4). Where the program's own differs (a base re-taught elsewhere), its
     Cartesian points are matched to the plan's samples by what the program says (the points
-    in the exported base), and run where the program's base puts them."""
+    in the exported base), and run where the program's base puts them. ``solved``: joint
+    values of the points already solved (:func:`judge_program`)."""
     conv = robot.description.convention
     to_model = np.linalg.inv(read.tool) @ np.linalg.inv(conv.flange) @ robot.description.tool
     T_plan = sample_fk(robot, plan.q)
     pts = read.points
-    poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan)
+    poses, names, q_pts, findings = _point_poses(robot, fmt, read, pts, to_model, T_plan, plan,
+                                                 solved)
     seg_t = _segment_times(read, poses)
     shift = np.eye(4) if work is None else \
         conv.base @ work @ np.linalg.inv(read.work) @ np.linalg.inv(conv.base)
@@ -674,6 +698,8 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     t = _retime(seg_t, idx, plan.t)
     target = T_plan.copy()
     n = len(plan)
+    spans: list[NDArray[np.int_]] = []
+    rots: list[FloatArray] = []
     for k in range(len(idx) - 1):
         i, j = int(idx[k]), int(idx[k + 1])
         if j <= i:
@@ -687,8 +713,13 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
         # the chord between the two (edited) points, at the sample's fraction along it
         target[m, :3, 3] = (poses[k, :3, 3][None] + f[:, None]
                             * (poses[k + 1, :3, 3] - poses[k, :3, 3])[None])
-        rot = (1 - f)[:, None] * dr[k] + f[:, None] * dr[k + 1]
-        target[m, :3, :3] = Rotation.from_rotvec(rot).as_matrix() @ T_plan[m, :3, :3]
+        spans.append(m)
+        rots.append((1 - f)[:, None] * dr[k] + f[:, None] * dr[k + 1])
+    if spans:  # the edits' rotations of every segment in one call (each row its own)
+        turn = Rotation.from_rotvec(np.concatenate(rots)).as_matrix()
+        at = np.cumsum([0, *(len(m) for m in spans)])
+        for m, lo, hi in zip(spans, at[:-1], at[1:], strict=True):  # in order: the later
+            target[m, :3, :3] = turn[lo:hi] @ T_plan[m, :3, :3]  # segment's end sample wins
     last = int(idx[-1])
     if last < n - 1:
         target[last + 1:, :3, 3] += dp[-1]
@@ -704,12 +735,15 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
 
 def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: list[ReadPoint],
                  to_model: FloatArray, T_plan: FloatArray, plan: Samples,
+                 solved: Solved | None = None,
                  ) -> tuple[FloatArray, list[str], FloatArray, list[_Finding]]:
     """Model TCP poses (base frame) and joint values of the program's points: joint targets
     by FK, Cartesian points on their stated posture (IK seeded by the nearest plan sample); a
     stated posture without a joint solution is a finding (its point keeps the nearest
     sample's joints; the seeded solutions' postures in one pass:
-    :func:`~rfsw_plan.export.config.seeded_on_branch`)."""
+    :func:`~rfsw_plan.export.config.seeded_on_branch`). ``solved`` (seeds, joint values):
+    a point whose seed is the same takes the joint values solved from it (the same target,
+    seed and search give the same solution; the round trip of an export found it)."""
     from rfsw_plan.export.config import ik_on_branch, seeded_on_branch
 
     conv = robot.description.convention
@@ -727,9 +761,15 @@ def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: li
     prev = 0
     for k in cart:
         nearest[k] = prev = index.nearest(targets[k][:3, 3], prev)
-    first = dict(zip(cart, seeded_on_branch(
-        robot, np.array([targets[k] for k in cart]), [pts[k].config for k in cart],
-        fmt.postures, plan.q[[nearest[k] for k in cart]]), strict=True))
+    known: dict[int, FloatArray] = {}
+    if solved is not None and len(solved[0]) == len(pts):
+        known = {k: solved[1][k] for k in cart
+                 if np.array_equal(solved[0][k], plan.q[nearest[k]])}
+    todo = [k for k in cart if k not in known]
+    first: dict[int, FloatArray | None] = dict(known)
+    first.update(zip(todo, seeded_on_branch(
+        robot, np.array([targets[k] for k in todo]), [pts[k].config for k in todo],
+        fmt.postures, plan.q[[nearest[k] for k in todo]]), strict=True))
     for k, p in enumerate(pts):
         if p.q is not None:
             qs[k] = p.q
@@ -916,14 +956,40 @@ def _retime(seg_t: FloatArray, idx: NDArray[np.int_], t_plan: FloatArray) -> Flo
 
 def _batch_ik(robot: Robot, target: FloatArray, q0: FloatArray) -> FloatArray:
     """Joint values reaching ``target`` (m, 4, 4) from ``q0`` (m, n): damped Newton steps on
-    all samples at once (the targets are within millimetres of the planned poses)."""
+    all samples at once (the targets are within millimetres of the planned poses). The first
+    step's kinematics at ``q0`` (the plan's joint values, the same for every program of the
+    plan: :func:`_newton_start`) is computed once."""
     q = np.array(q0, dtype=float)
     goal = Rotation.from_matrix(target[:, :3, :3])  # the same every step
-    for _ in range(NEWTON_STEPS):
-        T, J = robot.batch_fk_jacobian(q)
-        err = np.concatenate([target[:, :3, 3] - T[:, :3, 3],
-                              (goal * Rotation.from_matrix(T[:, :3, :3]).inv()).as_rotvec()],
+    for step in range(NEWTON_STEPS):
+        if step == 0:
+            T, J, inv, JJt = _newton_start(robot, q)
+        else:
+            T, J = robot.batch_fk_jacobian(q)
+            inv = Rotation.from_matrix(T[:, :3, :3]).inv()
+            JJt = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(6)
+        err = np.concatenate([target[:, :3, 3] - T[:, :3, 3], (goal * inv).as_rotvec()],
                              axis=1)
-        JJt = J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(6)
         q += np.einsum("kji,kj->ki", J, np.linalg.solve(JJt, err[:, :, None])[:, :, 0])
     return q
+
+
+_START: list[tuple[Robot, FloatArray, tuple[FloatArray, FloatArray, Rotation, FloatArray]]] = []
+
+
+def _newton_start(robot: Robot, q: FloatArray
+                  ) -> tuple[FloatArray, FloatArray, Rotation, FloatArray]:
+    """Poses (m, 4, 4), Jacobians (m, 6, n), inverse rotations and damped J J^T (m, 6, 6) at
+    joint values q [rad], (m, n): :func:`_batch_ik`'s first step, remembered for the last
+    two joint arrays of equal values (``export`` judges every format's program from the
+    same plan samples)."""
+    for r, q_k, out in _START:
+        if r is robot and q_k.shape == q.shape and np.array_equal(q_k, q):
+            return out
+    T, J = robot.batch_fk_jacobian(q)
+    out = (T, J, Rotation.from_matrix(T[:, :3, :3]).inv(),
+           J @ np.swapaxes(J, 1, 2) + 1e-12 * np.eye(6))
+    for a in (T, J, out[3]):
+        a.setflags(write=False)
+    _START[:] = [*_START[-1:], (robot, q.copy(), out)]
+    return out
