@@ -16,18 +16,26 @@ import pytest
 import rfsw_plan.export.api as api
 import rfsw_plan.export.check as check
 import rfsw_plan.export.config as config
+import rfsw_plan.export.program as program
 from rfsw_plan.export.api import export_plan_folder
 from rfsw_plan.planfiles.folder import PlanFolder
 
 
 def _export(plan: Path, out: Path, monkeypatch: pytest.MonkeyPatch, shared: bool,
-            ) -> tuple[dict[str, Any], int]:
-    """Export the plan's KRL and TP programs; per format its judgement, and how many
-    points the IK solved from a seed (round trips and judges together)."""
+            ) -> tuple[dict[str, Any], int, int]:
+    """Export the plan's KRL, TP and RAPID programs; per format its judgement, how many
+    points the IK solved from a seed (round trips and judges together) and how many path
+    bounds of the vendor-neutral blend model were computed."""
     judged: dict[str, Any] = {}
     solved = [0]
+    bounds = [0]
     seeded = config.seeded_on_branch
     judge = check.judge_program
+    bound = program.path_deviation
+
+    def counting_bounds(*a: Any, **k: Any) -> Any:
+        bounds[0] += 1
+        return bound(*a, **k)
 
     def counting(robot: Any, targets: Any, *a: Any, **k: Any) -> Any:
         solved[0] += len(targets)
@@ -45,17 +53,19 @@ def _export(plan: Path, out: Path, monkeypatch: pytest.MonkeyPatch, shared: bool
     with monkeypatch.context() as mp:
         mp.setattr(config, "seeded_on_branch", counting)
         mp.setattr(api, "judge_program", judging)
+        mp.setattr(program, "path_deviation", counting_bounds)
         check._START.clear()
-        export_plan_folder(plan, ["krl", "fanuc_tp"], out)
-    return judged, solved[0]
+        export_plan_folder(plan, ["krl", "fanuc_tp", "rapid"], out)
+    return judged, solved[0], bounds[0]
 
 
 def test_a_shared_judgement_is_the_one_made_alone(plan_folder, tmp_path: Path,
                                                   monkeypatch: pytest.MonkeyPatch) -> None:
     plan = plan_folder("zk500_table6_seam", tmp_path / "plan")
-    alone, n_alone = _export(plan, tmp_path / "alone", monkeypatch, shared=False)
-    shared, n_shared = _export(plan, tmp_path / "shared", monkeypatch, shared=True)
-    assert sorted(shared) == sorted(alone) == [".ls", ".src"]
+    alone, n_alone, _ = _export(plan, tmp_path / "alone", monkeypatch, shared=False)
+    shared, n_shared, n_bounds = _export(plan, tmp_path / "shared", monkeypatch, shared=True)
+    assert sorted(shared) == sorted(alone) == [".ls", ".mod", ".src"]
+    assert n_bounds == 1  # KRL and RAPID: one program of one cycle, its bound once
     for suffix, res in shared.items():  # every field, the floats bit for bit
         a = alone[suffix].to_dict()
         b = res.to_dict()

@@ -273,8 +273,13 @@ def export_programs(
         lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
         program = programs[lead]
         deviation = 0.0
+        bounds: dict[tuple[Any, int], np.ndarray] = {}  # KRL and RAPID: one program, one bound
         for name in fmts:  # each format's rounding at the points, bounded sample by sample
-            dev = get_format(name).path_deviation(programs[name])
+            fmt = get_format(name)
+            key = (type(fmt).path_deviation, id(programs[name]))
+            if key not in bounds:
+                bounds[key] = fmt.path_deviation(programs[name])
+            dev = bounds[key]
             k = int(np.argmax(dev))
             deviation = max(deviation, float(dev[k]))
             if dev[k] > path_tol * (1 + 1e-9):
