@@ -272,21 +272,7 @@ def export_programs(
             options=options, stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=c))
         lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
         program = programs[lead]
-        deviation = 0.0
-        bounds: dict[tuple[Any, int], np.ndarray] = {}  # KRL and RAPID: one program, one bound
-        for name in fmts:  # each format's rounding at the points, bounded sample by sample
-            fmt = get_format(name)
-            key = (type(fmt).path_deviation, id(programs[name]))
-            if key not in bounds:
-                bounds[key] = fmt.path_deviation(programs[name])
-            dev = bounds[key]
-            k = int(np.argmax(dev))
-            deviation = max(deviation, float(dev[k]))
-            if dev[k] > path_tol * (1 + 1e-9):
-                raise InfeasibleError(
-                    f"{name}: programmed path leaves verified sample {k} by "
-                    f"{dev[k] * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)", None,
-                    "path_tolerance", path_tol - float(dev[k]))
+        deviation = _path_deviation(programs, fmts, path_tol)
         out.mkdir(parents=True, exist_ok=True)
         for old in out.glob(".export-*"):  # staging folders of versions that staged in `out`
             shutil.rmtree(old, ignore_errors=True)
@@ -308,6 +294,33 @@ def export_programs(
     return ExportResult(tuple(final), trips, len(program.sample_index), rows, program.header,
                         checked.strip(), deviation, program.header.notes,
                         len(trips[lead].q), held, program.header.tolerated_uncertainty)
+
+
+def _path_deviation(programs: Mapping[str, Program], fmts: Sequence[str], path_tol: float
+                    ) -> float:
+    """The largest bound of a verified sample's distance to the path any format's controller
+    runs, each format's rounding at the points [m] (formats of one program and one bound
+    model, KRL and RAPID, bound it once).
+
+    Raises:
+        InfeasibleError: A format's path leaves a sample by more than ``path_tol``.
+    """
+    deviation = 0.0
+    bounds: dict[tuple[Any, int], np.ndarray] = {}
+    for name in fmts:  # each format's rounding at the points, bounded sample by sample
+        fmt = get_format(name)
+        key = (type(fmt).path_deviation, id(programs[name]))
+        if key not in bounds:
+            bounds[key] = fmt.path_deviation(programs[name])
+        dev = bounds[key]
+        k = int(np.argmax(dev))
+        deviation = max(deviation, float(dev[k]))
+        if dev[k] > path_tol * (1 + 1e-9):
+            raise InfeasibleError(
+                f"{name}: programmed path leaves verified sample {k} by "
+                f"{dev[k] * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)", None,
+                "path_tolerance", path_tol - float(dev[k]))
+    return deviation
 
 
 def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
