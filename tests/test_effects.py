@@ -188,6 +188,28 @@ def test_torque_dependent_stiffness_moves_along_its_joint(zk500: Robot) -> None:
                                -eff.deflection(batch, F, eff.params))
 
 
+@pytest.mark.parametrize("params", [{"d2": 1e-3, "d3": -2e-3}, {"d2": 0.0, "d3": 7e-4},
+                                    {"d2": -0.0, "d3": 0.0}])
+def test_torque_dependent_deflection_is_its_regressor_times_its_parameters(zk500: Robot,
+                                                                           params) -> None:
+    """The deflection summed column by column is the regressor contracted with (d2, d3) by
+    einsum, bit for bit (issue 41: the same products and sums without the (m, 6, 2) array),
+    on many poses and loads, with zero and negative-zero parameters, loads and Jacobian
+    entries (where the sign of a zero is the only difference einsum could show)."""
+    q, F = _campaign_like(zk500, 400, seed=11)
+    F[::7] = 0.0
+    F[1::7] *= -1.0
+    batch = PoseBatch.from_q(zk500, q)
+    J = batch.J.copy()
+    J[::5, 3:, 1] = 0.0
+    J[1::5, 3:, 1] = -0.0
+    batch = PoseBatch(zk500, batch.q, batch.T, J, batch.frames)
+    eff = make_effect(zk500, "torque_dependent_stiffness:j2", params)
+    theta = np.asarray(eff.params)
+    want = np.einsum("map,p->ma", eff.deflection_regressor(batch, F, theta), theta)
+    assert eff.deflection(batch, F, theta).tobytes() == want.tobytes()
+
+
 def test_backlash_follows_torque_sign_and_needs_both_signs(zk500: Robot) -> None:
     q, F = _campaign_like(zk500, 40, seed=6)
     batch = PoseBatch.from_q(zk500, q)
