@@ -1236,10 +1236,7 @@ def _levels(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArray[np.
 
 def _take(c: ClaimInput, idx: NDArray[np.int_]) -> ClaimInput:
     """The claim's points ``idx`` (sorted)."""
-    b = c.batch
-    batch = PoseBatch(b.robot, b.q[idx], b.T[idx], b.J[idx], b.frames[idx],
-                      None if b.approach is None else b.approach[idx], b.force_noise,
-                      None if b.load_change is None else b.load_change[idx])
+    batch = c.batch.rows(idx)
     return ClaimInput(c.t[idx], c.phase[idx], c.s[idx], batch, c.wrench[idx],
                       c.deflection[idx], c.p[idx], c.t_dir[idx], c.l_dir[idx], c.n_dir[idx],
                       c.plate_normal[idx], c.contact[idx], c.full_depth[idx], c.travel[idx],
