@@ -184,8 +184,8 @@ def test_a_plan_with_shared_evaluations_is_the_plan_evaluated_afresh(planned_res
     hits: list[int] = []
     lookup = verify._shared
 
-    def counted(model, Q):
-        ev = lookup(model, Q)
+    def counted(model, Q, create=True):
+        ev = lookup(model, Q, create)
         hits.append(ev is not None)
         return ev
 
@@ -226,3 +226,32 @@ def test_plan_runs_its_stages_in_one_scope_of_shared_evaluations(monkeypatch) ->
     with pytest.raises(StopError):
         api.plan("zk500_table6_seam")
     assert seen == [True] and verify._SHARED == {}
+
+
+def test_a_scope_claims_the_same_joint_values_once(planned_result, monkeypatch) -> None:
+    """Inside ``shared_evaluations`` the metrics of joint values claimed before (the mirror's,
+    judged again when it is written and sample-checked as the plan) take the claim of the
+    first call, which is the claim computed afresh outside the scope bit for bit; another
+    constant-speed stretch is claimed again (issue 41)."""
+    from rfsw_plan.planning import baselines, verify
+
+    res = planned_result("zk500_table6_seam")
+    model, task, window, q = res.model, res.task, res.window, res.q
+    fresh = baselines.metrics("nlp", model, task, q, window, 0.2, constant_speed=(0.01, 0.05))
+    claims: list[int] = []
+    claim = verify.robust_claim
+    monkeypatch.setattr(verify, "robust_claim",
+                        lambda *a, **k: claims.append(1) or claim(*a, **k))
+    with verify.shared_evaluations(model):
+        first = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.05))
+        again = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.05))
+        assert len(claims) == 1 and again.claim is first.claim
+        other = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.04))
+        assert len(claims) == 2 and other.claim is not first.claim
+    assert first.to_dict() == fresh.to_dict()
+    assert first.claim is not None and fresh.claim is not None
+    assert first.claim.limits == fresh.claim.limits
+    assert first.claim.lateral_per_unit.tobytes() == fresh.claim.lateral_per_unit.tobytes()

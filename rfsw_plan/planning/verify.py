@@ -135,6 +135,7 @@ class _Evaluated:
     batch: PoseBatch
     deflection: dict[tuple[Any, ...], FloatArray] = field(default_factory=dict)
     dexterity: dict[float, FloatArray] = field(default_factory=dict)
+    claims: dict[tuple[Any, ...], tuple[PlanTask, RobustClaim]] = field(default_factory=dict)
 
 
 #: The open scopes: id(model) -> (model, its evaluations by exact joint values, depth).
@@ -154,7 +155,10 @@ def shared_evaluations(model: ElastostaticModel) -> Iterator[None]:
     :func:`~rfsw_plan.planning.baselines.metrics_and_prediction` take the poses
     (``model.batch``), the process deflection and kappa_f of an array they were already
     computed for (the same bytes, shape and strides; the same wrench, seam reference and
-    effect parameters) from the scope instead of computing them again: the same numbers bit
+    effect parameters) from the scope instead of computing them again, and
+    :func:`waypoint_claim` the claim of joint values already claimed on the same task, window,
+    constant-speed stretch and deflection (the mirror's, when it is also written and
+    sample-checked as the plan): the same numbers bit
     for bit, as every one is a function of those inputs alone (``tests/test_verify.py``
     compares a plan made with and without the scope). Outside a scope nothing is kept. Nested
     scopes of one model share the outermost one; the last :data:`SHARED_POSES` arrays are
@@ -172,15 +176,23 @@ def shared_evaluations(model: ElastostaticModel) -> Iterator[None]:
             del _SHARED[key]
 
 
-def _shared(model: ElastostaticModel, Q: FloatArray) -> _Evaluated | None:
-    """The scope's evaluations of joint values Q (m, n) (computed now if new), or None
-    outside a :func:`shared_evaluations` scope of the model."""
+def _params(model: ElastostaticModel) -> tuple[tuple[str, bytes], ...]:
+    """The model's effects and their parameters, as a key."""
+    return tuple((e.label, np.asarray(e.params).tobytes()) for e in model.effects)
+
+
+def _shared(model: ElastostaticModel, Q: FloatArray, create: bool = True
+            ) -> _Evaluated | None:
+    """The scope's evaluations of joint values Q (m, n) (computed now if new and ``create``),
+    or None outside a :func:`shared_evaluations` scope of the model."""
     scope = _SHARED.get(id(model))
     if scope is None or scope[0] is not model:
         return None
     memo = scope[1]
     key = (Q.shape, Q.strides, Q.tobytes())
     ev = memo.get(key)
+    if not create and (ev is None or ev.batch.robot is not model.robot):
+        return None
     if ev is None or ev.batch.robot is not model.robot:
         ev = _Evaluated(model.batch(Q))
         memo[key] = ev
@@ -203,8 +215,7 @@ def evaluate_poses(model: ElastostaticModel, q: FloatArray, wrench: FloatArray,
         batch = model.batch(Q)
         return batch, model.process_deflection_batch(batch, wrench, reference)
     W = np.asarray(wrench, dtype=float)
-    key = (reference, W.shape, W.strides, W.tobytes(),
-           tuple((e.label, np.asarray(e.params).tobytes()) for e in model.effects))
+    key = (reference, W.shape, W.strides, W.tobytes(), _params(model))
     if key not in ev.deflection:
         ev.deflection[key] = model.process_deflection_batch(ev.batch, W, reference)
     return ev.batch, ev.deflection[key].copy()
@@ -1369,12 +1380,32 @@ def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     has no time, so the acceleration and deceleration are judged on written samples only):
     how a baseline without written samples (the mirror) is judged, and the plan's waypoints
     beside its samples. ``prediction``: the poses of q and their process deflection [m, rad]
-    (K, 6) when the caller has them (:func:`predict` with ``batch``), else computed here."""
+    (K, 6) when the caller has them (:func:`predict` with ``batch``), else computed here.
+    Inside a :func:`shared_evaluations` scope a claim of the same joint values, task, window,
+    constant-speed stretch and deflection is computed once."""
     W = task.wrench_base
     if prediction is None:
         batch, dX = evaluate_poses(model, q, W, task.reference)
     else:
         batch, dX = prediction
+    ev = _shared(model, np.atleast_2d(np.asarray(q, dtype=float)), create=False)
+    key: tuple[Any, ...] | None = None
+    if ev is not None and ev.batch is batch:
+        key = (id(task), window, constant_speed, dX.shape, dX.tobytes(), _params(model))
+        hit = ev.claims.get(key)
+        if hit is not None and hit[0] is task:
+            return hit[1]
+    claim = _waypoint_claim(model, task, window, batch, dX, constant_speed)
+    if ev is not None and key is not None:
+        ev.claims[key] = (task, claim)
+    return claim
+
+
+def _waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                    batch: PoseBatch, dX: FloatArray,
+                    constant_speed: tuple[float, float] | None) -> RobustClaim:
+    """:func:`waypoint_claim` of the poses ``batch`` with their deflection dX."""
+    W = task.wrench_base
     fr = task.frames
     travel = task.phase == "weld"
     if constant_speed is not None:
