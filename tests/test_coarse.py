@@ -104,3 +104,40 @@ def test_offset_interpolation_keeps_the_fine_offset_rows(speed: float | None) ->
     np.testing.assert_array_equal(nlp.links.allowance["offsets"], allowance)
     x = nlp.stack({"q": warm.q, "offsets": fine * 1e3, "sigma": 0.0, "tolerated": 0.0})
     assert not [v for v in nlp.violations(x, ROW_TOL) if v[0].startswith("offset_")]
+
+
+def test_the_fine_projections_newton_steps_reuse_the_pose_they_returned(planned_result,
+                                                                        monkeypatch) -> None:
+    """project_fine moves only the targets between its Newton solves: the next solve starts
+    from the evaluation of the joint values the last one returned (``_newton_ik``'s ``last``)
+    and returns the joint values and evaluation of one that evaluates them again, bit for bit
+    (issue 41); a changed array or other orientations are evaluated afresh."""
+    from rfsw_plan.planning import coarse
+    from rfsw_plan.process.frames import tcp_orientation
+
+    res = planned_result("zk500_table6_seam")
+    model, task = res.model, res.task
+    R = tcp_orientation(task.frames, res.tool_rotation)
+    T = model.robot.batch_fk_jacobian(res.q)[0]
+    q1, ok, last = coarse._newton_ik(model, T[:, :3, 3] + 1e-5, R, res.q)
+    assert ok and last is not None
+    moved = T[:, :3, 3] - 2e-5
+    calls: list[int] = []
+    fk = model.robot.batch_fk_jacobian
+    monkeypatch.setattr(model.robot, "batch_fk_jacobian", lambda Q: calls.append(1) or fk(Q))
+    fresh = coarse._newton_ik(model, moved, R, q1)
+    n_fresh, calls[:] = len(calls), []
+    again = coarse._newton_ik(model, moved, R, q1, last=last)
+    assert fresh[1] and len(calls) == n_fresh - 1
+    assert fresh[0].tobytes() == again[0].tobytes()
+    assert fresh[2] is not None and again[2] is not None
+    assert all(a.tobytes() == b.tobytes() for a, b in zip(fresh[2], again[2], strict=True))
+    calls.clear()
+    coarse._newton_ik(model, moved, R.copy(), q1, last=last)  # other orientations
+    assert len(calls) == n_fresh
+    other = q1 + 1e-9  # other joint values
+    calls.clear()
+    coarse._newton_ik(model, moved, R, other)
+    n_other, calls[:] = len(calls), []
+    coarse._newton_ik(model, moved, R, other, last=last)
+    assert len(calls) == n_other

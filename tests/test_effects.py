@@ -188,6 +188,55 @@ def test_torque_dependent_stiffness_moves_along_its_joint(zk500: Robot) -> None:
                                -eff.deflection(batch, F, eff.params))
 
 
+def test_joint_frames_left_to_their_first_use_are_the_frames_gathered_with_the_poses(
+        zk500: Robot) -> None:
+    """A batch made without its joint frames (a model none of whose effects reads them)
+    gathers them on first use: the poses, Jacobians and frames are those of a batch that
+    gathered them with the poses, bit for bit, and a batch of its rows takes its source's
+    rows (issue 41). A model with a spring effect gathers them with the poses."""
+    q, _ = _campaign_like(zk500, 300, seed=12)
+    eager = PoseBatch.from_q(zk500, q)
+    lazy = PoseBatch.from_q(zk500, q, frames=False)
+    assert lazy._frames is None
+    assert eager.T.tobytes() == lazy.T.tobytes() and eager.J.tobytes() == lazy.J.tobytes()
+    idx = np.array([5, 3, 3, 250])
+    part = lazy.rows(idx)
+    assert part._frames is None and lazy._frames is None
+    assert part.frames.tobytes() == eager.frames[idx].tobytes()
+    assert lazy._frames is not None  # the source gathered its own once, for its rows
+    assert lazy.frames.tobytes() == eager.frames.tobytes()
+    assert lazy.rows(slice(2, 9)).frames.tobytes() == eager.frames[2:9].tobytes()
+    joints = ElastostaticModel(zk500)
+    assert not joints.reads_frames() and joints.batch(q)._frames is None
+    tilting = ElastostaticModel(zk500, [*joints.effects, make_effect(zk500,
+                                                                     "tilting_compliance:j2")])
+    assert tilting.reads_frames() and tilting.batch(q)._frames is not None
+    assert ElastostaticModel(zk500, [*joints.effects, make_effect(
+        zk500, "link_errors")]).batch(q)._frames is not None
+
+
+@pytest.mark.parametrize("params", [{"d2": 1e-3, "d3": -2e-3}, {"d2": 0.0, "d3": 7e-4},
+                                    {"d2": -0.0, "d3": 0.0}])
+def test_torque_dependent_deflection_is_its_regressor_times_its_parameters(zk500: Robot,
+                                                                           params) -> None:
+    """The deflection summed column by column is the regressor contracted with (d2, d3) by
+    einsum, bit for bit (issue 41: the same products and sums without the (m, 6, 2) array),
+    on many poses and loads, with zero and negative-zero parameters, loads and Jacobian
+    entries (where the sign of a zero is the only difference einsum could show)."""
+    q, F = _campaign_like(zk500, 400, seed=11)
+    F[::7] = 0.0
+    F[1::7] *= -1.0
+    batch = PoseBatch.from_q(zk500, q)
+    J = batch.J.copy()
+    J[::5, 3:, 1] = 0.0
+    J[1::5, 3:, 1] = -0.0
+    batch = PoseBatch(zk500, batch.q, batch.T, J, batch.frames)
+    eff = make_effect(zk500, "torque_dependent_stiffness:j2", params)
+    theta = np.asarray(eff.params)
+    want = np.einsum("map,p->ma", eff.deflection_regressor(batch, F, theta), theta)
+    assert eff.deflection(batch, F, theta).tobytes() == want.tobytes()
+
+
 def test_backlash_follows_torque_sign_and_needs_both_signs(zk500: Robot) -> None:
     q, F = _campaign_like(zk500, 40, seed=6)
     batch = PoseBatch.from_q(zk500, q)

@@ -132,3 +132,126 @@ def test_offset_rate_is_checked_against_the_load_steps(setup):
     held = np.repeat(mir.offsets[:1], len(mir.offsets), axis=0)
     lag = verify_plan(model, task, w, mir.q, held, options=tight, reference_offsets=mir.offsets)
     assert not lag.feasible and any("offset_rate_" in m for m in lag.messages)
+
+
+def test_a_scope_evaluates_each_joint_value_array_once(setup) -> None:
+    """Inside ``shared_evaluations(model)`` the poses of joint values evaluated before are the
+    same batch, their deflection and kappa_f the fresh ones bit for bit (copies, which the
+    caller may change), a change of the effects' parameters evaluates the deflection again,
+    and outside the scope nothing is kept (issue 41)."""
+    from rfsw_plan.planning import verify
+
+    model, task, base, _ = setup
+    F = task.wrench_base
+    fresh_batch, fresh_dX = verify.evaluate_poses(model, base.q, F, task.reference)
+    assert verify.evaluate_poses(model, base.q, F, task.reference)[0] is not fresh_batch
+    fresh = predict(model, task, base.q, 0.2)
+    with verify.shared_evaluations(model):
+        batch, dX = verify.evaluate_poses(model, base.q.copy(), F, task.reference)
+        again, dX2 = verify.evaluate_poses(model, base.q, F, task.reference)
+        assert again is batch and dX2 is not dX
+        assert dX.tobytes() == dX2.tobytes() == fresh_dX.tobytes()
+        dX2[:] = 0.0  # the caller's copy: the scope's stays
+        shared = predict(model, task, base.q, 0.2)
+        for f in dataclasses.fields(shared):
+            assert getattr(shared, f.name).tobytes() == getattr(fresh, f.name).tobytes(), f.name
+        joint = model.effects[0]
+        saved = joint.params.copy()
+        try:
+            joint.params = saved * 2.0
+            softer = verify.evaluate_poses(model, base.q, F, task.reference)[1]
+            expect = model.process_deflection_batch(model.batch(base.q), F, task.reference)
+            assert softer.tobytes() == expect.tobytes() != fresh_dX.tobytes()
+        finally:
+            joint.params = saved
+        assert verify.evaluate_poses(model, base.q, F, task.reference)[1].tobytes() == \
+            fresh_dX.tobytes()
+    assert verify.evaluate_poses(model, base.q, F, task.reference)[0] is not batch
+
+
+def test_a_plan_with_shared_evaluations_is_the_plan_evaluated_afresh(planned_result, tmp_path,
+                                                                     monkeypatch) -> None:
+    """plan() evaluates every joint-value array once (``verify.shared_evaluations``: the taught
+    path, the mirror and the plan come back in several stages): its written data, metrics and
+    claims are those of a plan whose stages evaluate everything afresh, bit for bit, on the
+    coupled, not wrench-linear zk500 model (issue 41)."""
+    from contextlib import nullcontext
+
+    from rfsw_plan.planfiles.waypoints import write_plan_data
+    from rfsw_plan.planning import api, verify
+
+    shared = planned_result("zk500_table6_seam")
+    hits: list[int] = []
+    lookup = verify._shared
+
+    def counted(model, Q, create=True):
+        ev = lookup(model, Q, create)
+        hits.append(ev is not None)
+        return ev
+
+    monkeypatch.setattr(api, "shared_evaluations", lambda model: nullcontext())
+    monkeypatch.setattr(verify, "_shared", counted)
+    fresh = api.plan("zk500_table6_seam")
+    assert hits and not any(hits)  # no scope: every array evaluated afresh
+    for name in ("shared", "fresh"):
+        (tmp_path / name).mkdir()
+    a = write_plan_data(tmp_path / "shared", shared)
+    b = write_plan_data(tmp_path / "fresh", fresh)
+    for x, y in zip(a, b, strict=True):
+        assert x.read_bytes() == y.read_bytes(), x.name
+    assert [m.to_dict() for m in shared.baselines] == [m.to_dict() for m in fresh.baselines]
+    for m, n in zip(shared.baselines, fresh.baselines, strict=True):
+        assert m.claim is not None and n.claim is not None
+        assert m.claim.limits == n.claim.limits
+        assert m.claim.lateral_per_unit.tobytes() == n.claim.lateral_per_unit.tobytes()
+    assert shared.e_none.tobytes() == fresh.e_none.tobytes()
+    assert shared.e_mirror.tobytes() == fresh.e_mirror.tobytes()
+
+
+def test_plan_runs_its_stages_in_one_scope_of_shared_evaluations(monkeypatch) -> None:
+    """api.plan_task runs the pipeline inside ``verify.shared_evaluations`` of its model (the
+    scope the test above shows to change no bit), and closes it afterwards."""
+    from rfsw_plan.planning import api, verify
+
+    seen: list[bool] = []
+
+    class StopError(Exception):
+        pass
+
+    def stage(model, *args):
+        seen.append(verify._SHARED.get(id(model), (None,))[0] is model)
+        raise StopError
+
+    monkeypatch.setattr(api, "_plan_task", stage)
+    with pytest.raises(StopError):
+        api.plan("zk500_table6_seam")
+    assert seen == [True] and verify._SHARED == {}
+
+
+def test_a_scope_claims_the_same_joint_values_once(planned_result, monkeypatch) -> None:
+    """Inside ``shared_evaluations`` the metrics of joint values claimed before (the mirror's,
+    judged again when it is written and sample-checked as the plan) take the claim of the
+    first call, which is the claim computed afresh outside the scope bit for bit; another
+    constant-speed stretch is claimed again (issue 41)."""
+    from rfsw_plan.planning import baselines, verify
+
+    res = planned_result("zk500_table6_seam")
+    model, task, window, q = res.model, res.task, res.window, res.q
+    fresh = baselines.metrics("nlp", model, task, q, window, 0.2, constant_speed=(0.01, 0.05))
+    claims: list[int] = []
+    claim = verify.robust_claim
+    monkeypatch.setattr(verify, "robust_claim",
+                        lambda *a, **k: claims.append(1) or claim(*a, **k))
+    with verify.shared_evaluations(model):
+        first = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.05))
+        again = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.05))
+        assert len(claims) == 1 and again.claim is first.claim
+        other = baselines.metrics("nlp", model, task, q, window, 0.2,
+                                  constant_speed=(0.01, 0.04))
+        assert len(claims) == 2 and other.claim is not first.claim
+    assert first.to_dict() == fresh.to_dict()
+    assert first.claim is not None and fresh.claim is not None
+    assert first.claim.limits == fresh.claim.limits
+    assert first.claim.lateral_per_unit.tobytes() == fresh.claim.lateral_per_unit.tobytes()

@@ -163,12 +163,18 @@ class ElastostaticModel:
 
     # -- evaluation --------------------------------------------------------------------------
     def batch(self, q: FloatArray) -> PoseBatch:
-        """Kinematics of joint values [rad], shape (m, n) or (n,)."""
+        """Kinematics of joint values [rad], shape (m, n) or (n,). The joint frames are
+        gathered with the poses only if an effect reads them (spring effects,
+        :attr:`Effect.uses_frames`), else on first use (:attr:`PoseBatch.frames`)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
         if Q.shape[0] == 1:  # one pose: Pinocchio beats the vectorised path's overhead
             T, J = self.robot.fk_jacobian(Q[0])
             return PoseBatch(self.robot, Q, T[None], J[None], self.robot.joint_frames(Q[0])[None])
-        return PoseBatch.from_q(self.robot, Q)
+        return PoseBatch.from_q(self.robot, Q, frames=self.reads_frames())
+
+    def reads_frames(self) -> bool:
+        """True if an effect reads the chain joint frames (:attr:`PoseBatch.frames`)."""
+        return bool(self.groups.springs) or any(e.uses_frames for e in self.effects)
 
     def batch_of(self, data: MeasurementSet, force_noise: float | None = None) -> PoseBatch:
         """Kinematics of a measurement set's samples with their history: each joint's

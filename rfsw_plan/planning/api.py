@@ -55,6 +55,7 @@ from rfsw_plan.planning.verify import (
     Verification,
     pin_track,
     predict,
+    shared_evaluations,
     tolerated_uncertainty,
     verify_plan,
     verify_samples,
@@ -330,13 +331,16 @@ def plan_task(
 ) -> PlanResult:
     """The pipeline of :func:`plan` on an explicit task (see there), with a progress bar over
     its stages on stderr (:mod:`rfsw_plan.progress`: only on a terminal, not with ``-q``).
+    Its stages evaluate each joint-value array with the numeric model once
+    (:func:`~rfsw_plan.planning.verify.shared_evaluations`).
 
     Raises:
         InputError: A joint stiffness so soft under the task's loads that it can only be in
             the wrong unit (:func:`~rfsw_plan.robot.kinematics.check_stiffness_scale`).
     """
     check_stiffness_scale(model.robot, q_seed, task.wrench_base)
-    with Stages("plan", _STAGES) as stages:
+    # Every joint-value array the stages share is evaluated once (verify.shared_evaluations).
+    with Stages("plan", _STAGES) as stages, shared_evaluations(model):
         return _plan_task(model, task, window, q_seed, opts, name, compile_c, timing, t_start,
                           stages)
 

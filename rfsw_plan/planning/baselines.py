@@ -25,6 +25,7 @@ from rfsw_plan.planning.verify import (
     Prediction,
     RobustClaim,
     SampleVerification,
+    evaluate_poses,
     predict,
     waypoint_claim,
 )
@@ -462,10 +463,13 @@ def metrics_and_prediction(
     Returns the metrics and the numeric prediction of q at unit force uncertainty
     (:func:`~rfsw_plan.planning.verify.predict`; its pin errors are those of any
     uncertainty). The prediction's poses and deflection are the claim's too (one model call
-    and one set of pose caches for both).
+    and one set of pose caches for both; inside a
+    :func:`~rfsw_plan.planning.verify.shared_evaluations` scope, those of q's earlier
+    evaluation).
     """
-    batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
-    pred = predict(model, task, q, 1.0, batch=batch)
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    batch, dX = evaluate_poses(model, Q, task.wrench_base, task.reference)
+    pred = predict(model, task, Q, 1.0, batch=batch, deflection=dX)
     e, R = pred.e_lat, pred.worst
     if samples is not None and samples.contact.any():
         c = samples.contact

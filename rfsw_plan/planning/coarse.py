@@ -166,29 +166,46 @@ def _tool_rotation(task: PlanTask, T: FloatArray) -> FloatArray:
                                 np.einsum("ki,ki->k", x, R0[:, :, 0])))
 
 
+#: The last evaluation of :func:`_newton_ik`: (joint values it returned, the orientations R,
+#: their TCP poses, Jacobians and rotation errors to R).
+NewtonState = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
 def _newton_ik(model: ElastostaticModel, target: FloatArray, R: FloatArray, Q: FloatArray,
-               tol: float = 1e-12, max_iter: int = 12) -> tuple[FloatArray, bool]:
+               tol: float = 1e-12, max_iter: int = 12, last: NewtonState | None = None,
+               ) -> tuple[FloatArray, bool, NewtonState | None]:
     """Joint values (K, n) with the TCP at positions target (K, 3) [m] and orientations R
     (K, 3, 3), by batched Newton steps from Q; True if every waypoint converged to tol [m, rad]
-    (6-joint arms)."""
+    (6-joint arms), and the evaluation of the joint values returned.
+
+    ``last``: the evaluation an earlier call returned; when Q holds its joint values (the same
+    bytes) and R is its orientations (:func:`project_fine` moves only the targets between
+    calls), its poses, Jacobians and rotation errors are taken instead of evaluated again."""
     from scipy.spatial.transform import Rotation
 
     robot = model.robot
     Q = np.array(Q, dtype=float)
+    reuse = last is not None and last[1] is R and last[0].tobytes() == Q.tobytes()
+    state: NewtonState | None = None
     for _ in range(max_iter):
-        T, J = robot.batch_fk_jacobian(Q)[:2]
+        if reuse and last is not None:
+            T, J, dr = last[2:]
+            reuse = False
+        else:
+            T, J = robot.batch_fk_jacobian(Q)[:2]
+            dr = Rotation.from_matrix(R @ np.transpose(T[:, :3, :3], (0, 2, 1))).as_rotvec()
         dp = target - T[:, :3, 3]
-        dr = Rotation.from_matrix(R @ np.transpose(T[:, :3, :3], (0, 2, 1))).as_rotvec()
+        state = (Q.copy(), R, T, J, dr)
         if max(float(np.max(np.abs(dp))), float(np.max(np.abs(dr)))) < tol:
-            return Q, True
+            return Q, True, state
         try:
             dq = np.linalg.solve(J, np.hstack([dp, dr])[:, :, None])[:, :, 0]
         except np.linalg.LinAlgError:
-            return Q, False
+            return Q, False, state
         if not np.all(np.isfinite(dq)) or np.max(np.abs(dq)) > 0.2:
-            return Q, False
+            return Q, False, state
         Q = Q + dq
-    return Q, False
+    return Q, False, None
 
 
 def project_fine(
@@ -223,11 +240,12 @@ def project_fine(
     fine = update_parameters(nlp, correction=corr)
     ok = robot.nq == 6
     it = 0
+    last: NewtonState | None = None
     while ok and it < max_iter:
         it += 1
         o = OFFSETS.split(off)
         target = task.target + o["lateral"] * fr.l + o["normal"] * fr.n + o["along"] * fr.t
-        q, ok = _newton_ik(model, target, R, q)
+        q, ok, last = _newton_ik(model, target, R, q, last=last)
         if not ok:
             break
         # sigma, rho and c_max do not enter the rows used here

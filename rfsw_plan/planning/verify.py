@@ -31,16 +31,18 @@ vertices of the force box, on the model itself (the plan's claim and the verdict
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections import OrderedDict
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from rfsw_plan.elastostatics.compliance import dexterity
 from rfsw_plan.elastostatics.effects.base import PoseBatch
-from rfsw_plan.elastostatics.model import ElastostaticModel
+from rfsw_plan.elastostatics.model import ElastostaticModel, SeamReference
 from rfsw_plan.exceptions import InfeasibleError
 from rfsw_plan.planning.layout import OFFSET_LABELS, OFFSETS
 from rfsw_plan.planning.rows import checks as declared_checks
@@ -119,9 +121,122 @@ def along_tangents(task: PlanTask) -> FloatArray:
     return np.asarray(t / np.linalg.norm(t, axis=1, keepdims=True))
 
 
+#: How many joint-value arrays a :func:`shared_evaluations` scope keeps (a plan evaluates
+#: about 15 distinct ones; the same array comes back up to five times).
+SHARED_POSES = 8
+
+
+@dataclass
+class _Evaluated:
+    """The numeric model's evaluations of one joint-value array inside a
+    :func:`shared_evaluations` scope: its poses, and per (wrench, seam reference, effect
+    parameters) its process deflection, per length scale its kappa_f."""
+
+    batch: PoseBatch
+    deflection: dict[tuple[Any, ...], FloatArray] = field(default_factory=dict)
+    dexterity: dict[float, FloatArray] = field(default_factory=dict)
+    claims: dict[tuple[Any, ...], tuple[PlanTask, RobustClaim]] = field(default_factory=dict)
+
+
+#: The open scopes: id(model) -> (model, its evaluations by exact joint values, depth).
+_SHARED: dict[int, tuple[ElastostaticModel, OrderedDict[tuple[Any, ...], _Evaluated],
+                         list[int]]] = {}
+
+
+@contextmanager
+def shared_evaluations(model: ElastostaticModel) -> Iterator[None]:
+    """Within this scope the model evaluates every joint-value array once.
+
+    The planning pipeline evaluates the same joint values in several stages: the taught path
+    in the branch choice, as the mirror's first iterate and as the ``none`` baseline; the plan
+    in the fine projection, in the verification and in its metrics; the written samples in
+    :func:`pin_track` and :func:`verify_samples`. Inside the scope :func:`predict`,
+    :func:`pin_track`, :func:`verify_samples`, :func:`waypoint_claim` and
+    :func:`~rfsw_plan.planning.baselines.metrics_and_prediction` take the poses
+    (``model.batch``), the process deflection and kappa_f of an array they were already
+    computed for (the same bytes, shape and strides; the same wrench, seam reference and
+    effect parameters) from the scope instead of computing them again, and
+    :func:`waypoint_claim` the claim of joint values already claimed on the same task, window,
+    constant-speed stretch and deflection (the mirror's, when it is also written and
+    sample-checked as the plan): the same numbers bit
+    for bit, as every one is a function of those inputs alone (``tests/test_verify.py``
+    compares a plan made with and without the scope). Outside a scope nothing is kept. Nested
+    scopes of one model share the outermost one; the last :data:`SHARED_POSES` arrays are
+    kept."""
+    key = id(model)
+    if key not in _SHARED:
+        _SHARED[key] = (model, OrderedDict(), [0])
+    _SHARED[key][2][0] += 1
+    try:
+        yield
+    finally:
+        depth = _SHARED[key][2]
+        depth[0] -= 1
+        if depth[0] == 0:
+            del _SHARED[key]
+
+
+def _params(model: ElastostaticModel) -> tuple[tuple[str, bytes], ...]:
+    """The model's effects and their parameters, as a key."""
+    return tuple((e.label, np.asarray(e.params).tobytes()) for e in model.effects)
+
+
+def _shared(model: ElastostaticModel, Q: FloatArray, create: bool = True
+            ) -> _Evaluated | None:
+    """The scope's evaluations of joint values Q (m, n) (computed now if new and ``create``),
+    or None outside a :func:`shared_evaluations` scope of the model."""
+    scope = _SHARED.get(id(model))
+    if scope is None or scope[0] is not model:
+        return None
+    memo = scope[1]
+    key = (Q.shape, Q.strides, Q.tobytes())
+    ev = memo.get(key)
+    if not create and (ev is None or ev.batch.robot is not model.robot):
+        return None
+    if ev is None or ev.batch.robot is not model.robot:
+        ev = _Evaluated(model.batch(Q))
+        memo[key] = ev
+        while len(memo) > SHARED_POSES:
+            memo.popitem(last=False)
+    else:
+        memo.move_to_end(key)
+    return ev
+
+
+def evaluate_poses(model: ElastostaticModel, q: FloatArray, wrench: FloatArray,
+                   reference: SeamReference) -> tuple[PoseBatch, FloatArray]:
+    """``model.batch(q)`` and its process deflection [m, rad] (m, 6) under ``wrench``
+    (:meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection_batch`),
+    each computed once per :func:`shared_evaluations` scope (the deflection is a copy: the
+    caller may change it)."""
+    Q = np.atleast_2d(np.asarray(q, dtype=float))
+    ev = _shared(model, Q)
+    if ev is None:
+        batch = model.batch(Q)
+        return batch, model.process_deflection_batch(batch, wrench, reference)
+    W = np.asarray(wrench, dtype=float)
+    key = (reference, W.shape, W.strides, W.tobytes(), _params(model))
+    if key not in ev.deflection:
+        ev.deflection[key] = model.process_deflection_batch(ev.batch, W, reference)
+    return ev.batch, ev.deflection[key].copy()
+
+
+def _dexterity_of(model: ElastostaticModel, Q: FloatArray, batch: PoseBatch,
+                  length_scale: float) -> FloatArray:
+    """:func:`dexterity_batch` of the poses of Q, once per :func:`shared_evaluations` scope
+    and length scale (a copy)."""
+    ev = _shared(model, Q)
+    if ev is None or ev.batch is not batch:
+        return dexterity_batch(batch.J, length_scale)
+    if length_scale not in ev.dexterity:
+        ev.dexterity[length_scale] = dexterity_batch(batch.J, length_scale)
+    return ev.dexterity[length_scale].copy()
+
+
 def predict(
     model: ElastostaticModel, task: PlanTask, q: FloatArray, uncertainty: float = 0.2,
     length_scale: float = 1.0, batch: PoseBatch | None = None,
+    deflection: FloatArray | None = None,
 ) -> Prediction:
     """Predicted pin errors of joint values q (K, n) [rad] on a task, numerically.
 
@@ -131,13 +246,20 @@ def predict(
     (:meth:`~rfsw_plan.elastostatics.model.ElastostaticModel.process_deflection_batch`: every
     physical effect, the task's seam reference) for the deflection. ``batch``: the poses of q
     (``model.batch(q)``) when the caller has them, so that their effects' pose caches are
-    shared with its other model calls.
+    shared with its other model calls, and ``deflection`` their process deflection under the
+    task's wrench [m, rad] (K, 6) if it has that too. Inside a :func:`shared_evaluations`
+    scope the poses, the deflection and kappa_f of joint values evaluated before are taken
+    from it.
     """
     Q = np.atleast_2d(np.asarray(q, dtype=float))
-    batch = model.batch(Q) if batch is None else batch
-    T = batch.T
     F = task.wrench_base
-    dX = model.process_deflection_batch(batch, F, task.reference)
+    if batch is None:
+        batch, dX = evaluate_poses(model, Q, F, task.reference)
+    elif deflection is None:
+        dX = model.process_deflection_batch(batch, F, task.reference)
+    else:
+        dX = deflection
+    T = batch.T
     fr = task.frames
     pin = T[:, :3, 3] + dX[:, :3]
     # The seam point, not the raised plunge target: the pin error is measured to the joint
@@ -150,7 +272,7 @@ def predict(
     proj = np.stack([np.einsum("kj,kj->k", lC, b) for b in (fr.t, fr.l, fr.n)], axis=1)
     worst = uncertainty * np.sum(np.abs(task.force_seam) * task.spread_weights * np.abs(proj),
                                  axis=1)
-    kappa = dexterity_batch(batch.J, length_scale)
+    kappa = _dexterity_of(model, Q, batch, length_scale)
     return Prediction(T, dX, e_lat, e_norm, e_along, worst, proj[:, 1], kappa)
 
 
@@ -581,8 +703,7 @@ def pin_track(model: ElastostaticModel, task: PlanTask, traj: TimedTrajectory) -
     def at_s(a: FloatArray) -> FloatArray:
         return np.stack([np.interp(traj.s, sw, a[m:, i]) for i in range(3)], axis=1)
 
-    batch = model.batch(traj.q)
-    dX = model.process_deflection_batch(batch, traj.wrench, task.reference)
+    batch, dX = evaluate_poses(model, traj.q, traj.wrench, task.reference)
     t = at_s(along_tangents(task))
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     pin = batch.T[:, :3, 3] + dX[:, :3]
@@ -1126,10 +1247,7 @@ def _levels(value: FloatArray, lo: FloatArray, hi: FloatArray, mask: NDArray[np.
 
 def _take(c: ClaimInput, idx: NDArray[np.int_]) -> ClaimInput:
     """The claim's points ``idx`` (sorted)."""
-    b = c.batch
-    batch = PoseBatch(b.robot, b.q[idx], b.T[idx], b.J[idx], b.frames[idx],
-                      None if b.approach is None else b.approach[idx], b.force_noise,
-                      None if b.load_change is None else b.load_change[idx])
+    batch = c.batch.rows(idx)
     return ClaimInput(c.t[idx], c.phase[idx], c.s[idx], batch, c.wrench[idx],
                       c.deflection[idx], c.p[idx], c.t_dir[idx], c.l_dir[idx], c.n_dir[idx],
                       c.plate_normal[idx], c.contact[idx], c.full_depth[idx], c.travel[idx],
@@ -1262,13 +1380,32 @@ def waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
     has no time, so the acceleration and deceleration are judged on written samples only):
     how a baseline without written samples (the mirror) is judged, and the plan's waypoints
     beside its samples. ``prediction``: the poses of q and their process deflection [m, rad]
-    (K, 6) when the caller has them (:func:`predict` with ``batch``), else computed here."""
+    (K, 6) when the caller has them (:func:`predict` with ``batch``), else computed here.
+    Inside a :func:`shared_evaluations` scope a claim of the same joint values, task, window,
+    constant-speed stretch and deflection is computed once."""
     W = task.wrench_base
     if prediction is None:
-        batch = model.batch(np.atleast_2d(np.asarray(q, dtype=float)))
-        dX = model.process_deflection_batch(batch, W, task.reference)
+        batch, dX = evaluate_poses(model, q, W, task.reference)
     else:
         batch, dX = prediction
+    ev = _shared(model, np.atleast_2d(np.asarray(q, dtype=float)), create=False)
+    key: tuple[Any, ...] | None = None
+    if ev is not None and ev.batch is batch:
+        key = (id(task), window, constant_speed, dX.shape, dX.tobytes(), _params(model))
+        hit = ev.claims.get(key)
+        if hit is not None and hit[0] is task:
+            return hit[1]
+    claim = _waypoint_claim(model, task, window, batch, dX, constant_speed)
+    if ev is not None and key is not None:
+        ev.claims[key] = (task, claim)
+    return claim
+
+
+def _waypoint_claim(model: ElastostaticModel, task: PlanTask, window: WeldWindow,
+                    batch: PoseBatch, dX: FloatArray,
+                    constant_speed: tuple[float, float] | None) -> RobustClaim:
+    """:func:`waypoint_claim` of the poses ``batch`` with their deflection dX."""
+    W = task.wrench_base
     fr = task.frames
     travel = task.phase == "weld"
     if constant_speed is not None:
@@ -1816,8 +1953,7 @@ def verify_samples(
     W = np.asarray(samples.wrench, dtype=float)
     N = len(t)
     d = model.robot.description
-    batch = model.batch(Q)
-    dX = model.process_deflection_batch(batch, W, task.reference)
+    batch, dX = evaluate_poses(model, Q, W, task.reference)
     p, tt, ll, nn = seam_frames_at(task, s)
     x = batch.T[:, :3, 3]
     e = np.einsum("ki,ki->k", ll, x + dX[:, :3] - p)

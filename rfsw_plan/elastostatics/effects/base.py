@@ -81,6 +81,10 @@ class PoseBatch:
             frame after its rotation but, for a prismatic joint, before its slide (the origin
             its link placement ends at, where a link error acts). For a revolute joint this
             is Pinocchio's ``oMi``; for a prismatic one ``oMi`` is further along z by q_i.
+            Gathered when first read if the batch was made without them (``_frames`` None:
+            :meth:`from_q` with ``frames=False``, for a model none of whose effects reads
+            them), by the same kinematics on the same joint values (a batch of
+            :meth:`rows` takes its rows of its source's), so the same numbers either way.
         approach: Direction each joint last moved in before reaching the sample, shape
             (m, n): +1, -1, or 0 (unknown: the first sample, or no motion yet). None when
             the samples carry no history (a planned path): effects that need it take 0.
@@ -104,30 +108,56 @@ class PoseBatch:
     q: FloatArray
     T: FloatArray
     J: FloatArray
-    frames: FloatArray
+    _frames: FloatArray | None
     approach: FloatArray | None = None
     force_noise: float = 0.0
     load_change: FloatArray | None = None
     load_history: FloatArray | None = None
     cache: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    #: Where the frames of a batch of :meth:`rows` without gathered frames come from: the
+    #: source batch and the rows.
+    _rows_of: tuple[PoseBatch, slice | NDArray[np.int_]] | None = field(
+        default=None, compare=False, repr=False)
+
+    @property
+    def frames(self) -> FloatArray:
+        """The chain joint frames (see the class attributes), gathered on first use."""
+        if self._frames is None:
+            if self._rows_of is not None:
+                source, s = self._rows_of
+                frames = source.frames[s]
+            else:
+                frames = self.robot.batch_fk_jacobian_frames(self.q)[2]
+            object.__setattr__(self, "_frames", frames)
+            object.__setattr__(self, "_rows_of", None)
+        assert self._frames is not None
+        return self._frames
 
     @classmethod
     def from_q(cls, robot: Robot, q: FloatArray, approach: FloatArray | None = None,
                force_noise: float = 0.0, load_change: FloatArray | None = None,
-               load_history: FloatArray | None = None) -> PoseBatch:
+               load_history: FloatArray | None = None, frames: bool = True) -> PoseBatch:
         """Evaluate kinematics for joint values [rad], shape (m, n) or (n,), with the
-        samples' history and force noise [N] (see the attributes)."""
+        samples' history and force noise [N] (see the attributes). ``frames=False`` leaves
+        the joint frames to their first use (the poses and Jacobians are the same numbers:
+        the frames are a by-product of the same joint loop)."""
         Q = np.atleast_2d(np.asarray(q, dtype=float))
-        T, J, frames = robot.batch_fk_jacobian_frames(Q)
-        return cls(robot, Q, T, J, frames, approach, force_noise, load_change, load_history)
+        if frames:
+            T, J, F = robot.batch_fk_jacobian_frames(Q)
+            return cls(robot, Q, T, J, F, approach, force_noise, load_change, load_history)
+        T, J = robot.batch_fk_jacobian(Q)
+        return cls(robot, Q, T, J, None, approach, force_noise, load_change, load_history)
 
     def rows(self, s: slice | NDArray[np.int_]) -> PoseBatch:
         """The samples ``s`` (a slice or indices) as a new batch (its own, empty cache)."""
-        return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s], self.frames[s],
+        gathered = self._frames is not None
+        return PoseBatch(self.robot, self.q[s], self.T[s], self.J[s],
+                         self.frames[s] if gathered else None,
                          None if self.approach is None else self.approach[s],
                          self.force_noise,
                          None if self.load_change is None else self.load_change[s],
-                         None if self.load_history is None else self.load_history[s])
+                         None if self.load_history is None else self.load_history[s],
+                         _rows_of=None if gathered else (self, s))
 
     def __len__(self) -> int:
         return int(self.q.shape[0])
@@ -193,6 +223,11 @@ class Effect(abc.ABC):
     #: The effect depends on the direction its joint last moved in (a sample's approach,
     #: :attr:`PoseBatch.approach`): a campaign design then chooses each sample's approach.
     uses_approach: ClassVar[bool] = False
+    #: The effect reads the chain joint frames (:attr:`PoseBatch.frames`): the model's batches
+    #: then gather them with the poses (spring effects, :meth:`ComplianceEffect.joint_springs`,
+    #: always do). An effect that reads them without saying so gets them all the same, on
+    #: first use, at the cost of a second pass of the kinematics.
+    uses_frames: ClassVar[bool] = False
     #: Seen from one side only, the effect is a constant offset of its joint: a campaign
     #: design must tell it from the joint's zero offset (a play, a hysteresis loop).
     offset_like: ClassVar[bool] = False

@@ -97,6 +97,7 @@ class ComplementaryStiffness(ComplianceEffect):
     """
 
     name = "complementary_stiffness"
+    uses_frames = True
     description = (
         "The loaded arm changes its geometry as the joints deflect, which changes the lever "
         "arms of the load (the complementary stiffness Kc of seed 000 eq. 6)."

@@ -43,6 +43,7 @@ class LinkErrors(GeometricEffect):
     """
 
     name = "link_errors"
+    uses_frames = True
     description = (
         "Every link is slightly off its drawing (length, twist, offsets): a full geometric "
         "calibration of the chain, which shifts the TCP by a pose-dependent amount."

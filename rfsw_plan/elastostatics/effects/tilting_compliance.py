@@ -31,6 +31,7 @@ class TiltingCompliance(ComplianceEffect):
     """
 
     name = "tilting_compliance"
+    uses_frames = True
     description = (
         "The joint's bearing is not rigid against bending: the moment normal to the joint axis "
         "tilts the joint about its two normal axes and swings the TCP."

@@ -76,4 +76,15 @@ class TorqueDependentStiffness(ComplianceEffect):
         return batch.J[:, :, self.joint, None] * basis[:, None, :]
 
     def deflection(self, batch: PoseBatch, wrench: FloatArray, theta: FloatArray) -> FloatArray:
-        return np.einsum("map,p->ma", self.deflection_regressor(batch, wrench, theta), theta)
+        """The regressor's two columns times (d2, d3), summed column by column: the numbers
+        of ``einsum("map,p->ma", regressor, theta)`` bit for bit (the products J_N s|s| and
+        J_N s^3, each times its d, added, then added to 0 as einsum's output is, so that a
+        -0 sum is +0), without the (m, 6, 2) regressor and einsum's per-element loop over
+        two terms (issue 41; ``tests/test_effects.py`` compares both)."""
+        assert self.joint is not None
+        s = self.normalised_torque(batch, wrench)
+        Jn = batch.J[:, :, self.joint]
+        out = (Jn * (s * np.abs(s))[:, None]) * theta[0]
+        out += (Jn * (s**3)[:, None]) * theta[1]
+        out += 0.0
+        return np.asarray(out)
