@@ -47,10 +47,31 @@ def _command_specs() -> tuple[tuple[str, str, str], ...]:
 
 
 def _literal_names(path: Path) -> dict[str, str]:
-    """Top-level ``NAME = "..."`` and ``HELP = "..."`` string literals of a module file."""
+    """Top-level ``NAME = "..."`` and ``HELP = "..."`` string literals of a module file.
+
+    Only the part before the first top-level ``def``, ``class`` or decorator is parsed when
+    both are assigned there and nowhere after it (every command module names itself at its
+    top): the same literals, without parsing every command's whole source at each start."""
     try:
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-    except (OSError, SyntaxError, UnicodeDecodeError):
+        source = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return {}
+    first = re.search(r"^(?:def |class |async def |@)", source, re.M)
+    if first is not None:
+        head, rest = source[:first.start()], source[first.start():]
+        if (not re.search(r"^(?:NAME|HELP)\b", rest, re.M)
+                and all(re.search(rf"^{n}\b", head, re.M) for n in ("NAME", "HELP"))):
+            found = _literals_in(head)
+            if len(found) == 2:
+                return found
+    return _literals_in(source)
+
+
+def _literals_in(source: str) -> dict[str, str]:
+    """The top-level ``NAME`` and ``HELP`` string literals of a module's source."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
         return {}
     out = {}
     for node in tree.body:
