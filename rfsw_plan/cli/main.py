@@ -185,8 +185,18 @@ def console() -> NoReturn:
     """The ``rfsw-plan`` script: :func:`main`, then exit with its code. Once the command has
     finished, SIGTERM is ignored: a termination that arrives while the interpreter shuts down
     (a second or so after a plan) does not turn a finished run into a killed one (exit -15);
-    the process ends with the command's own code."""
-    sys.exit(_run(None, after=signal.SIG_IGN))
+    the process ends with the command's own code.
+
+    The objects left at the end are moved out of the garbage collector's reach first
+    (``gc.freeze``): the interpreter's last collection then does not walk the whole heap of a
+    plan (its models, CasADi functions and arrays; about 0.2 s after ``plan`` on a busy
+    machine, 0.05-0.09 s with it). Everything still ends as before: the exit handlers run,
+    the modules are torn down, the streams are flushed."""
+    code = _run(None, after=signal.SIG_IGN)
+    import gc
+
+    gc.freeze()
+    sys.exit(code)
 
 
 def _run(argv: Sequence[str] | None, after: Any) -> int:
