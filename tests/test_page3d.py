@@ -242,3 +242,57 @@ def test_a_name_cannot_close_the_pages_script(plan_dir: Path) -> None:
     assert page.count("</script>") == normal.count("</script>")
     d = page_data(page)
     assert d["title"] == d["verdict"] == evil
+
+
+def test_margin_rgba_are_the_numbers_matplotlib_reads_from_the_hex_colours() -> None:
+    """The margin panel of ``lateral_error_time.png`` colours its samples with
+    :func:`margin_rgba`: each the RGBA matplotlib makes of that sample's
+    :func:`margin_colours` text, bit for bit (so the image is the one the texts drew)."""
+    from matplotlib.colors import to_rgba_array
+
+    from rfsw_plan.planfiles.page3d import margin_rgba
+
+    m = np.concatenate([np.random.default_rng(1).uniform(-0.5, 1.5, 3000),
+                        np.linspace(0.0, 1.0, 257), [np.nan, 0.0, np.nan]]) * 0.975
+    got = margin_rgba(m, 0.975)
+    want = to_rgba_array(margin_colours(m, 0.975))
+    assert got.shape == (len(m), 4) and got.dtype == np.float64
+    assert np.array_equal(got, want)  # exact: the same divisions by 255
+    assert np.array_equal(got[-1], to_rgba_array(["#9a9a9a"])[0])  # no margin: the grey
+
+
+def test_the_page_reads_the_cells_csv_rows_reads(tmp_path: Path) -> None:
+    """``read_table`` splits only the lines whose cells the page reads: every column, of every
+    row or of chosen rows, is the cells :func:`~rfsw_plan.planfiles.folder.csv_rows` gives
+    (first, middle and last columns, empty cells, a CSV with quotes read by the csv module),
+    and a row with another number of cells is refused as before."""
+    from rfsw_plan.exceptions import InputError
+    from rfsw_plan.planfiles.folder import csv_rows as rows_of
+    from rfsw_plan.planfiles.page3d import read_table
+
+    header = ["t_s", "s_mm", "phase", "a", "b", "margin_mm", "c", "spindle_on"]
+    rng = np.random.default_rng(2)
+    lines = [",".join(header)]
+    for k in range(40):
+        cells = [f"{k * 0.01:.2f}", f"{rng.uniform(0, 9):.6f}", ("dwell", "weld")[k % 2],
+                 "" if k % 3 else f"{rng.normal():.3f}", f"{rng.normal():.6f}",
+                 "" if k % 5 == 0 else f"{rng.uniform(0.1, 1):.6f}", "", str(k % 2)]
+        lines.append(",".join(cells))
+    quoted = lines[:1] + [line.replace("dwell", '"dwell"') for line in lines[1:]]
+    for text in ("\r\n".join(lines) + "\r\n", "\r\n".join(quoted) + "\r\n"):
+        path = tmp_path / "waypoints.csv"
+        path.write_bytes(text.encode())
+        rows = rows_of(text)
+        tab = read_table(path)
+        assert tab.header == rows[0]
+        at = np.array([39, 0, 17, 17, 5])
+        for j, name in enumerate(header):
+            assert tab._cells(name, None) == [r[j] for r in rows[1:]], name
+            assert tab._cells(name, at) == [rows[1 + k][j] for k in at], name
+        assert np.array_equal(tab.col("margin_mm"), np.array(
+            [float(r[5]) if r[5] else np.nan for r in rows[1:]]), equal_nan=True)
+    for bad in (lines[:1] + lines[1:5] + [lines[5] + ",x"], lines[:1] + lines[1:5] + [""],
+                lines[:2]):
+        path.write_bytes(("\r\n".join(bad) + "\r\n").encode())
+        with pytest.raises(InputError, match="not a table of at least two samples"):
+            read_table(path)

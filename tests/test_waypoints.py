@@ -268,3 +268,161 @@ def test_a_warm_drawing_process_draws_the_same_bytes(tmp_path, planned_result) -
     assert proc is not None and proc.is_alive()
     assert idle.images() is None  # no plan given: the caller draws here
     assert not proc.is_alive() and idle._proc is None
+
+
+class _FakeFigure:
+    """Stands for a matplotlib figure in :func:`rfsw_plan.files.write_figure`: its image is
+    its text (the plot's name and the process that drew it)."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+
+    def savefig(self, buf, **_):
+        buf.write(self.text.encode())
+
+
+def _fake_plots(monkeypatch, draw):
+    """Every plot of a plan folder replaced by ``draw(name)`` (a text or an exception)."""
+    import os
+    from pathlib import Path
+
+    import rfsw_plan.planfiles.tradeoff_plot as tp
+    import rfsw_plan.planfiles.waypoints as wp
+    from rfsw_plan.files import write_figure
+
+    def plot(name):
+        def fake(path, result):
+            write_figure(Path(path), _FakeFigure(f"{name} {os.getpid()} {draw(name)}"))
+            return Path(path)
+        return fake
+
+    monkeypatch.setattr(wp, "plot_lateral_error", plot("lateral_error.png"))
+    monkeypatch.setattr(wp, "plot_lateral_error_time", plot("lateral_error_time.png"))
+    monkeypatch.setattr(tp, "plot_tradeoff", plot("tradeoff.png"))
+
+
+def test_the_drawing_process_shares_the_plots_with_a_forked_helper(tmp_path, monkeypatch):
+    """The drawing process draws ``HELPER_PLOTS`` in a forked helper while it draws the
+    others: the images come back by name in the plan folder's order, and a plot that fails in
+    the helper is reported in that order too, the others written."""
+    import os
+
+    import rfsw_plan.planfiles.waypoints as wp
+
+    assert set(wp.HELPER_PLOTS) < set(wp.PLAN_PLOTS)
+
+    def draw(name):
+        if name == "lateral_error_time.png" and "FAIL" in os.environ.get("RFSW_TEST_PLOT", ""):
+            raise RuntimeError("broken")
+        return "ok"
+
+    _fake_plots(monkeypatch, draw)
+    images, failed = wp._draw_beside_a_helper(tmp_path, None)
+    assert list(images) == list(wp.PLAN_PLOTS) and failed == []
+    pids = {name: int(data.split()[1]) for name, data in images.items()}
+    for name in wp.PLAN_PLOTS:  # the helper's plots in another process, the others here
+        assert (pids[name] != os.getpid()) == (name in wp.HELPER_PLOTS), name
+    monkeypatch.setenv("RFSW_TEST_PLOT", "FAIL")
+    images, failed = wp._draw_beside_a_helper(tmp_path, None)
+    assert list(images) == [n for n in wp.PLAN_PLOTS if n != "lateral_error_time.png"]
+    assert failed == ["lateral_error_time.png not written (RuntimeError: broken)"]
+
+
+def test_plots_of_a_helper_that_died_are_drawn_by_the_drawing_process(tmp_path, monkeypatch):
+    import os
+
+    import rfsw_plan.planfiles.waypoints as wp
+
+    me = os.getpid()
+
+    def draw(name):
+        if os.getpid() != me:  # the helper dies without an answer
+            os._exit(3)
+        return "ok"
+
+    _fake_plots(monkeypatch, draw)
+    images, failed = wp._draw_beside_a_helper(tmp_path, None)
+    assert failed == [] and list(images) == list(wp.PLAN_PLOTS)
+    assert {int(data.split()[1]) for data in images.values()} == {me}
+
+
+def test_a_stopped_drawing_process_stops_its_helper(tmp_path, monkeypatch):
+    """An interrupted plan stops the drawing process (``PlotDrawing.close``, SIGTERM): its
+    helper ends with it instead of drawing on for nobody."""
+    import os
+    import time
+
+    import rfsw_plan.planfiles.waypoints as wp
+
+    pid_file = tmp_path / "helper.pid"
+    me = os.getpid()
+
+    def draw(name):
+        if os.getpid() != me and name in wp.HELPER_PLOTS:
+            pid_file.write_text(str(os.getpid()))
+        time.sleep(60)
+
+    _fake_plots(monkeypatch, draw)
+    drawing = wp.PlotDrawing(tmp_path, "a plan")  # not None: drawn at once
+    deadline = time.monotonic() + 30
+    while not pid_file.exists() or not pid_file.read_text():
+        assert time.monotonic() < deadline, "no helper started"
+        time.sleep(0.02)
+    helper = int(pid_file.read_text())
+    assert _running(helper)
+    drawing.close()
+    deadline = time.monotonic() + 10
+    while _running(helper):
+        assert time.monotonic() < deadline, "the helper outlived its drawing process"
+        time.sleep(0.02)
+
+
+def _running(pid: int) -> bool:
+    """The process ``pid`` exists and is not a zombie."""
+    from pathlib import Path
+
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.parametrize("rect", [None, (0, 0, 1, 0.97)])
+def test_tight_layout_is_figure_tight_layout_saved_with_one_draw(rect, monkeypatch):
+    """The plots' ``tight_layout``: the pixels of ``Figure.tight_layout`` (with and without
+    ``rect``: two layouts in matplotlib), and the figure left without a layout engine, so
+    ``savefig`` draws it once (matplotlib draws a figure with an engine twice)."""
+    import io
+
+    from matplotlib.figure import Figure
+
+    from rfsw_plan.planfiles.waypoints import tight_layout
+
+    def figure():
+        fig = Figure(figsize=(4, 3), dpi=50)
+        a1, a2 = fig.subplots(2, 1, sharex=True)
+        a1.plot([0, 1, 2], [3, 1, 2], label="a long label for the legend outside")
+        a1.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        a2.set_xlabel("time t [s]")
+        a2.set_ylabel("margin [mm]\n(two lines)")
+        fig.suptitle("a title")
+        return fig
+
+    def png(fig):
+        draws = []
+        real = Figure.draw
+        monkeypatch.setattr(Figure, "draw", lambda self, r: (draws.append(1), real(self, r)))
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=50)
+        monkeypatch.setattr(Figure, "draw", real)
+        return buf.getvalue(), len(draws)
+
+    theirs = figure()
+    theirs.tight_layout(rect=rect)
+    ours = figure()
+    tight_layout(ours, rect=rect)
+    assert ours.get_layout_engine() is None
+    (want, their_draws), (got, our_draws) = png(theirs), png(ours)
+    assert got == want
+    assert (their_draws, our_draws) == (2, 1)

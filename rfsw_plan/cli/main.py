@@ -47,10 +47,31 @@ def _command_specs() -> tuple[tuple[str, str, str], ...]:
 
 
 def _literal_names(path: Path) -> dict[str, str]:
-    """Top-level ``NAME = "..."`` and ``HELP = "..."`` string literals of a module file."""
+    """Top-level ``NAME = "..."`` and ``HELP = "..."`` string literals of a module file.
+
+    Only the part before the first top-level ``def``, ``class`` or decorator is parsed when
+    both are assigned there and nowhere after it (every command module names itself at its
+    top): the same literals, without parsing every command's whole source at each start."""
     try:
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-    except (OSError, SyntaxError, UnicodeDecodeError):
+        source = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return {}
+    first = re.search(r"^(?:def |class |async def |@)", source, re.M)
+    if first is not None:
+        head, rest = source[:first.start()], source[first.start():]
+        if (not re.search(r"^(?:NAME|HELP)\b", rest, re.M)
+                and all(re.search(rf"^{n}\b", head, re.M) for n in ("NAME", "HELP"))):
+            found = _literals_in(head)
+            if len(found) == 2:
+                return found
+    return _literals_in(source)
+
+
+def _literals_in(source: str) -> dict[str, str]:
+    """The top-level ``NAME`` and ``HELP`` string literals of a module's source."""
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
         return {}
     out = {}
     for node in tree.body:
@@ -164,8 +185,18 @@ def console() -> NoReturn:
     """The ``rfsw-plan`` script: :func:`main`, then exit with its code. Once the command has
     finished, SIGTERM is ignored: a termination that arrives while the interpreter shuts down
     (a second or so after a plan) does not turn a finished run into a killed one (exit -15);
-    the process ends with the command's own code."""
-    sys.exit(_run(None, after=signal.SIG_IGN))
+    the process ends with the command's own code.
+
+    The objects left at the end are moved out of the garbage collector's reach first
+    (``gc.freeze``): the interpreter's last collection then does not walk the whole heap of a
+    plan (its models, CasADi functions and arrays; about 0.2 s after ``plan`` on a busy
+    machine, 0.05-0.09 s with it). Everything still ends as before: the exit handlers run,
+    the modules are torn down, the streams are flushed."""
+    code = _run(None, after=signal.SIG_IGN)
+    import gc
+
+    gc.freeze()
+    sys.exit(code)
 
 
 def _run(argv: Sequence[str] | None, after: Any) -> int:

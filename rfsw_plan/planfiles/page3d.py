@@ -26,7 +26,7 @@ import base64
 import html
 import json
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 from pathlib import Path
@@ -106,27 +106,67 @@ def margin_colours(margin: FloatArray, half_width: float) -> list[str]:
         half_width: Half the window's width, same unit, > 0.
     """
     m = np.asarray(margin, dtype=float)
+    rgb = _margin_bytes(m, half_width)
+    return [NO_MARGIN_COLOUR if not np.isfinite(v) else "#{:02x}{:02x}{:02x}".format(*c)
+            for v, c in zip(m, rgb.tolist(), strict=True)]
+
+
+def margin_rgba(margin: FloatArray, half_width: float) -> FloatArray:
+    """:func:`margin_colours` as RGBA numbers in [0, 1], shape (N, 4): each channel the hex
+    colour's byte / 255 and alpha 1, the numbers matplotlib reads from the hex text
+    (``matplotlib.colors.to_rgba``), without formatting and parsing a text per sample (the
+    margin panel of ``lateral_error_time.png`` colours every written sample)."""
+    m = np.asarray(margin, dtype=float)
+    rgb = _margin_bytes(m, half_width)
+    rgb[~np.isfinite(m)] = [int(NO_MARGIN_COLOUR[k:k + 2], 16) for k in (1, 3, 5)]
+    return np.column_stack([rgb / 255, np.ones(len(m))])
+
+
+def _margin_bytes(m: FloatArray, half_width: float) -> NDArray[np.int_]:
+    """The colour map's bytes (0..255) of each margin, (N, 3) (:func:`margin_colours`)."""
     x = np.clip(np.nan_to_num(m / half_width, nan=0.0), 0.0, 1.0)
     x *= MARGIN_LUT_SIZE
     x[x == MARGIN_LUT_SIZE] = MARGIN_LUT_SIZE - 1
-    rgb = np.rint(margin_lut()[x.astype(int)] * 255).astype(int)
-    return [NO_MARGIN_COLOUR if not np.isfinite(v) else "#{:02x}{:02x}{:02x}".format(*c)
-            for v, c in zip(m, rgb, strict=True)]
+    return np.rint(margin_lut()[x.astype(int)] * 255).astype(int)
 
 
 @dataclass(frozen=True)
 class CsvTable:
-    """``waypoints.csv`` as read for the page: its header and text cells (rows)."""
+    """``waypoints.csv`` as read for the page: its header and its data lines.
+
+    The page reads two columns of every sample (phase, margin) and a few more of the samples
+    it shows (at most :data:`MAX_SAMPLES`), so a line is split at its commas only where a cell
+    of it is read: the cells :func:`~rfsw_plan.planfiles.folder.csv_rows` gives, without
+    splitting the other lines of a long plan. A text the ``csv`` module must read (quotes,
+    other line ends) is held as its rows (``rows``).
+    """
 
     path: Path
     header: list[str]
-    rows: list[list[str]]
+    lines: list[str]
+    rows: list[list[str]] | None = None
+    _split: dict[int, list[str]] = field(default_factory=dict, compare=False, repr=False)
+
+    def _row(self, k: int) -> list[str]:
+        if self.rows is not None:
+            return self.rows[k]
+        row = self._split.get(k)
+        if row is None:
+            row = self._split[k] = self.lines[k].split(",")
+        return row
 
     def _cells(self, name: str, at: NDArray[np.int_] | None) -> list[str]:
         if name not in self.header:
             raise InputError(self.path, "header", f"missing column {name}", "waypoints.csv")
         j = self.header.index(name)
-        return [r[j] for r in self.rows] if at is None else [self.rows[k][j] for k in at]
+        if at is not None:
+            return [self._row(k)[j] for k in at]
+        if self.rows is not None:
+            return [r[j] for r in self.rows]
+        after = len(self.header) - 1 - j  # every line has the header's cells (read_table)
+        if j <= after:
+            return [line.split(",", j + 1)[j] for line in self.lines]
+        return [line.rsplit(",", after + 1)[-after - 1] for line in self.lines]
 
     def col(self, name: str, at: NDArray[np.int_] | None = None) -> FloatArray:
         """A numeric column (NaN for an empty cell), at the rows ``at`` (default: all)."""
@@ -147,13 +187,27 @@ class CsvTable:
 
 def read_table(path: Path) -> CsvTable:
     """The header and cells of a written ``waypoints.csv``
-    (:func:`~rfsw_plan.planfiles.folder.csv_rows`)."""
+    (:func:`~rfsw_plan.planfiles.folder.csv_rows`: its cells, in the same rows).
+
+    Raises:
+        InputError: Fewer than two samples, or a row without the header's number of cells.
+    """
     from rfsw_plan.planfiles.folder import csv_rows
 
-    rows = csv_rows(path.read_text(encoding="utf-8"))
+    text = path.read_bytes().decode("utf-8")  # its own line ends (CRLF), as csv_rows reads
+    if '"' not in text and text.count("\n") == text.count("\r\n") == text.count("\r"):
+        lines = text.split("\r\n")  # csv_rows' rows, each still one text
+        if lines[-1] == "":  # the last line's end
+            lines.pop()
+        # a blank line is csv's empty row, of no cell
+        cells = [line.count(",") + 1 if line else 0 for line in lines]
+        if len(lines) < 3 or any(c != cells[0] for c in cells):
+            raise InputError(path, "", "not a table of at least two samples", "a waypoints.csv")
+        return CsvTable(path, lines[0].split(","), lines[1:])
+    rows = csv_rows(text)
     if len(rows) < 3 or any(len(r) != len(rows[0]) for r in rows):
         raise InputError(path, "", "not a table of at least two samples", "a waypoints.csv")
-    return CsvTable(path, rows[0], rows[1:])
+    return CsvTable(path, rows[0], [], rows[1:])
 
 
 def shown_samples(phase: Sequence[str], worst: int | None, limit: int = MAX_SAMPLES
@@ -487,5 +541,5 @@ def rebuild_plan_page(folder: str | Path, output: str | Path | None = None) -> V
     return ViewResult(target, changed, len(data))
 
 
-__all__ = ["ViewResult", "margin_colours", "page_scripts", "plan_page", "rebuild_plan_page",
-           "residual_section", "task_frames", "write_plan_page"]
+__all__ = ["ViewResult", "margin_colours", "margin_rgba", "page_scripts", "plan_page",
+           "rebuild_plan_page", "residual_section", "task_frames", "write_plan_page"]

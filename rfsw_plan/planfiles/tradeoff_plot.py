@@ -30,6 +30,8 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     uncertainty (no lateral force) are left out and said so in the title."""
     from matplotlib.figure import Figure  # the object API; Agg draws it when saved
 
+    from rfsw_plan.planfiles.waypoints import tight_layout
+
     pts = result.tradeoff()
     by = {p.name: p for p in pts}
     plan = by["plan"]
@@ -64,7 +66,7 @@ def plot_tradeoff(path: str | Path, result: PlanResult) -> Path:
     title = f"{result.problem_name}: robustness against stiffness{note}. {result.verdict().line}"
     ax.set_title(textwrap.fill(title, 120), fontsize=10)
     ax.legend(loc="upper left", fontsize=9)
-    fig.tight_layout()
+    tight_layout(fig)  # Figure.tight_layout(), saved with one draw
     out = Path(path)
     write_figure(out, fig, dpi=100)
     return out

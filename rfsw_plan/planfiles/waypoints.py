@@ -258,15 +258,19 @@ def write_plan_plots(folder: str | Path, result: PlanResult,
     return _draw_plots(Path(folder), result)
 
 
-def _draw_plots(out: Path, result: PlanResult) -> tuple[list[Path], list[str]]:
-    """Draw every plot into ``out`` (the functions looked up when called); the paths drawn
-    and one line per failed plot."""
+def _draw_plots(out: Path, result: PlanResult, names: tuple[str, ...] = PLAN_PLOTS
+                ) -> tuple[list[Path], list[str]]:
+    """Draw the plots ``names`` (default: every plot, in :data:`PLAN_PLOTS` order) into
+    ``out`` (the functions looked up when called); the paths drawn and one line per failed
+    plot."""
     written: list[Path] = []
     failed: list[str] = []
     from rfsw_plan.planfiles.tradeoff_plot import plot_tradeoff
 
     for name, draw in zip(PLAN_PLOTS, (plot_lateral_error, plot_lateral_error_time,
                                        plot_tradeoff), strict=True):
+        if name not in names:
+            continue
         try:
             written.append(draw(out / name, result))
         except Exception as exc:  # any plot failure is a warning, never a lost data file
@@ -388,7 +392,7 @@ def _draw_in_child(conn: Any, parents_end: Any, jobs: Any, parents_jobs: Any,
     or pipes open."""
     import signal
 
-    from rfsw_plan.files import OutputLock, figures_in_memory
+    from rfsw_plan.files import OutputLock
 
     parents_end.close()
     parents_jobs.close()
@@ -409,10 +413,121 @@ def _draw_in_child(conn: Any, parents_end: Any, jobs: Any, parents_jobs: Any,
             return
     jobs.close()
     folder, result = job
-    with figures_in_memory() as images:
-        _, failed = _draw_plots(folder, result)
-    conn.send(([(p.name, data) for p, data in images.items()], failed))
+    images, failed = _draw_beside_a_helper(folder, result, conn)
+    conn.send((list(images.items()), failed))
     conn.close()
+
+
+#: The plots the drawing process hands to a forked helper of its own (the margin panel of
+#: every written sample, the costliest), drawn while it draws the others: on two cores the
+#: three plots take about the time of the two, beside the data files the planner's process
+#: writes.
+HELPER_PLOTS = ("lateral_error_time.png",)
+
+
+def _draw_beside_a_helper(folder: Path, result: PlanResult, conn: Any = None
+                          ) -> tuple[dict[str, bytes], list[str]]:
+    """The images of every plot by file name (:data:`PLAN_PLOTS` order) and one line per
+    failed plot, drawn in memory: :data:`HELPER_PLOTS` by a forked helper process (the same
+    functions on the same plan: the same bytes), the others here meanwhile. A helper that
+    cannot be forked or ends without an answer costs no plot: its plots are drawn here.
+
+    Args:
+        folder: The plan folder (the images' names).
+        result: The plan.
+        conn: This process's end of the pipe to its parent, closed in the helper (so the
+            parent sees this process end when it ends).
+    """
+    from rfsw_plan.files import figures_in_memory
+
+    helper = _fork_helper(folder, result, conn)
+    mine = tuple(n for n in PLAN_PLOTS if helper is None or n not in HELPER_PLOTS)
+    with figures_in_memory() as here:
+        _, failed = _draw_plots(folder, result, mine)
+    images = {p.name: data for p, data in here.items()}
+    if helper is not None:
+        got = _helper_answer(*helper)
+        if got is None:  # the helper died: its plots are drawn here
+            with figures_in_memory() as here:
+                _, again = _draw_plots(folder, result, HELPER_PLOTS)
+            got = ({p.name: data for p, data in here.items()}, again)
+        images.update(got[0])
+        failed += got[1]
+    order = {name: k for k, name in enumerate(PLAN_PLOTS)}
+    failed.sort(key=lambda line: order.get(line.split(" ", 1)[0], len(order)))
+    return {n: images[n] for n in PLAN_PLOTS if n in images}, failed
+
+
+def _fork_helper(folder: Path, result: PlanResult, conn: Any) -> tuple[int, int] | None:
+    """Fork the helper of :func:`_draw_beside_a_helper`: its process id and the read end of
+    its pipe, or None (no ``fork``, no process to spare). Until its answer is read, a SIGTERM
+    (the parent stopping this process) stops the helper too."""
+    import os
+    import pickle
+    import signal
+
+    from rfsw_plan.files import figures_in_memory
+
+    if not hasattr(os, "fork"):
+        return None
+    read_end, write_end = os.pipe()
+    try:
+        pid = os.fork()
+    except OSError:
+        os.close(read_end)
+        os.close(write_end)
+        return None
+    if pid == 0:  # the helper: draw, send the (name, bytes) pairs and the failures, end
+        code = 1
+        try:
+            os.close(read_end)
+            if conn is not None:
+                conn.close()
+            with figures_in_memory() as theirs:
+                _, failed = _draw_plots(folder, result, HELPER_PLOTS)
+            with os.fdopen(write_end, "wb") as fh:
+                fh.write(pickle.dumps(({p.name: b for p, b in theirs.items()}, failed)))
+            code = 0
+        finally:
+            os._exit(code)  # never the drawing process's clean-up, which is not the helper's
+    os.close(write_end)
+    signal.signal(signal.SIGTERM, lambda *_: _stop_with(pid))
+    return pid, read_end
+
+
+def _helper_answer(pid: int, read_end: int) -> tuple[dict[str, bytes], list[str]] | None:
+    """What the helper of :func:`_draw_beside_a_helper` sent, once it has ended; None if it
+    ended without a whole answer."""
+    import os
+    import pickle
+    import signal
+
+    with os.fdopen(read_end, "rb") as fh:
+        data = fh.read()  # to the end: the helper has drawn, or died
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # before the wait: then its pid is free
+    try:
+        _, status = os.waitpid(pid, 0)
+    except ChildProcessError:
+        status = 1
+    if status != 0 or not data:
+        return None
+    try:
+        images, failed = pickle.loads(data)
+    except Exception:  # a truncated answer
+        return None
+    return dict(images), list(failed)
+
+
+def _stop_with(pid: int) -> None:
+    """SIGTERM in the drawing process while its helper ``pid`` draws: the helper is killed,
+    then this process ends as SIGTERM ends it."""
+    import os
+    import signal
+
+    with contextlib.suppress(OSError):
+        os.kill(pid, signal.SIGKILL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    os.kill(os.getpid(), signal.SIGTERM)
 
 
 def commit_plan(folder: str | Path, summary: dict[str, Any], data_files: list[Path],
@@ -749,11 +864,12 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
     a1.plot(t, e, color="tab:blue", lw=1, label="predicted lateral pin error (every sample)")
     a1.set_ylabel("lateral pin error [mm]\n(+ advancing side)")
     a2.plot(t, marg, color="k", lw=1, label="margin to the nearest window bound")
-    # every written sample in the margin colours of plan.html (page3d.margin_colours)
-    from rfsw_plan.planfiles.page3d import margin_colours
+    # every written sample in the margin colours of plan.html (page3d.margin_colours), as
+    # the numbers matplotlib reads from their hex texts (an empty list: no sample to colour)
+    from rfsw_plan.planfiles.page3d import margin_rgba
 
     a2.scatter(t[c], marg[c], s=4, lw=0, zorder=3,
-               c=margin_colours(marg[c], 0.5 * (w.upper - w.lower) * 1e3),
+               c=margin_rgba(marg[c], 0.5 * (w.upper - w.lower) * 1e3) if c.any() else [],
                label="samples, coloured by margin (as in plan.html)")
     if u > 0:
         a2.plot(t, marg - r, color="tab:red", lw=0.8,
@@ -770,7 +886,19 @@ def plot_lateral_error_time(path: str | Path, result: PlanResult) -> Path:
                  f"the window; holds {held} (requested +-{100 * u:.3g} %)", fontsize=11)
     for ax in (a1, a2):
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, borderaxespad=0)
-    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    tight_layout(fig, rect=(0, 0, 1, 0.97))
     p = Path(path)
     write_figure(p, fig, dpi=100)
     return p
+
+
+def tight_layout(fig: Any, pad: float = 1.08, rect: tuple[float, ...] | None = None) -> None:
+    """``fig.tight_layout(pad=pad, rect=rect)``: the same layout, computed the same way
+    (matplotlib's ``TightLayoutEngine.execute``), without the placeholder layout engine
+    ``Figure.tight_layout`` leaves on the figure. ``savefig`` draws a figure that has a layout
+    engine once before it draws it into the image; without one it draws it once: the same
+    pixels, one draw of the figure fewer."""
+    from matplotlib.layout_engine import TightLayoutEngine
+
+    # rect None as Figure.tight_layout passes it (not the engine's default, another layout)
+    TightLayoutEngine(pad=pad, h_pad=None, w_pad=None, rect=rect).execute(fig)  # type: ignore[arg-type]
