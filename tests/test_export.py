@@ -318,6 +318,76 @@ def test_stream_at_the_controller_cycle(planned) -> None:
     assert np.all(rpm[weld] == rpm[weld][0]) and rpm[0] == 0.0
 
 
+def test_check_holds_on_the_stream_plan_export_wrote(planned, capsys) -> None:
+    """``rfsw-plan check`` on the 4 ms stream ``plan --export`` wrote holds (exit 0): its rows
+    are judged as the real-time interface runs them (each row the joint target of one cycle
+    at the stream clock, under the plan's forces at the row's planned time), every row a
+    sample, at the level plan.json vouches for the stream. Before, every such stream failed
+    ``check`` on timing (its rows matched to the 10 ms plan samples)."""
+    out, _, rec = planned
+    stream = _file(out, "stream")
+    rows = len(stream.read_text().splitlines()) - 1
+    capsys.readouterr()
+    assert main(["check", "--json", str(stream)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["holds"] and res["points"] == res["samples"] == rows, res["line"]
+    held = (rec["export"].get("held_as_run") or {}).get("stream")
+    vouched = held["tolerated_pct"] if held else 100 * rec["tolerated_force_uncertainty"]
+    assert res["held_pct"] >= 0.99 * vouched and res["claimed_pct"] == pytest.approx(vouched)
+    assert res["max_edit_mm"] < 0.01  # the rows are the plan's path
+
+
+def _edited_stream(src: Path, dst: Path, edit) -> Path:
+    """A copy of the plan folder with the stream's rows changed by ``edit(header, rows)``."""
+    import csv
+    import shutil
+
+    shutil.copytree(src, dst)
+    path = _file(dst, "stream")
+    with path.open(newline="") as fh:
+        table = list(csv.reader(fh))
+    edit(table[0], table[1:])
+    with path.open("w", newline="") as fh:
+        csv.writer(fh).writerows(table)
+    return path
+
+
+def test_check_judges_an_edited_stream_where_the_pin_is(plan_with_programs, tmp_path: Path,
+                                                        capsys) -> None:
+    """The stream's check can fail, each time naming the row: the spindle switched off at
+    the pin's exit from the plate (judged by the predicted pin's height, not the command),
+    a weld row's joint moved (the pin leaves the window), and the rows sent at half the
+    cycle (the weld at twice its speed)."""
+    out, _ = plan_with_programs("zk500_table6_seam")
+
+    def spindle_at_exit(head, rows):
+        ph, on = head.index("phase"), head.index("spindle_on")
+        first = next(k for k, r in enumerate(rows) if r[ph] == "retract")
+        for r in rows[first + 1:]:
+            r[on] = "0"
+
+    def weld_row_moved(head, rows):
+        ph, j1 = head.index("phase"), next(i for i, h in enumerate(head) if h.endswith("1_deg"))
+        weld = [k for k, r in enumerate(rows) if r[ph] == "weld"]
+        r = rows[weld[len(weld) // 2]]
+        r[j1] = f"{float(r[j1]) + 0.1:.6f}"
+
+    def twice_as_fast(head, rows):
+        t = head.index("t_s")
+        for r in rows:
+            r[t] = f"{float(r[t]) / 2:.6f}"
+
+    cases = ((spindle_at_exit, "hook: the spindle stops with the pin tip"),
+             (weld_row_moved, "lateral"), (twice_as_fast, "speed"))
+    for k, (edit, want) in enumerate(cases):
+        path = _edited_stream(out, tmp_path / f"e{k}", edit)
+        capsys.readouterr()
+        assert main(["check", "--json", str(path)]) == 3, edit.__name__
+        res = json.loads(capsys.readouterr().out)
+        assert not res["holds"] and res["point"].startswith("row "), res["line"]
+        assert want in res["line"] or res["quantity"] == want, (edit.__name__, res["line"])
+
+
 def test_check_holds_and_names_a_moved_point(planned, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     """rfsw-plan check on the exported KRL says holds; one weld point (the third of the

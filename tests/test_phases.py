@@ -135,6 +135,14 @@ def _judge(w: dict[str, Any], problem: str) -> list[str]:
         k = int(np.flatnonzero(slow)[0])
         bad.append(f"spindle at {w['spindle_rpm'][k]:g} rpm with the pin "
                    f"{-height[k]:.3f} mm in the plate ({ph[k]}, t = {t[k]:.2f} s)")
+    # It stops only with the pin as high above the plate as where it started (the spindle
+    # clearance, the approach's end), where the programs' spindle-stop hook runs: not at the
+    # pin's exit (a stream or cell PLC switching by the column stopped it at the surface).
+    runs = np.flatnonzero(on)
+    stop = runs[-1] + 1
+    if stop < len(on) and height[stop] < height[runs[0]] - 1e-3:
+        bad.append(f"spindle off with the pin {height[stop]:.3f} mm above the plate, it "
+                   f"started {height[runs[0]]:.3f} mm above ({ph[stop]}, t = {t[stop]:.2f} s)")
     first_on = t[np.flatnonzero(on)[0]]
     touch = t[np.flatnonzero(inside)[0]]
     if touch - first_on < proc.spindle_runup - step:
@@ -268,3 +276,16 @@ def test_the_judge_catches_an_end_stop_that_slides_or_lifts_loaded(written) -> N
     w["fx_N"], w["fy_N"], w["fz_N"] = F.T.copy()
     bad = _judge(w, "zk500_table6_seam")
     assert any(b.startswith("the pin rises with") for b in bad), bad
+
+
+def test_the_judge_catches_a_spindle_stopped_at_the_pins_exit(written) -> None:
+    """The spindle-stop check can fail: the spindle switched off where the pin leaves the
+    plate (what ``waypoints.csv`` and the stream wrote before, while the programs' hook
+    stopped it at the spindle clearance) is named with the pin's height."""
+    w = {k: v.copy() for k, v in written("zk500_table6_seam").items()}
+    retract = np.flatnonzero(w["phase"] == "retract")
+    assert np.flatnonzero(w["spindle_on"] == 1)[-1] > retract[0]  # runs into the retract
+    w["spindle_on"][retract[0] + 1:] = 0  # off as the pin starts to rise
+    w["spindle_rpm"][retract[0] + 1:] = 0.0
+    bad = _judge(w, "zk500_table6_seam")
+    assert any(b.startswith("spindle off with the pin") for b in bad), bad

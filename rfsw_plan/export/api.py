@@ -135,7 +135,8 @@ def below_plan_lines(held: Mapping[str, tuple[float, str]], plan_tolerated: floa
     (speed first), below the plan's +-2.83 %; its header states it``."""
     return [f"{name}: as its controller runs it the program holds +-{100 * u:.2f} % force "
             f"uncertainty ({by} first), below the plan's +-{100 * plan_tolerated:.2f} %; "
-            "its header states it"
+            + ("plan.json records it (export.held_as_run)" if get_format(name).runs_rows
+               else "its header states it")
             for name, (u, by) in held.items() if u < plan_tolerated * (1.0 - CLAIM_TOL)]
 
 
@@ -371,7 +372,7 @@ def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path
         fmt = get_format(name)
         program = programs[name]
         files, read, trip = _write_read(fmt, program, stage, check)
-        if basis is not None and fmt.cycle > 0:
+        if basis is not None and (fmt.cycle > 0 or fmt.runs_rows):
             held[name], restated = _judged(name, fmt, program, files[0], read, basis, stage,
                                            trip)
             if restated is not None:  # the same moves, the header states the level as run
@@ -419,14 +420,18 @@ def _judged(name: str, fmt: ControllerFormat, program: Program, path: Path, read
         return res.held, None
     header = program.header
     requested = header.requested_uncertainty
-    cause = (f"{name} program as its controller runs it ({1e3 * fmt.cycle:g} ms interpolation "
-             f"cycle) holds +-{100 * u:.2f} % force uncertainty ({by} first), below the plan's "
+    how = ("its rows as the real-time interface sends them, one per cycle" if fmt.runs_rows
+           else f"{1e3 * fmt.cycle:g} ms interpolation cycle")
+    cause = (f"{name} program as its controller runs it ({how}) holds +-{100 * u:.2f} % force "
+             f"uncertainty ({by} first), below the plan's "
              f"+-{100 * header.tolerated_uncertainty:.2f} %")
     if header.tolerated_uncertainty >= requested and u < requested * (1.0 - CLAIM_TOL):
         raise InfeasibleError(f"{cause} and the requested +-{100 * requested:.3g} % the plan "
                               "holds (GO): write a format of a shorter cycle or the stream, or "
                               f"plan for at most +-{100 * u:.2f} % force uncertainty", None,
                               "claim", u - requested)
+    if fmt.runs_rows:  # no header to state it in: plan.json's export.held_as_run records it
+        return res.held, None
     return res.held, replace(program, header=replace(
         header, tolerated_uncertainty=u, plan_tolerated=header.tolerated_uncertainty,
         held_by=by))

@@ -33,9 +33,17 @@ forces, the joint limits) on the path the controller will run:
   A move or wait shorter than the controller's interpolation cycle
   (:attr:`~rfsw_plan.export.format.ControllerFormat.cycle`) fails too: the controller
   cannot run it as written.
+* **Stream.** A stream file (``_stream.csv``, :attr:`ControllerFormat.runs_rows
+  <rfsw_plan.export.format.ControllerFormat.runs_rows>`) is its run: each row is the joint
+  target of one controller cycle at the stream clock ``t_s``, under the process state the
+  plan has at the row's planned time ``t_plan_s`` (:func:`run_stream`); its
+  ``spindle_on`` column's switches are judged as the spindle hooks, where the pin is; the
+  joint velocity, acceleration and jerk and the pin's speed are reported (nothing between
+  the rows enforces them). A stream holds the level ``plan.json`` records for it
+  (``export.held_as_run``), else the plan's.
 * **Checks.** Every failure :func:`~rfsw_plan.planning.verify.verify_samples` returns, except
   the joint velocity, acceleration and jerk (the controller's own motion planner enforces
-  them on the path it runs).
+  them on the path it runs; a stream's rows report them).
 
 Result: ``holds``, or the first failure with the point, its line in the file and the
 quantity (exit 3 in the CLI); every failure is in :meth:`CheckResult.to_dict`.
@@ -54,6 +62,7 @@ from numpy.typing import NDArray
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram, format_for_file
 from rfsw_plan.export.program import Samples, sample_fk
+from rfsw_plan.export.stream import StreamRows, read_stream
 from rfsw_plan.robot.kinematics import Robot
 from rfsw_plan.robot.rotation import Rotation
 
@@ -71,6 +80,9 @@ Solved = tuple[FloatArray, FloatArray]
 NOT_REPORTED = ("joint_velocity", "joint_acceleration", "joint_jerk", "pin_speed")
 #: Largest relative difference of a segment's programmed time from the plan's.
 TIMING_TOL = 0.02
+#: A stream's clock steps and planned times are compared within this [s] (the file writes
+#: times to 1 us).
+CLOCK_TOL = 1.5e-6
 #: Largest difference of a point's joint value from its plan sample's [rad] (a turn or branch
 #: change is 2 pi or a large angle; an edit of millimetres moves the joints by far less).
 POSTURE_TOL = math.radians(5.0)
@@ -138,6 +150,8 @@ class CheckResult:
             (the export writes it where the program as run holds less than the plan); NaN if
             neither names one.
         plan_claimed: The plan's verdict's level, NaN if it names none.
+        stated_by: Who states :attr:`claimed` where it is below the plan's: the program's
+            header, or for a file without one (the stream) ``plan.json``'s record of it.
     """
 
     program: Path
@@ -164,6 +178,7 @@ class CheckResult:
     held: tuple[float, str] = (math.nan, "")
     claimed: float = math.nan
     plan_claimed: float = math.nan
+    stated_by: str = "this program states"
 
     @property
     def below_claim(self) -> bool:
@@ -182,14 +197,14 @@ class CheckResult:
         +-4.55 %`` where :attr:`below_claim`; ``; as run it holds +-2.73 % (speed first),
         the level this program states (the plan's +-2.83 %)`` where the program states less
         than its plan; else ""."""
-        whose = (f"the +-{100 * self.claimed:.3g} % this program states"
+        whose = (f"the +-{100 * self.claimed:.3g} % {self.stated_by}"
                  if self.states_less else f"the plan's +-{100 * self.claimed:.2f} %")
         if self.below_claim:
             return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
                     f"({self.held[1]} first), below {whose}")
         if self.states_less:
             return (f"; as run it holds +-{100 * self.held[0]:.2f} % force uncertainty "
-                    f"({self.held[1]} first), the level this program states (the plan's "
+                    f"({self.held[1]} first), the level {self.stated_by} (the plan's "
                     f"+-{100 * self.plan_claimed:.2f} %)")
         return ""
 
@@ -367,25 +382,36 @@ def judge_program(path: Path, folder: Path, read: ReadProgram, basis: PlanBasis,
     fmt = format_for_file(path)
     robot, plan = basis.model.robot, basis
     model, task, window = basis.model, basis.task, basis.window
-    run = run_as_controller(robot, fmt, read, plan.samples, basis.work, solved)
+    if fmt.runs_rows:  # the rows are the run (a stream): no path, posture or base between
+        rows = read_stream(path)
+        run = run_stream(robot, rows, plan.samples, task)
+        lines = {n: (path.name, k + 2) for k, n in enumerate(run.names)}
+        hooks = _stream_hooks(rows)
+    else:
+        run = run_as_controller(robot, fmt, read, plan.samples, basis.work, solved)
+        lines = _motion_lines(read.files, run.names)
+        hooks = _hook_positions(read.files)
     ver = verify_samples(model, task, window, run.samples)
-    lines = _motion_lines(read.files, run.names)
     held = ((ver.claim.tolerated, ver.claim.limiting.quantity) if ver.claim is not None
             else (math.nan, ""))
     plan_claim = plan.record.get("tolerated_force_uncertainty")
     plan_claimed = float(plan_claim) if isinstance(plan_claim, (int, float)) else math.nan
+    claimed = (_recorded_claim(plan.record, fmt.name, plan_claimed) if fmt.runs_rows
+               else _stated_claim(path, plan_claimed))
     res = CheckResult(path, folder, True, len(run.names), len(run.samples), run.max_edit,
                       window=(window.lower, window.upper), min_margin=ver.min_margin,
                       edited=edited, edits=_edits(run, lines, plan.record, fmt.name),
-                      held=held, claimed=_stated_claim(path, plan_claimed),
-                      plan_claimed=plan_claimed)
+                      held=held, claimed=claimed,
+                      plan_claimed=plan_claimed,
+                      stated_by=("plan.json records for this stream" if fmt.runs_rows
+                                 else "this program states"))
     # (point, check, text, sample, failure, quantity)
     texts: list[tuple[int, str, str, int, Any, str]] = []
-    for f in [*run.findings, *_hook_findings(read.files, run, model, basis),
+    for f in [*run.findings, *_hook_findings(hooks, run, model, basis),
               *_below_cycle(read, fmt.cycle)]:
         texts.append((f.point, f.check, f.detail, int(run.idx[f.point]), None,
                       "hook" if f.check.startswith("hook") else f.check))
-    for f in _reported(ver):
+    for f in _reported(ver, fmt.runs_rows):
         k = _named_point(f.index, run.idx, ver.e_lat, window, run.edits) \
             if f.check == "window" else _nearest_point(f.index, run.idx)
         texts.append((k, f.check, f"{f.check} {f.value:.3f} {f.unit} beyond {f.bound:.3f} "
@@ -464,6 +490,16 @@ def _stated_claim(path: Path, plan_claimed: float) -> float:
     if math.isfinite(plan_claimed) and f"{100 * plan_claimed:.3g}" == text[2:]:
         return plan_claimed
     return stated
+
+
+def _recorded_claim(record: Any, fmt: str, plan_claimed: float) -> float:
+    """The force uncertainty a file without a header (the stream) is vouched for: the level
+    ``plan.json`` records for its format as run (``export.held_as_run``, where the export
+    found it below the plan's), else the plan's."""
+    exp = record.get("export") if hasattr(record, "get") else None
+    held = (exp.get("held_as_run") or {}).get(fmt) if isinstance(exp, dict) else None
+    pct = held.get("tolerated_pct") if isinstance(held, dict) else None
+    return float(pct) / 100.0 if isinstance(pct, (int, float)) else plan_claimed
 
 
 def _motion_lines(files: tuple[Path, ...], names: list[str]) -> dict[str, tuple[str, int]]:
@@ -561,16 +597,31 @@ def _hook_positions(files: tuple[Path, ...]) -> dict[str, int]:
     return out
 
 
-def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
+def _stream_hooks(rows: StreamRows) -> dict[str, int]:
+    """Hook name -> row of a stream where its ``spindle_on`` column switches the spindle:
+    ``spindle_start`` at the first row on after a row off, ``spindle_stop`` at the first row
+    off after a row on (the spindle runs as the row states from that row on)."""
+    if rows.spindle_on is None:
+        return {}
+    on = rows.spindle_on.astype(int)
+    step = np.diff(on)
+    out: dict[str, int] = {}
+    for hook, k in (("spindle_start", np.flatnonzero(step > 0)),
+                    ("spindle_stop", np.flatnonzero(step < 0))):
+        if k.size:
+            out[hook] = int(k[0]) + 1
+    return out
+
+
+def _hook_findings(pos: dict[str, int], run: ControllerRun, model: Any,
                    plan: PlanBasis) -> list[_Finding]:
-    """Hooks the program places where the predicted pin (the controller's run, deflected by
-    the process wrench) breaks their rule: the spindle starts with the tip above the
-    surface and stops with it clear by the spindle clearance; force control goes on at or
-    below the surface and off with the pin still in
-    (:func:`rfsw_plan.export.program.pin_heights`)."""
+    """Hooks placed (``pos``: hook name -> the program point or stream row it fires at)
+    where the predicted pin (the controller's run, deflected by the process wrench) breaks
+    their rule: the spindle starts with the tip above the surface and stops with it clear by
+    the spindle clearance; force control goes on at or below the surface and off with the
+    pin still in (:func:`rfsw_plan.export.program.pin_heights`)."""
     from rfsw_plan.export.program import pin_heights, spindle_clearance
 
-    pos = _hook_positions(files)
     normal, depth, ref, _ = plan.surface()
     if not pos or normal is None:
         return []
@@ -605,8 +656,11 @@ def _hook_findings(files: tuple[Path, ...], run: ControllerRun, model: Any,
     return out
 
 
-def _reported(ver: Any) -> list[Any]:
-    return [f for f in ver.failures if not f.check.startswith(NOT_REPORTED)]
+def _reported(ver: Any, rows: bool = False) -> list[Any]:
+    """The failures ``check`` reports: all of them where the rows are the run (a stream:
+    no motion planner of the controller's stands between them and the joints), else all but
+    :data:`NOT_REPORTED`."""
+    return [f for f in ver.failures if rows or not f.check.startswith(NOT_REPORTED)]
 
 
 def _nearest_point(sample: int, idx: NDArray[np.int_]) -> int:
@@ -731,6 +785,81 @@ def run_as_controller(robot: Robot, fmt: ControllerFormat, read: ReadProgram,
     edits = np.linalg.norm(as_written[:, :3, 3] - T_plan[idx, :3, 3], axis=1)
     return ControllerRun(out, names, idx, float(np.max(edits)), tuple(findings), edits,
                          None if work is None else np.linalg.inv(work) @ read.work)
+
+
+def run_stream(robot: Robot, rows: StreamRows, plan: Samples, task: Any) -> ControllerRun:
+    """The samples a real-time interface runs for a stream file: its rows themselves, one
+    per controller cycle at the stream clock ``t_s`` (KUKA RSI and ABB EGM send each row as
+    the joint target of its cycle; no path, posture or base stands between), each under the
+    process state the plan has at the row's planned time ``t_plan_s``: its arc length and
+    wrench interpolated linearly in the plan's time (the stream and ``waypoints.csv`` share
+    the planned clock; the wrench is continuous, so a 10 ms sample spacing bounds the error
+    by the wrench's curvature), its seam point from the task at that arc length (as the
+    stream was written, :func:`rfsw_plan.planning.verify.seam_frames_at`).
+
+    Findings: a row whose clock step is not the stream's cycle (the first step), a planned
+    time outside the plan's, a phase that lasts longer or shorter on the stream clock than
+    in the plan by more than :data:`TIMING_TOL` (at least one cycle: each piece is
+    stretched by less than one cycle to a whole number of cycles), and a row off its plan
+    pose by a turn or a branch. ``edits`` is each row's commanded TCP distance from the
+    plan's at the same planned time (the plan's joint values interpolated linearly)."""
+    from rfsw_plan.planning.verify import seam_frames_at
+
+    n = len(rows.t)
+    names = [rows.name(k) for k in range(n)]
+    t_plan = np.asarray(plan.t, dtype=float)
+    at = rows.t_plan
+
+    def interp(a: FloatArray) -> FloatArray:
+        return np.stack([np.interp(at, t_plan, a[:, i]) for i in range(a.shape[1])], axis=1)
+
+    s = np.interp(at, t_plan, plan.s)
+    q_plan = interp(plan.q)
+    samples = Samples(rows.t, rows.phase, s, rows.q, interp(plan.wrench),
+                      seam_frames_at(task, s)[0], spindle_rpm=rows.spindle_rpm,
+                      spindle_on=rows.spindle_on)
+    findings = _stream_timing(rows, t_plan)
+    findings += _posture_changes(rows.q, q_plan, names, robot)
+    edits = np.linalg.norm(sample_fk(robot, rows.q)[:, :3, 3]
+                           - sample_fk(robot, q_plan)[:, :3, 3], axis=1)
+    return ControllerRun(samples, names, np.arange(n), float(np.max(edits, initial=0.0)),
+                         tuple(findings), edits, None)
+
+
+def _stream_timing(rows: StreamRows, t_plan: FloatArray) -> list[_Finding]:
+    """The stream's timing findings (:func:`run_stream`)."""
+    out: list[_Finding] = []
+    if len(rows.t) < 2:
+        return out
+    step = np.diff(rows.t)
+    cycle = float(step[0])
+    off = np.flatnonzero(np.abs(step - cycle) > CLOCK_TOL)
+    if cycle <= 0 or off.size:
+        k = int(off[0]) + 1 if off.size else 1
+        out.append(_Finding(k, "timing", f"timing: the row comes {step[k - 1] * 1e3:.3f} ms "
+                            f"after the previous one, the stream's cycle is {cycle * 1e3:.3f} "
+                            "ms (one row per cycle)"))
+        return out
+    late = np.flatnonzero((rows.t_plan < t_plan[0] - CLOCK_TOL)
+                          | (rows.t_plan > t_plan[-1] + CLOCK_TOL) | (np.diff(
+                              rows.t_plan, prepend=-np.inf) < 0))
+    if late.size:
+        k = int(late[0])
+        out.append(_Finding(k, "timing", f"timing: its planned time {rows.t_plan[k]:.6f} s is "
+                            f"not after the previous row's or outside the plan's "
+                            f"{t_plan[0]:.3f} .. {t_plan[-1]:.3f} s"))
+    cuts = np.flatnonzero(rows.phase[1:] != rows.phase[:-1]) + 1
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(rows.t)], strict=True):
+        # from the piece's first row to the next piece's first (the last row: the piece's end)
+        end = min(int(b), len(rows.t) - 1)
+        runs, want = rows.t[end] - rows.t[a], rows.t_plan[end] - rows.t_plan[a]
+        if abs(runs - want) > max(TIMING_TOL * want, cycle + CLOCK_TOL):
+            out.append(_Finding(int(a), "timing", f"timing: the {rows.phase[a]} lasts "
+                                f"{runs:.3f} s on the stream's clock, the plan {want:.3f} s "
+                                f"(tolerance {100 * TIMING_TOL:g} %, at least one cycle): the "
+                                f"speed is {want / runs if runs > 0 else math.inf:.2f} x the "
+                                "plan's"))
+    return out
 
 
 def _point_poses(robot: Robot, fmt: ControllerFormat, read: ReadProgram, pts: list[ReadPoint],

@@ -126,6 +126,11 @@ class ControllerFormat(abc.ABC):
             stops), 0 for a format without moves (the stream). The export builds the
             vendor-neutral program once per cycle (``build_program(min_move=cycle)``), so a
             format's file does not depend on which other formats are written with it.
+        runs_rows: The file's rows are the run itself, one joint target per controller cycle
+            sent as it is (the stream for a real-time interface): ``check`` judges the rows
+            at their own clock, with no path, posture or base between them, and reports the
+            joint velocity, acceleration and jerk (no motion planner of the controller's
+            enforces them).
     """
 
     name: ClassVar[str] = ""
@@ -135,6 +140,7 @@ class ControllerFormat(abc.ABC):
     limits: ClassVar[FormatLimits] = FormatLimits()
     order: ClassVar[int] = 100
     cycle: ClassVar[float] = 0.0
+    runs_rows: ClassVar[bool] = False
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)

@@ -26,6 +26,7 @@ from __future__ import annotations
 import csv
 import re
 from collections.abc import Hashable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -143,6 +144,89 @@ def _column_text(column: Any) -> list[str]:
     return fixed_many(a, 6)
 
 
+@dataclass(frozen=True)
+class StreamRows:
+    """A stream file as its rows (:func:`read_stream`): what the real-time interface sends,
+    one row per controller cycle.
+
+    Attributes:
+        t: The stream clock [s], (R,): row k is sent at ``t[0] + k`` cycles.
+        t_plan: The planned time of each row [s], (R,), on the plan's own clock
+            (``waypoints.csv``'s ``t_s``).
+        phase: The phase of each row, (R,).
+        q: Controller joint values [rad], (R, n).
+        spindle_on: The spindle switched on, (R,) bool, or None (no such column).
+        spindle_rpm: The commanded spindle speed [rpm], (R,), or None.
+    """
+
+    t: FloatArray
+    t_plan: FloatArray
+    phase: NDArray[np.str_]
+    q: FloatArray
+    spindle_on: NDArray[np.bool_] | None = None
+    spindle_rpm: FloatArray | None = None
+
+    @staticmethod
+    def name(k: int) -> str:
+        """Row k's name as ``check`` reports it (its line in the file: ``row 2`` is the first
+        row after the header)."""
+        return f"row {k + 2}"
+
+
+def read_stream(path: str | Path) -> StreamRows:
+    """Read a stream file's rows (columns in the module docstring).
+
+    Raises:
+        InputError: One line naming the file and the row or column: no rows, a missing
+            ``t_s``, ``t_plan_s``, ``phase`` or joint column, a cell that is not a number, a
+            ``spindle_on`` other than 0 or 1.
+    """
+    with Path(path).open(newline="", encoding="utf-8") as fh:
+        rows = list(csv.reader(fh))
+    if len(rows) < 2:
+        raise InputError(path, "", "no rows", "a stream file")
+    head = rows[0]
+    cols = [i for i, h in enumerate(head) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
+    missing = [c for c in ("t_s", "t_plan_s", "phase") if c not in head]
+    if not cols or missing:
+        raise InputError(path, "header", f"no {', '.join(missing) or 'joint'} column",
+                         "a stream file (t_s, t_plan_s, phase, ..., A1_deg ...)")
+    for k, r in enumerate(rows[1:], start=2):
+        if len(r) != len(head):
+            raise InputError(path, f"row {k}", f"{len(r)} cells", f"{len(head)} as the header")
+    columns = list(zip(*rows[1:], strict=True))
+
+    def numbers(i: int) -> FloatArray:
+        try:
+            return np.array(columns[i], dtype=float)
+        except ValueError:
+            k = next(k for k, v in enumerate(columns[i]) if not _is_number(v))
+            raise InputError(path, f"row {k + 2}", f"{head[i]} = {columns[i][k]!r}",
+                             "a number") from None
+
+    q = np.radians(np.ascontiguousarray(np.stack([numbers(i) for i in cols], axis=1)))
+    on = rpm = None
+    if "spindle_on" in head:
+        cells = columns[head.index("spindle_on")]
+        bad = [k for k, v in enumerate(cells) if v not in ("0", "1")]
+        if bad:
+            raise InputError(path, f"row {bad[0] + 2}", f"spindle_on = {cells[bad[0]]!r}",
+                             "0 or 1")
+        on = np.array([v == "1" for v in cells], dtype=bool)
+    if "spindle_rpm" in head:
+        rpm = numbers(head.index("spindle_rpm"))
+    return StreamRows(numbers(head.index("t_s")), numbers(head.index("t_plan_s")),
+                      np.array(columns[head.index("phase")], dtype=str), q, on, rpm)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 class StreamFormat(ControllerFormat):
     """One row per controller cycle (CSV) for real-time interfaces: joint targets only."""
 
@@ -150,6 +234,7 @@ class StreamFormat(ControllerFormat):
     order = 40
     description = "stream CSV at the controller cycle (KUKA RSI, ABB EGM)"
     suffix = "_stream.csv"
+    runs_rows = True
 
     def file_name(self, program: Program) -> str:
         return f"{program.header.name}_stream.csv"
@@ -163,24 +248,10 @@ class StreamFormat(ControllerFormat):
                              program.stream, program.cycle)]
 
     def read(self, path: Path) -> ReadProgram:
-        with Path(path).open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-        if len(rows) < 2:
-            raise InputError(path, "", "no rows", "a stream file")
-        cols = [i for i, h in enumerate(rows[0]) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
-        if not cols or "t_s" not in rows[0]:
-            raise InputError(path, "header", "no t_s or joint columns", "a stream file")
-        it = rows[0].index("t_s")
-        columns = list(zip(*rows[1:], strict=False))  # as many as the shortest row has
-        try:  # every cell parsed as float() parses it; rows first, C order
-            q = np.radians(np.ascontiguousarray(
-                np.array([columns[i] for i in cols], dtype=float).T))
-            t = np.array(columns[it], dtype=float)
-        except (ValueError, IndexError):
-            raise InputError(path, "", "a malformed row", "numbers in every cell") from None
-        dt = np.diff(t, prepend=t[0])
-        pts = [ReadPoint(f"row {k + 2}", q=q[k], kind="joint", duration=float(dt[k]))
-               for k in range(len(q))]
+        rows = read_stream(path)
+        dt = np.diff(rows.t, prepend=rows.t[0])
+        pts = [ReadPoint(rows.name(k), q=rows.q[k], kind="joint", duration=float(dt[k]))
+               for k in range(len(rows.t))]
         return ReadProgram(np.eye(4), np.eye(4), pts, (Path(path),))
 
     def path_deviation(self, program: Program) -> FloatArray:

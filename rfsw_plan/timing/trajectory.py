@@ -178,10 +178,12 @@ class TimedTrajectory:
         spindle_rpm: Commanded spindle speed [rpm], (N,): 0 before the plunge piece starts
             (where the spindle-start hook runs), rising linearly to the weld speed over the
             run-up while the tool stands at the spindle clearance, the weld speed until the
-            pin is out of the plate at the end of the retract, then 0 (the spindle is
-            switched off; its run-down is not modelled).
+            pin tip is the spindle clearance above the surface again in the retract, then 0
+            (the spindle is switched off; its run-down is not modelled).
         spindle_on: The spindle switched on, (N,) bool: from the plunge piece's start to the
-            pin's exit (also for a process without a stated speed, ``rotation_speed_rpm`` 0).
+            retract's first sample with the pin tip the spindle clearance above the surface
+            (where the programs' spindle-stop hook runs; also for a process without a stated
+            speed, ``rotation_speed_rpm`` 0).
     """
 
     t: FloatArray
@@ -748,7 +750,7 @@ def time_parameterise(
     if deflection is not None and depth_full > 0:
         # From where the weld's last predicted pin really is (it may end a few micrometres
         # off the planned depth, inside the depth window): out of the plate exactly when the
-        # in-plate retract ends, where the spindle stops.
+        # in-plate retract ends.
         pin_end = robot.fk(q_end)[:3, 3] + deflection(q_end[None], W_end[None])[0]
         below = -float(np.dot(nplate[-1], pin_end - (fr.p[-1] + depth_full * nplate[-1])))
         dplate = max(below / cos1, 1e-6)
@@ -770,20 +772,24 @@ def time_parameterise(
     zero3 = np.zeros(3) if depth_full > 0 else o_end
     pieces.append(("retract", t, np.full_like(t, sw[-1]), cmap(x),
                    np.repeat(zero3[None], len(t), 0), np.tile(zero6, (len(t), 1))))
+    # The spindle stops where the pin tip is the spindle clearance above the surface (as it
+    # started; the programs' spindle-stop hook is placed there too): the first sample of the
+    # rise out of the plate that reaches it (no wrench there, the pin is the TCP).
+    rise = (min(lim.spindle_clearance, lim.clearance) - height(q_out, len(task) - 1)) / cos1
+    clear = np.flatnonzero(x >= rise - 1e-12)
+    t_clear = float(t[clear[0]] if clear.size else t[-1])
 
     # Concatenate; drop the first sample of each piece after the first (it repeats the end).
     ts, ph, ss, qs, os_, fs = [], [], [], [], [], []
     t0 = 0.0
-    # The spindle starts with the first plunge piece and stops when the pin is out (the end of
-    # the first retract piece, in the plate; without a plunge depth, of the decelerate piece).
+    # The spindle starts with the first plunge piece and stops in the last piece, the rise
+    # out of the plate, with the pin tip the spindle clearance above the surface.
     t_on = t_off = 0.0
-    names = [p[0] for p in pieces]
-    last_in = names.index("retract") if depth_full > 0 else names.index("decelerate")
     for i, (name, t, s, qq, oo, ff) in enumerate(pieces):
         if i == 1:
             t_on = t0
-        if i == last_in:
-            t_off = t0 + float(t[-1])
+        if i == len(pieces) - 1:
+            t_off = t0 + t_clear
         sl = slice(1, None) if i else slice(None)
         ts.append(t0 + t[sl])
         ph.append(np.full(len(t[sl]), name))
