@@ -335,6 +335,10 @@ def test_check_holds_on_the_stream_plan_export_wrote(planned, capsys) -> None:
     vouched = held["tolerated_pct"] if held else 100 * rec["tolerated_force_uncertainty"]
     assert res["held_pct"] >= 0.99 * vouched and res["claimed_pct"] == pytest.approx(vouched)
     assert res["max_edit_mm"] < 0.01  # the rows are the plan's path
+    # On these plans the timed path itself, at 4 ms and unrounded, holds the plan's level
+    # (fanuc_butt_1700mm: 2.825 % against 2.826 %), so the stream must too: the plan's forces
+    # and arc length interpolated linearly between its 10 ms samples had it at 2.71 %.
+    assert res["held_pct"] >= 0.99 * 100 * rec["tolerated_force_uncertainty"]
 
 
 def _edited_stream(src: Path, dst: Path, edit) -> Path:
