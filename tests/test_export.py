@@ -859,3 +859,29 @@ def test_remembered_work_gives_the_same_program(planned) -> None:
     assert build() == fresh
     T = prog.sample_fk(robot, samples.q)
     assert np.array_equal(T, robot.batch_fk_jacobian(samples.q)[0]) and not T.flags.writeable
+
+
+def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path: Path,
+                                                   capsys) -> None:
+    """A stream row ``check`` cannot read is named with the file, the row and what was
+    expected (exit 2, no traceback): a cell that is not a number, a short row, a spindle
+    state other than 0 or 1."""
+    out, _ = plan_with_programs("zk500_table6_seam")
+
+    def not_a_number(head, rows):
+        rows[40][head.index("t_plan_s")] = "4x"
+
+    def short_row(head, rows):
+        del rows[41][-1]
+
+    def spindle_two(head, rows):
+        rows[42][head.index("spindle_on")] = "2"
+
+    for k, (edit, want) in enumerate(((not_a_number, "row 42: t_plan_s = '4x'"),
+                                      (short_row, "row 43: 17 cells"),
+                                      (spindle_two, "row 44: spindle_on = 2"))):
+        path = _edited_stream(out, tmp_path / f"m{k}", edit)
+        capsys.readouterr()
+        assert main(["check", str(path)]) == 2, edit.__name__
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and want in err and path.name in err, err

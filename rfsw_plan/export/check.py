@@ -288,7 +288,11 @@ def check_program(program: str | Path, plan_dir: str | Path | None = None) -> Ch
     try:
         read = fmt.read(path)
     except InputError:
-        PlanFolder.open_with_robot(folder)  # an infeasible or damaged plan is named first
+        # an infeasible or damaged plan is named first; the program's own files (edited on
+        # the pendant, or broken) are the reader's to name
+        siblings = tuple(path.parent.glob(f"{path.stem}.*"))
+        with touched_programs(_own_files(folder, siblings)):
+            PlanFolder.open_with_robot(folder)
         raise
     own = _own_files(folder, read.files)
     with touched_programs(own):
@@ -945,14 +949,15 @@ def _posture_changes(q: FloatArray, q_plan: FloatArray, names: list[str],
     """Points whose joint values leave their plan sample's by a turn or a branch."""
     axes = robot.description.convention.axes
     out = []
-    for k in range(len(q)):
-        d = q[k] - q_plan[k]
-        j = int(np.argmax(np.abs(d)))
-        if abs(d[j]) > POSTURE_TOL:
-            out.append(_Finding(k, "posture", f"posture changed: {axes[j]} "
-                                f"{math.degrees(q[k, j]):+.1f} deg where the plan has "
-                                f"{math.degrees(q_plan[k, j]):+.1f} deg "
-                                f"({math.degrees(d[j]):+.1f} deg: a turn or a branch)"))
+    diff = np.asarray(q) - np.asarray(q_plan)
+    worst = np.argmax(np.abs(diff), axis=1)
+    far = np.abs(diff[np.arange(len(diff)), worst]) > POSTURE_TOL
+    for k in np.flatnonzero(far).tolist():  # a stream has tens of thousands of rows
+        j = int(worst[k])
+        out.append(_Finding(k, "posture", f"posture changed: {axes[j]} "
+                            f"{math.degrees(q[k, j]):+.1f} deg where the plan has "
+                            f"{math.degrees(q_plan[k, j]):+.1f} deg "
+                            f"({math.degrees(diff[k, j]):+.1f} deg: a turn or a branch)"))
     return out
 
 

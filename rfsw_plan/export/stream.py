@@ -24,6 +24,7 @@ then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...), then the spi
 from __future__ import annotations
 
 import csv
+import io
 import re
 from collections.abc import Hashable
 from dataclasses import dataclass
@@ -174,49 +175,59 @@ class StreamRows:
 
 
 def read_stream(path: str | Path) -> StreamRows:
-    """Read a stream file's rows (columns in the module docstring).
+    """Read a stream file's rows (columns in the module docstring): the numbers by numpy's
+    C reader (:func:`numpy.loadtxt`, a 70 000-row stream in a tenth of a second), a file it
+    refuses again cell by cell for the one-line error.
 
     Raises:
         InputError: One line naming the file and the row or column: no rows, a missing
-            ``t_s``, ``t_plan_s``, ``phase`` or joint column, a cell that is not a number, a
-            ``spindle_on`` other than 0 or 1.
+            ``t_s``, ``t_plan_s``, ``phase`` or joint column, a row of another length than
+            the header, a cell that is not a number, a ``spindle_on`` other than 0 or 1.
     """
-    with Path(path).open(newline="", encoding="utf-8") as fh:
-        rows = list(csv.reader(fh))
-    if len(rows) < 2:
+    text = Path(path).read_text(encoding="utf-8")
+    lines = text.splitlines()
+    if len(lines) < 2:
         raise InputError(path, "", "no rows", "a stream file")
-    head = rows[0]
-    cols = [i for i, h in enumerate(head) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
+    head = next(csv.reader(lines[:1]))
+    joints = [i for i, h in enumerate(head) if re.fullmatch(r"[A-Za-z]+\d+_deg", h)]
     missing = [c for c in ("t_s", "t_plan_s", "phase") if c not in head]
-    if not cols or missing:
+    if not joints or missing:
         raise InputError(path, "header", f"no {', '.join(missing) or 'joint'} column",
                          "a stream file (t_s, t_plan_s, phase, ..., A1_deg ...)")
-    for k, r in enumerate(rows[1:], start=2):
-        if len(r) != len(head):
-            raise InputError(path, f"row {k}", f"{len(r)} cells", f"{len(head)} as the header")
-    columns = list(zip(*rows[1:], strict=True))
+    extra = [c for c in ("spindle_on", "spindle_rpm") if c in head]
+    use = [head.index("t_s"), head.index("t_plan_s"), *joints, *(head.index(c) for c in extra)]
+    try:
+        if any(line.count(",") != len(head) - 1 for line in lines[1:]):
+            raise ValueError("a row of another length")
+        data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, usecols=use,
+                          quotechar='"', ndmin=2, dtype=float, encoding=None)
+        phase = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1,
+                           usecols=head.index("phase"), quotechar='"', ndmin=1, dtype=str,
+                           encoding=None)
+    except ValueError:
+        raise _first_bad_cell(path, head, lines, use) from None
+    n = len(joints)
+    named = dict(zip(extra, data[:, 2 + n:].T, strict=True))
+    on = named.get("spindle_on")
+    if on is not None and not np.isin(on, (0.0, 1.0)).all():
+        k = int(np.flatnonzero(~np.isin(on, (0.0, 1.0)))[0])
+        raise InputError(path, f"row {k + 2}", f"spindle_on = {on[k]:g}", "0 or 1")
+    return StreamRows(data[:, 0].copy(), data[:, 1].copy(), phase,
+                      np.radians(np.ascontiguousarray(data[:, 2:2 + n])),
+                      None if on is None else on == 1.0, named.get("spindle_rpm"))
 
-    def numbers(i: int) -> FloatArray:
-        try:
-            return np.array(columns[i], dtype=float)
-        except ValueError:
-            k = next(k for k, v in enumerate(columns[i]) if not _is_number(v))
-            raise InputError(path, f"row {k + 2}", f"{head[i]} = {columns[i][k]!r}",
-                             "a number") from None
 
-    q = np.radians(np.ascontiguousarray(np.stack([numbers(i) for i in cols], axis=1)))
-    on = rpm = None
-    if "spindle_on" in head:
-        cells = columns[head.index("spindle_on")]
-        bad = [k for k, v in enumerate(cells) if v not in ("0", "1")]
-        if bad:
-            raise InputError(path, f"row {bad[0] + 2}", f"spindle_on = {cells[bad[0]]!r}",
-                             "0 or 1")
-        on = np.array([v == "1" for v in cells], dtype=bool)
-    if "spindle_rpm" in head:
-        rpm = numbers(head.index("spindle_rpm"))
-    return StreamRows(numbers(head.index("t_s")), numbers(head.index("t_plan_s")),
-                      np.array(columns[head.index("phase")], dtype=str), q, on, rpm)
+def _first_bad_cell(path: str | Path, head: list[str], lines: list[str], use: list[int]
+                    ) -> InputError:
+    """The one-line error of the first row a stream file's reader refuses: its length, or
+    its first numeric cell that is not a number."""
+    for k, row in enumerate(csv.reader(lines[1:]), start=2):
+        if len(row) != len(head):
+            return InputError(path, f"row {k}", f"{len(row)} cells", f"{len(head)} as the header")
+        for i in use:
+            if not _is_number(row[i]):
+                return InputError(path, f"row {k}", f"{head[i]} = {row[i]!r}", "a number")
+    return InputError(path, "", "unreadable rows", "a stream file")
 
 
 def _is_number(text: str) -> bool:
