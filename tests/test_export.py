@@ -336,9 +336,10 @@ def test_check_holds_on_the_stream_plan_export_wrote(planned, capsys) -> None:
     assert res["held_pct"] >= 0.99 * vouched and res["claimed_pct"] == pytest.approx(vouched)
     assert res["max_edit_mm"] < 0.01  # the rows are the plan's path
     # On these plans the timed path itself, at 4 ms and unrounded, holds the plan's level
-    # (fanuc_butt_1700mm: 2.825 % against 2.826 %), so the stream must too: the plan's forces
-    # and arc length interpolated linearly between its 10 ms samples had it at 2.71 %.
-    assert res["held_pct"] >= 0.99 * 100 * rec["tolerated_force_uncertainty"]
+    # (fanuc_butt_1700mm: 2.825 % against 2.826 %); the file's 1e-6 deg joint values cost it
+    # 1 % (2.796 %). Judged under the plan's forces and arc length interpolated linearly
+    # between its 10 ms samples, as check did before the stream stated them, it held 2.71 %.
+    assert res["held_pct"] >= 0.98 * 100 * rec["tolerated_force_uncertainty"]
 
 
 def _edited_stream(src: Path, dst: Path, edit) -> Path:
@@ -360,8 +361,8 @@ def test_check_judges_an_edited_stream_where_the_pin_is(plan_with_programs, tmp_
                                                         capsys) -> None:
     """The stream's check can fail, each time naming the row: the spindle switched off at
     the pin's exit from the plate (judged by the predicted pin's height, not the command),
-    a weld row's joint moved (the pin leaves the window), and the rows sent at half the
-    cycle (the weld at twice its speed)."""
+    a weld row's joint moved (the pin leaves the window), the rows sent at half the cycle
+    (the weld at twice its speed), and a row's stated force off the plan's."""
     out, _ = plan_with_programs("zk500_table6_seam")
 
     def spindle_at_exit(head, rows):
@@ -381,15 +382,22 @@ def test_check_judges_an_edited_stream_where_the_pin_is(plan_with_programs, tmp_
         for r in rows:
             r[t] = f"{float(r[t]) / 2:.6f}"
 
+    def forces_edited(head, rows):  # the state a force loop would follow, 500 N off
+        ph, fz = head.index("phase"), head.index("fz_N")
+        r = next(r for r in rows if r[ph] == "weld")
+        r[fz] = f"{float(r[fz]) + 500.0:.6f}"
+
     cases = ((spindle_at_exit, "hook: the spindle stops with the pin tip"),
-             (weld_row_moved, "lateral"), (twice_as_fast, "speed"))
+             (weld_row_moved, "lateral"), (twice_as_fast, "speed"),
+             (forces_edited, "forces: the row states fz"))
     for k, (edit, want) in enumerate(cases):
         path = _edited_stream(out, tmp_path / f"e{k}", edit)
         capsys.readouterr()
         assert main(["check", "--json", str(path)]) == 3, edit.__name__
         res = json.loads(capsys.readouterr().out)
         assert not res["holds"] and res["point"].startswith("row "), res["line"]
-        assert want in res["line"] or res["quantity"] == want, (edit.__name__, res["line"])
+        assert want in res["line"] or res["quantity"] == want or any(
+            want in f for f in res["failures"]), (edit.__name__, res["failures"][:3])
 
 
 def test_check_holds_and_names_a_moved_point(planned, tmp_path: Path,
@@ -878,7 +886,7 @@ def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path:
         rows[42][head.index("spindle_on")] = "2"
 
     for k, (edit, want) in enumerate(((not_a_number, "row 42: t_plan_s = '4x'"),
-                                      (short_row, "row 43: 17 cells"),
+                                      (short_row, "row 43: 24 cells (expected 25 as the header)"),
                                       (spindle_two, "row 44: spindle_on = 2"))):
         path = _edited_stream(out, tmp_path / f"m{k}", edit)
         capsys.readouterr()

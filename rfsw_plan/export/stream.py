@@ -18,7 +18,11 @@ Columns: ``t_s, t_plan_s, phase, x_mm, y_mm, z_mm, qw, qx, qy, qz`` (the command
 fake target, in the controller's base frame: KUKA ROBROOT, FANUC world, ABB base), the maker's
 Euler angles where the robot has them (``A_deg, B_deg, C_deg`` or ``W_deg, P_deg, R_deg``),
 then the controller joint values (``A1_deg`` ... / ``J1_deg`` ...), then the spindle state
-``spindle_on`` (1 on, 0 off) and speed ``spindle_rpm`` (as in ``waypoints.csv``).
+``spindle_on`` (1 on, 0 off) and speed ``spindle_rpm`` (as in ``waypoints.csv``), then the
+process state the plan expects at the row: the pin's arc length ``s_mm`` and the process
+wrench on the tool at the TCP ``fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm`` in the controller's
+base frame (a reference for a force loop or for the measured forces; ``rfsw-plan check``
+judges each row under it, after checking it against ``waypoints.csv``).
 """
 
 from __future__ import annotations
@@ -42,6 +46,9 @@ from rfsw_plan.numfmt import fixed_many
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
+
+#: The process state columns (arc length, then the wrench in the controller's base frame).
+STATE_COLUMNS = ("s_mm", "fx_N", "fy_N", "fz_N", "mx_Nm", "my_Nm", "mz_Nm")
 
 #: Default controller cycle [s].
 DEFAULT_CYCLE = 0.004
@@ -79,6 +86,9 @@ def write_stream(path: str | Path, robot: Robot, stream: Samples, cycle: float) 
     if stream.spindle_rpm is not None and stream.spindle_on is not None:
         header += ["spindle_on", "spindle_rpm"]
         cols += [np.where(stream.spindle_on, "1", "0"), stream.spindle_rpm]
+    R = np.linalg.inv(conv.base)[:3, :3]  # the wrench's force and moment into the base frame
+    header += list(STATE_COLUMNS)
+    cols += [stream.s * 1e3, *(stream.wrench[:, :3] @ R.T).T, *(stream.wrench[:, 3:] @ R.T).T]
     body = _rows_text(cols)
     p = Path(path)
     with atomic_path(p) as tmp, tmp.open("w", newline="") as fh:
@@ -158,6 +168,9 @@ class StreamRows:
         q: Controller joint values [rad], (R, n).
         spindle_on: The spindle switched on, (R,) bool, or None (no such column).
         spindle_rpm: The commanded spindle speed [rpm], (R,), or None.
+        state: The process state the file states for each row, (R, 7): arc length [m] and
+            the wrench in the controller's base frame [N, N m]; None (a stream written
+            before the columns).
     """
 
     t: FloatArray
@@ -166,6 +179,7 @@ class StreamRows:
     q: FloatArray
     spindle_on: NDArray[np.bool_] | None = None
     spindle_rpm: FloatArray | None = None
+    state: FloatArray | None = None
 
     @staticmethod
     def name(k: int) -> str:
@@ -194,7 +208,7 @@ def read_stream(path: str | Path) -> StreamRows:
     if not joints or missing:
         raise InputError(path, "header", f"no {', '.join(missing) or 'joint'} column",
                          "a stream file (t_s, t_plan_s, phase, ..., A1_deg ...)")
-    extra = [c for c in ("spindle_on", "spindle_rpm") if c in head]
+    extra = [c for c in ("spindle_on", "spindle_rpm", *STATE_COLUMNS) if c in head]
     use = [head.index("t_s"), head.index("t_plan_s"), *joints, *(head.index(c) for c in extra)]
     try:
         if any(line.count(",") != len(head) - 1 for line in lines[1:]):
@@ -212,9 +226,13 @@ def read_stream(path: str | Path) -> StreamRows:
     if on is not None and not np.isin(on, (0.0, 1.0)).all():
         k = int(np.flatnonzero(~np.isin(on, (0.0, 1.0)))[0])
         raise InputError(path, f"row {k + 2}", f"spindle_on = {on[k]:g}", "0 or 1")
+    state = None
+    if all(c in named for c in STATE_COLUMNS):
+        state = np.column_stack([named[c] for c in STATE_COLUMNS])
+        state[:, 0] *= 1e-3
     return StreamRows(data[:, 0].copy(), data[:, 1].copy(), phase,
                       np.radians(np.ascontiguousarray(data[:, 2:2 + n])),
-                      None if on is None else on == 1.0, named.get("spindle_rpm"))
+                      None if on is None else on == 1.0, named.get("spindle_rpm"), state)
 
 
 def _first_bad_cell(path: str | Path, head: list[str], lines: list[str], use: list[int]

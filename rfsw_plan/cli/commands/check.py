@@ -1,7 +1,8 @@
 """``rfsw-plan check PROGRAM [--plan PLAN_DIR]``: re-verify a controller program against its plan.
 
 Reads a KRL (``.src``), FANUC TP (``.ls``) or RAPID (``.mod``) file, including one a programmer
-touched up on the pendant, re-times it as the controller runs it and runs the planner's
+touched up on the pendant, or a stream file (``_stream.csv``, its rows run one per cycle),
+re-times it as the controller runs it and runs the planner's
 sample-by-sample verification with the plan's model and forces
 (:func:`rfsw_plan.export.check.check_program`). Prints "holds" (and which files were edited
 against the export), or the first failure with the point, its line in the file and the
@@ -14,11 +15,13 @@ from __future__ import annotations
 import argparse
 
 NAME = "check"
-HELP = "re-verify a KRL/TP/RAPID program (also one edited on the pendant) against its plan"
+HELP = ("re-verify a KRL/TP/RAPID program (also one edited on the pendant) or a stream file "
+        "against its plan")
 
 
 def register(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("program", help="program file: .src (with its .dat), .ls or .mod")
+    parser.add_argument("program", help="program file: .src (with its .dat), .ls or .mod, or a "
+                        "stream _stream.csv")
     parser.add_argument("--plan", default=None, metavar="PLAN_DIR",
                         help="the plan folder it was exported from (default: the program's "
                              "folder)")
