@@ -35,7 +35,8 @@ def _parse(text: str, name: str) -> ast.Module:
 #: measurement and process files, right above the data types they produce (MeasurementSet,
 #: ForceSeries, WeldTrack); ``planfiles/`` the plan folder, right above the planner.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("exceptions", "progress", "tomlreader", "tomlwriter", "files", "numfmt", "table"),
+    ("exceptions", "progress", "tomlreader", "tomlwriter", "files", "numfmt", "table",
+     "parallel"),
     ("robot",),
     ("elastostatics",),
     ("process",),

@@ -17,6 +17,7 @@ import rfsw_plan.export.api as api
 import rfsw_plan.export.check as check
 import rfsw_plan.export.config as config
 import rfsw_plan.export.program as program
+from rfsw_plan import parallel
 from rfsw_plan.export.api import export_plan_folder
 from rfsw_plan.planfiles.folder import PlanFolder
 
@@ -54,6 +55,7 @@ def _export(plan: Path, out: Path, monkeypatch: pytest.MonkeyPatch, shared: bool
         mp.setattr(config, "seeded_on_branch", counting)
         mp.setattr(api, "judge_program", judging)
         mp.setattr(program, "path_deviation", counting_bounds)
+        mp.setattr(parallel, "cores", lambda: 1)  # counted here: no judge in a worker
         check._START.clear()
         export_plan_folder(plan, ["krl", "fanuc_tp", "rapid"], out)
     return judged, solved[0], bounds[0]
@@ -109,3 +111,21 @@ def test_check_of_a_program_is_the_judgement_export_made(plan_with_programs, tmp
         assert res.holds, res.line()
         assert 100 * res.held[0] == held[name]["tolerated_pct"]
         assert res.held[1] == held[name]["limited_by"]
+
+
+def test_judgements_shared_with_a_worker_write_the_same_files(plan_folder, tmp_path: Path,
+                                                             monkeypatch: pytest.MonkeyPatch
+                                                             ) -> None:
+    """The export's judgements run in a forked worker and here (two cores) or all here (one):
+    the same programs byte for byte and the same levels as run in the record."""
+    plan = plan_folder("zk500_table6_seam", tmp_path / "plan")
+    out = {}
+    for n in (1, 2):
+        with monkeypatch.context() as mp:
+            mp.setattr(parallel, "cores", lambda n=n: n)
+            res = export_plan_folder(plan, ["krl", "fanuc_tp", "rapid", "stream"],
+                                     tmp_path / f"cores{n}")
+        out[n] = res
+    assert out[1].held_as_run == out[2].held_as_run and len(out[1].held_as_run) == 4
+    for f in (tmp_path / "cores1").iterdir():
+        assert (tmp_path / "cores2" / f.name).read_bytes() == f.read_bytes(), f.name

@@ -34,7 +34,7 @@ import numpy as np
 from rfsw_plan import __version__
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.exceptions import InfeasibleError, InputError, OutputPathError
-from rfsw_plan.export.check import CLAIM_TOL, PlanBasis, judge_program
+from rfsw_plan.export.check import CLAIM_TOL, CheckResult, PlanBasis, judge_program
 from rfsw_plan.export.format import (
     ControllerFormat,
     ReadProgram,
@@ -363,23 +363,39 @@ def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path
                check: SampleCheck | None, stages: Stages, basis: PlanBasis | None,
                ) -> tuple[list[Path], dict[str, RoundTrip], dict[str, tuple[float, str]]]:
     """Write every format's program into ``stage``, re-read it, take it through the model
-    and (with ``basis``) judge it as its controller runs it."""
-    staged: list[Path] = []
-    trips: dict[str, RoundTrip] = {}
-    held: dict[str, tuple[float, str]] = {}
+    and (with ``basis``) judge it as its controller runs it: the judgements, independent and
+    the costliest part, shared with forked processes on the machine's cores
+    (:func:`rfsw_plan.parallel.fork_map`; the same computations wherever they run, so the
+    same files), then each claim settled in the order of ``fmts``."""
+    from rfsw_plan.parallel import fork_map
+
+    written: dict[str, tuple[list[Path], ReadProgram, RoundTrip]] = {}
     for name in fmts:
         stages.start(name)
+        written[name] = _write_read(get_format(name), programs[name], stage, check)
+    judged = [n for n in fmts if basis is not None
+              and (get_format(n).cycle > 0 or get_format(n).runs_rows)]
+    if judged:
+        assert basis is not None
+        basis.surface()  # computed once, before the workers inherit the memo
+
+    def judge(i: int) -> CheckResult:
+        name = judged[i]
+        files, read, trip = written[name]
+        fmt, program = get_format(name), programs[name]
+        solved = (fmt.expected(program).q, trip.q)
+        assert basis is not None
+        return judge_program(files[0], stage, read, replace(basis, work=program.work),
+                             solved=solved)
+
+    held: dict[str, tuple[float, str]] = {}
+    for name, res in zip(judged, fork_map(judge, len(judged)), strict=True):
         fmt = get_format(name)
-        program = programs[name]
-        files, read, trip = _write_read(fmt, program, stage, check)
-        if basis is not None and (fmt.cycle > 0 or fmt.runs_rows):
-            held[name], restated = _judged(name, fmt, program, files[0], read, basis, stage,
-                                           trip)
-            if restated is not None:  # the same moves, the header states the level as run
-                files, read, trip = _write_read(fmt, restated, stage, check)
-        staged += files
-        trips[name] = trip
-    return staged, trips, held
+        held[name], restated = _settled(name, fmt, programs[name], res)
+        if restated is not None:  # the same moves, the header states the level as run
+            written[name] = _write_read(fmt, restated, stage, check)
+    staged = [f for name in fmts for f in written[name][0]]
+    return staged, {name: written[name][2] for name in fmts}, held
 
 
 def _write_read(fmt: ControllerFormat, program: Program, stage: Path,
@@ -398,20 +414,16 @@ def _write_read(fmt: ControllerFormat, program: Program, stage: Path,
     return files, read, trip
 
 
-def _judged(name: str, fmt: ControllerFormat, program: Program, path: Path, read: ReadProgram,
-            basis: PlanBasis, stage: Path, trip: RoundTrip | None = None,
-            ) -> tuple[tuple[float, str], Program | None]:
-    """The force uncertainty a staged program holds as its controller runs it, and the
-    program to write again with that level in its header (None: it holds the plan's).
-    ``trip``: the round trip of the same re-read program, whose joint values the judge takes
-    for the points it seeds alike (the same solve, done once).
+def _settled(name: str, fmt: ControllerFormat, program: Program, res: CheckResult
+             ) -> tuple[tuple[float, str], Program | None]:
+    """The force uncertainty a staged program holds as its controller runs it (``res``, its
+    judgement), and the program to write again with that level in its header (None: it holds
+    the plan's, or it has no header: the stream's level is recorded in ``plan.json``).
 
     Raises:
         InfeasibleError: The program as run breaks the weld envelope, a hook's rule or the
             timing; or the plan holds the requested uncertainty (GO) and the program does not.
     """
-    solved = None if trip is None else (fmt.expected(program).q, trip.q)
-    res = judge_program(path, stage, read, replace(basis, work=program.work), solved=solved)
     if not res.holds and res.failure != "claim":
         raise InfeasibleError(f"{name} program as its controller runs it: {res.line()}", None,
                               res.failure, None)

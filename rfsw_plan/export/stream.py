@@ -222,17 +222,35 @@ def read_stream(path: str | Path) -> StreamRows:
         raise _first_bad_cell(path, head, lines, use) from None
     n = len(joints)
     named = dict(zip(extra, data[:, 2 + n:].T, strict=True))
-    on = named.get("spindle_on")
-    if on is not None and not np.isin(on, (0.0, 1.0)).all():
-        k = int(np.flatnonzero(~np.isin(on, (0.0, 1.0)))[0])
-        raise InputError(path, f"row {k + 2}", f"spindle_on = {on[k]:g}", "0 or 1")
-    state = None
-    if all(c in named for c in STATE_COLUMNS):
-        state = np.column_stack([named[c] for c in STATE_COLUMNS])
-        state[:, 0] *= 1e-3
     return StreamRows(data[:, 0].copy(), data[:, 1].copy(), phase,
                       np.radians(np.ascontiguousarray(data[:, 2:2 + n])),
-                      None if on is None else on == 1.0, named.get("spindle_rpm"), state)
+                      _spindle_on(path, named.get("spindle_on")), named.get("spindle_rpm"),
+                      _state(named))
+
+
+def _spindle_on(path: str | Path, on: FloatArray | None) -> NDArray[np.bool_] | None:
+    """The ``spindle_on`` column as booleans (None: no column).
+
+    Raises:
+        InputError: A value other than 0 or 1 (its row).
+    """
+    if on is None:
+        return None
+    bad = np.flatnonzero(~np.isin(on, (0.0, 1.0)))
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(path, f"row {k + 2}", f"spindle_on = {on[k]:g}", "0 or 1")
+    return np.asarray(on == 1.0)
+
+
+def _state(named: dict[str, FloatArray]) -> FloatArray | None:
+    """The process state columns (:data:`STATE_COLUMNS`) as (R, 7), arc length in metres;
+    None unless the file has them all."""
+    if not all(c in named for c in STATE_COLUMNS):
+        return None
+    state = np.column_stack([named[c] for c in STATE_COLUMNS])
+    state[:, 0] *= 1e-3
+    return state
 
 
 def _first_bad_cell(path: str | Path, head: list[str], lines: list[str], use: list[int]
