@@ -227,8 +227,10 @@ class CheckResult:
                 f"{'s' if len(self.failures) > 2 else ''})" if len(self.failures) > 1 else "")
         where = f"line {self.line_no}" + (f" of {self.file}" if self.file and
                                            self.file != self.program.name else "")
-        at = (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} mm, "
-              f"{where})") if self.point else f"{self.program.name}:"
+        if self.point == f"row {self.line_no}":  # a stream's row is its line
+            where = ""
+        at = (f"{self.program.name}: {self.point} ({self.phase}, s = {self.s * 1e3:.1f} mm"
+              f"{', ' + where if where else ''})") if self.point else f"{self.program.name}:"
         lo, hi = (w * 1e3 for w in self.window)
         if self.failure == "window":
             return (f"{at} leaves the weld window: lateral error "
