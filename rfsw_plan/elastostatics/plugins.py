@@ -16,12 +16,17 @@ import importlib.util
 import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
-from importlib import metadata
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rfsw_plan.elastostatics.effects.base import EFFECTS, Effect
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import PluginSpec
+
+if TYPE_CHECKING:  # importlib.metadata (and its email, socket and zipfile) is
+    # imported where an entry point is looked up: a robot that names none, and every
+    # command reading a plan, never pays its 17 ms (issue 41)
+    from importlib import metadata
 
 #: Entry-point group of effect plugins in installed packages.
 ENTRY_POINT_GROUP = "rfsw_plan.effects"
@@ -143,6 +148,8 @@ def load_entry_point(ep: metadata.EntryPoint) -> LoadedPlugin:
 
 def load_entry_points() -> list[LoadedPlugin]:
     """Load every installed entry point of group :data:`ENTRY_POINT_GROUP`."""
+    from importlib import metadata
+
     return [load_entry_point(ep) for ep in metadata.entry_points(group=ENTRY_POINT_GROUP)]
 
 
@@ -168,6 +175,8 @@ def load_plugin(spec: PluginSpec, where: str) -> LoadedPlugin:
                              f"(sha256 {digest[:12]}.., recorded {spec.sha256[:12]}..)",
                              "the file it was identified with, or identify again")
         return load_effect_file(p)
+    from importlib import metadata
+
     for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
         if f"{ep.name} = {ep.value}" == spec.ref:
             loaded = load_entry_point(ep)
