@@ -23,7 +23,9 @@ from rfsw_plan.elastostatics.effects.base import EFFECTS, Effect
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.robot.description import PluginSpec
 
-if TYPE_CHECKING:  # importlib.metadata only where entry points are read (not for check)
+if TYPE_CHECKING:  # importlib.metadata (and its email, socket and zipfile) is
+    # imported where an entry point is looked up: a robot that names none, and every
+    # command reading a plan, never pays its 17 ms (issue 41)
     from importlib import metadata
 
 #: Entry-point group of effect plugins in installed packages.

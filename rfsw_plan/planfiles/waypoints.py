@@ -46,7 +46,7 @@ import csv
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -55,9 +55,12 @@ from rfsw_plan.exceptions import InputError
 from rfsw_plan.files import atomic_path, write_bytes, write_figure
 from rfsw_plan.numfmt import canonical_quaternion, cell, cell_many, table_bytes
 from rfsw_plan.planfiles.record import PlanRecord
-from rfsw_plan.planning.result import PlanResult
 from rfsw_plan.planning.verify import CONTACT_PHASES
 from rfsw_plan.process.seam import Seam
+
+if TYPE_CHECKING:  # the writer's argument: a reader of the folder (export, check)
+    # never imports the planner's result and its baselines (issue 41)
+    from rfsw_plan.planning.result import PlanResult
 
 log = logging.getLogger(__name__)
 
