@@ -55,7 +55,7 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None) -> 
 
     _TASK.append(task)
     try:
-        with multiprocessing.get_context("fork").Pool(p - 1, _worker_signals) as pool:
+        with multiprocessing.get_context("fork").Pool(p - 1, worker_signals) as pool:
             pending = {i: pool.apply_async(_job, (i,)) for i in range(n) if i % p}
             mine = {i: task(i) for i in range(0, n, p)}
             theirs = {i: r.get() for i, r in pending.items()}
@@ -86,7 +86,7 @@ def _job(i: int) -> tuple[bool, Any]:
         return False, None
 
 
-def _worker_signals() -> None:
+def worker_signals() -> None:
     """A worker leaves Ctrl-C to the calling process (which stops the pool) and dies quietly
     on SIGTERM (the CLI's own handler, inherited through fork, would print a traceback)."""
     import signal

@@ -177,15 +177,6 @@ def _processes(data: MeasurementSet, n_labels: int) -> int:
     return max(1, min(CANDIDATE_PROCESSES, cores))
 
 
-def _worker_signals() -> None:
-    """A worker leaves Ctrl-C to the calling process (which stops the pool) and dies quietly
-    on SIGTERM (the CLI's own handler, inherited through fork, would print a traceback)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-
-
 def _fit_chunk(labels: Sequence[str]) -> list[_Fitted]:
     """Worker: fit ``labels`` on the job inherited from the parent; picklable results."""
     from rfsw_plan.progress import set_enabled
@@ -218,13 +209,14 @@ def _fit_all(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.i
             return out
         import multiprocessing
 
+        from rfsw_plan.parallel import worker_signals
         from rfsw_plan.validation.engine.crossval import attach
 
         chunks = [list(labels[i::n]) for i in range(n)]
         _JOB.update(model=model, data=data, folds=folds, batch=batch, F_true=F_true,
                     fit_steps=fit_steps)
         try:
-            with multiprocessing.get_context("fork").Pool(n - 1, _worker_signals) as pool:
+            with multiprocessing.get_context("fork").Pool(n - 1, worker_signals) as pool:
                 pending = [pool.apply_async(_fit_chunk, (c,)) for c in chunks[1:]]
                 mine = []
                 for label in chunks[0]:
