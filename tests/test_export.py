@@ -872,6 +872,35 @@ def test_remembered_work_gives_the_same_program(planned) -> None:
     assert np.array_equal(T, robot.batch_fk_jacobian(samples.q)[0]) and not T.flags.writeable
 
 
+def test_a_stream_without_the_state_columns_is_judged_under_the_plans(plan_with_programs,
+                                                                     tmp_path: Path,
+                                                                     capsys) -> None:
+    """A stream written before the state columns (``s_mm``, ``fx_N`` ... ``mz_Nm``) is still
+    checked: each row under the plan's state interpolated at its planned time. It holds the
+    envelope; the level it holds is what the interpolation allows (within 5 % of the level
+    the stream with its columns holds on zk500_table6_seam)."""
+    from rfsw_plan.export.stream import STATE_COLUMNS
+
+    out, _ = plan_with_programs("zk500_table6_seam")
+    capsys.readouterr()
+    assert main(["check", "--json", str(_file(out, "stream"))]) == 0
+    stated = json.loads(capsys.readouterr().out)
+
+    def drop_state(head, rows):
+        keep = [i for i, h in enumerate(head) if h not in STATE_COLUMNS]
+        head[:] = [head[i] for i in keep]
+        for r in rows:
+            r[:] = [r[i] for i in keep]
+
+    path = _edited_stream(out, tmp_path / "old", drop_state)
+    assert "fz_N" not in path.read_text().splitlines()[0]
+    capsys.readouterr()
+    code = main(["check", "--json", str(path)])
+    res = json.loads(capsys.readouterr().out)
+    assert code == 0 and res["holds"] and res["points"] == stated["points"], res["line"]
+    assert res["held_pct"] == pytest.approx(stated["held_pct"], rel=0.05)
+
+
 def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path: Path,
                                                    capsys) -> None:
     """A stream row ``check`` cannot read is named with the file, the row and what was
