@@ -270,6 +270,31 @@ def test_a_warm_drawing_process_draws_the_same_bytes(tmp_path, planned_result) -
     assert not proc.is_alive() and idle._proc is None
 
 
+def test_a_warm_drawing_process_receives_a_plan_without_importing(tmp_path, planned_result
+                                                                  ) -> None:
+    """A warm drawing process imports, while the plan is made, what receiving the plan needs
+    (:func:`~rfsw_plan.planfiles.waypoints.import_for_drawing`): unpickling it afterwards
+    imports none of our modules and nothing of SciPy's or matplotlib's (on zk500 that was 0.3 s
+    on the critical path, between the plan and its plots)."""
+    import pickle
+    import subprocess
+    import sys
+
+    path = tmp_path / "plan.pickle"
+    path.write_bytes(pickle.dumps(planned_result("zk500_table6_seam")))
+    code = (
+        "import pickle, sys\n"
+        "from rfsw_plan.planfiles.waypoints import import_for_drawing\n"
+        "import_for_drawing()\n"
+        "before = set(sys.modules)\n"
+        f"pickle.loads(open({str(path)!r}, 'rb').read())\n"
+        "print(' '.join(sorted(m for m in set(sys.modules) - before\n"
+        "                      if m.split('.')[0] in ('rfsw_plan', 'scipy', 'matplotlib'))))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.split() == [], out.stdout.split()[:10]
+
+
 class _FakeFigure:
     """Stands for a matplotlib figure in :func:`rfsw_plan.files.write_figure`: its image is
     its text (the plot's name and the process that drew it)."""

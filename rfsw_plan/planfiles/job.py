@@ -146,6 +146,11 @@ class PreparedPlan:
                 matplotlib on another core meanwhile) for :meth:`PlanRun.write`, which then
                 hands it the plan; it is stopped if planning fails.
         """
+        # The planner is imported before the drawing process forks: the child inherits it
+        # (a plan it receives unpickles without importing) and imports only matplotlib.
+        from rfsw_plan.planning.api import plan
+        from rfsw_plan.planning.force_log import plan_with_force_log
+
         drawing = None
         if draw_ahead:
             from rfsw_plan.planfiles.waypoints import PlotDrawing
@@ -153,12 +158,8 @@ class PreparedPlan:
             drawing = PlotDrawing.warm()
         try:
             if self.force_log is None:
-                from rfsw_plan.planning.api import plan
-
                 result = plan(self.problem, self.options, spacing=self.spacing)
                 return PlanRun(self, result, None, drawing)
-            from rfsw_plan.planning.force_log import plan_with_force_log
-
             result, check = plan_with_force_log(self.force_log, self.options, self.spacing)
             return PlanRun(self, result, check, drawing)
         except BaseException:

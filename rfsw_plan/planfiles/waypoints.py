@@ -382,6 +382,23 @@ class PlotDrawing:
         self._proc = None
 
 
+def import_for_drawing() -> None:
+    """Import what drawing a plan needs, and what receiving it does: matplotlib, the plots'
+    modules, and the modules of every class a pickled :class:`PlanResult` holds (its
+    :class:`~rfsw_plan.timing.TimedTrajectory` brings SciPy's interpolation).
+
+    A :meth:`PlotDrawing.warm` child forks before the planner's process imports the planner,
+    and imports these while it plans: not when the plan arrives, on the critical path (0.3 s
+    of unpickling on zk500, almost all of it imports). ``tests/test_plan_folder.py`` checks
+    that unpickling a plan after this imports nothing more of ours or of SciPy's."""
+    import matplotlib.backends.backend_agg
+    import matplotlib.figure  # noqa: F401
+
+    import rfsw_plan.planfiles.tradeoff_plot
+    import rfsw_plan.planning.result
+    import rfsw_plan.timing  # noqa: F401
+
+
 def _draw_in_child(conn: Any, parents_end: Any, jobs: Any, parents_jobs: Any,
                    job: tuple[Path, PlanResult] | None) -> None:
     """The forked child of :class:`PlotDrawing`: draw in memory, send (name, bytes) pairs
@@ -405,11 +422,7 @@ def _draw_in_child(conn: Any, parents_end: Any, jobs: Any, parents_jobs: Any,
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     OutputLock.close_inherited()
     if job is None:
-        import matplotlib.backends.backend_agg
-        import matplotlib.figure  # noqa: F401
-
-        import rfsw_plan.planfiles.tradeoff_plot  # noqa: F401
-
+        import_for_drawing()
         try:
             job = jobs.recv()
         except (EOFError, OSError):  # the parent planned nothing to draw, or is gone
