@@ -1,28 +1,32 @@
 """Independent jobs shared with forked processes on the machine's cores.
 
-:func:`fork_map` runs ``task(0) ... task(n - 1)`` and returns the results in order: the jobs
-are dealt out (every p-th) to ``p - 1`` forked workers and this process, which takes the
-first share itself. The workers inherit ``task`` and everything it reads through ``fork``
-(nothing is pickled on the way in); their results come back pickled. Each job is the same
-computation wherever it runs, so the results do not depend on the split, and one job is
-never split.
+:func:`fork_map` runs ``task(0) ... task(n - 1)`` and returns the results in order. This
+process and ``p - 1`` forked workers each take the next job not yet taken, in the order the
+caller gives (the longest first balances the cores), until none is left. The workers inherit
+``task`` and everything it reads through ``fork`` (nothing is pickled on the way in); their
+results come back pickled. Each job is the same computation wherever it runs, so the results
+do not depend on the split, and one job is never split.
+
+A failed job does not stop the others. Once every job has run, the first failed job by index
+is run again here and its exception raised as itself (an exception with several arguments
+does not always survive the pipe): which error a caller sees does not depend on which process
+ran which job, or on the order they were started in.
 
 Where a process cannot be forked (no ``fork`` on the platform, a daemonic process, no
-process to spare) or there is one core or one job, the jobs run here, one after the other. A
-job that fails in a worker is run again here, so its exception is raised as itself (an
-exception with several arguments does not always survive the pipe).
+process to spare) or there is one core or one job, the jobs run here, one after the other.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-#: The task the forked workers run (set for the length of one :func:`fork_map`).
-_TASK: list[Callable[[int], Any]] = []
+#: The task the forked workers run, its start order, the shared count of jobs taken and the
+#: calling process (set for the length of one :func:`fork_map`).
+_SHARED: list[tuple[Callable[[int], Any], list[int], Any, int]] = []
 
 
 def cores() -> int:
@@ -39,7 +43,8 @@ def can_fork() -> bool:
             and not multiprocessing.current_process().daemon)
 
 
-def fork_map(task: Callable[[int], T], n: int, processes: int | None = None) -> list[T]:
+def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
+             order: Sequence[int] | None = None) -> list[T]:
     """``[task(0), ..., task(n - 1)]``, the jobs shared with forked workers (module
     docstring).
 
@@ -47,43 +52,73 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None) -> 
         task: One job by its index; its result must pickle.
         n: The number of jobs.
         processes: Processes in all, this one included (default: :func:`cores`).
+        order: The order the jobs are started in, a permutation of ``range(n)`` (default:
+            by index). It changes neither the results nor which failure is raised.
     """
+    start = list(range(n)) if order is None else [int(i) for i in order]
+    if sorted(start) != list(range(n)):
+        raise ValueError(f"order must be a permutation of range({n}), got {start}")
     p = min(cores() if processes is None else processes, n)
     if p <= 1 or not can_fork():
-        return [task(i) for i in range(n)]
+        return _in_order(task, {i: _run(task, i) for i in start}, n)
     import multiprocessing
 
-    _TASK.append(task)
+    ctx = multiprocessing.get_context("fork")
+    _SHARED.append((task, start, ctx.Value("i", 0), os.getpid()))
     try:
-        with multiprocessing.get_context("fork").Pool(p - 1, worker_signals) as pool:
-            pending = {i: pool.apply_async(_job, (i,)) for i in range(n) if i % p}
-            mine = {i: task(i) for i in range(0, n, p)}
-            theirs = {i: r.get() for i, r in pending.items()}
+        with ctx.Pool(p - 1, worker_signals) as pool:
+            pending = [pool.apply_async(_drain) for _ in range(p - 1)]
+            done = _drain()
+            for r in pending:
+                done.update(r.get())
             pool.close()
             pool.join()
     except OSError:  # no process to spare
         return [task(i) for i in range(n)]
     finally:
-        _TASK.clear()
-    out: list[T] = []
-    for i in range(n):
-        if i in mine:
-            out.append(mine[i])
-            continue
-        ok, value = theirs[i]
-        out.append(value if ok else task(i))  # a failed job raises here, as itself
-    return out
+        _SHARED.clear()
+    return _in_order(task, done, n)
 
 
-def _job(i: int) -> tuple[bool, Any]:
-    """Worker: job ``i`` of the inherited task, (True, its result) or (False, None)."""
-    from rfsw_plan.progress import set_enabled
-
-    set_enabled(False)
+def _run(task: Callable[[int], Any], i: int) -> tuple[bool, Any]:
+    """Job ``i``: (True, its result) or (False, the exception it raised)."""
     try:
-        return True, _TASK[-1](i)
-    except Exception:  # raised again in the parent, where it is the caller's
-        return False, None
+        return True, task(i)
+    except Exception as exc:  # raised by _in_order, in index order
+        return False, exc
+
+
+def _in_order(task: Callable[[int], T], done: dict[int, tuple[bool, Any]], n: int) -> list[T]:
+    """The results by index. The first failed job (by index) raises: its exception if it ran
+    here, else it is run again here (a worker's exception does not come back)."""
+    for i in range(n):
+        ok, value = done[i]
+        if not ok:
+            if isinstance(value, Exception):
+                raise value
+            task(i)  # raises as itself
+            raise RuntimeError(f"job {i} failed in a worker but not here")  # pragma: no cover
+    return [done[i][1] for i in range(n)]
+
+
+def _drain() -> dict[int, tuple[bool, Any]]:
+    """Take the next job not yet taken until none is left (in this process or a worker);
+    the jobs run and their outcomes by index."""
+    task, start, taken, caller = _SHARED[-1]
+    worker = os.getpid() != caller
+    if worker:  # the caller's progress bar is not a worker's to draw
+        from rfsw_plan.progress import set_enabled
+
+        set_enabled(False)
+    done: dict[int, tuple[bool, Any]] = {}
+    while True:
+        with taken.get_lock():
+            k = taken.value
+            taken.value = k + 1
+        if k >= len(start):
+            return done
+        ok, value = _run(task, start[k])
+        done[start[k]] = (ok, None if worker and not ok else value)
 
 
 def worker_signals() -> None:

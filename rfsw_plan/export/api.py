@@ -267,16 +267,12 @@ def export_programs(
     deflection = np.asarray(model.process_deflection(samples.q, samples.wrench, ref))
     pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
-    with Stages("export", ("points", *fmts)) as stages:
+    with Stages("export", ("points", "programs written and judged")) as stages:
         programs = _programs_per_cycle(fmts, lambda c: build_program(
             robot, samples, header, path_tol, normal=normal, payload=model.tool_payload(),
             options=options, stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=c))
         lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
         program = programs[lead]
-        deviation = _path_deviation(programs, fmts, path_tol)
-        out.mkdir(parents=True, exist_ok=True)
-        for old in out.glob(".export-*"):  # staging folders of versions that staged in `out`
-            shutil.rmtree(old, ignore_errors=True)
         try:
             stage = Path(tempfile.mkdtemp(prefix="rfsw-plan-export-"))
         except OSError as exc:  # a full or read-only temporary directory: one line, exit 2
@@ -284,7 +280,12 @@ def export_programs(
                                   f"cannot stage the programs ({exc.strerror}); set TMPDIR to "
                                   "a writable folder") from None
         try:
-            staged, trips, held = _write_all(programs, fmts, stage, check, stages, basis)
+            stages.start("programs written and judged")
+            staged, trips, held, deviation = _write_all(programs, fmts, stage, check, basis,
+                                                        path_tol)
+            out.mkdir(parents=True, exist_ok=True)
+            for old in out.glob(".export-*"):  # staging folders of versions that staged there
+                shutil.rmtree(old, ignore_errors=True)
             for f in staged:
                 _refuse_collision(out / f.name, problem)
             final = [write_bytes(out / f.name, f.read_bytes()) for f in staged]
@@ -297,31 +298,22 @@ def export_programs(
                         len(trips[lead].q), held, program.header.tolerated_uncertainty)
 
 
-def _path_deviation(programs: Mapping[str, Program], fmts: Sequence[str], path_tol: float
+def _path_deviation(name: str, fmt: ControllerFormat, program: Program, path_tol: float
                     ) -> float:
-    """The largest bound of a verified sample's distance to the path any format's controller
-    runs, each format's rounding at the points [m] (formats of one program and one bound
-    model, KRL and RAPID, bound it once).
+    """The largest bound of a verified sample's distance to the path the format's controller
+    runs, its rounding at the points [m].
 
     Raises:
-        InfeasibleError: A format's path leaves a sample by more than ``path_tol``.
+        InfeasibleError: The path leaves a sample by more than ``path_tol``.
     """
-    deviation = 0.0
-    bounds: dict[tuple[Any, int], np.ndarray] = {}
-    for name in fmts:  # each format's rounding at the points, bounded sample by sample
-        fmt = get_format(name)
-        key = (type(fmt).path_deviation, id(programs[name]))
-        if key not in bounds:
-            bounds[key] = fmt.path_deviation(programs[name])
-        dev = bounds[key]
-        k = int(np.argmax(dev))
-        deviation = max(deviation, float(dev[k]))
-        if dev[k] > path_tol * (1 + 1e-9):
-            raise InfeasibleError(
-                f"{name}: programmed path leaves verified sample {k} by "
-                f"{dev[k] * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)", None,
-                "path_tolerance", path_tol - float(dev[k]))
-    return deviation
+    dev = fmt.path_deviation(program)
+    k = int(np.argmax(dev))
+    if dev[k] > path_tol * (1 + 1e-9):
+        raise InfeasibleError(
+            f"{name}: programmed path leaves verified sample {k} by "
+            f"{dev[k] * 1e3:.4f} mm (tolerance {path_tol * 1e3:g} mm)", None,
+            "path_tolerance", path_tol - float(dev[k]))
+    return float(dev[k])
 
 
 def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
@@ -360,42 +352,55 @@ def _refuse_collision(path: Path, problem: str) -> None:
 
 
 def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path,
-               check: SampleCheck | None, stages: Stages, basis: PlanBasis | None,
-               ) -> tuple[list[Path], dict[str, RoundTrip], dict[str, tuple[float, str]]]:
-    """Write every format's program into ``stage``, re-read it, take it through the model
-    and (with ``basis``) judge it as its controller runs it: the judgements, independent and
-    the costliest part, shared with forked processes on the machine's cores
-    (:func:`rfsw_plan.parallel.fork_map`; the same computations wherever they run, so the
-    same files), then each claim settled in the order of ``fmts``."""
+               check: SampleCheck | None, basis: PlanBasis | None, path_tol: float
+               ) -> tuple[list[Path], dict[str, RoundTrip], dict[str, tuple[float, str]], float]:
+    """Per format: bound its path deviation (:func:`_path_deviation`), write its program into
+    ``stage``, re-read it, take it through the model and (with ``basis``) judge it as its
+    controller runs it.
+
+    The formats are independent: they are shared with forked processes on the machine's cores
+    (:func:`rfsw_plan.parallel.fork_map`, the row-per-cycle formats first, the longest), the
+    same computations wherever they run, so the same files. A failure is raised as the serial
+    order raises it: the first format in the order of ``fmts`` that fails, its path first.
+    Then each claim is settled in the order of ``fmts``.
+
+    Returns:
+        The staged files, the round trips and the levels held as run by format name, and the
+        largest path deviation [m].
+    """
     from rfsw_plan.parallel import fork_map
 
-    written: dict[str, tuple[list[Path], ReadProgram, RoundTrip]] = {}
-    for name in fmts:
-        stages.start(name)
-        written[name] = _write_read(get_format(name), programs[name], stage, check)
-    judged = [n for n in fmts if basis is not None
-              and (get_format(n).cycle > 0 or get_format(n).runs_rows)]
+    judged = {n for n in fmts if basis is not None
+              and (get_format(n).cycle > 0 or get_format(n).runs_rows)}
     if judged:
         assert basis is not None
         basis.surface()  # computed once, before the workers inherit the memo
 
-    def judge(i: int) -> CheckResult:
-        name = judged[i]
-        files, read, trip = written[name]
+    def job(i: int) -> tuple[float, list[Path], ReadProgram, RoundTrip, CheckResult | None]:
+        name = fmts[i]
         fmt, program = get_format(name), programs[name]
-        solved = (fmt.expected(program).q, trip.q)
+        dev = _path_deviation(name, fmt, program, path_tol)
+        files, read, trip = _write_read(fmt, program, stage, check)
+        if name not in judged:
+            return dev, files, read, trip, None
         assert basis is not None
-        return judge_program(files[0], stage, read, replace(basis, work=program.work),
-                             solved=solved)
+        return dev, files, read, trip, judge_program(files[0], stage, read,
+                                                     replace(basis, work=program.work),
+                                                     solved=(fmt.expected(program).q, trip.q))
 
+    done = fork_map(job, len(fmts), order=sorted(range(len(fmts)),
+                                                 key=lambda i: not get_format(fmts[i]).runs_rows))
+    written = {name: d[1:4] for name, d in zip(fmts, done, strict=True)}
     held: dict[str, tuple[float, str]] = {}
-    for name, res in zip(judged, fork_map(judge, len(judged)), strict=True):
+    for name, (*_, res) in zip(fmts, done, strict=True):
+        if res is None:
+            continue
         fmt = get_format(name)
         held[name], restated = _settled(name, fmt, programs[name], res)
         if restated is not None:  # the same moves, the header states the level as run
             written[name] = _write_read(fmt, restated, stage, check)
     staged = [f for name in fmts for f in written[name][0]]
-    return staged, {name: written[name][2] for name in fmts}, held
+    return staged, {name: written[name][2] for name in fmts}, held, max(d[0] for d in done)
 
 
 def _write_read(fmt: ControllerFormat, program: Program, stage: Path,

@@ -108,6 +108,11 @@ class ReadProgram:
         return [m for m in self.motions if m.kind != "wait"]
 
 
+#: The last programs bounded by the default :meth:`ControllerFormat.path_deviation` and their
+#: bounds (by identity: a program is frozen).
+_BOUNDS: list[tuple[Program, FloatArray]] = []
+
+
 class ControllerFormat(abc.ABC):
     """One controller language (see the module docstring).
 
@@ -186,10 +191,16 @@ class ControllerFormat(abc.ABC):
         """Bound of every verified sample's distance to the path the controller runs with
         this format's rounding at the points [m], (N,) (default: the vendor-neutral blend
         model, :func:`rfsw_plan.export.program.path_deviation`); export refuses a program
-        whose bound exceeds the path tolerance."""
+        whose bound exceeds the path tolerance. Formats of one program (KRL and RAPID share
+        their cycle's) bound it once in a process."""
         from rfsw_plan.export.program import path_deviation
 
-        return path_deviation(program)
+        for src, bound in _BOUNDS:
+            if src is program:
+                return bound.copy()
+        bound = path_deviation(program)
+        _BOUNDS[:] = [*_BOUNDS[-3:], (program, bound)]
+        return bound.copy()
 
     def expected(self, program: Program) -> Samples:
         """The plan samples the re-read points must reproduce, in order (default: the
