@@ -27,7 +27,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from rfsw_plan.exceptions import OutputPathError
+from rfsw_plan.exceptions import InputError, OutputPathError
 
 __all__ = [
     "LOCK_NAME",
@@ -310,6 +310,19 @@ def figures_in_memory() -> Iterator[dict[Path, bytes]]:
         yield _figures
     finally:
         _figures = before
+
+
+def read_utf8(path: str | Path, expected: str) -> str:
+    """The text of a file we write as UTF-8 and read back (a program, a stream).
+
+    Raises:
+        InputError: Bytes that are not UTF-8 (a file saved in another encoding, on a pendant
+            or an editor), named by their offset; ``expected`` says what the file should be.
+    """
+    try:
+        return Path(path).read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(path, f"byte {exc.start}", "not UTF-8 text", expected) from None
 
 
 def write_text(target: str | Path, text: str) -> Path:

@@ -925,3 +925,52 @@ def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path:
         assert main(["check", str(path)]) == 2, edit.__name__
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and want in err and path.name in err, err
+    path = _edited_stream(out, tmp_path / "latin1", lambda head, rows: None)
+    data = path.read_bytes()
+    at = data.index(b"weld")
+    path.write_bytes(data[:at] + b"w\xe9ld" + data[at + 4:])  # Latin-1, not UTF-8
+    capsys.readouterr()
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"byte {at + 1}: not UTF-8 text" in err, err
+
+
+@pytest.mark.parametrize("edited", [".src", ".dat", ".ls", ".mod"])
+def test_a_program_saved_in_another_encoding_is_refused_in_one_line(
+        plan_with_programs, tmp_path: Path, capsys, edited: str) -> None:
+    """A program file whose bytes are not UTF-8 (an accented remark saved as Latin-1 on a
+    pendant or in an editor) is named with the byte's offset (exit 2), not a traceback."""
+    import shutil
+
+    out, _ = plan_with_programs("zk500_table6_seam")
+    folder = tmp_path / "plan"
+    shutil.copytree(out, folder)
+    path = next(p for p in folder.iterdir() if p.suffix == edited)
+    data = path.read_bytes()
+    path.write_bytes(data[:40] + b"\xe9" + data[41:])
+    program = path.with_suffix(".src") if edited == ".dat" else path
+    capsys.readouterr()
+    assert main(["check", str(program)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"{path.name}: byte 40: not UTF-8 text" in err, err
+
+
+def test_a_stream_read_again_is_the_rows_read_first(plan_with_programs, tmp_path: Path) -> None:
+    """The same bytes give the rows read the first time (read-only: no reader changes them
+    for another); other bytes are read anew."""
+    import shutil
+
+    from rfsw_plan.export.stream import read_stream
+
+    out, _ = plan_with_programs("zk500_table6_seam")
+    path = tmp_path / "a_stream.csv"
+    shutil.copy(_file(out, "stream"), path)
+    first = read_stream(path)
+    assert read_stream(path) is first
+    with pytest.raises(ValueError, match="read-only"):
+        first.q[0, 0] = 0.0
+    edited = path.read_text().replace("weld", "dwell", 1)
+    path.write_text(edited)
+    again = read_stream(path)
+    assert again is not first and list(again.phase).count("dwell") == (
+        list(first.phase).count("dwell") + 1)
