@@ -24,9 +24,9 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-#: The task the forked workers run, its start order, the shared count of jobs taken and the
-#: calling process (set for the length of one :func:`fork_map`).
-_SHARED: list[tuple[Callable[[int], Any], list[int], Any, int]] = []
+#: The task the forked workers run, its start order, the shared count of jobs taken, the
+#: calling process and its ``on_done`` (set for the length of one :func:`fork_map`).
+_SHARED: list[tuple[Callable[[int], Any], list[int], Any, int, Any]] = []
 
 
 def cores() -> int:
@@ -44,7 +44,8 @@ def can_fork() -> bool:
 
 
 def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
-             order: Sequence[int] | None = None) -> list[T]:
+             order: Sequence[int] | None = None,
+             on_done: Callable[[int], object] | None = None) -> list[T]:
     """``[task(0), ..., task(n - 1)]``, the jobs shared with forked workers (module
     docstring).
 
@@ -54,23 +55,34 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
         processes: Processes in all, this one included (default: :func:`cores`).
         order: The order the jobs are started in, a permutation of ``range(n)`` (default:
             by index). It changes neither the results nor which failure is raised.
+        on_done: Called in this process with a job's index once it has run: at once for
+            the jobs run here, once the workers are done for theirs (a progress bar).
     """
     start = list(range(n)) if order is None else [int(i) for i in order]
     if sorted(start) != list(range(n)):
         raise ValueError(f"order must be a permutation of range({n}), got {start}")
     p = min(cores() if processes is None else processes, n)
     if p <= 1 or not can_fork():
-        return _in_order(task, {i: _run(task, i) for i in start}, n)
+        done = {}
+        for i in start:
+            done[i] = _run(task, i)
+            if on_done is not None:
+                on_done(i)
+        return _in_order(task, done, n)
     import multiprocessing
 
     ctx = multiprocessing.get_context("fork")
-    _SHARED.append((task, start, ctx.Value("i", 0), os.getpid()))
+    _SHARED.append((task, start, ctx.Value("i", 0), os.getpid(), on_done))
     try:
         with ctx.Pool(p - 1, worker_signals) as pool:
             pending = [pool.apply_async(_drain) for _ in range(p - 1)]
             done = _drain()
             for r in pending:
-                done.update(r.get())
+                theirs = r.get()
+                done.update(theirs)
+                if on_done is not None:
+                    for i in theirs:
+                        on_done(i)
             pool.close()
             pool.join()
     except OSError:  # no process to spare
@@ -104,7 +116,7 @@ def _in_order(task: Callable[[int], T], done: dict[int, tuple[bool, Any]], n: in
 def _drain() -> dict[int, tuple[bool, Any]]:
     """Take the next job not yet taken until none is left (in this process or a worker);
     the jobs run and their outcomes by index."""
-    task, start, taken, caller = _SHARED[-1]
+    task, start, taken, caller, on_done = _SHARED[-1]
     worker = os.getpid() != caller
     if worker:  # the caller's progress bar is not a worker's to draw
         from rfsw_plan.progress import set_enabled
@@ -119,6 +131,8 @@ def _drain() -> dict[int, tuple[bool, Any]]:
             return done
         ok, value = _run(task, start[k])
         done[start[k]] = (ok, None if worker and not ok else value)
+        if not worker and on_done is not None:
+            on_done(start[k])
 
 
 def worker_signals() -> None:

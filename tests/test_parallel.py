@@ -71,3 +71,11 @@ def test_a_free_process_takes_the_next_job() -> None:
     pids = parallel.fork_map(task, 5, processes=2)
     assert pids[0] != -1, "job 0 waited for jobs nobody took"
     assert len(set(pids[1:])) == 1 and pids[1] != pids[0]
+
+
+@pytest.mark.parametrize("processes", [1, 2])
+def test_on_done_hears_of_every_job_once_in_this_process(processes: int) -> None:
+    heard: list[tuple[int, int]] = []
+    parallel.fork_map(lambda i: i, 6, processes, on_done=lambda i: heard.append((i, os.getpid())))
+    assert sorted(i for i, _ in heard) == list(range(6))
+    assert {pid for _, pid in heard} == {os.getpid()}

@@ -160,79 +160,42 @@ CANDIDATE_PROCESSES = 2
 PARALLEL_MIN_OBS = 1500
 
 _Fitted = tuple[CrossValidation | None, Skipped | None]
-#: What a forked worker of :func:`_fit_all` fits (inherited through fork, never pickled).
-_JOB: dict[str, Any] = {}
 
 
 def _processes(data: MeasurementSet, n_labels: int) -> int:
-    """Processes for a round of ``n_labels`` candidates on ``data``: CANDIDATE_PROCESSES on a
-    POSIX machine with as many cores (fork), else 1."""
-    import multiprocessing
-    import os
+    """Processes for a round of ``n_labels`` candidates on ``data``: CANDIDATE_PROCESSES (at
+    most the cores, :func:`rfsw_plan.parallel.cores`), or 1 for a short round."""
+    from rfsw_plan.parallel import cores
 
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-    if ("fork" not in multiprocessing.get_all_start_methods() or n_labels < 4
-            or int(data.measured.sum()) < PARALLEL_MIN_OBS):
+    if n_labels < 4 or int(data.measured.sum()) < PARALLEL_MIN_OBS:
         return 1
-    return max(1, min(CANDIDATE_PROCESSES, cores))
-
-
-def _fit_chunk(labels: Sequence[str]) -> list[_Fitted]:
-    """Worker: fit ``labels`` on the job inherited from the parent; picklable results."""
-    from rfsw_plan.progress import set_enabled
-    from rfsw_plan.validation.engine.crossval import detach
-
-    set_enabled(False)
-    model, data, folds, batch, F_true, fit_steps = (
-        _JOB[k] for k in ("model", "data", "folds", "batch", "F_true", "fit_steps"))
-    out: list[_Fitted] = []
-    for label in labels:
-        cv, why = _fitted(model, data, folds, label, batch, F_true, fit_steps)
-        out.append((None if cv is None else detach(cv), why))
-    return out
+    return max(1, min(CANDIDATE_PROCESSES, cores()))
 
 
 def _fit_all(model: ElastostaticModel, data: MeasurementSet, folds: NDArray[np.int_],
              labels: Sequence[str], batch: PoseBatch, F_true: FloatArray, fit_steps: int | None
              ) -> list[_Fitted]:
-    """:func:`_fitted` of every label, in order. With :func:`_processes` > 1 the labels are
-    dealt out (every n-th) to forked processes that inherit the data; each candidate's fit is
-    the same computation wherever it runs, so the results do not depend on the split."""
+    """:func:`_fitted` of every label, in order. With :func:`_processes` > 1 the candidates
+    are shared with forked processes that inherit the data, a free process taking the next
+    (:func:`rfsw_plan.parallel.fork_map`); each candidate's fit is the same computation
+    wherever it runs, so the results do not depend on the split. A fit comes back without its
+    lazily evaluated residual (:func:`~rfsw_plan.validation.engine.crossval.detach`: it
+    pickles) and gets it again here (``attach``)."""
+    from rfsw_plan.parallel import fork_map
+    from rfsw_plan.validation.engine.crossval import attach, detach
 
     n = _processes(data, len(labels))
+
+    def fit(i: int) -> _Fitted:
+        cv, why = _fitted(model, data, folds, labels[i], batch, F_true, fit_steps)
+        return (cv if n == 1 or cv is None else detach(cv)), why
+
     with Bar(len(labels), "diagnosis: candidates", "candidate") as bar:
-        if n == 1:
-            out = []
-            for label in labels:
-                out.append(_fitted(model, data, folds, label, batch, F_true, fit_steps))
-                bar.update()
-            return out
-        import multiprocessing
-
-        from rfsw_plan.parallel import worker_signals
-        from rfsw_plan.validation.engine.crossval import attach
-
-        chunks = [list(labels[i::n]) for i in range(n)]
-        _JOB.update(model=model, data=data, folds=folds, batch=batch, F_true=F_true,
-                    fit_steps=fit_steps)
-        try:
-            with multiprocessing.get_context("fork").Pool(n - 1, worker_signals) as pool:
-                pending = [pool.apply_async(_fit_chunk, (c,)) for c in chunks[1:]]
-                mine = []
-                for label in chunks[0]:
-                    mine.append(_fitted(model, data, folds, label, batch, F_true, fit_steps))
-                    bar.update()
-                theirs = [p.get() for p in pending]
-                pool.close()
-                pool.join()
-        finally:
-            _JOB.clear()
-        bar.update(len(labels) - len(chunks[0]))
-    got = dict(zip(chunks[0], mine, strict=True))
-    for c, res in zip(chunks[1:], theirs, strict=True):
-        for label, (cv, why) in zip(c, res, strict=True):
-            got[label] = (None if cv is None else attach(cv, data, batch, folds), why)
-    return [got[label] for label in labels]
+        fitted = fork_map(fit, len(labels), n, on_done=lambda _: bar.update())
+    if n == 1:
+        return fitted
+    return [(None if cv is None else attach(cv, data, batch, folds), why)
+            for cv, why in fitted]
 
 
 def _score(model: ElastostaticModel, label: str, before: CrossValidation,
