@@ -268,11 +268,11 @@ def export_programs(
     pin = sample_fk(robot, samples.q)[:, :3, 3] + deflection[:, :3]
     header = _program_header(robot, record, problem, plan_sha256, path_tol, spacing, depth)
     with Stages("export", ("points", "programs written and judged")) as stages:
-        programs = _programs_per_cycle(fmts, lambda c: build_program(
+        programs = ProgramsPerCycle(lambda c: build_program(
             robot, samples, header, path_tol, normal=normal, payload=model.tool_payload(),
             options=options, stream=stream, cycle=cycle, depth=depth, pin=pin, min_move=c))
         lead = next((n for n in fmts if get_format(n).cycle > 0), fmts[0])
-        program = programs[lead]
+        program = programs[lead]  # here, before the formats' jobs fork: theirs if they share it
         try:
             stage = Path(tempfile.mkdtemp(prefix="rfsw-plan-export-"))
         except OSError as exc:  # a full or read-only temporary directory: one line, exit 2
@@ -316,19 +316,21 @@ def _path_deviation(name: str, fmt: ControllerFormat, program: Program, path_tol
     return float(dev[k])
 
 
-def _programs_per_cycle(fmts: Sequence[str], build: Callable[[float], Program]
-                        ) -> dict[str, Program]:
+class ProgramsPerCycle:
     """Per format, its program: ``build(cycle)`` once per interpolation cycle
-    (:attr:`ControllerFormat.cycle`), so no move or wait of a format's file is shorter than
-    its controller's cycle and a file does not depend on the other formats written."""
-    built: dict[float, Program] = {}
-    out: dict[str, Program] = {}
-    for name in fmts:
+    (:attr:`ControllerFormat.cycle`) in a process, on first use, so no move or wait of a
+    format's file is shorter than its controller's cycle and a file does not depend on the
+    other formats written. ``programs[name]`` is the program of format ``name``."""
+
+    def __init__(self, build: Callable[[float], Program]) -> None:
+        self._build = build
+        self._built: dict[float, Program] = {}
+
+    def __getitem__(self, name: str) -> Program:
         c = get_format(name).cycle
-        if c not in built:
-            built[c] = build(c)
-        out[name] = built[c]
-    return out
+        if c not in self._built:
+            self._built[c] = self._build(c)
+        return self._built[c]
 
 
 def _refuse_collision(path: Path, problem: str) -> None:
@@ -351,16 +353,16 @@ def _refuse_collision(path: Path, problem: str) -> None:
             return
 
 
-def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path,
+def _write_all(programs: ProgramsPerCycle, fmts: Sequence[str], stage: Path,
                check: SampleCheck | None, basis: PlanBasis | None, path_tol: float
                ) -> tuple[list[Path], dict[str, RoundTrip], dict[str, tuple[float, str]], float]:
-    """Per format: bound its path deviation (:func:`_path_deviation`), write its program into
-    ``stage``, re-read it, take it through the model and (with ``basis``) judge it as its
-    controller runs it.
+    """Per format: build its program (unless this process has, ``programs``), bound its path
+    deviation (:func:`_path_deviation`), write it into ``stage``, re-read it, take it through
+    the model and (with ``basis``) judge it as its controller runs it.
 
     The formats are independent: they are shared with forked processes on the machine's cores
-    (:func:`rfsw_plan.parallel.fork_map`, the row-per-cycle formats first, the longest), the
-    same computations wherever they run, so the same files. A failure is raised as the serial
+    (:func:`rfsw_plan.parallel.fork_map`, the shortest controller cycle first), the same
+    computations wherever they run, so the same files. A failure is raised as the serial
     order raises it: the first format in the order of ``fmts`` that fails, its path first.
     Then each claim is settled in the order of ``fmts``.
 
@@ -376,29 +378,34 @@ def _write_all(programs: Mapping[str, Program], fmts: Sequence[str], stage: Path
         assert basis is not None
         basis.surface()  # computed once, before the workers inherit the memo
 
-    def job(i: int) -> tuple[float, list[Path], ReadProgram, RoundTrip, CheckResult | None]:
+    def job(i: int) -> tuple[float, list[Path], ReadProgram, RoundTrip, CheckResult | None,
+                             ProgramHeader]:
         name = fmts[i]
         fmt, program = get_format(name), programs[name]
         dev = _path_deviation(name, fmt, program, path_tol)
         files, read, trip = _write_read(fmt, program, stage, check)
         if name not in judged:
-            return dev, files, read, trip, None
+            return dev, files, read, trip, None, program.header
         assert basis is not None
         return dev, files, read, trip, judge_program(files[0], stage, read,
                                                      replace(basis, work=program.work),
-                                                     solved=(fmt.expected(program).q, trip.q))
+                                                     solved=(fmt.expected(program).q, trip.q)
+                                                     ), program.header
 
+    # The shortest controller cycle first (the stream's rows, then the TP's 8 ms): the most
+    # points or rows, the longest jobs.
     done = fork_map(job, len(fmts), order=sorted(range(len(fmts)),
-                                                 key=lambda i: not get_format(fmts[i]).runs_rows))
+                                                 key=lambda i: get_format(fmts[i]).cycle))
     written = {name: d[1:4] for name, d in zip(fmts, done, strict=True)}
     held: dict[str, tuple[float, str]] = {}
-    for name, (*_, res) in zip(fmts, done, strict=True):
+    for name, (*_, res, header) in zip(fmts, done, strict=True):
         if res is None:
             continue
         fmt = get_format(name)
-        held[name], restated = _settled(name, fmt, programs[name], res)
+        held[name], restated = _settled(name, fmt, header, res)
         if restated is not None:  # the same moves, the header states the level as run
-            written[name] = _write_read(fmt, restated, stage, check)
+            written[name] = _write_read(fmt, replace(programs[name], header=restated), stage,
+                                        check)
     staged = [f for name in fmts for f in written[name][0]]
     return staged, {name: written[name][2] for name in fmts}, held, max(d[0] for d in done)
 
@@ -419,11 +426,12 @@ def _write_read(fmt: ControllerFormat, program: Program, stage: Path,
     return files, read, trip
 
 
-def _settled(name: str, fmt: ControllerFormat, program: Program, res: CheckResult
-             ) -> tuple[tuple[float, str], Program | None]:
-    """The force uncertainty a staged program holds as its controller runs it (``res``, its
-    judgement), and the program to write again with that level in its header (None: it holds
-    the plan's, or it has no header: the stream's level is recorded in ``plan.json``).
+def _settled(name: str, fmt: ControllerFormat, header: ProgramHeader, res: CheckResult
+             ) -> tuple[tuple[float, str], ProgramHeader | None]:
+    """The force uncertainty a staged program (its ``header``) holds as its controller runs it
+    (``res``, its judgement), and the header to write it again with, stating that level (None:
+    it holds the plan's, or it has no header: the stream's level is recorded in
+    ``plan.json``).
 
     Raises:
         InfeasibleError: The program as run breaks the weld envelope, a hook's rule or the
@@ -435,7 +443,6 @@ def _settled(name: str, fmt: ControllerFormat, program: Program, res: CheckResul
     u, by = res.held
     if res.failure != "claim":
         return res.held, None
-    header = program.header
     requested = header.requested_uncertainty
     how = ("its rows as the real-time interface sends them, one per cycle" if fmt.runs_rows
            else f"{1e3 * fmt.cycle:g} ms interpolation cycle")
@@ -449,9 +456,8 @@ def _settled(name: str, fmt: ControllerFormat, program: Program, res: CheckResul
                               "claim", u - requested)
     if fmt.runs_rows:  # no header to state it in: plan.json's export.held_as_run records it
         return res.held, None
-    return res.held, replace(program, header=replace(
-        header, tolerated_uncertainty=u, plan_tolerated=header.tolerated_uncertainty,
-        held_by=by))
+    return res.held, replace(header, tolerated_uncertainty=u,
+                             plan_tolerated=header.tolerated_uncertainty, held_by=by)
 
 
 def export_plan_folder(
