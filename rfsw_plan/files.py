@@ -27,7 +27,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from rfsw_plan.exceptions import InputError, OutputPathError
+from rfsw_plan.exceptions import OutputPathError
 
 __all__ = [
     "LOCK_NAME",
@@ -312,17 +312,25 @@ def figures_in_memory() -> Iterator[dict[Path, bytes]]:
         _figures = before
 
 
-def read_utf8(path: str | Path, expected: str) -> str:
-    """The text of a file we write as UTF-8 and read back (a program, a stream).
+def read_program_text(path: str | Path) -> str:
+    """The text of a controller program or stream file: UTF-8, as ``export`` writes it, else
+    each byte as Latin-1.
 
-    Raises:
-        InputError: Bytes that are not UTF-8 (a file saved in another encoding, on a pendant
-            or an editor), named by their offset; ``expected`` says what the file should be.
+    A program edited on a pendant or in an editor may come back with a remark in the
+    controller's or the editor's 8-bit code page (an accented word). Its statements are ASCII,
+    so only remarks and strings can hold such a byte, and Latin-1 reads every byte as one
+    character: the statements read as written. A byte inside a statement still fails that
+    statement's own parse, which names the line.
     """
+    return program_text(Path(path).read_bytes())
+
+
+def program_text(data: bytes) -> str:
+    """:func:`read_program_text` of a file's bytes."""
     try:
-        return Path(path).read_bytes().decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise InputError(path, f"byte {exc.start}", "not UTF-8 text", expected) from None
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
 
 
 def write_text(target: str | Path, text: str) -> Path:

@@ -905,7 +905,7 @@ def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path:
                                                    capsys) -> None:
     """A stream row ``check`` cannot read is named with the file, the row and what was
     expected (exit 2, no traceback): a cell that is not a number, a short row, a spindle
-    state other than 0 or 1."""
+    state other than 0 or 1, a phase the plan does not have (a cell saved in Latin-1)."""
     out, _ = plan_with_programs("zk500_table6_seam")
 
     def not_a_number(head, rows):
@@ -932,27 +932,52 @@ def test_a_malformed_stream_is_refused_in_one_line(plan_with_programs, tmp_path:
     capsys.readouterr()
     assert main(["check", str(path)]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"byte {at + 1}: not UTF-8 text" in err, err
+    assert len(err.splitlines()) == 1 and "phase = 'w\xe9ld'" in err, err
 
 
-@pytest.mark.parametrize("edited", [".src", ".dat", ".ls", ".mod"])
-def test_a_program_saved_in_another_encoding_is_refused_in_one_line(
-        plan_with_programs, tmp_path: Path, capsys, edited: str) -> None:
-    """A program file whose bytes are not UTF-8 (an accented remark saved as Latin-1 on a
-    pendant or in an editor) is named with the byte's offset (exit 2), not a traceback."""
+#: Where a pendant or an editor puts an accented remark (Latin-1 bytes, not UTF-8) in each
+#: program file: (suffix, the bytes after which, the bytes inserted; or replaced, for the TP).
+_LATIN1_REMARKS = [
+    (".src", b"( )\n", b"  ; ge\xe4ndert am Pendant\n"),
+    (".dat", b" PUBLIC\n", b"; ge\xe4ndert\n"),
+    (".mod", None, b"  ! modifi\xe9 au pupitre\n"),
+    (".ls", b'COMMENT\t\t= "zk500_table6_sea";', b'COMMENT\t\t= "zk500_table6_s\xe9a";'),
+]
+
+
+@pytest.mark.parametrize(("edited", "after", "text"), _LATIN1_REMARKS,
+                         ids=[s for s, _, _ in _LATIN1_REMARKS])
+def test_a_program_with_a_remark_in_latin1_is_judged_as_written(
+        plan_with_programs, tmp_path: Path, capsys, edited: str, after: bytes | None,
+        text: bytes) -> None:
+    """A program whose remark a pendant or an editor saved in an 8-bit code page (bytes that
+    are not UTF-8) reads as written: its statements are ASCII. ``check`` judges it like the
+    exported file (the same level), where it gave a UnicodeDecodeError traceback."""
+    import json
     import shutil
 
     out, _ = plan_with_programs("zk500_table6_seam")
     folder = tmp_path / "plan"
     shutil.copytree(out, folder)
     path = next(p for p in folder.iterdir() if p.suffix == edited)
-    data = path.read_bytes()
-    path.write_bytes(data[:40] + b"\xe9" + data[41:])
     program = path.with_suffix(".src") if edited == ".dat" else path
     capsys.readouterr()
-    assert main(["check", str(program)]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and f"{path.name}: byte 40: not UTF-8 text" in err, err
+    assert main(["check", "--json", str(program)]) == 0
+    before = json.loads(capsys.readouterr().out)
+    data = path.read_bytes()
+    if edited == ".ls":
+        assert after is not None and after in data
+        data = data.replace(after, text, 1)
+    else:
+        line = after if after is not None else data.split(b"\n", 1)[0] + b"\n"
+        at = data.index(line) + len(line)
+        data = data[:at] + text + data[at:]
+    path.write_bytes(data)
+    with pytest.raises(UnicodeDecodeError):
+        data.decode("utf-8")
+    assert main(["check", "--json", str(program)]) == 0
+    res = json.loads(capsys.readouterr().out)
+    assert res["holds"] and res["held_pct"] == before["held_pct"], res["line"]
 
 
 def test_a_stream_read_again_is_the_rows_read_first(plan_with_programs, tmp_path: Path) -> None:

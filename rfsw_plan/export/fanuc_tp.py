@@ -76,7 +76,7 @@ from rfsw_plan.export.program import (
     payload_assumed,
     speed_note,
 )
-from rfsw_plan.files import read_utf8, write_text
+from rfsw_plan.files import read_program_text, write_text
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -611,7 +611,7 @@ def _read_ls(p: Path) -> tuple[str, list[str]]:
     numbering checked."""
     if not p.is_file():
         raise InputError(p, "", "missing", "a TP program written by rfsw-plan export")
-    text = read_utf8(p, "a TP program written by rfsw-plan export (UTF-8)")
+    text = read_program_text(p)
     heads = [line.split()[0] for line in text.splitlines() if line.startswith("/")]
     if heads != ["/PROG", "/ATTR", "/MN", "/POS", "/END"]:
         raise InputError(p, "sections", f"got {heads}", "/PROG /ATTR /MN /POS /END in order")

@@ -43,7 +43,7 @@ from rfsw_plan.export.program import (
     payload_assumed,
     speed_note,
 )
-from rfsw_plan.files import read_utf8, write_text
+from rfsw_plan.files import read_program_text, write_text
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -378,7 +378,7 @@ def read_krl(src: str | Path) -> ReadProgram:
     dat = src.with_suffix(".dat")
     if not dat.is_file():
         raise InputError(dat, "", "missing beside the .src", "the program's .dat")
-    text = read_utf8(src, "a KRL .src written by rfsw-plan export (UTF-8)")
+    text = read_program_text(src)
     frames = {m.group(1).upper().lstrip("$").replace("_DATA", ""): _agg(m.group(2), str(src))
               for m in _FRAME_SET.finditer(text)}
     if set(frames) != {"TOOL", "BASE"}:
@@ -388,7 +388,7 @@ def read_krl(src: str | Path) -> ReadProgram:
     tool, base = (xyzabc_to_frame([frames[f].get(k, 0.0) for k in "XYZABC"])
                   for f in ("TOOL", "BASE"))
     decl = {m.group(2).upper(): (m.group(1).upper(), _agg(m.group(3), str(dat)))
-            for m in _DECL.finditer(read_utf8(dat, "the program's .dat (UTF-8)"))}
+            for m in _DECL.finditer(read_program_text(dat))}
     routines = _routines(text)
     if not routines:
         raise InputError(src, "DEF", "no routine", "DEF name( ) ... END")

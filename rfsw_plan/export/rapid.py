@@ -41,7 +41,7 @@ from rfsw_plan.export.config import abb_confdata, abb_confdatas
 from rfsw_plan.export.format import ControllerFormat, FormatLimits, ReadPoint, ReadProgram
 from rfsw_plan.export.krl import chunks
 from rfsw_plan.export.program import Program, controller_name, number, speed_note
-from rfsw_plan.files import read_utf8, write_text
+from rfsw_plan.files import read_program_text, write_text
 from rfsw_plan.robot.kinematics import Robot
 
 FloatArray = NDArray[np.float64]
@@ -301,7 +301,7 @@ def read_rapid(path: str | Path) -> ReadProgram:
     """Re-read a ``.mod``: tool, work object and every motion and wait (sub-procedures
     followed)."""
     p = Path(path)
-    text = read_utf8(p, "a RAPID module written by rfsw-plan export (UTF-8)")
+    text = read_program_text(p)
     t, w = _TOOL.search(text), _WOBJ.search(text)
     if t is None or w is None:
         raise InputError(p, "tooldata/wobjdata", "missing", "both declared")

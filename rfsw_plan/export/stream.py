@@ -41,8 +41,8 @@ from numpy.typing import NDArray
 
 from rfsw_plan.exceptions import InputError
 from rfsw_plan.export.format import ControllerFormat, ReadPoint, ReadProgram
-from rfsw_plan.export.program import Program, Samples, sample_fk
-from rfsw_plan.files import atomic_path, read_utf8
+from rfsw_plan.export.program import PHASES, Program, Samples, sample_fk
+from rfsw_plan.files import atomic_path, program_text
 from rfsw_plan.numfmt import fixed_many
 from rfsw_plan.robot.kinematics import Robot
 
@@ -197,8 +197,8 @@ def read_stream(path: str | Path) -> StreamRows:
     Raises:
         InputError: One line naming the file and the row or column: no rows, a missing
             ``t_s``, ``t_plan_s``, ``phase`` or joint column, a row of another length than
-            the header, a cell that is not a number, a ``spindle_on`` other than 0 or 1,
-            bytes that are not UTF-8.
+            the header, a cell that is not a number, a phase the plan does not have, a
+            ``spindle_on`` other than 0 or 1.
 
     The same bytes read again (export's round trip, then its judge; ``check``) are the rows
     read the first time (the last two files by their SHA-256), their arrays read-only.
@@ -208,7 +208,7 @@ def read_stream(path: str | Path) -> StreamRows:
     for seen, rows in _READ:  # export's round trip and its judge read the same file
         if seen == key:
             return rows
-    rows = _parse_stream(path, read_utf8(path, "a stream file (UTF-8)"))
+    rows = _parse_stream(path, program_text(raw))
     for a in (rows.t, rows.t_plan, rows.phase, rows.q, rows.spindle_on, rows.spindle_rpm,
               rows.state):
         if a is not None:  # shared by every reader of these bytes: nobody changes them
@@ -244,6 +244,11 @@ def _parse_stream(path: str | Path, text: str) -> StreamRows:
                            encoding=None)
     except ValueError:
         raise _first_bad_cell(path, head, lines, use) from None
+    odd = np.flatnonzero(~np.isin(phase, PHASES))
+    if odd.size:
+        k = int(odd[0])
+        raise InputError(path, f"row {k + 2}", f"phase = {str(phase[k])[:40]!r}",
+                         ", ".join(PHASES))
     n = len(joints)
     named = dict(zip(extra, data[:, 2 + n:].T, strict=True))
     return StreamRows(data[:, 0].copy(), data[:, 1].copy(), phase,
