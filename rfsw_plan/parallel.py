@@ -53,8 +53,9 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
         task: One job by its index; its result must pickle.
         n: The number of jobs.
         processes: Processes in all, this one included (default: :func:`cores`).
-        order: The order the jobs are started in, a permutation of ``range(n)`` (default:
-            by index). It changes neither the results nor which failure is raised.
+        order: The order the workers start the jobs in, a permutation of ``range(n)``
+            (default: by index; in one process they run by index). It changes neither the
+            results nor which failure is raised.
         on_done: Called in this process with a job's index once it has run: at once for
             the jobs run here, once the workers are done for theirs (a progress bar).
     """
@@ -63,12 +64,7 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
         raise ValueError(f"order must be a permutation of range({n}), got {start}")
     p = min(cores() if processes is None else processes, n)
     if p <= 1 or not can_fork():
-        done = {}
-        for i in start:
-            done[i] = _run(task, i)
-            if on_done is not None:
-                on_done(i)
-        return _in_order(task, done, n)
+        return _here(task, n, on_done)
     import multiprocessing
 
     ctx = multiprocessing.get_context("fork")
@@ -86,10 +82,22 @@ def fork_map(task: Callable[[int], T], n: int, processes: int | None = None,
             pool.close()
             pool.join()
     except OSError:  # no process to spare
-        return [task(i) for i in range(n)]
+        return _here(task, n, on_done)
     finally:
         _SHARED.clear()
     return _in_order(task, done, n)
+
+
+def _here(task: Callable[[int], T], n: int, on_done: Callable[[int], object] | None
+          ) -> list[T]:
+    """Every job in this process, by index (one process gains nothing from another order):
+    the first failure is the first failed job by index, raised at once."""
+    out: list[T] = []
+    for i in range(n):
+        out.append(task(i))
+        if on_done is not None:
+            on_done(i)
+    return out
 
 
 def _run(task: Callable[[int], Any], i: int) -> tuple[bool, Any]:

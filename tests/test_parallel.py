@@ -79,3 +79,19 @@ def test_on_done_hears_of_every_job_once_in_this_process(processes: int) -> None
     parallel.fork_map(lambda i: i, 6, processes, on_done=lambda i: heard.append((i, os.getpid())))
     assert sorted(i for i, _ in heard) == list(range(6))
     assert {pid for _, pid in heard} == {os.getpid()}
+
+
+def test_in_one_process_the_first_failure_stops_the_jobs() -> None:
+    """Serially the jobs run by index and the first failure is raised at once: no job after
+    it runs for nothing (export refusing a format's path does not write and judge the rest)."""
+    ran: list[int] = []
+
+    def task(i: int) -> int:
+        ran.append(i)
+        if i == 1:
+            raise InputError("jobs.csv", "row 2", "not a number", "a number")
+        return i
+
+    with pytest.raises(InputError):
+        parallel.fork_map(task, 5, processes=1, order=[4, 3, 2, 1, 0])
+    assert ran == [0, 1]

@@ -387,10 +387,12 @@ def import_for_drawing() -> None:
     modules, and the modules of every class a pickled :class:`PlanResult` holds (its
     :class:`~rfsw_plan.timing.TimedTrajectory` brings SciPy's interpolation).
 
-    A :meth:`PlotDrawing.warm` child forks before the planner's process imports the planner,
-    and imports these while it plans: not when the plan arrives, on the critical path (0.3 s
-    of unpickling on zk500, almost all of it imports). ``tests/test_plan_folder.py`` checks
-    that unpickling a plan after this imports nothing more of ours or of SciPy's."""
+    A :meth:`PlotDrawing.warm` child imports these while the plan is made, not when the plan
+    arrives, on the critical path (0.3 s of unpickling on zk500, almost all of it imports);
+    ``rfsw-plan plan`` forks it once the planner is imported, so only matplotlib is left to
+    import, but a caller that forks it earlier gets the same. ``tests/test_waypoints.py``
+    checks that unpickling a plan after this imports nothing more of ours, SciPy's or
+    matplotlib's."""
     import matplotlib.backends.backend_agg
     import matplotlib.figure  # noqa: F401
 
