@@ -28,6 +28,12 @@ run (this tree, the other, this tree, ...) so both see the same machine load, an
 the other's median and the median of the pairwise ratios this/other: before and after a change
 in one run. Timings depend on the machine and its load; they are never part of the tests.
 
+Disk cache: each tree has its own (``RFSW_PLAN_CACHE`` in the scratch folder), empty at the
+start, so each runs as its own rule of what to compile leaves it after a first run: the
+counted runs of a command begin once the compiler processes its warm-up left in the
+background are done (``planning/casadi_.py``, ``compile_in_background``), and neither tree
+runs a library only the other compiled.
+
 Bytecode: each tree's commands run with Python's bytecode cache (``PYTHONPYCACHEPREFIX`` in the
 scratch folder, filled by the warm-up), as an installed package runs (pip compiles it at
 install), even where the environment sets ``PYTHONDONTWRITEBYTECODE`` (then every start
@@ -95,7 +101,8 @@ class Tree:
         self.root, self.tag = root, tag
         self.scratch = scratch / tag
         self.scratch.mkdir()
-        self.env = {**os.environ, "PYTHONPATH": str(root)}
+        self.cache = self.scratch / "cache"
+        self.env = {**os.environ, "PYTHONPATH": str(root), "RFSW_PLAN_CACHE": str(self.cache)}
         if bytecode:  # as installed: sources compiled once (by the warm-up), then read
             self.env.pop("PYTHONDONTWRITEBYTECODE", None)
             self.env["PYTHONPYCACHEPREFIX"] = str(self.scratch / "pycache")
@@ -122,6 +129,13 @@ class Tree:
             sys.exit(f"{self.tag}: {cmd.label} exited {p.returncode}:\n{p.stderr[-2000:]}")
         return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
+    def settle(self, timeout_s: float = 900.0) -> None:
+        """Wait until no build the commands left in the background is running in this tree's
+        cache (no ``*.building`` folder)."""
+        end = time.monotonic() + timeout_s
+        while any(self.cache.glob("*.building")) and time.monotonic() < end:
+            time.sleep(0.2)
+
     def prepare(self) -> None:
         """The plan and the programs ``export`` and ``check`` read (not timed)."""
         env = self.env
@@ -144,6 +158,8 @@ def measure(trees: list[Tree], commands: list[Command], runs: int
     for cmd in commands:
         for tree in trees:  # warm-up
             tree.run(cmd)
+        for tree in trees:
+            tree.settle()
         got: list[list[float]] = [[] for _ in trees]
         cpu: list[list[float]] = [[] for _ in trees]
         for _ in range(runs):
@@ -215,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
             trees.append(Tree(args.vs.resolve(), scratch, "other", not args.no_bytecode))
         for tree in trees:
             tree.prepare()
+            tree.settle()
         times, cpus = measure(trees, commands, args.runs)
         print(table(trees, commands, times, args.runs, cpus))
     finally:

@@ -1,9 +1,9 @@
 """The planner's CasADi caches change nothing but the time (issue 41).
 
 The point functions run compiled to C: with the compiler's optimisation from 200 waypoints on
-or wherever that library is already compiled, else without (``nlp.compile_level``); the slow
-tests compile afresh and compare with the disk cache, and every level with CasADi's virtual
-machine.
+or wherever that library is already compiled, else without while that library is built in the
+background (``nlp.compile_level``); the slow tests compile afresh and compare with the disk
+cache, and every level with CasADi's virtual machine.
 
 The point functions, the NLP evaluation, the IPOPT solvers and the mapped functions are built
 once per problem structure and kept in memory (``planning/nlp.py``); the point functions are
@@ -118,30 +118,78 @@ def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, 
         assert s.read_bytes() == f.read_bytes(), s.name
 
 
-def test_a_small_problem_runs_optimised_only_where_that_library_is_on_disk(tmp_path, monkeypatch
-                                                                           ) -> None:
-    """Below 200 waypoints the point functions are compiled without optimisation (a quick
-    compile), unless the optimised library is already compiled: an empty compile cache gives
-    ``O0``, a library at the optimised path gives ``O1``."""
+def _wait_for(path: Path, timeout_s: float = 300.0) -> bool:
+    """Whether ``path`` exists within ``timeout_s`` (a background build completing)."""
+    import time
+
+    end = time.monotonic() + timeout_s
+    while not path.exists() and time.monotonic() < end:
+        time.sleep(0.1)
+    return path.exists()
+
+
+def test_a_small_problem_runs_at_O0_while_its_optimised_library_is_built(tmp_path, monkeypatch
+                                                                         ) -> None:
+    """Below 200 waypoints a plan without the optimised library on disk runs its point
+    functions compiled without optimisation (a quick compile) and leaves the optimised one
+    building in the background: once it is on disk, the next plan of this process runs it.
+    Other functions (the coupled law's) have a library of their own; one that another process
+    is building (its build folder) is not started again."""
     from rfsw_plan.elastostatics.model import ElastostaticModel
     from rfsw_plan.planning.casadi_ import library_path
     from rfsw_plan.process.problem import load_problem
     from rfsw_plan.robot.kinematics import load_robot
 
     monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path))
-    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
+    monkeypatch.setattr(nlp_module, "_OPTIMISED", {})
     monkeypatch.setattr(nlp_module, "_POINT_CACHE", OrderedDict())
     model = ElastostaticModel(load_robot(load_problem("fanuc_butt_1700mm").robot)).physical()
+    optimised = nlp_module.COMPILE_LEVELS["O1"][0]
+    coupled = library_path(nlp_module.point_functions(model, "", True).library, optimised)
+    coupled.with_name(coupled.name + ".building").mkdir()  # "another process builds it"
+    assert nlp_module.compile_level(model, 78, True) == "O0"
     big = nlp_module.COMPILE_MIN_WAYPOINTS
-    assert nlp_module.compile_level(model, big, False) == "O1"
+    assert nlp_module.compile_level(model, big, False) == "O1"  # waited for, not yet built
+    lib = library_path(nlp_module.point_functions(model, "", False).library, optimised)
+    assert lib.parent == tmp_path and not lib.exists()
     assert nlp_module.compile_level(model, 78, False) == "O0"
-    vm = nlp_module.point_functions(model, "", False)
-    lib = library_path(vm.library, nlp_module.COMPILE_LEVELS["O1"][0])
-    assert lib.parent == tmp_path
-    lib.write_bytes(b"")  # where compile_functions keeps the optimised library
-    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
+    assert _wait_for(lib), sorted(p.name for p in tmp_path.iterdir())
+    assert not lib.with_name(lib.name + ".building").exists()  # its build folder removed
     assert nlp_module.compile_level(model, 78, False) == "O1"
-    assert nlp_module.compile_level(model, 78, True) == "O0"  # other functions, no library
+    assert nlp_module.compile_level(model, 78, True) == "O0"  # not started: never built
+    assert sorted(p.name for p in tmp_path.glob("rfsw_point_*.so")) == [lib.name]
+
+
+def test_a_background_build_gives_the_library_of_the_foreground_one(tmp_path, monkeypatch
+                                                                    ) -> None:
+    """``compile_in_background`` builds the library ``compile_functions`` would, at its path:
+    its functions give the virtual machine's numbers. Nothing is started where the library is
+    there; a build folder left by a stopped build (older than ``BUILD_STALE_S``) does not stop
+    a new build."""
+    import os
+    import time
+
+    import casadi as ca
+    import numpy as np
+
+    from rfsw_plan.planning import casadi_
+
+    monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path))
+    x = ca.SX.sym("x", 3)
+    fns = [ca.Function("rfsw_test_f", [x], [ca.sin(x) * ca.sumsqr(x) + 1 / (2 + x)])]
+    so = casadi_.library_path(fns, "rfsw_test")
+    build = so.with_name(so.name + ".building")
+    build.mkdir()
+    old = time.time() - casadi_.BUILD_STALE_S - 60
+    os.utime(build, (old, old))  # a build stopped long ago
+    assert casadi_.compile_in_background(fns, "rfsw_test", "-O1")
+    assert _wait_for(so)
+    assert not build.exists()
+    assert not casadi_.compile_in_background(fns, "rfsw_test", "-O1")  # on disk already
+    loaded = casadi_.compile_functions(fns, "rfsw_test", optimise="-O1")
+    assert loaded is not None
+    v = np.array([0.3, -1.2, 7.0])
+    assert np.array_equal(np.asarray(loaded[0](v)), np.asarray(fns[0](v)))
 
 
 @pytest.mark.slow
@@ -150,7 +198,7 @@ def test_the_compiled_functions_plan_the_bytes_of_the_virtual_machine(tmp_path, 
     """A small problem planned with its point functions compiled to C, without and with the
     compiler's optimisation, writes the bytes of the plan in CasADi's virtual machine."""
     monkeypatch.setenv("RFSW_PLAN_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setattr(nlp_module, "_ON_DISK", {})
+    monkeypatch.setattr(nlp_module, "_OPTIMISED", {})
     out = {}
     for name, level in (("vm", ""), ("O0", "O0"), ("O1", "O1")):
         for cache in CACHES:

@@ -6,6 +6,8 @@ running CasADi on this machine:
 * :func:`compile_functions`: CasADi functions compiled to one shared library with the system C
   compiler, cached on disk by a hash of their serialisation (``$RFSW_PLAN_CACHE``, default
   ``$XDG_CACHE_HOME/rfsw_plan``);
+* :func:`compile_in_background`: the same library built by a detached compiler process, for
+  the plans after this one;
 * :func:`single_thread_blas`: run IPOPT's MUMPS on one OpenBLAS thread (CasADi's bundled
   OpenBLAS, not numpy's).
 """
@@ -21,7 +23,7 @@ import subprocess
 import tempfile
 import time
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -66,7 +68,7 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
         The loaded functions (same order, plus the finite-difference copy), or None if no C
         compiler is available or compilation fails (the caller keeps the virtual machine).
     """
-    cc = shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+    cc = _compiler()
     if cc is None:
         log.info("no C compiler; CasADi functions run in the virtual machine")
         return None
@@ -77,13 +79,9 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
             d.mkdir(parents=True, exist_ok=True)
             t0 = time.perf_counter()
             with tempfile.TemporaryDirectory(dir=d) as tmp:
-                cg = ca.CodeGenerator(f"{so.stem}.c")
-                for f in fns:
-                    cg.add(f)
-                cg.generate(tmp + os.sep)
+                src = _generate(fns, so, Path(tmp))
                 out = Path(tmp) / so.name
-                src = str(Path(tmp) / f"{so.stem}.c")
-                subprocess.run([cc, optimise, "-shared", "-fPIC", src, "-o", str(out)],
+                subprocess.run([cc, optimise, "-shared", "-fPIC", str(src), "-o", str(out)],
                                check=True, capture_output=True, timeout=600)
                 os.replace(out, so)  # atomic: a concurrent process sees all or nothing
             log.info("compiled %s in %.1f s (%s)", prefix, time.perf_counter() - t0, so)
@@ -94,6 +92,71 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
     except (OSError, subprocess.SubprocessError, RuntimeError) as exc:
         log.warning("compiling %s failed (%s); using the virtual machine", prefix, exc)
         return None
+
+
+
+def _compiler() -> str | None:
+    """The C compiler (``$CC``, else ``gcc``, else ``cc``), or None."""
+    return shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
+
+
+def _generate(fns: Sequence[ca.Function], so: Path, folder: Path) -> Path:
+    """CasADi's C code of ``fns`` for the library ``so``, written into ``folder``."""
+    cg = ca.CodeGenerator(f"{so.stem}.c")
+    for f in fns:
+        cg.add(f)
+    cg.generate(str(folder) + os.sep)
+    return folder / f"{so.stem}.c"
+
+
+#: A build folder (``<library>.building``) older than this [s] is left from a build that was
+#: stopped (a reboot, a killed session): it no longer stops another.
+BUILD_STALE_S = 900.0
+
+#: What the detached build runs (``sh -c``; $1 compiler, $2 flag, $3 source, $4 output, $5
+#: library, $6 build folder): the compiler at the lowest priority, the library renamed into
+#: place once complete (a reader sees all of it or nothing), the folder removed either way;
+#: the outer shell returns at once.
+_BUILD = ('( if command -v nice >/dev/null 2>&1; then n="nice -n 19"; else n=""; fi; '
+          '$n "$1" "$2" -shared -fPIC "$3" -o "$4" && mv -f "$4" "$5"; rm -rf "$6" ) '
+          '</dev/null >/dev/null 2>&1 &')
+
+
+def compile_in_background(fns: Sequence[ca.Function], prefix: str, optimise: str) -> bool:
+    """Start building the library :func:`compile_functions` would build (``prefix``,
+    ``optimise``) in a detached process, for the plans after this one; True if started.
+
+    The C code is generated here, into ``<library>.building`` beside the library; the
+    compiler runs there at the lowest priority (``nice``) in a session of its own (it outlives
+    this process and a Ctrl-C of its terminal) and the library is renamed into place once
+    complete. Nothing is started where the library is on disk, where another process is
+    building it (its build folder exists and is younger than :data:`BUILD_STALE_S`), or
+    without a compiler, a shell or a writable cache folder.
+    """
+    cc, sh = _compiler(), shutil.which("sh")
+    so = library_path(fns, prefix)
+    if cc is None or sh is None or so.exists():
+        return False
+    build = so.with_name(so.name + ".building")
+    try:
+        so.parent.mkdir(parents=True, exist_ok=True)
+        with suppress(FileNotFoundError):
+            if time.time() - build.stat().st_mtime > BUILD_STALE_S:
+                shutil.rmtree(build, ignore_errors=True)
+        build.mkdir()  # FileExistsError: another process builds it
+    except OSError:
+        return False
+    try:
+        src = _generate(fns, so, build)
+        subprocess.run([sh, "-c", _BUILD, "rfsw-plan-compile", cc, optimise, str(src),
+                        str(build / so.name), str(so), str(build)],
+                       check=True, start_new_session=True, timeout=60)
+    except (OSError, RuntimeError, subprocess.SubprocessError) as exc:
+        shutil.rmtree(build, ignore_errors=True)
+        log.info("could not start compiling %s in the background (%s)", so.name, exc)
+        return False
+    log.info("compiling %s in the background for the next plans", so.name)
+    return True
 
 
 _BLAS: list[Any] = []

@@ -86,6 +86,7 @@ import logging
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
@@ -95,7 +96,12 @@ from numpy.typing import NDArray
 from rfsw_plan import files
 from rfsw_plan.elastostatics.model import ElastostaticModel
 from rfsw_plan.planning import rows
-from rfsw_plan.planning.casadi_ import compile_functions, library_path, single_thread_blas
+from rfsw_plan.planning.casadi_ import (
+    compile_functions,
+    compile_in_background,
+    library_path,
+    single_thread_blas,
+)
 from rfsw_plan.planning.layout import (
     ERROR_TERMS,
     GLOBALS,
@@ -216,9 +222,9 @@ class PointFunctions:
 _POINT_CACHE: OrderedDict[tuple[object, ...], PointFunctions] = OrderedDict()
 _SOLVER_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
 _EVAL_CACHE: OrderedDict[tuple[object, ...], ca.Function] = OrderedDict()
-#: Whether an optimised library of the point functions was on disk, by structure (checked
-#: once per process: hashing the functions costs 20-100 ms).
-_ON_DISK: dict[tuple[object, ...], bool] = {}
+#: Where the optimised library of the point functions is kept, by structure (hashing the
+#: functions costs 20-100 ms: once per process; whether it is there yet is asked every plan).
+_OPTIMISED: dict[tuple[object, ...], Path] = {}
 
 
 def _point_symbols(model: ElastostaticModel, v: dict[str, Any], pp: dict[str, Any]
@@ -323,10 +329,10 @@ def point_functions(model: ElastostaticModel, compile_c: bool | str = False,
     return pf
 
 
-#: Waypoints from which the point functions are compiled with the compiler's optimisation
-#: (``-O1``: kr600_curved_seam's 15 s of gcc, once per robot, for a Hessian 4x faster than
-#: CasADi's virtual machine); below, ``-O0`` (2.7 s of gcc, 2.7x faster) unless an optimised
-#: library is already on disk.
+#: Waypoints from which a plan waits for the point functions compiled with the compiler's
+#: optimisation (``-O1``: kr600_curved_seam's 7.7-15 s of gcc, once per robot, for a Hessian
+#: 4x faster than CasADi's virtual machine); below, a plan without that library on disk runs
+#: at ``-O0`` (1.4-2.7 s of gcc, 2.7x faster) while it is built (:func:`compile_level`).
 COMPILE_MIN_WAYPOINTS = 200
 #: The compiled libraries by level: (file name prefix, compiler flag).
 COMPILE_LEVELS = {"O1": ("rfsw_point", "-O1"), "O0": ("rfsw_point_O0", "-O0")}
@@ -336,21 +342,25 @@ def compile_level(model: ElastostaticModel, K: int, coupled: bool) -> str:
     """How a plan on K waypoints runs the point functions: ``O1`` (compiled with the
     optimisation) from :data:`COMPILE_MIN_WAYPOINTS` on or wherever such a library is already
     compiled (in this process or on disk, :func:`~rfsw_plan.planning.casadi_.library_path`),
-    else ``O0``.
+    else ``O0``, while the ``O1`` library is built in the background for the plans after this
+    one (:func:`~rfsw_plan.planning.casadi_.compile_in_background`, started once per process
+    and structure; IPOPT runs on one core, the compiler on another).
 
-    Measured on kr600_curved_seam's first plan with an empty compile cache: 3.4 s of planning
-    plus 2.7 s of gcc at ``O0`` against 5.3 s in the virtual machine, then 3.3 s per plan
-    (``O1``: 15 s of gcc, then 2.4 s). Every level gives the same plan bit for bit
-    (``tests/test_plan_cache.py``)."""
-    key = _model_key(model)
-    if K >= COMPILE_MIN_WAYPOINTS or (*key, "O1", coupled) in _POINT_CACHE:
+    A first plan thus waits only for the quick compile, and the plans after it run optimised.
+    Measured on this project's 2-core machine, idle (29 Nov 2026), ``plan()`` warm with each
+    library on disk: kr600_curved_seam 2.04 s at ``O0``, 1.64 s at ``O1`` (gcc: 1.4 s at
+    ``O0``, 7.7 s at ``O1``); kr600_forming_contour 3.94 s and 3.35 s; zk500_table6_seam 0.574 s
+    and 0.526 s; fanuc_butt_1700mm 0.522 s and 0.483 s. Every level gives the same plan bit
+    for bit (``tests/test_plan_cache.py``)."""
+    key = (*_model_key(model), coupled)
+    if K >= COMPILE_MIN_WAYPOINTS or (*key[:-1], "O1", coupled) in _POINT_CACHE:
         return "O1"
-    if (*key, "O0", coupled) in _POINT_CACHE:
-        return "O0"
-    if (*key, coupled) not in _ON_DISK:
+    if key not in _OPTIMISED:
         vm = point_functions(model, "", coupled)
-        _ON_DISK[(*key, coupled)] = library_path(vm.library, COMPILE_LEVELS["O1"][0]).exists()
-    return "O1" if _ON_DISK[(*key, coupled)] else "O0"
+        _OPTIMISED[key] = library_path(vm.library, COMPILE_LEVELS["O1"][0])
+        if not _OPTIMISED[key].exists():
+            compile_in_background(vm.library, *COMPILE_LEVELS["O1"])
+    return "O1" if _OPTIMISED[key].exists() else "O0"
 
 
 @dataclass(frozen=True)
