@@ -128,6 +128,16 @@ def _wait_for(path: Path, timeout_s: float = 300.0) -> bool:
     return path.exists()
 
 
+def _wait_for_gone(path: Path, timeout_s: float = 60.0) -> bool:
+    """Whether ``path`` is gone within ``timeout_s`` (a background build's folder removed)."""
+    import time
+
+    end = time.monotonic() + timeout_s
+    while path.exists() and time.monotonic() < end:
+        time.sleep(0.05)
+    return not path.exists()
+
+
 def test_a_small_problem_runs_at_O0_while_its_optimised_library_is_built(tmp_path, monkeypatch
                                                                          ) -> None:
     """Below 200 waypoints a plan without the optimised library on disk runs its point
@@ -154,7 +164,7 @@ def test_a_small_problem_runs_at_O0_while_its_optimised_library_is_built(tmp_pat
     assert lib.parent == tmp_path and not lib.exists()
     assert nlp_module.compile_level(model, 78, False) == "O0"
     assert _wait_for(lib), sorted(p.name for p in tmp_path.iterdir())
-    assert not lib.with_name(lib.name + ".building").exists()  # its build folder removed
+    assert _wait_for_gone(lib.with_name(lib.name + ".building"))  # its build folder removed
     assert nlp_module.compile_level(model, 78, False) == "O1"
     assert nlp_module.compile_level(model, 78, True) == "O0"  # not started: never built
     assert sorted(p.name for p in tmp_path.glob("rfsw_point_*.so")) == [lib.name]
@@ -165,7 +175,8 @@ def test_a_background_build_gives_the_library_of_the_foreground_one(tmp_path, mo
     """``compile_in_background`` builds the library ``compile_functions`` would, at its path:
     its functions give the virtual machine's numbers. Nothing is started where the library is
     there; a build folder left by a stopped build (older than ``BUILD_STALE_S``) does not stop
-    a new build."""
+    a new build. A build the compiler refuses leaves a ``.failed`` mark, and no build of that
+    library is started again while the mark is recent."""
     import os
     import time
 
@@ -184,12 +195,19 @@ def test_a_background_build_gives_the_library_of_the_foreground_one(tmp_path, mo
     os.utime(build, (old, old))  # a build stopped long ago
     assert casadi_.compile_in_background(fns, "rfsw_test", "-O1")
     assert _wait_for(so)
-    assert not build.exists()
+    assert _wait_for_gone(build)
     assert not casadi_.compile_in_background(fns, "rfsw_test", "-O1")  # on disk already
     loaded = casadi_.compile_functions(fns, "rfsw_test", optimise="-O1")
     assert loaded is not None
     v = np.array([0.3, -1.2, 7.0])
     assert np.array_equal(np.asarray(loaded[0](v)), np.asarray(fns[0](v)))
+
+    assert casadi_.compile_in_background(fns, "rfsw_bad", "--no-such-flag")
+    bad = casadi_.library_path(fns, "rfsw_bad")
+    assert _wait_for(bad.with_name(bad.name + ".failed"))
+    assert _wait_for_gone(bad.with_name(bad.name + ".building"))
+    assert not bad.exists()
+    assert not casadi_.compile_in_background(fns, "rfsw_bad", "--no-such-flag")
 
 
 @pytest.mark.slow

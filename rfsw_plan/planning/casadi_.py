@@ -110,16 +110,17 @@ def _generate(fns: Sequence[ca.Function], so: Path, folder: Path) -> Path:
 
 
 #: A build folder (``<library>.building``) older than this [s] is left from a build that was
-#: stopped (a reboot, a killed session): it no longer stops another.
+#: stopped (a reboot, a killed session), and a failed build's mark (``<library>.failed``)
+#: this old is tried again: neither stops another build any longer.
 BUILD_STALE_S = 900.0
 
 #: What the detached build runs (``sh -c``; $1 compiler, $2 flag, $3 source, $4 output, $5
 #: library, $6 build folder): the compiler at the lowest priority, the library renamed into
-#: place once complete (a reader sees all of it or nothing), the folder removed either way;
-#: the outer shell returns at once.
+#: place once complete (a reader sees all of it or nothing), else a ``.failed`` mark beside
+#: it; the folder removed either way. The outer shell returns at once.
 _BUILD = ('( if command -v nice >/dev/null 2>&1; then n="nice -n 19"; else n=""; fi; '
-          '$n "$1" "$2" -shared -fPIC "$3" -o "$4" && mv -f "$4" "$5"; rm -rf "$6" ) '
-          '</dev/null >/dev/null 2>&1 &')
+          'if $n "$1" "$2" -shared -fPIC "$3" -o "$4" && mv -f "$4" "$5"; '
+          'then :; else : > "$5.failed"; fi; rm -rf "$6" ) </dev/null >/dev/null 2>&1 &')
 
 
 def compile_in_background(fns: Sequence[ca.Function], prefix: str, optimise: str) -> bool:
@@ -130,20 +131,27 @@ def compile_in_background(fns: Sequence[ca.Function], prefix: str, optimise: str
     compiler runs there at the lowest priority (``nice``) in a session of its own (it outlives
     this process and a Ctrl-C of its terminal) and the library is renamed into place once
     complete. Nothing is started where the library is on disk, where another process is
-    building it (its build folder exists and is younger than :data:`BUILD_STALE_S`), or
-    without a compiler, a shell or a writable cache folder.
+    building it (its build folder exists) or a build failed (its ``.failed`` mark), each
+    unless older than :data:`BUILD_STALE_S`, or without a compiler, a shell or a writable
+    cache folder.
     """
     cc, sh = _compiler(), shutil.which("sh")
     so = library_path(fns, prefix)
     if cc is None or sh is None or so.exists():
         return False
     build = so.with_name(so.name + ".building")
+    failed = so.with_name(so.name + ".failed")
     try:
         so.parent.mkdir(parents=True, exist_ok=True)
-        with suppress(FileNotFoundError):
-            if time.time() - build.stat().st_mtime > BUILD_STALE_S:
-                shutil.rmtree(build, ignore_errors=True)
-        build.mkdir()  # FileExistsError: another process builds it
+        for mark in (build, failed):
+            with suppress(FileNotFoundError):
+                if time.time() - mark.stat().st_mtime <= BUILD_STALE_S:
+                    return False
+                if mark.is_dir():
+                    shutil.rmtree(mark)
+                else:
+                    mark.unlink()
+        build.mkdir()  # FileExistsError: another process started one just now
     except OSError:
         return False
     try:
