@@ -84,6 +84,24 @@ def test_csv_columns_and_consistency(written):
     assert all(r["margin_mm"] == "" for r in rows if r["phase"] in ("approach", "retract"))
 
 
+def test_waypoints_csv_from_the_sample_checks_deflection_is_the_fresh_one(tmp_path,
+                                                                        planned_result) -> None:
+    """``waypoints.csv`` takes the samples' deflection from the sample check (issue 41: it
+    was evaluated twice); the bytes are those of a table whose deflection and poses are
+    evaluated afresh with the plan's model."""
+    from dataclasses import replace
+
+    from rfsw_plan.planfiles.waypoints import write_waypoints_csv
+
+    res = planned_result("zk500_table6_seam")
+    sv = res.samples
+    assert sv is not None and sv.deflection is not None
+    assert sv.deflection.shape == (len(res.trajectory), 6)
+    fresh = replace(res, samples=replace(sv, deflection=None))
+    assert (write_waypoints_csv(tmp_path / "shared.csv", res).read_bytes()
+            == write_waypoints_csv(tmp_path / "fresh.csv", fresh).read_bytes())
+
+
 def test_plan_json_summary(written):
     out, res, _ = written
     d = json.loads((out / "plan.json").read_text())

@@ -1824,6 +1824,9 @@ class SampleVerification:
         claim: The tolerated force uncertainty per weld quantity (:func:`robust_claim`).
         constant_speed: Arc lengths [m] (first, last) of the constant-speed weld samples,
             where the pin speed is judged (None without such samples).
+        deflection: The model's process deflection of every sample under its wrench, base
+            frame [m, rad], (N, 6): what every check above is computed from
+            (``waypoints.csv`` writes it, :func:`~rfsw_plan.planfiles.waypoints.waypoint_table`).
     """
 
     ok: bool
@@ -1841,6 +1844,7 @@ class SampleVerification:
     height: FloatArray | None = None
     claim: RobustClaim | None = None
     constant_speed: tuple[float, float] | None = None
+    deflection: FloatArray | None = field(default=None, compare=False, repr=False)
 
     @property
     def first_failure(self) -> SampleFailure | None:
@@ -2080,7 +2084,8 @@ def verify_samples(
     steady = s[phase == "weld"]
     return SampleVerification(not fails, contact, e, dist, R, tolerated, ratios, excess,
                               tuple(fails), derr, tilt_err, speed_ratio, height, claim,
-                              (float(steady[0]), float(steady[-1])) if len(steady) else None)
+                              (float(steady[0]), float(steady[-1])) if len(steady) else None,
+                              dX)
 
 
 def _time_per_length(task: PlanTask) -> float:
