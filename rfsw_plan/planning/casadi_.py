@@ -94,7 +94,6 @@ def compile_functions(fns: Sequence[ca.Function], prefix: str, fd_index: int | N
         return None
 
 
-
 def _compiler() -> str | None:
     """The C compiler (``$CC``, else ``gcc``, else ``cc``), or None."""
     return shutil.which(os.environ.get("CC", "gcc")) or shutil.which("cc")
