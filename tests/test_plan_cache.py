@@ -118,24 +118,15 @@ def test_the_tests_stored_plan_writes_the_bytes_of_a_fresh_plan(planned_result, 
         assert s.read_bytes() == f.read_bytes(), s.name
 
 
-def _wait_for(path: Path, timeout_s: float = 300.0) -> bool:
-    """Whether ``path`` exists within ``timeout_s`` (a background build completing)."""
+def _wait_for(path: Path, there: bool = True, timeout_s: float = 300.0) -> bool:
+    """Whether ``path`` exists (``there``) or is gone within ``timeout_s``: a background
+    build's library renamed into place, its build folder removed."""
     import time
 
     end = time.monotonic() + timeout_s
-    while not path.exists() and time.monotonic() < end:
-        time.sleep(0.1)
-    return path.exists()
-
-
-def _wait_for_gone(path: Path, timeout_s: float = 60.0) -> bool:
-    """Whether ``path`` is gone within ``timeout_s`` (a background build's folder removed)."""
-    import time
-
-    end = time.monotonic() + timeout_s
-    while path.exists() and time.monotonic() < end:
+    while path.exists() != there and time.monotonic() < end:
         time.sleep(0.05)
-    return not path.exists()
+    return path.exists() == there
 
 
 def test_a_small_problem_runs_at_O0_while_its_optimised_library_is_built(tmp_path, monkeypatch
@@ -164,7 +155,7 @@ def test_a_small_problem_runs_at_O0_while_its_optimised_library_is_built(tmp_pat
     assert lib.parent == tmp_path and not lib.exists()
     assert nlp_module.compile_level(model, 78, False) == "O0"
     assert _wait_for(lib), sorted(p.name for p in tmp_path.iterdir())
-    assert _wait_for_gone(lib.with_name(lib.name + ".building"))  # its build folder removed
+    assert _wait_for(lib.with_name(lib.name + ".building"), there=False)  # its build folder removed
     assert nlp_module.compile_level(model, 78, False) == "O1"
     assert nlp_module.compile_level(model, 78, True) == "O0"  # not started: never built
     assert sorted(p.name for p in tmp_path.glob("rfsw_point_*.so")) == [lib.name]
@@ -195,7 +186,7 @@ def test_a_background_build_gives_the_library_of_the_foreground_one(tmp_path, mo
     os.utime(build, (old, old))  # a build stopped long ago
     assert casadi_.compile_in_background(fns, "rfsw_test", "-O1")
     assert _wait_for(so)
-    assert _wait_for_gone(build)
+    assert _wait_for(build, there=False)
     assert not casadi_.compile_in_background(fns, "rfsw_test", "-O1")  # on disk already
     loaded = casadi_.compile_functions(fns, "rfsw_test", optimise="-O1")
     assert loaded is not None
@@ -205,7 +196,7 @@ def test_a_background_build_gives_the_library_of_the_foreground_one(tmp_path, mo
     assert casadi_.compile_in_background(fns, "rfsw_bad", "--no-such-flag")
     bad = casadi_.library_path(fns, "rfsw_bad")
     assert _wait_for(bad.with_name(bad.name + ".failed"))
-    assert _wait_for_gone(bad.with_name(bad.name + ".building"))
+    assert _wait_for(bad.with_name(bad.name + ".building"), there=False)
     assert not bad.exists()
     assert not casadi_.compile_in_background(fns, "rfsw_bad", "--no-such-flag")
 
